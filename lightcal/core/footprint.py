@@ -1,0 +1,191 @@
+"""Pixel footprints on the wall and the light-independent sensor weights.
+
+A pixel (u, v) covers [u - 1/2, u + 1/2] x [v - 1/2, v + 1/2] (OpenCV: centres at
+integers). Its four corners are undistorted, turned into rays and intersected with the
+wall z = 0: the footprint quad. A pixel whose corner ray misses the wall (or fails to
+undistort) is invalid. A super-pixel of a b x b binned image is the union of its b^2
+pixels' footprints: it is represented by those b^2 quads, so its flux is exact.
+
+Sensor models (MODEL.md, step 5); a pixel's value is
+offset + gain * sum_lights scale * sum_k weight_k * Phi_k / I0 over its quads k, with
+
+- ``radiance``: weight = 1 / A (A the footprint's area): irradiance, V = 1;
+- ``cos4``: weight = cos^4(alpha) / A, alpha the angle between the optical axis and the
+  ray through the mean of the pixel's undistorted corner coordinates;
+- ``map``: weight = V(u, v) / A with V a per-pixel fall-off map (H, W);
+- ``paper``: weight_k = cos(theta_v) / d^2 / b^2 per quad (d the distance from the quad's
+  centroid to the camera centre, theta_v the viewing angle from the wall normal).
+
+For the first three a super-pixel uses the mean V of its pixels and the union's area:
+the value of one big pixel. `paper` values of a super-pixel are the mean of its pixels'.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from lightcal.core.camera import Camera
+from lightcal.core.scene import View
+
+SensorModel = Literal["radiance", "cos4", "paper", "map"]
+SENSOR_MODELS: tuple[SensorModel, ...] = ("radiance", "cos4", "paper", "map")
+
+# Corner offsets of a pixel in cyclic order P1..P4 (u right, v down).
+_CORNER_OFFSETS = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+
+
+@dataclass(frozen=True, eq=False)
+class Footprints:
+    """Footprints of N (super-)pixels of one view.
+
+    Attributes:
+        pixels: (N, 2) pixel indices (u, v) in the (binned) image.
+        corners_world: (N, K, 4, 3) the K = b^2 footprint quads of each pixel, world frame, m
+            (NaN for invalid pixels).
+        weights: (N, K) sensor weight of each quad (0 for invalid pixels).
+        valid: (N,) pixels whose every corner ray hits the wall in front of the camera.
+        area_m2: (N,) footprint area (the union's), m^2.
+    """
+
+    pixels: np.ndarray
+    corners_world: np.ndarray
+    weights: np.ndarray
+    valid: np.ndarray
+    area_m2: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.pixels.shape[0])
+
+
+def check_pixels(pixels: np.ndarray, width: int, height: int, name: str = "pixels") -> np.ndarray:
+    """Validate (N, 2) integer pixel indices inside a width x height image; returns int64."""
+    p = np.asarray(pixels)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"{name}: expected an (N, 2) array of (u, v) indices, got shape {p.shape}")
+    if p.dtype.kind == "f":
+        if not np.all(np.isfinite(p)) or np.any(p != np.round(p)):
+            raise ValueError(
+                f"{name}: expected integer pixel indices (pixel centres are at integers)"
+            )
+    elif p.dtype.kind not in "iu":
+        raise ValueError(f"{name}: expected integer pixel indices, got dtype {p.dtype}")
+    p = p.astype(np.int64)
+    bad = (p[:, 0] < 0) | (p[:, 0] >= width) | (p[:, 1] < 0) | (p[:, 1] >= height)
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"{name}: pixel ({p[i, 0]}, {p[i, 1]}) lies outside the {width}x{height} image"
+        )
+    return p
+
+
+def corners_to_wall(xy: np.ndarray, ok: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray]:
+    """Intersect rays of undistorted normalised coordinates with the wall z = 0.
+
+    Args:
+        xy: (M, 2) undistorted normalised coordinates (x/z, y/z), camera frame.
+        ok: (M,) coordinates that are valid.
+        view: the camera pose.
+
+    Returns:
+        points_world (M, 3) (NaN where invalid) and hit (M,): the ray meets the wall in
+        front of the camera.
+    """
+    rays_camera = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
+    d = rays_camera @ view.R_camera_world  # rows: R^T ray
+    c = view.center_world
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = -c[2] / d[:, 2]
+    hit = ok & (d[:, 2] < 0.0) & (lam > 0.0)
+    points = c + lam[:, None] * d
+    points[:, 2] = 0.0
+    points[~hit] = np.nan
+    return points, hit
+
+
+def pixel_footprints(
+    camera: Camera,
+    view: View,
+    pixels: np.ndarray,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+) -> Footprints:
+    """Footprints and sensor weights of (super-)pixels.
+
+    Args:
+        camera: intrinsics of the full-resolution image.
+        view: its pose.
+        pixels: (N, 2) integer (u, v) indices in the image binned by `binning`.
+        sensor: the sensor fall-off model (module docstring).
+        vignetting: (H, W) fall-off map of the full-resolution image, for sensor "map".
+        binning: b >= 1; super-pixel (u, v) covers pixels [u b, u b + b) x [v b, v b + b).
+
+    Returns:
+        The footprints.
+    """
+    if not (isinstance(binning, int | np.integer) and binning >= 1):
+        raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
+    if sensor not in SENSOR_MODELS:
+        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
+    b = int(binning)
+    p = check_pixels(pixels, camera.width // b, camera.height // b)
+    if sensor == "map":
+        vignetting = check_vignetting(vignetting, camera)
+    n = p.shape[0]
+    k = b * b
+    jj, ii = np.meshgrid(np.arange(b), np.arange(b), indexing="ij")
+    member = (p[:, None, :] * b + np.stack([ii.ravel(), jj.ravel()], axis=1)[None]).reshape(
+        n * k, 2
+    )
+    corner_px = (member[:, None, :] + _CORNER_OFFSETS[None]).reshape(-1, 2)
+    xy, ok = camera.pixels_to_normalized(corner_px)
+    points, hit = corners_to_wall(xy, ok, view)
+    corners = points.reshape(n, k, 4, 3)
+    valid: np.ndarray = np.all(hit.reshape(n, k * 4), axis=1)
+
+    d1 = corners[:, :, 2, :2] - corners[:, :, 0, :2]
+    d2 = corners[:, :, 3, :2] - corners[:, :, 1, :2]
+    quad_area = 0.5 * np.abs(d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0])  # (n, k)
+    area = quad_area.sum(axis=1)
+
+    if sensor == "paper":
+        centroid = corners.mean(axis=2)  # (n, k, 3)
+        offset = view.center_world - centroid
+        d2sum = np.einsum("nkd,nkd->nk", offset, offset)
+        weights = (view.center_world[2] / np.sqrt(d2sum)) / d2sum / k
+    else:
+        if sensor == "cos4":
+            xy_mean = xy.reshape(n, k, 4, 2).mean(axis=2)
+            cos2 = 1.0 / (1.0 + np.einsum("nkd,nkd->nk", xy_mean, xy_mean))
+            v_mean = (cos2 * cos2).mean(axis=1)
+        elif sensor == "map":
+            assert vignetting is not None
+            v_mean = vignetting[member[:, 1], member[:, 0]].reshape(n, k).mean(axis=1)
+        else:
+            v_mean = np.ones(n)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            weights = np.repeat((v_mean / area)[:, None], k, axis=1)
+    weights = np.where(valid[:, None], weights, 0.0)
+    corners[~valid] = np.nan
+    area = np.where(valid, area, np.nan)
+    return Footprints(p, corners, weights, valid, area)
+
+
+def check_vignetting(vignetting: np.ndarray | None, camera: Camera) -> np.ndarray:
+    """Validate a (H, W) fall-off map for the `map` sensor model."""
+    if vignetting is None:
+        raise ValueError("vignetting: the 'map' sensor model needs a fall-off map, got none")
+    v = np.asarray(vignetting, dtype=np.float64)
+    if v.shape != (camera.height, camera.width):
+        raise ValueError(
+            f"vignetting: expected a map of shape ({camera.height}, {camera.width}) "
+            f"(the camera's image), got {v.shape}"
+        )
+    if not np.all(np.isfinite(v)) or np.any(v <= 0.0):
+        raise ValueError("vignetting: expected finite values > 0")
+    return np.ascontiguousarray(v)

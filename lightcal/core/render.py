@@ -1,0 +1,283 @@
+"""The energy-preserving renderer: pixel values of the wall lit by a rig of lights.
+
+Two entry points over one model (MODEL.md, "Rendering one pixel"):
+
+- `render_pixels` / `shade`: any set of (super-)pixels of any image. The solver builds
+  the light-independent `Footprints` once and calls `shade` with new light poses; `shade`
+  also returns the analytic gradients of every value with respect to each light's
+  position and orientation (camera frame) and scale.
+- `render_image`: whole images, optionally binned b x b into super-pixels.
+
+Invalid pixels (a corner ray misses the wall) come back masked, never as zeros. A light
+on or behind the wall (z <= 0 in the world frame of a view) illuminates nothing there:
+its contribution is 0, as the physics says.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from threading import Lock
+
+import numpy as np
+
+from lightcal.core import render_kernels as rk
+from lightcal.core.camera import Camera
+from lightcal.core.footprint import (
+    SENSOR_MODELS,
+    Footprints,
+    SensorModel,
+    check_vignetting,
+    pixel_footprints,
+)
+from lightcal.core.scene import Light, Rig, View
+
+_SENSOR_CODES = {
+    "radiance": rk.SENSOR_RADIANCE,
+    "cos4": rk.SENSOR_COS4,
+    "paper": rk.SENSOR_PAPER,
+    "map": rk.SENSOR_MAP,
+}
+
+
+def _check_subsamples(rid_subsamples: int) -> int:
+    if not (isinstance(rid_subsamples, int | np.integer) and rid_subsamples >= 1):
+        raise ValueError(f"rid_subsamples: expected an integer >= 1, got {rid_subsamples!r}")
+    return int(rid_subsamples)
+
+
+@dataclass(frozen=True, eq=False)
+class Shading:
+    """Rendered values of N pixels and, optionally, their derivatives.
+
+    Attributes:
+        values: (N,) masked array of pixel values (masked where invalid).
+        flux: (L, N) per light: gain * sum_k weight_k Phi_k / I0, i.e. d value / d scale.
+        grad_position: (L, N, 3) d value / d t_camera_light, or None.
+        grad_rotation: (L, N, 3) d value / d delta, delta a left rotation perturbation of
+            R_camera_light in the camera frame (R -> exp(delta) R), or None.
+    """
+
+    values: np.ma.MaskedArray
+    flux: np.ndarray
+    grad_position: np.ndarray | None
+    grad_rotation: np.ndarray | None
+
+
+def light_in_view(light: Light, view: View) -> tuple[np.ndarray, np.ndarray]:
+    """The light's world position (3,) and R_world_light (3, 3) for a view."""
+    return light.position_world(view), light.rotation_world(view)
+
+
+def shade(
+    footprints: Footprints,
+    view: View,
+    rig: Rig,
+    *,
+    offset: float = 0.0,
+    rid_subsamples: int = 1,
+    want_grad: bool = False,
+) -> Shading:
+    """Render pixel values from precomputed footprints.
+
+    Args:
+        footprints: from `pixel_footprints` for this view.
+        view: the camera pose and exposure.
+        rig: the lights.
+        offset: black level / ambient offset b added to every value.
+        rid_subsamples: n, RID sub-sampling of each footprint quad (n x n).
+        want_grad: also compute the gradients (see `Shading`).
+
+    Returns:
+        The shading.
+    """
+    n_sub = _check_subsamples(rid_subsamples)
+    n = len(footprints)
+    n_l = len(rig.lights)
+    flux = np.zeros((n_l, n))
+    gpos = np.zeros((n_l, n, 3)) if want_grad else None
+    grot = np.zeros((n_l, n, 3)) if want_grad else None
+    grad_buf = np.zeros((n, 6)) if want_grad else np.zeros((1, 6))
+    R = view.R_camera_world
+    for i, light in enumerate(rig.lights):
+        L_world, R_world_light = light_in_view(light, view)
+        if L_world[2] <= 0.0:
+            continue
+        d = light.rid.data()
+        rk.flux_pixels(
+            footprints.corners_world,
+            footprints.weights,
+            footprints.valid,
+            L_world,
+            np.ascontiguousarray(R_world_light),
+            d.kind,
+            d.params,
+            d.theta_knots,
+            d.phi_knots,
+            d.values,
+            d.slopes,
+            n_sub,
+            want_grad,
+            flux[i],
+            grad_buf,
+        )
+        flux[i] *= view.exposure
+        if want_grad:
+            assert gpos is not None and grot is not None
+            # L_world = C + R^T t  =>  d/dt = R d/dL_world;  delta_world = R^T delta_camera.
+            g = grad_buf * (view.exposure * light.scale)
+            gpos[i] = g[:, :3] @ R.T
+            grot[i] = g[:, 3:] @ R.T
+    scales = np.array([light.scale for light in rig.lights])
+    total = offset + scales @ flux
+    values = np.ma.masked_array(np.where(footprints.valid, total, np.nan), mask=~footprints.valid)
+    return Shading(values, flux, gpos, grot)
+
+
+def render_pixels(
+    camera: Camera,
+    view: View,
+    rig: Rig,
+    pixels: np.ndarray,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+    offset: float = 0.0,
+    rid_subsamples: int = 1,
+) -> np.ma.MaskedArray:
+    """Render (super-)pixels of one view.
+
+    Args:
+        camera: intrinsics of the full-resolution image.
+        view: camera pose and exposure.
+        rig: the lights.
+        pixels: (N, 2) integer (u, v) indices in the image binned by `binning`.
+        sensor: sensor fall-off model ("radiance", "cos4", "paper", "map").
+        vignetting: (H, W) fall-off map for "map".
+        binning: super-pixel side b.
+        offset: black level / ambient offset.
+        rid_subsamples: RID sub-sampling n per footprint (n x n).
+
+    Returns:
+        (N,) masked array of values, masked where the footprint is invalid.
+    """
+    fp = pixel_footprints(
+        camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
+    )
+    return shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples).values
+
+
+class _CornerGridCache:
+    """Undistorted corner grids per camera (they cost far more than a render)."""
+
+    def __init__(self, max_entries: int = 2) -> None:
+        self._entries: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._lock = Lock()
+        self._max = max_entries
+
+    def get(self, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+        key = (
+            camera.K.tobytes()
+            + camera.dist.tobytes()
+            + bytes(f"{camera.width}x{camera.height}", "ascii")
+        )
+        with self._lock:
+            if key in self._entries:
+                self._entries.move_to_end(key)
+                return self._entries[key]
+        grid = corner_grid(camera)
+        with self._lock:
+            self._entries[key] = grid
+            while len(self._entries) > self._max:
+                self._entries.popitem(last=False)
+        return grid
+
+
+def corner_grid(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Undistorted normalised coordinates of every pixel corner.
+
+    Returns:
+        grid_xy (H+1, W+1, 2) and grid_ok (H+1, W+1); corner (j, i) sits at pixel
+        coordinates (i - 1/2, j - 1/2).
+    """
+    h, w = camera.height, camera.width
+    u = np.arange(w + 1, dtype=np.float64) - 0.5
+    v = np.arange(h + 1, dtype=np.float64) - 0.5
+    rows = []
+    oks = []
+    # Row bands bound the temporary memory of the vectorised undistortion.
+    band = max(1, 2_000_000 // (w + 1))
+    for start in range(0, h + 1, band):
+        vv, uu = np.meshgrid(v[start : start + band], u, indexing="ij")
+        xy, ok = camera.pixels_to_normalized(np.stack([uu.ravel(), vv.ravel()], axis=1))
+        rows.append(xy.reshape((*vv.shape, 2)))
+        oks.append(ok.reshape(vv.shape))
+    grid_xy = np.ascontiguousarray(np.concatenate(rows, axis=0))
+    grid_ok = np.concatenate(oks, axis=0)
+    grid_xy[~grid_ok] = 0.0
+    return grid_xy, grid_ok
+
+
+_GRID_CACHE = _CornerGridCache()
+
+
+def render_image(
+    camera: Camera,
+    view: View,
+    rig: Rig,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+    offset: float = 0.0,
+    rid_subsamples: int = 1,
+) -> np.ma.MaskedArray:
+    """Render a whole image, optionally binned.
+
+    Args: as `render_pixels`, without `pixels`.
+
+    Returns:
+        (H // b, W // b) masked array, masked where the footprint is invalid.
+    """
+    if not (isinstance(binning, int | np.integer) and binning >= 1):
+        raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
+    if sensor not in SENSOR_MODELS:
+        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
+    n_sub = _check_subsamples(rid_subsamples)
+    b = int(binning)
+    vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
+    grid_xy, grid_ok = _GRID_CACHE.get(camera)
+    hb, wb = camera.height // b, camera.width // b
+    weight = np.zeros((hb, wb, b * b))
+    valid = np.zeros((hb, wb), dtype=np.bool_)
+    R = view.R_camera_world
+    center = view.center_world
+    rk.geometry_image(grid_xy, grid_ok, R, center, _SENSOR_CODES[sensor], vmap, b, weight, valid)
+    out = np.zeros((hb, wb))
+    for light in rig.lights:
+        L_world, R_world_light = light_in_view(light, view)
+        if L_world[2] <= 0.0:
+            continue
+        d = light.rid.data()
+        rk.flux_image(
+            grid_xy,
+            R,
+            center,
+            weight,
+            valid,
+            L_world,
+            np.ascontiguousarray(R_world_light),
+            d.kind,
+            d.params,
+            d.theta_knots,
+            d.phi_knots,
+            d.values,
+            d.slopes,
+            n_sub,
+            light.scale,
+            out,
+        )
+    out = offset + view.exposure * out
+    out[~valid] = np.nan
+    return np.ma.masked_array(out, mask=~valid)

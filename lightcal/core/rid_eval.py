@@ -1,0 +1,253 @@
+"""Compiled evaluation of relative radiant intensity distributions (RIDs).
+
+Every RID model in :mod:`lightcal.core.rid` compiles down to one representation,
+`RIDData`, that these numba functions evaluate, so the renderer's kernels and the
+Python-level `RID.__call__` share one implementation:
+
+- ``kind`` 0 isotropic: f = 1 in every direction;
+- ``kind`` 1 cosine power: f = cos(theta)^m for theta < pi/2, else 0 (``params[0] = m``);
+- ``kind`` 2 Gaussian: f = exp(-theta^2 / (2 sigma^2)) (``params[0] = sigma``, radians);
+- ``kind`` 3 symmetric table: cubic Hermite in theta on ``theta_knots`` with
+  ``values[0]`` and ``slopes[0]``; 0 beyond the last knot;
+- ``kind`` 4 2-D table: cubic Hermite in theta on each azimuth row (rows at
+  ``phi_knots``, periodic over 2 pi), then cubic Hermite in phi through the rows with
+  centred finite-difference slopes (C1 everywhere off the pole).
+
+Angles: theta from the light's +z axis, phi the azimuth from +x towards +y (radians).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+KIND_ISOTROPIC = 0
+KIND_COS_POWER = 1
+KIND_GAUSSIAN = 2
+KIND_TABLE_1D = 3
+KIND_TABLE_2D = 4
+
+TWO_PI = 2.0 * math.pi
+
+
+class RIDData(NamedTuple):
+    """Arrays describing a RID for the compiled evaluators.
+
+    Attributes:
+        kind: One of the ``KIND_*`` constants.
+        params: (2,) model parameters (see module docstring).
+        theta_knots: (n_t,) increasing knot angles from the axis, radians; theta_knots[0] = 0.
+        phi_knots: (n_p,) increasing azimuths in [0, 2 pi), radians ((1,) for symmetric RIDs).
+        values: (n_p, n_t) relative intensity at the knots.
+        slopes: (n_p, n_t) d values / d theta at the knots.
+    """
+
+    kind: int
+    params: np.ndarray
+    theta_knots: np.ndarray
+    phi_knots: np.ndarray
+    values: np.ndarray
+    slopes: np.ndarray
+
+
+@numba.njit(cache=True, inline="always")
+def _hermite(
+    x: float, knots: np.ndarray, values: np.ndarray, slopes: np.ndarray
+) -> tuple[float, float]:
+    """Cubic Hermite value and derivative at x; 0 beyond the last knot."""
+    n = knots.shape[0]
+    if x > knots[n - 1]:
+        return 0.0, 0.0
+    if x <= knots[0]:
+        return values[0], slopes[0]
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if knots[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    h = knots[hi] - knots[lo]
+    t = (x - knots[lo]) / h
+    t2 = t * t
+    t3 = t2 * t
+    v0 = values[lo]
+    v1 = values[hi]
+    m0 = slopes[lo] * h
+    m1 = slopes[hi] * h
+    f = (
+        (2 * t3 - 3 * t2 + 1) * v0
+        + (t3 - 2 * t2 + t) * m0
+        + (-2 * t3 + 3 * t2) * v1
+        + (t3 - t2) * m1
+    )
+    df = (
+        (6 * t2 - 6 * t) * v0
+        + (3 * t2 - 4 * t + 1) * m0
+        + (-6 * t2 + 6 * t) * v1
+        + (3 * t2 - 2 * t) * m1
+    )
+    return f, df / h
+
+
+@numba.njit(cache=True)
+def rid_value_grad(
+    theta: float,
+    phi: float,
+    kind: int,
+    params: np.ndarray,
+    theta_knots: np.ndarray,
+    phi_knots: np.ndarray,
+    values: np.ndarray,
+    slopes: np.ndarray,
+) -> tuple[float, float, float]:
+    """RID value and its partial derivatives at one direction.
+
+    Args:
+        theta: Angle from the light axis, radians, in [0, pi].
+        phi: Azimuth in the light frame, radians (any real; wrapped).
+        kind, params, theta_knots, phi_knots, values, slopes: the fields of `RIDData`.
+
+    Returns:
+        (f, df/dtheta, df/dphi).
+    """
+    if kind == KIND_ISOTROPIC:
+        return 1.0, 0.0, 0.0
+    if kind == KIND_COS_POWER:
+        c = math.cos(theta)
+        if c <= 0.0:
+            return 0.0, 0.0, 0.0
+        m = params[0]
+        f = c**m
+        return f, -m * f * math.tan(theta), 0.0
+    if kind == KIND_GAUSSIAN:
+        s = params[0]
+        f = math.exp(-0.5 * (theta / s) ** 2)
+        return f, -f * theta / (s * s), 0.0
+    if kind == KIND_TABLE_1D:
+        f, df = _hermite(theta, theta_knots, values[0], slopes[0])
+        return f, df, 0.0
+    # KIND_TABLE_2D: periodic rows in phi.
+    n_p = phi_knots.shape[0]
+    p = phi - TWO_PI * math.floor(phi / TWO_PI)
+    j = n_p - 1
+    for k in range(n_p - 1):
+        if phi_knots[k + 1] > p:
+            j = k
+            break
+    if p < phi_knots[0]:
+        j = n_p - 1
+    jm = (j - 1) % n_p
+    j1 = (j + 1) % n_p
+    j2 = (j + 2) % n_p
+    # Azimuth offsets of the four rows relative to row j, unwrapped.
+    pj = phi_knots[j]
+    if p < pj:
+        p += TWO_PI
+    d_m = pj - phi_knots[jm]
+    if d_m <= 0.0:
+        d_m += TWO_PI
+    d_1 = phi_knots[j1] - pj
+    if d_1 <= 0.0:
+        d_1 += TWO_PI
+    d_2 = phi_knots[j2] - phi_knots[j1]
+    if d_2 <= 0.0:
+        d_2 += TWO_PI
+    gm, dgm = _hermite(theta, theta_knots, values[jm], slopes[jm])
+    g0, dg0 = _hermite(theta, theta_knots, values[j], slopes[j])
+    g1, dg1 = _hermite(theta, theta_knots, values[j1], slopes[j1])
+    g2, dg2 = _hermite(theta, theta_knots, values[j2], slopes[j2])
+    s0 = (g1 - gm) / (d_m + d_1)
+    s1 = (g2 - g0) / (d_1 + d_2)
+    ds0 = (dg1 - dgm) / (d_m + d_1)
+    ds1 = (dg2 - dg0) / (d_1 + d_2)
+    h = d_1
+    t = (p - pj) / h
+    t2 = t * t
+    t3 = t2 * t
+    h00 = 2 * t3 - 3 * t2 + 1
+    h10 = (t3 - 2 * t2 + t) * h
+    h01 = -2 * t3 + 3 * t2
+    h11 = (t3 - t2) * h
+    f = h00 * g0 + h10 * s0 + h01 * g1 + h11 * s1
+    df_dtheta = h00 * dg0 + h10 * ds0 + h01 * dg1 + h11 * ds1
+    df_dphi = (
+        (6 * t2 - 6 * t) * g0
+        + (3 * t2 - 4 * t + 1) * h * s0
+        + (-6 * t2 + 6 * t) * g1
+        + (3 * t2 - 2 * t) * h * s1
+    ) / h
+    return f, df_dtheta, df_dphi
+
+
+@numba.njit(cache=True)
+def rid_value_grad_direction(
+    ux: float,
+    uy: float,
+    uz: float,
+    kind: int,
+    params: np.ndarray,
+    theta_knots: np.ndarray,
+    phi_knots: np.ndarray,
+    values: np.ndarray,
+    slopes: np.ndarray,
+) -> tuple[float, float, float, float]:
+    """RID value and gradient with respect to a unit direction in the light frame.
+
+    The gradient is the tangential one (perpendicular to u): moving u on the unit
+    sphere by du changes f by grad . du.
+
+    Args:
+        ux, uy, uz: Unit direction from the emitter, light frame.
+        kind, params, theta_knots, phi_knots, values, slopes: the fields of `RIDData`.
+
+    Returns:
+        (f, gx, gy, gz).
+    """
+    if kind == KIND_ISOTROPIC:
+        return 1.0, 0.0, 0.0, 0.0
+    rho = math.sqrt(ux * ux + uy * uy)
+    theta = math.atan2(rho, uz)
+    phi = math.atan2(uy, ux) if rho > 0.0 else 0.0
+    f, f_t, f_p = rid_value_grad(theta, phi, kind, params, theta_knots, phi_knots, values, slopes)
+    # grad = f_t e_theta + (f_p / sin theta) e_phi, written without dividing by zero:
+    # e_theta = (cos t cos p, cos t sin p, -sin t) = (uz ux / rho, uz uy / rho, -rho),
+    # e_phi = (-sin p, cos p, 0) = (-uy / rho, ux / rho, 0).
+    if rho < 1e-9:
+        # On the axis: the limit of f_t / sin(theta) is f''(0) for a smooth profile.
+        eps = 1e-6
+        _, f_t_eps, _ = rid_value_grad(
+            eps, phi, kind, params, theta_knots, phi_knots, values, slopes
+        )
+        a = f_t_eps / eps
+        return f, a * ux * uz, a * uy * uz, 0.0
+    a = f_t / rho
+    b = f_p / (rho * rho)
+    return f, a * uz * ux - b * uy, a * uz * uy + b * ux, -f_t * rho
+
+
+@numba.njit(cache=True)
+def rid_eval_many(
+    theta: np.ndarray,
+    phi: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    theta_knots: np.ndarray,
+    phi_knots: np.ndarray,
+    values: np.ndarray,
+    slopes: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorised `rid_value_grad` over (N,) arrays: returns (f, df/dtheta, df/dphi)."""
+    n = theta.shape[0]
+    f = np.empty(n)
+    ft = np.empty(n)
+    fp = np.empty(n)
+    for i in range(n):
+        f[i], ft[i], fp[i] = rid_value_grad(
+            theta[i], phi[i], kind, params, theta_knots, phi_knots, values, slopes
+        )
+    return f, ft, fp

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Install everything lightcal needs into ./.venv (idempotent; re-runs only when
+# pyproject.toml changed). Usage: bash scripts/setup.sh [--dev] [--browser]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+extras=""
+browser=0
+for arg in "$@"; do
+  case "$arg" in
+    --dev) extras="dev" ;;
+    --browser) browser=1 ;;
+    *) echo "setup.sh: unknown option $arg (expected --dev or --browser)" >&2; exit 2 ;;
+  esac
+done
+
+if [ "$browser" = 1 ]; then
+  extras="${extras:+$extras,}browser"
+  if [ ! -x /usr/bin/chromium ]; then
+    echo "setup: installing Debian's chromium for the browser tests"
+    if [ "$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
+  fi
+fi
+
+PY="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+  "$PY" -m venv .venv
+  .venv/bin/python -m pip install -q --upgrade pip
+fi
+
+spec="."
+[ -n "$extras" ] && spec=".[$extras]"
+stamp=".venv/.lightcal-installed"
+want="$(sha256sum pyproject.toml | cut -c1-16) $spec"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  echo "setup: pip install -e '$spec'"
+  .venv/bin/python -m pip install -q -e "$spec"
+  echo "$want" > "$stamp"
+fi
