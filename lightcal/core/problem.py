@@ -1,0 +1,256 @@
+"""The calibration problem: observed pixels, unknowns and their parameter vector.
+
+The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, the
+concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
+the log of its scale and optionally its RID parameters; then optionally one log-gain per
+image but the first (the first image's gain is fixed: a global gain is the lights'
+scales), and optionally the offset b.
+
+RID estimation (the paper's future work), for symmetric lights:
+- ``cos_power``: f = cos^m(theta) with x holding log m;
+- ``curve``: a monotone decreasing profile on K + 1 knots theta_k = k theta_max / K,
+  f_0 = 1 and f_k = f_(k-1) exp(-exp(q_k)), interpolated by PCHIP, with x holding q.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from lightcal.core.footprint import Footprints
+from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
+from lightcal.core.rid import RID, CosPowerRID, SymmetricTableRID
+from lightcal.core.scene import Light, Rig, View
+
+RidEstimate = Literal["none", "cos_power", "curve"]
+Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
+
+
+@dataclass(frozen=True, eq=False)
+class ImageData:
+    """The selected pixels of one image.
+
+    Attributes:
+        name: image label (file name).
+        view: camera pose and exposure.
+        footprints: footprints of the N selected pixels (all valid).
+        observed: (N,) measured linear pixel values.
+        sigma: (N,) noise standard deviation of each value (1 when unweighted).
+    """
+
+    name: str
+    view: View
+    footprints: Footprints
+    observed: np.ndarray
+    sigma: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = len(self.footprints)
+        for label, arr in (("observed", self.observed), ("sigma", self.sigma)):
+            a = np.asarray(arr, dtype=np.float64)
+            if a.shape != (n,):
+                raise ValueError(f"{self.name}: {label}: expected shape ({n},), got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"{self.name}: {label}: expected finite values, got NaN or inf")
+            object.__setattr__(self, label, a)
+        if np.any(self.sigma <= 0.0):
+            raise ValueError(f"{self.name}: sigma: expected values > 0")
+        if not np.all(self.footprints.valid):
+            raise ValueError(f"{self.name}: expected only valid footprints (select valid pixels)")
+
+
+@dataclass(frozen=True, eq=False)
+class LightUnknown:
+    """A light to calibrate: its initial guess and what is estimated about it.
+
+    Args:
+        initial: the initial light (RID, pose, scale).
+        pose_kind: "isotropic", "symmetric" or "general"; the default follows the RID's symmetry.
+        estimate_rid: also estimate its RID ("cos_power" or "curve"; symmetric lights only).
+        curve_knots: K, the number of free knots of a "curve" RID.
+        curve_max_angle_rad: theta_max of a "curve" RID; default: where the initial RID
+            falls to 1 %, at most 89 degrees.
+    """
+
+    initial: Light
+    pose_kind: PoseKind | None = None
+    estimate_rid: RidEstimate = "none"
+    curve_knots: int = 6
+    curve_max_angle_rad: float | None = None
+
+    def kind(self) -> PoseKind:
+        if self.pose_kind is not None:
+            return self.pose_kind
+        return "symmetric" if self.initial.rid.symmetric else "general"
+
+
+def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:
+    """The monotone "curve" RID of `q` (K,) free parameters on [0, theta_max]."""
+    k = q.shape[0]
+    theta = np.linspace(0.0, theta_max_rad, k + 1)
+    values = np.concatenate([[1.0], np.exp(-np.cumsum(np.exp(q)))])
+    return SymmetricTableRID(theta, values)
+
+
+def curve_params_from_rid(rid: RID, theta_max_rad: float, k: int) -> np.ndarray:
+    """Initial "curve" parameters (K,) that follow `rid` at the knots."""
+    theta = np.linspace(0.0, theta_max_rad, k + 1)
+    f = np.clip(np.asarray(rid(theta), dtype=np.float64), 1e-6, None)
+    f = np.minimum.accumulate(f)
+    ratio = np.clip(f[1:] / f[:-1], 1e-12, 1.0 - 1e-6)
+    return np.log(-np.log(ratio))
+
+
+@dataclass
+class _LightBlock:
+    """Where one light's parameters sit in x."""
+
+    unknown: LightUnknown
+    param: PoseParameterization
+    pose: slice
+    log_scale: int
+    rid: slice
+    curve_theta_max: float
+
+
+@dataclass
+class ParameterLayout:
+    """Maps the solver's x onto lights, gains and offset.
+
+    Build it with `ParameterLayout.build`; `x0` is the initial vector.
+    """
+
+    blocks: list[_LightBlock]
+    n_images: int
+    estimate_gains: bool
+    estimate_offset: bool
+    offset0: float
+    gains: slice
+    offset_index: int | None
+    n: int
+    names: list[str]
+    x0: np.ndarray = field(repr=False)
+
+    @classmethod
+    def build(
+        cls,
+        unknowns: list[LightUnknown],
+        n_images: int,
+        *,
+        estimate_gains: bool,
+        estimate_offset: bool,
+        offset0: float,
+    ) -> ParameterLayout:
+        blocks: list[_LightBlock] = []
+        names: list[str] = []
+        x0: list[float] = []
+        for j, u in enumerate(unknowns):
+            light = u.initial
+            kind = u.kind()
+            if u.estimate_rid != "none" and not light.rid.symmetric:
+                raise ValueError(
+                    f"light {light.name}: RID estimation ({u.estimate_rid}) needs a "
+                    "rotationally symmetric light"
+                )
+            R_ref = light.R_camera_light if kind == "general" else None
+            param = pose_parameterization(kind, R_ref_camera_light=R_ref)
+            start = len(x0)
+            x0.extend(param.from_pose(light.R_camera_light, light.t_camera_light))
+            names.extend(f"{light.name}.{nm}" for nm in param.names)
+            pose = slice(start, len(x0))
+            log_scale = len(x0)
+            x0.append(math.log(light.scale))
+            names.append(f"{light.name}.log_scale")
+            theta_max = 0.0
+            if u.estimate_rid == "cos_power":
+                m = light.rid.m if isinstance(light.rid, CosPowerRID) else _fit_cos_power(light.rid)
+                rid_slice = slice(len(x0), len(x0) + 1)
+                x0.append(math.log(max(m, 1e-3)))
+                names.append(f"{light.name}.log_m")
+            elif u.estimate_rid == "curve":
+                theta_max = u.curve_max_angle_rad or min(
+                    math.radians(89.0), light.rid.angle_at_level_rad(0.01)
+                )
+                q = curve_params_from_rid(light.rid, theta_max, u.curve_knots)
+                rid_slice = slice(len(x0), len(x0) + q.size)
+                x0.extend(q)
+                names.extend(f"{light.name}.curve_q{i + 1}" for i in range(q.size))
+            else:
+                rid_slice = slice(len(x0), len(x0))
+            blocks.append(_LightBlock(u, param, pose, log_scale, rid_slice, theta_max))
+            del j
+        gains = slice(len(x0), len(x0))
+        if estimate_gains and n_images > 1:
+            gains = slice(len(x0), len(x0) + n_images - 1)
+            x0.extend([0.0] * (n_images - 1))
+            names.extend(f"image{i}.log_gain" for i in range(1, n_images))
+        offset_index = None
+        if estimate_offset:
+            offset_index = len(x0)
+            x0.append(offset0)
+            names.append("offset")
+        return cls(
+            blocks,
+            n_images,
+            estimate_gains,
+            estimate_offset,
+            offset0,
+            gains,
+            offset_index,
+            len(x0),
+            names,
+            np.array(x0, dtype=np.float64),
+        )
+
+    def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
+        u = block.unknown
+        if u.estimate_rid == "cos_power":
+            return CosPowerRID(math.exp(float(x[block.rid][0])))
+        if u.estimate_rid == "curve":
+            return curve_rid(block.curve_theta_max, x[block.rid])
+        return u.initial.rid
+
+    def light_of(self, block: _LightBlock, x: np.ndarray, *, rid: RID | None = None) -> Light:
+        R, t = block.param.to_pose(x[block.pose])
+        return Light(
+            rid if rid is not None else self.rid_of(block, x),
+            t,
+            R,
+            scale=math.exp(float(x[block.log_scale])),
+            name=block.unknown.initial.name,
+        )
+
+    def rig(self, x: np.ndarray) -> Rig:
+        return Rig(tuple(self.light_of(b, x) for b in self.blocks))
+
+    def gain_factors(self, x: np.ndarray) -> np.ndarray:
+        """(n_images,) multiplicative gains on top of each image's exposure."""
+        g = np.ones(self.n_images)
+        if self.gains.stop > self.gains.start:
+            g[1:] = np.exp(x[self.gains])
+        return g
+
+    def offset(self, x: np.ndarray) -> float:
+        return float(x[self.offset_index]) if self.offset_index is not None else self.offset0
+
+
+def _fit_cos_power(rid: RID) -> float:
+    """The cos^m exponent with the same half-intensity angle as `rid`."""
+    half = rid.half_angle_rad
+    if not 0.0 < half < math.pi / 2:
+        return 1.0
+    return -math.log(2.0) / math.log(math.cos(half))
+
+
+def with_view(view: View, **changes: object) -> View:
+    """A copy of a view with some fields replaced."""
+    fields: dict[str, object] = {
+        "R_camera_world": view.R_camera_world,
+        "t_camera_world": view.t_camera_world,
+        "exposure": view.exposure,
+    }
+    fields.update(changes)
+    return View(**fields)  # type: ignore[arg-type]

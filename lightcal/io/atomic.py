@@ -1,0 +1,85 @@
+"""Write a file so that readers see either the old content or the new, never half of it.
+
+The data goes to a temporary file in the same folder (same file system, so the final
+`os.replace` is atomic), is flushed and fsync'ed, and only then replaces the target.
+If anything fails on the way (including an exception raised by the iterable that
+produces the data), the temporary file is removed and the old file is left untouched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Iterable
+from pathlib import Path
+
+__all__ = ["atomic_write_bytes", "atomic_write_text"]
+
+_NEW_FILE_MODE = 0o666
+"""Mode of a newly created file before the umask applies (as `open(path, "w")` does)."""
+
+
+def atomic_write_bytes(
+    path: str | Path, data: bytes | bytearray | memoryview | Iterable[bytes]
+) -> None:
+    """Replace the content of `path` by `data` atomically.
+
+    Args:
+        path: The file to write. Its folder must exist. An existing file keeps its
+            permission bits; a new one gets the usual `0o666 & ~umask`.
+        data: The bytes to write, or an iterable of byte chunks (written in order; if
+            the iterable raises, nothing is replaced).
+
+    Raises:
+        OSError: The folder does not exist or cannot be written; the old file, if any,
+            is unchanged and no temporary file is left behind.
+    """
+    target = Path(path)
+    folder = target.parent
+    temp = folder / f".{target.name}.{secrets.token_hex(6)}.tmp"
+    fd = os.open(temp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _NEW_FILE_MODE)
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            if isinstance(data, bytes | bytearray | memoryview):
+                stream.write(data)
+            else:
+                for chunk in data:
+                    stream.write(chunk)
+            stream.flush()
+            os.fsync(stream.fileno())
+        with contextlib.suppress(FileNotFoundError):
+            temp.chmod(target.stat().st_mode & 0o7777)
+        temp.replace(target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            temp.unlink()
+        raise
+    _fsync_folder(folder)
+
+
+def atomic_write_text(path: str | Path, text: str, *, encoding: str = "utf-8") -> None:
+    """Replace the content of `path` by `text` atomically (see `atomic_write_bytes`).
+
+    Args:
+        path: The file to write.
+        text: The new content; written as is (no newline translation).
+        encoding: Text encoding.
+    """
+    atomic_write_bytes(path, text.encode(encoding))
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make the rename itself durable (POSIX); a no-op where folders cannot be opened."""
+    if os.name != "posix":
+        return
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)

@@ -1,0 +1,571 @@
+"""The project file: one versioned JSON/YAML document describing a calibration.
+
+`ProjectFile` (pydantic) is the file on disk; `load_project` validates it, resolves
+relative paths against the file's folder, checks that every referenced file exists and
+that the geometry makes sense (cameras in front of the wall, initial lights in front of
+the wall in every view), and returns a `Project` of in-memory objects. Every problem is
+an `InputError` naming the file and the field (e.g. ``images[3].T_camera_world``).
+`lightcal schema` prints `ProjectFile.model_json_schema()`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from lightcal.core.camera import Camera
+from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
+from lightcal.core.problem import LightUnknown
+from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
+from lightcal.core.rotations import matrix_from_rotvec
+from lightcal.core.scene import Light, View
+from lightcal.core.selection import SelectionOptions
+from lightcal.core.solver import SolverOptions
+from lightcal.errors import InputError, LightcalError
+from lightcal.io.atomic import atomic_write_text
+
+PROJECT_VERSION: Literal[1] = 1
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Mat3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
+PixelPoint = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class CameraSpec(_Model):
+    """Intrinsics inline (fx, fy, cx, cy, width, height, dist) or `path` to a camera file
+    (OpenCV YAML/JSON/XML or COLMAP cameras.txt)."""
+
+    path: str | None = None
+    camera_id: int | None = None
+    fx: float | None = None
+    fy: float | None = None
+    cx: float | None = None
+    cy: float | None = None
+    skew: float = 0.0
+    width: int | None = None
+    height: int | None = None
+    dist: list[float] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> CameraSpec:
+        inline = [self.fx, self.fy, self.cx, self.cy, self.width, self.height]
+        if self.path is None and any(v is None for v in inline):
+            raise ValueError("give either path or all of fx, fy, cx, cy, width, height")
+        if self.path is not None and any(v is not None for v in inline):
+            raise ValueError("give either path or inline intrinsics, not both")
+        return self
+
+
+class PoseSpec(_Model):
+    """World -> camera extrinsics: `R` (3x3) or `rvec` (Rodrigues, radians), and `t` (m)."""
+
+    R: Mat3 | None = None
+    rvec: Vec3 | None = None
+    t: Vec3
+
+    @model_validator(mode="after")
+    def _one_rotation(self) -> PoseSpec:
+        if (self.R is None) == (self.rvec is None):
+            raise ValueError("give exactly one of R or rvec")
+        return self
+
+    def rotation(self) -> np.ndarray:
+        if self.R is not None:
+            return np.array(self.R, dtype=np.float64)
+        assert self.rvec is not None
+        return matrix_from_rotvec(np.array(self.rvec, dtype=np.float64))
+
+
+class ExposureSpec(_Model):
+    """Exposure settings; the factor is t x ISO / N^2 relative to the first image."""
+
+    exposure_time_s: float = Field(gt=0)
+    iso: float = Field(default=100.0, gt=0)
+    f_number: float = Field(default=1.0, gt=0)
+
+    def factor(self) -> float:
+        return self.exposure_time_s * self.iso / self.f_number**2
+
+
+class ImageSpec(_Model):
+    """One photograph of the wall."""
+
+    path: str
+    name: str | None = None
+    T_camera_world: PoseSpec
+    exposure: float | ExposureSpec | None = Field(
+        default=None,
+        description="relative exposure factor, or settings; null: from EXIF if present, else 1",
+    )
+    mask: str | None = Field(default=None, description="image of pixels to exclude (non-zero)")
+
+
+class NoiseSpec(_Model):
+    """Poisson-Gaussian noise: variance = gain * signal + read_variance (pixel units)."""
+
+    gain: float = Field(ge=0)
+    read_variance: float = Field(gt=0)
+
+
+class SensorSpec(_Model):
+    model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
+    vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
+    channel: Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"] = "auto"
+    black_level: float | None = Field(default=None, description="subtracted on load")
+    white_level: float | None = None
+    assume_linear: bool = False
+    response: str | None = Field(default=None, description="camera response curve file")
+    offset: float = Field(default=0.0, description="known (or initial) offset after black level")
+    estimate_offset: bool = False
+    noise: NoiseSpec | None = None
+
+    @model_validator(mode="after")
+    def _map_needs_file(self) -> SensorSpec:
+        if self.model == "map" and self.vignetting is None:
+            raise ValueError("the 'map' sensor model needs a vignetting file")
+        return self
+
+
+class RIDSpec(_Model):
+    """The light's angular profile."""
+
+    type: Literal["isotropic", "cos_power", "gaussian", "half_angle", "table", "ies", "ldt"]
+    m: float | None = Field(default=None, ge=0)
+    sigma_deg: float | None = Field(default=None, gt=0)
+    half_angle_deg: float | None = Field(default=None, gt=0, lt=90)
+    profile: Literal["cos_power", "gaussian"] = "cos_power"
+    path: str | None = None
+
+    @model_validator(mode="after")
+    def _fields_for_type(self) -> RIDSpec:
+        need = {
+            "cos_power": "m",
+            "gaussian": "sigma_deg",
+            "half_angle": "half_angle_deg",
+            "table": "path",
+            "ies": "path",
+            "ldt": "path",
+        }.get(self.type)
+        if need is not None and getattr(self, need) is None:
+            raise ValueError(f"RID type {self.type!r} needs {need}")
+        return self
+
+
+class InitialSpec(_Model):
+    """Initial guess of a light's pose (camera frame) and scale."""
+
+    position_m: Vec3
+    axis_camera: Vec3 | None = None
+    roll_deg: float | None = None
+    pitch_deg: float | None = None
+    R_camera_light: Mat3 | None = None
+    scale: float | None = Field(default=None, gt=0, description="null: fitted linearly")
+
+    @model_validator(mode="after")
+    def _one_orientation(self) -> InitialSpec:
+        given = [
+            self.axis_camera is not None,
+            self.roll_deg is not None or self.pitch_deg is not None,
+            self.R_camera_light is not None,
+        ]
+        if sum(given) > 1:
+            raise ValueError("give at most one of axis_camera, roll_deg/pitch_deg, R_camera_light")
+        return self
+
+
+class LightSpec(_Model):
+    name: str = "light"
+    rid: RIDSpec
+    pose: Literal["auto", "isotropic", "symmetric", "general"] = "auto"
+    initial: InitialSpec
+    estimate_rid: Literal["none", "cos_power", "curve"] = "none"
+    curve_knots: int = Field(default=6, ge=2, le=30)
+
+
+class RegionSpec(_Model):
+    """A rectangle (two opposite corners) or polygon in pixel coordinates."""
+
+    kind: Literal["rect", "polygon"]
+    include: bool = True
+    images: list[str] | None = Field(default=None, description="image names; null: all")
+    points: list[PixelPoint] = Field(min_length=2)
+
+    @model_validator(mode="after")
+    def _count(self) -> RegionSpec:
+        if self.kind == "rect" and len(self.points) != 2:
+            raise ValueError("a rect needs exactly 2 points (opposite corners)")
+        if self.kind == "polygon" and len(self.points) < 3:
+            raise ValueError("a polygon needs at least 3 points")
+        return self
+
+
+class SelectionSpec(_Model):
+    strategy: Literal["random", "grid", "all"] = "random"
+    n_per_image: int = Field(default=100, ge=1)
+    grid_step: int = Field(default=32, ge=1)
+    binning: int = Field(default=1, ge=1)
+    seed: int = 0
+    min_signal: float | None = Field(
+        default=None, description="values at or below are dropped; null: 5 read-noise sigmas"
+    )
+    regions: list[RegionSpec] = Field(default_factory=list)
+
+
+class SolverSpec(_Model):
+    loss: Literal["linear", "huber", "soft_l1", "cauchy"] = "linear"
+    f_scale: float = Field(default=1.0, gt=0)
+    max_iterations: int = Field(default=100, ge=1)
+    estimate_gains: bool = False
+    rid_subsamples: int = Field(default=1, ge=1, le=16)
+    tolerance: float = Field(default=1e-12, gt=0)
+    position_bound_m: float = Field(default=5.0, gt=0)
+    multistart: int = Field(default=0, ge=0, description="extra random starts")
+    multistart_position_m: float = Field(default=0.3, gt=0)
+    multistart_angle_deg: float = Field(default=30.0, gt=0)
+
+
+class ProjectFile(_Model):
+    """A lightcal calibration project (version 1)."""
+
+    version: Literal[1] = PROJECT_VERSION
+    camera: CameraSpec
+    sensor: SensorSpec = Field(default_factory=SensorSpec)
+    images: list[ImageSpec] = Field(min_length=1)
+    lights: list[LightSpec] = Field(min_length=1)
+    selection: SelectionSpec = Field(default_factory=SelectionSpec)
+    solver: SolverSpec = Field(default_factory=SolverSpec)
+
+
+@dataclass(frozen=True, eq=False)
+class Project:
+    """A validated project with its paths resolved and its objects built.
+
+    Attributes:
+        spec: the file's content.
+        path: the project file; folder: the folder relative paths resolve against.
+        camera: the intrinsics.
+        views: one per image.
+        image_paths, mask_paths: resolved paths (mask None when absent).
+        names: image labels.
+        lights: the lights to calibrate.
+        selection: pixel selection options; solver: solver options.
+        vignetting_path: resolved fall-off map file or None.
+    """
+
+    spec: ProjectFile
+    path: Path
+    camera: Camera
+    views: list[View]
+    image_paths: list[Path]
+    mask_paths: list[Path | None]
+    names: list[str]
+    lights: list[LightUnknown]
+    selection: SelectionOptions
+    solver: SolverOptions
+    vignetting_path: Path | None
+
+    @property
+    def folder(self) -> Path:
+        return self.path.parent
+
+
+def _format_loc(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def _read_document(path: Path) -> Any:
+    if not path.is_file():
+        raise InputError(path, "project file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read the project file ({exc})") from exc
+    try:
+        if path.suffix.lower() == ".json":
+            return json.loads(text)
+        return yaml.safe_load(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise InputError(
+            path, f"not valid YAML: {getattr(exc, 'problem', exc)}", line=line
+        ) from exc
+
+
+def parse_project(data: Any, source: str | Path) -> ProjectFile:
+    """Validate a project document (already parsed JSON/YAML); InputError on any problem."""
+    if not isinstance(data, dict):
+        raise InputError(source, "expected a mapping (JSON object) at the top level")
+    version = data.get("version", PROJECT_VERSION)
+    if version != PROJECT_VERSION:
+        raise InputError(
+            source,
+            f"version: this lightcal reads project version {PROJECT_VERSION}, got {version!r}",
+        )
+    try:
+        return ProjectFile.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
+        msg = err["msg"].removeprefix("Value error, ")
+        raise InputError(source, f"{_format_loc(err['loc'])}: {msg}{more}") from exc
+
+
+def _resolve(folder: Path, rel: str, source: Path, field: str, what: str) -> Path:
+    p = Path(rel)
+    p = p if p.is_absolute() else folder / p
+    if not p.is_file():
+        raise InputError(source, f"{field}: {what} not found: {p}")
+    return p
+
+
+def build_rid(spec: RIDSpec, folder: Path, source: Path, field: str) -> RID:
+    """The RID object a `RIDSpec` describes (reads table/IES/LDT files)."""
+    if spec.type == "isotropic":
+        return IsotropicRID()
+    if spec.type == "cos_power":
+        assert spec.m is not None
+        return CosPowerRID(spec.m)
+    if spec.type == "gaussian":
+        assert spec.sigma_deg is not None
+        return GaussianRID(math.radians(spec.sigma_deg))
+    if spec.type == "half_angle":
+        assert spec.half_angle_deg is not None
+        half = math.radians(spec.half_angle_deg)
+        if spec.profile == "gaussian":
+            return GaussianRID.from_half_angle(half)
+        return CosPowerRID.from_half_angle(half)
+    assert spec.path is not None
+    path = _resolve(folder, spec.path, source, f"{field}.path", "RID file")
+    if spec.type == "table":
+        from lightcal.io.photometric_table import read_rid_csv
+
+        return read_rid_csv(path)
+    if spec.type == "ies":
+        from lightcal.io.ies import read_ies
+        from lightcal.io.photometric_table import table_to_rid
+
+        return table_to_rid(read_ies(path))
+    from lightcal.io.eulumdat import read_ldt
+    from lightcal.io.photometric_table import table_to_rid
+
+    return table_to_rid(read_ldt(path))
+
+
+def _initial_rotation(init: InitialSpec) -> np.ndarray:
+    if init.R_camera_light is not None:
+        return np.array(init.R_camera_light, dtype=np.float64)
+    if init.axis_camera is not None:
+        axis = np.array(init.axis_camera, dtype=np.float64)
+        norm = float(np.linalg.norm(axis))
+        if norm == 0.0:
+            raise ValueError("axis_camera: expected a non-zero vector")
+        return rotation_from_axis(axis / norm)
+    if init.roll_deg is not None or init.pitch_deg is not None:
+        axis = axis_from_paper_angles(
+            math.radians(init.roll_deg or 0.0), math.radians(init.pitch_deg or 0.0)
+        )
+        return rotation_from_axis(axis)
+    return np.eye(3)
+
+
+def _build_camera(spec: CameraSpec, folder: Path, source: Path) -> Camera:
+    if spec.path is not None:
+        from lightcal.io.camera_file import read_camera
+
+        return read_camera(
+            _resolve(folder, spec.path, source, "camera.path", "camera file"),
+            camera_id=spec.camera_id,
+        )
+    assert spec.fx is not None and spec.fy is not None and spec.cx is not None
+    assert spec.cy is not None and spec.width is not None and spec.height is not None
+    try:
+        return Camera.from_params(
+            fx=spec.fx,
+            fy=spec.fy,
+            cx=spec.cx,
+            cy=spec.cy,
+            width=spec.width,
+            height=spec.height,
+            dist=tuple(spec.dist),
+            skew=spec.skew,
+        )
+    except ValueError as exc:
+        raise InputError(source, f"camera: {exc}") from exc
+
+
+def load_project(path: str | Path) -> Project:
+    """Read and validate a project file (JSON, or YAML for .yaml/.yml)."""
+    source = Path(path).resolve()
+    spec = parse_project(_read_document(source), source)
+    return project_from_spec(spec, source)
+
+
+def project_from_spec(spec: ProjectFile, source: Path) -> Project:
+    """Build a `Project` from a validated spec whose relative paths resolve against
+    `source`'s folder."""
+    folder = source.parent
+    camera = _build_camera(spec.camera, folder, source)
+    views: list[View] = []
+    image_paths: list[Path] = []
+    mask_paths: list[Path | None] = []
+    names: list[str] = []
+    for i, im in enumerate(spec.images):
+        field = f"images[{i}]"
+        image_paths.append(_resolve(folder, im.path, source, f"{field}.path", "image file"))
+        mask_paths.append(
+            _resolve(folder, im.mask, source, f"{field}.mask", "mask file") if im.mask else None
+        )
+        names.append(im.name or Path(im.path).stem)
+        exposure = 1.0
+        if isinstance(im.exposure, float | int):
+            exposure = float(im.exposure)
+        elif isinstance(im.exposure, ExposureSpec):
+            exposure = im.exposure.factor()
+        try:
+            views.append(
+                View(im.T_camera_world.rotation(), np.array(im.T_camera_world.t), exposure)
+            )
+        except ValueError as exc:
+            raise InputError(source, f"{field}.T_camera_world: {exc}") from exc
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise InputError(source, f"images: two images are named {dup!r}; names must be unique")
+    _normalise_exposures(spec, views)
+
+    lights: list[LightUnknown] = []
+    for j, ls in enumerate(spec.lights):
+        field = f"lights[{j}]"
+        rid = build_rid(ls.rid, folder, source, f"{field}.rid")
+        try:
+            R = _initial_rotation(ls.initial)
+            light = Light(
+                rid,
+                np.array(ls.initial.position_m),
+                R,
+                scale=ls.initial.scale or 1.0,
+                name=ls.name,
+            )
+        except ValueError as exc:
+            raise InputError(source, f"{field}.initial: {exc}") from exc
+        for i, view in enumerate(views):
+            z = float(light.position_world(view)[2])
+            if z <= 0.0:
+                raise InputError(
+                    source,
+                    f"{field}.initial.position_m: the light is on or behind the wall in image "
+                    f"{names[i]!r} (world z = {z:.3g} m); expected it in front (z > 0)",
+                )
+        pose_kind = None if ls.pose == "auto" else ls.pose
+        lights.append(
+            LightUnknown(
+                light,
+                pose_kind=pose_kind,
+                estimate_rid=ls.estimate_rid,
+                curve_knots=ls.curve_knots,
+            )
+        )
+    if len({ls.name for ls in spec.lights}) != len(spec.lights):
+        raise InputError(source, "lights: light names must be unique")
+
+    sel = spec.selection
+    selection = SelectionOptions(
+        strategy=sel.strategy,
+        n_per_image=sel.n_per_image,
+        grid_step=sel.grid_step,
+        binning=sel.binning,
+        seed=sel.seed,
+        min_signal=sel.min_signal,
+    )
+    so = spec.solver
+    solver = SolverOptions(
+        loss=so.loss,
+        f_scale=so.f_scale,
+        max_iterations=so.max_iterations,
+        estimate_gains=so.estimate_gains,
+        estimate_offset=spec.sensor.estimate_offset,
+        offset=spec.sensor.offset,
+        rid_subsamples=so.rid_subsamples,
+        tolerance=so.tolerance,
+        position_bound_m=so.position_bound_m,
+    )
+    vignetting_path = (
+        _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
+        if spec.sensor.vignetting
+        else None
+    )
+    return Project(
+        spec,
+        source,
+        camera,
+        views,
+        image_paths,
+        mask_paths,
+        names,
+        lights,
+        selection,
+        solver,
+        vignetting_path,
+    )
+
+
+def _normalise_exposures(spec: ProjectFile, views: list[View]) -> None:
+    """Exposure settings are relative: divide by the first image's (in place via rebuild)."""
+    if not any(isinstance(im.exposure, ExposureSpec) for im in spec.images):
+        return
+    first = spec.images[0].exposure
+    ref = first.factor() if isinstance(first, ExposureSpec) else 1.0
+    for i, im in enumerate(spec.images):
+        if isinstance(im.exposure, ExposureSpec):
+            v = views[i]
+            views[i] = View(v.R_camera_world, v.t_camera_world, im.exposure.factor() / ref)
+
+
+def save_project(spec: ProjectFile, path: str | Path) -> None:
+    """Write a project file atomically (YAML for .yaml/.yml, else JSON)."""
+    p = Path(path)
+    data = spec.model_dump(mode="json", exclude_none=True)
+    if p.suffix.lower() in (".yaml", ".yml"):
+        text = yaml.safe_dump(data, sort_keys=False)
+    else:
+        text = json.dumps(data, indent=2) + "\n"
+    atomic_write_text(p, text)
+
+
+def project_schema() -> dict[str, Any]:
+    """The JSON Schema of the project file."""
+    schema = ProjectFile.model_json_schema()
+    schema["$id"] = "https://lightcal.example/schema/project-v1.json"
+    schema["title"] = "lightcal project (version 1)"
+    return schema
+
+
+__all__ = [
+    "PROJECT_VERSION",
+    "LightcalError",
+    "Project",
+    "ProjectFile",
+    "load_project",
+    "parse_project",
+    "project_schema",
+    "save_project",
+]
