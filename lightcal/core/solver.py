@@ -328,8 +328,15 @@ def run_least_squares(
             history,
         )
 
+    hit_limit = False
+
     def callback(intermediate_result: OptimizeResult) -> None:
-        emit(model.report(np.asarray(intermediate_result.x), int(intermediate_result.nit)))
+        nonlocal hit_limit
+        nit = int(intermediate_result.nit)
+        emit(model.report(np.asarray(intermediate_result.x), nit))
+        if nit >= opts.max_iterations:
+            hit_limit = True
+            raise StopIteration
 
     res = least_squares(
         model.residuals,
@@ -343,15 +350,18 @@ def run_least_squares(
         ftol=opts.tolerance,
         xtol=opts.tolerance,
         gtol=opts.tolerance,
-        max_nfev=opts.max_iterations + 1,
+        max_nfev=20 * opts.max_iterations,
         callback=callback,
     )
     iterations = history[-1].iteration if history else 0
+    status, message = int(res.status), str(res.message)
+    if hit_limit:
+        status, message = 0, f"stopped after the maximum of {opts.max_iterations} iterations"
     return SolveOutcome(
         np.asarray(res.x),
-        int(res.status),
-        str(res.message),
-        bool(res.status > 0),
+        status,
+        message,
+        status > 0,
         iterations,
         model.nfev,
         float(res.cost),

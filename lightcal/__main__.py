@@ -1,0 +1,5 @@
+import sys
+
+from lightcal.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,165 @@
+"""The result file: what `lightcal calibrate` writes (JSON, versioned).
+
+Field names (also in the JSON Schema, `lightcal schema result`):
+
+- ``lights[]``: per light ``name``; ``pose_kind``; ``position_m`` (emitter position in the
+  camera frame, m); ``R_camera_light`` (3x3, light -> camera); ``quaternion_wxyz`` (same
+  rotation, scalar first, w >= 0); ``axis_camera`` (unit light axis in the camera frame);
+  ``roll_deg``/``pitch_deg`` (the paper's angles: axis = R_x(roll) R_y(pitch) (0, 0, 1));
+  ``axis_angle_from_optical_axis_deg``; ``scale``; ``sigma`` (1-sigma of each of those,
+  from the Jacobian at the solution, scaled by the residual variance); ``rid`` (the
+  estimated profile when the RID was estimated).
+- ``offset``, ``offset_sigma``, ``gains`` (per image, relative to the first).
+- ``images[]``: ``name``, ``rms`` (RMS of observed minus rendered, pixel units), ``pixels``.
+- ``iterations``, ``nfev``, ``status`` (scipy's, -2 stopped by the user, 0 iteration
+  limit), ``message``, ``converged``, ``cost``, ``time_s``, ``warnings``.
+- ``parameters``: ``names``, ``x`` and ``covariance`` of the solver's parameter vector.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from lightcal import __version__
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_write_text
+
+RESULT_VERSION = 1
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class PoseSigma(_Model):
+    position_m: list[float]
+    R_camera_light: list[list[float]]
+    quaternion_wxyz: list[float]
+    axis_camera: list[float]
+    roll_deg: float
+    pitch_deg: float
+    axis_angle_from_optical_axis_deg: float
+
+
+class LightResultModel(_Model):
+    name: str
+    pose_kind: str
+    position_m: list[float] = Field(description="emitter position in the camera frame, m")
+    R_camera_light: list[list[float]] = Field(description="rotation light -> camera")
+    quaternion_wxyz: list[float]
+    axis_camera: list[float] = Field(description="unit light axis, camera frame")
+    roll_deg: float
+    pitch_deg: float
+    axis_angle_from_optical_axis_deg: float
+    scale: float
+    scale_sigma: float
+    sigma: PoseSigma = Field(description="1-sigma uncertainties of the fields above")
+    rid: dict[str, Any] | None = None
+
+
+class ImageResult(_Model):
+    name: str
+    rms: float = Field(description="RMS of observed - rendered pixel values")
+    pixels: int
+    gain: float
+
+
+class Parameters(_Model):
+    names: list[str]
+    x: list[float]
+    covariance: list[list[float]]
+
+
+class ResultFile(_Model):
+    """A lightcal calibration result (version 1)."""
+
+    version: int = RESULT_VERSION
+    lightcal_version: str = __version__
+    project: str | None = None
+    lights: list[LightResultModel]
+    offset: float
+    offset_sigma: float | None
+    images: list[ImageResult]
+    iterations: int
+    nfev: int
+    status: int
+    message: str
+    converged: bool
+    cost: float
+    time_s: float
+    warnings: list[str]
+    parameters: Parameters
+
+
+def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
+    """Convert a `lightcal.calibration.CalibrationResult` to the file model."""
+    lights = [
+        LightResultModel(
+            name=lr.name,
+            pose_kind=lr.pose_kind,
+            **lr.pose,
+            scale=lr.scale,
+            scale_sigma=lr.scale_sigma,
+            sigma=PoseSigma(**lr.sigma),
+            rid=lr.rid,
+        )
+        for lr in result.lights
+    ]
+    images = [
+        ImageResult(name=n, rms=r, pixels=p, gain=g)
+        for n, r, p, g in zip(
+            result.image_names, result.per_image_rms, result.pixels_used, result.gains, strict=True
+        )
+    ]
+    return ResultFile(
+        project=str(project) if project is not None else None,
+        lights=lights,
+        offset=result.offset,
+        offset_sigma=result.offset_sigma,
+        images=images,
+        iterations=result.iterations,
+        nfev=result.nfev,
+        status=result.status,
+        message=result.message,
+        converged=result.converged,
+        cost=result.cost,
+        time_s=result.time_s,
+        warnings=result.warnings,
+        parameters=Parameters(
+            names=result.parameter_names, x=result.x, covariance=result.covariance
+        ),
+    )
+
+
+def write_result(result_file: ResultFile, path: str | Path) -> None:
+    """Write the result JSON atomically."""
+    atomic_write_text(Path(path), result_file.model_dump_json(indent=2) + "\n")
+
+
+def read_result(path: str | Path) -> ResultFile:
+    """Read a result JSON; InputError naming the file on any problem."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(p, "result file not found")
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(p, f"cannot read the result file ({exc})") from exc
+    except json.JSONDecodeError as exc:
+        raise InputError(p, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    try:
+        return ResultFile.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(x) for x in err["loc"])
+        raise InputError(p, f"{loc}: {err['msg']}") from exc
+
+
+def result_schema() -> dict[str, Any]:
+    schema = ResultFile.model_json_schema()
+    schema["title"] = "lightcal result (version 1)"
+    return schema

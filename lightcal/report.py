@@ -1,0 +1,156 @@
+"""Calibration reports: full-image renders, residual maps and the convergence plot.
+
+`render_views` renders every image of a project with the calibrated lights;
+`write_report` writes, per image, the residual map (real minus rendered, diverging
+colours with a scale) and the real and rendered images side by side, plus the
+convergence plot and a short Markdown summary.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from lightcal.calibration import CalibrationResult, LoadedImages, _vignetting
+from lightcal.core.problem import with_view
+from lightcal.core.render import render_image
+from lightcal.core.scene import Rig
+from lightcal.core.solver import CalibrationModel
+from lightcal.io.atomic import atomic_write_text
+from lightcal.io.figures import (
+    convergence_figure,
+    image_pair_figure,
+    residual_figure,
+    write_png,
+)
+from lightcal.io.project import Project
+
+ProgressFn = Callable[[str, int, int], None]
+
+
+def render_views(
+    project: Project,
+    loaded: LoadedImages,
+    rig: Rig,
+    *,
+    gains: list[float] | None = None,
+    offset: float = 0.0,
+    progress: ProgressFn | None = None,
+) -> list[np.ma.MaskedArray]:
+    """Render every project image with `rig`: (H, W) masked arrays."""
+    out = []
+    n = len(project.views)
+    for i, view in enumerate(project.views):
+        if progress is not None:
+            progress("rendering", i, n)
+        g = 1.0 if gains is None else gains[i]
+        out.append(
+            render_image(
+                loaded.camera,
+                with_view(view, exposure=view.exposure * g),
+                rig,
+                sensor=project.spec.sensor.model,
+                vignetting=_vignetting(project, loaded.camera),
+                offset=offset,
+                rid_subsamples=project.solver.rid_subsamples,
+            )
+        )
+    if progress is not None:
+        progress("rendering", n, n)
+    return out
+
+
+def write_report(
+    folder: str | Path,
+    project: Project,
+    loaded: LoadedImages,
+    model: CalibrationModel,
+    result: CalibrationResult,
+    *,
+    progress: ProgressFn | None = None,
+) -> list[Path]:
+    """Write the report into `folder` (created); returns the files written."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    x = np.asarray(result.x)
+    rig = model.layout.rig(x)
+    names = project.names
+    gains_by_name = dict(zip(result.image_names, result.gains, strict=True))
+    gains = [gains_by_name.get(n, 1.0) for n in names]
+    renders = render_views(
+        project, loaded, rig, gains=gains, offset=result.offset, progress=progress
+    )
+    written: list[Path] = []
+    rms_rows = []
+    for name, img, rendered in zip(names, loaded.images, renders, strict=True):
+        real = np.ma.masked_array(img.values, mask=img.saturated | np.ma.getmaskarray(rendered))
+        residual = real - rendered
+        p = out / f"residual_{name}.png"
+        rms = float(np.sqrt(np.ma.mean(residual**2))) if residual.count() else math.nan
+        write_png(p, residual_figure(residual, title=f"{name}: real - rendered (RMS {rms:.4g})"))
+        written.append(p)
+        p = out / f"images_{name}.png"
+        write_png(p, image_pair_figure(real, rendered, title=name))
+        written.append(p)
+        rms_rows.append((name, rms))
+    p = out / "convergence.png"
+    write_png(p, convergence_figure([h.cost for h in result.history]))
+    written.append(p)
+    p = out / "summary.md"
+    atomic_write_text(p, _summary_markdown(project, result, rms_rows))
+    written.append(p)
+    return written
+
+
+def _summary_markdown(
+    project: Project, result: CalibrationResult, rms_rows: list[tuple[str, float]]
+) -> str:
+    lines = [f"# lightcal report: {project.path.name}", ""]
+    status = "converged" if result.converged else "NOT converged"
+    lines.append(
+        f"Solver {status} after {result.iterations} iterations ({result.message}); "
+        f"{sum(result.pixels_used)} pixels; {result.time_s:.2f} s."
+    )
+    lines.append("")
+    for lr in result.lights:
+        pos = lr.pose["position_m"]
+        sp = lr.sigma["position_m"]
+        lines.append(f"## {lr.name} ({lr.pose_kind})")
+        lines.append("")
+        lines.append(
+            "- position (camera frame): "
+            + ", ".join(f"{v * 1000:.2f} ± {s * 1000:.2f} mm" for v, s in zip(pos, sp, strict=True))
+        )
+        ax = lr.pose["axis_camera"]
+        lines.append(
+            f"- axis (camera frame): ({ax[0]:.5f}, {ax[1]:.5f}, {ax[2]:.5f}), "
+            f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} deg from the optical axis"
+        )
+        lines.append(
+            f"- roll {lr.pose['roll_deg']:.3f} ± {lr.sigma['roll_deg']:.3f} deg, "
+            f"pitch {lr.pose['pitch_deg']:.3f} ± {lr.sigma['pitch_deg']:.3f} deg"
+        )
+        lines.append(f"- scale {lr.scale:.6g} ± {lr.scale_sigma:.2g}")
+        lines.append("")
+    if result.warnings:
+        lines.append("## Warnings")
+        lines.append("")
+        lines.extend(f"- {w}" for w in result.warnings)
+        lines.append("")
+    lines.append("## Images")
+    lines.append("")
+    lines.append("| image | pixels used | RMS at selected pixels | RMS over the image |")
+    lines.append("|---|---|---|---|")
+    sel_rms = dict(zip(result.image_names, result.per_image_rms, strict=True))
+    used = dict(zip(result.image_names, result.pixels_used, strict=True))
+    for name, rms in rms_rows:
+        lines.append(
+            f"| {name} | {used.get(name, 0)} | {sel_rms.get(name, math.nan):.4g} | {rms:.4g} |"
+        )
+    lines.append("")
+    lines.append("![convergence](convergence.png)")
+    lines.append("")
+    return "\n".join(lines)
