@@ -1,0 +1,624 @@
+"""Write a synthetic calibration dataset with its ground truth (`lightcal synth`).
+
+Layout of a dataset folder:
+
+| file | content |
+|---|---|
+| `images/view_00.png` ... | 16-bit raw values (DN, black level included); `.tif` for TIFF |
+| `camera.yaml` | the intrinsics (OpenCV FileStorage) |
+| `rid.csv` | model `table`: the symmetric profile |
+| `light.ies` | model `ies`: axial IES file; `table2d`: IES with C-planes over 0..360 |
+| `vignetting.json` | the radial fall-off, for the `map` sensor model |
+| `project.json` | a complete project, see below |
+| `truth.json` | the ground truth, see below |
+
+The project (`lightcal.io.project`) names the camera file, every image with its *measured*
+pose (the truth plus pose noise) and exposure time, the sensor's levels and noise model,
+the lights' RIDs with a deliberately wrong initial guess, and the default selection and
+solver. The truth holds the true poses, the true lights (`describe_pose`, scale in DN, RID),
+the sensor, the seed, the configuration and the lightcal version.
+
+The pixel value model: an image's expected value above the black level is the renderer's
+value (`lightcal.core.render.render_image`) of the true rig, whose light scales are in DN
+at the exposure of the first image (the project's exposures are relative to it); the
+sensor (`lightcal.core.synth.apply_sensor`) adds noise, the black level, rounds and clips.
+Everything the truth renders with (camera, RIDs, fall-off map, exposures) is read back from
+the files just written, so it is exactly what `load_project` gives a calibration.
+
+The dataset is built in a hidden folder beside `out_dir` and renamed into place when
+complete. With `force`, an existing folder's dataset files are replaced one by one
+(each atomically), `project.json` last: other files in the folder are left alone.
+Randomness: `np.random.default_rng(seed)` spawns one stream per purpose (views, exposures,
+rig, pose noise, initial guess, sensor noise), so the same configuration and seed give
+byte-identical datasets.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import re
+import secrets
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from lightcal import __version__
+from lightcal.core.camera import Camera
+from lightcal.core.pose import describe_pose
+from lightcal.core.render import render_image
+from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
+from lightcal.core.scene import Light, Rig, View
+from lightcal.core.synth import (
+    AZIMUTH_STEP_DEG,
+    RigConfig,
+    SceneConfig,
+    SensorConfig,
+    apply_sensor,
+    conversion_gain,
+    describe_rid,
+    elliptical_beam_table,
+    initial_guess,
+    noise_model,
+    peak_signal,
+    perturb_view,
+    sample_exposure_times,
+    sample_rig,
+    sample_views,
+    signal_scale,
+    symmetric_profile_table,
+    white_level,
+)
+from lightcal.core.vignetting import RadialVignetting
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
+from lightcal.io.camera_file import read_camera, write_camera
+from lightcal.io.ies import write_ies
+from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
+from lightcal.io.project import (
+    CameraSpec,
+    ExposureSpec,
+    ImageSpec,
+    InitialSpec,
+    LightSpec,
+    NoiseSpec,
+    PoseSpec,
+    ProjectFile,
+    RIDSpec,
+    SelectionSpec,
+    SensorSpec,
+    SolverSpec,
+    build_rid,
+    load_project,
+    save_project,
+)
+from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
+
+__all__ = ["ImageFormat", "SynthConfig", "SynthDataset", "read_truth", "write_dataset"]
+
+ImageFormat = Literal["png", "tiff"]
+
+TRUTH_FORMAT = "lightcal.synth_truth"
+"""The `format` tag of truth.json."""
+
+PROJECT_NAME = "project.json"
+TRUTH_NAME = "truth.json"
+CAMERA_NAME = "camera.yaml"
+VIGNETTING_NAME = "vignetting.json"
+IMAGES_DIR = "images"
+
+_CANDELA_ON_AXIS = 1000.0
+"""Intensity on the axis of the IES files written (the RID is relative: any value works)."""
+
+_SUFFIX = {"png": ".png", "tiff": ".tif"}
+_STALE_IMAGE = re.compile(r"view_\d+\.(png|tif)")
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Everything that defines a synthetic dataset.
+
+    Attributes:
+        camera: The intrinsics and image size.
+        scene: The camera poses and exposure times.
+        rig: The lights.
+        sensor: The sensor and its fall-off model.
+        pose_noise_m: Standard deviation of the error of each measured camera-centre
+            coordinate, metres.
+        pose_noise_deg: Standard deviation of each component of the measured rotation's
+            error, degrees.
+        init_offset_m: Distance of the initial guess from each true light position, metres.
+        init_offset_deg: Angle between the initial guess's and each true light axis, degrees.
+        seed: The seed of every random choice.
+        image_format: "png" (16-bit) or "tiff" (16-bit, uncompressed).
+    """
+
+    camera: Camera
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    rig: RigConfig = field(default_factory=RigConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    pose_noise_m: float = 0.0005
+    pose_noise_deg: float = 0.05
+    init_offset_m: float = 0.1
+    init_offset_deg: float = 10.0
+    seed: int = 0
+    image_format: ImageFormat = "png"
+
+    def __post_init__(self) -> None:
+        for name in ("pose_noise_m", "pose_noise_deg", "init_offset_m", "init_offset_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise InputError(name, f"expected a finite value >= 0, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError("seed", f"expected an integer >= 0, got {self.seed!r}")
+        if self.image_format not in _SUFFIX:
+            raise InputError("image_format", f"expected 'png' or 'tiff', got {self.image_format!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class SynthDataset:
+    """What `write_dataset` wrote.
+
+    Attributes:
+        folder: The dataset folder.
+        project_path: Its project.json.
+        truth_path: Its truth.json.
+        image_paths: One per view.
+        camera: The camera (as read back from camera.yaml).
+        views: The true views, with the relative exposures of the project.
+        measured_views: The views the project states (pose noise added).
+        rig: The true lights, scales in DN.
+        initial_lights: The project's initial guesses.
+        vignetting: (H, W) fall-off map of the "map" model, else None.
+    """
+
+    folder: Path
+    project_path: Path
+    truth_path: Path
+    image_paths: list[Path]
+    camera: Camera
+    views: list[View]
+    measured_views: list[View]
+    rig: Rig
+    initial_lights: list[Light]
+    vignetting: NDArray[np.float64] | None
+
+
+# ------------------------------------------------------------------------- the folder
+
+
+def _check_target(out_dir: Path, *, force: bool) -> bool:
+    """Whether `out_dir` already holds files (allowed only with `force`)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: expected a new or empty folder")
+    occupied = out_dir.is_dir() and any(out_dir.iterdir())
+    if occupied and not force:
+        raise InputError(
+            out_dir,
+            "the folder is not empty: expected a new or empty folder "
+            "(--force replaces the dataset in it)",
+        )
+    return occupied
+
+
+def _make_staging(out_dir: Path) -> Path:
+    parent = out_dir.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        staging = parent / f".{out_dir.name}.{secrets.token_hex(6)}.partial"
+        staging.mkdir()
+        (staging / IMAGES_DIR).mkdir()
+    except OSError as exc:
+        raise InputError(out_dir, f"cannot create the dataset folder: {exc}") from exc
+    return staging
+
+
+def _publish(staging: Path, out_dir: Path, *, occupied: bool) -> None:
+    """Move the finished dataset into `out_dir` (see the module docstring)."""
+    if not occupied:
+        if out_dir.is_dir():
+            out_dir.rmdir()  # empty
+        staging.rename(out_dir)
+        return
+    # Replace file by file; the old project goes first and the new one comes last, so a
+    # loadable project.json always describes a complete dataset.
+    with contextlib.suppress(FileNotFoundError):
+        (out_dir / PROJECT_NAME).unlink()
+    new_files = sorted(p.relative_to(staging) for p in staging.rglob("*") if p.is_file())
+    (out_dir / IMAGES_DIR).mkdir(exist_ok=True)
+    old_images = out_dir / IMAGES_DIR
+    for p in old_images.iterdir():
+        if _STALE_IMAGE.fullmatch(p.name) and Path(IMAGES_DIR, p.name) not in new_files:
+            p.unlink()
+    for rel in [*(r for r in new_files if r != Path(PROJECT_NAME)), Path(PROJECT_NAME)]:
+        (staging / rel).replace(out_dir / rel)
+    shutil.rmtree(staging)
+
+
+# --------------------------------------------------------------------------- contents
+
+
+def _rid_file(config: RigConfig, folder: Path) -> RIDSpec:
+    """Write the lights' profile file when the model is a table; the project's RID entry."""
+    if config.model == "isotropic":
+        return RIDSpec(type="isotropic")
+    if config.model == "cos_power":
+        rid = CosPowerRID.from_half_angle(math.radians(config.half_angle_deg))
+        return RIDSpec(type="cos_power", m=rid.m)
+    if config.model == "gaussian":
+        g = GaussianRID.from_half_angle(math.radians(config.half_angle_deg))
+        return RIDSpec(type="gaussian", sigma_deg=math.degrees(g.sigma_rad))
+    if config.model == "table":
+        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
+        write_rid_csv(folder / "rid.csv", theta_deg, values)
+        return RIDSpec(type="table", path="rid.csv")
+    path = folder / "light.ies"
+    if config.model == "ies":
+        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
+        table = PhotometricTable(
+            vertical_deg=theta_deg,
+            horizontal_deg=np.zeros(1),
+            candela=_CANDELA_ON_AXIS * values[None, :],
+            source=str(path),
+            symmetry="axial",
+            luminaire="lightcal synth: rotationally symmetric LED profile",
+        )
+    else:
+        theta_deg, phi_deg, values2 = elliptical_beam_table(
+            config.half_angle_deg, aspect=config.beam_aspect, skew=config.beam_skew
+        )
+        # Type C: the C-plane at angle C is the light-frame azimuth phi = -C (mod 360).
+        n = phi_deg.size
+        rows = [(-k) % n for k in range(n)]
+        table = PhotometricTable(
+            vertical_deg=theta_deg,
+            horizontal_deg=np.arange(n, dtype=np.float64) * AZIMUTH_STEP_DEG,
+            candela=_CANDELA_ON_AXIS * values2[rows],
+            source=str(path),
+            symmetry="none",
+            luminaire="lightcal synth: lopsided elliptical beam",
+        )
+    write_ies(path, table)
+    return RIDSpec(type="ies", path="light.ies")
+
+
+def _pose_spec(view: View) -> PoseSpec:
+    return PoseSpec(R=view.R_camera_world.tolist(), t=view.t_camera_world.tolist())
+
+
+def _initial_spec(light: Light) -> InitialSpec:
+    position = light.t_camera_light.tolist()
+    if isinstance(light.rid, IsotropicRID):
+        return InitialSpec(position_m=position)
+    if light.rid.symmetric:
+        return InitialSpec(position_m=position, axis_camera=light.axis_camera.tolist())
+    return InitialSpec(position_m=position, R_camera_light=light.R_camera_light.tolist())
+
+
+def _pose_kind(rid: RID) -> Literal["auto", "isotropic"]:
+    return "isotropic" if isinstance(rid, IsotropicRID) else "auto"
+
+
+def _encode_image(dn: NDArray[np.uint16], image_format: ImageFormat) -> bytes:
+    if image_format == "png":
+        ok, encoded = cv2.imencode(".png", dn)
+        if not ok:  # pragma: no cover - OpenCV always encodes uint16 PNG
+            raise InputError("image", "OpenCV could not encode a 16-bit PNG")
+        return encoded.tobytes()
+    import tifffile
+
+    buffer = io.BytesIO()
+    tifffile.imwrite(buffer, dn, photometric="minisblack")
+    return buffer.getvalue()
+
+
+def _view_geometry(view: View) -> dict[str, float]:
+    """Distance along the optical axis to the wall and tilt from its normal."""
+    axis = view.R_camera_world[2]  # optical axis in the world frame
+    center = view.center_world
+    return {
+        "distance_m": float(-center[2] / axis[2]),
+        "tilt_deg": math.degrees(math.acos(min(1.0, max(-1.0, float(-axis[2]))))),
+    }
+
+
+def _camera_dict(camera: Camera) -> dict[str, Any]:
+    return {
+        "path": CAMERA_NAME,
+        "fx": camera.fx,
+        "fy": camera.fy,
+        "cx": camera.cx,
+        "cy": camera.cy,
+        "skew": camera.skew,
+        "width": camera.width,
+        "height": camera.height,
+        "dist": camera.dist_opencv.tolist(),
+    }
+
+
+# ------------------------------------------------------------------------------ write
+
+
+def write_dataset(
+    out_dir: str | Path,
+    config: SynthConfig,
+    *,
+    force: bool = False,
+    progress: Progress | None = None,
+) -> SynthDataset:
+    """Render and write a synthetic dataset (layout in the module docstring).
+
+    Args:
+        out_dir: The dataset folder: new, empty, or (with `force`) one whose dataset
+            files are replaced.
+        config: What to synthesise.
+        force: Allow a non-empty `out_dir`.
+        progress: Called with one line of text per written image.
+
+    Returns:
+        What was written, with the truth in memory.
+
+    Raises:
+        InputError: `out_dir` is not empty (without `force`) or not a folder, a
+            configuration that lights nothing or whose initial guess sits behind the wall.
+    """
+    out_dir = Path(out_dir)
+    occupied = _check_target(out_dir, force=force)
+    staging = _make_staging(out_dir)
+    try:
+        dataset = _write_into(staging, config, progress, out_dir)
+        _publish(staging, out_dir, occupied=occupied)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    folder = out_dir
+    return SynthDataset(
+        folder=folder,
+        project_path=folder / PROJECT_NAME,
+        truth_path=folder / TRUTH_NAME,
+        image_paths=[folder / p.relative_to(staging) for p in dataset.image_paths],
+        camera=dataset.camera,
+        views=dataset.views,
+        measured_views=dataset.measured_views,
+        rig=dataset.rig,
+        initial_lights=dataset.initial_lights,
+        vignetting=dataset.vignetting,
+    )
+
+
+def _write_into(
+    folder: Path, config: SynthConfig, progress: Progress | None, final_dir: Path
+) -> SynthDataset:
+    root = np.random.default_rng(config.seed)
+    rng_views, rng_exposure, rng_rig, rng_pose, rng_init, rng_sensor = root.spawn(6)
+    sensor = config.sensor
+    project_path = folder / PROJECT_NAME
+
+    # Files the truth is rendered from, read back as a calibration will read them.
+    write_camera(config.camera, folder / CAMERA_NAME)
+    camera = read_camera(folder / CAMERA_NAME)
+    vignetting_rel: str | None = None
+    vignetting: NDArray[np.float64] | None = None
+    if sensor.vignetting_coeffs is not None:
+        model = RadialVignetting.centred(
+            np.array(sensor.vignetting_coeffs), width=camera.width, height=camera.height
+        )
+        save_radial_vignetting(folder / VIGNETTING_NAME, model)
+        vignetting_rel = VIGNETTING_NAME
+        vignetting = load_vignetting(
+            folder / VIGNETTING_NAME, width=camera.width, height=camera.height
+        )
+        if not np.all(vignetting > 0.0):
+            raise InputError(
+                "vignetting_coeffs",
+                f"the fall-off reaches {float(vignetting.min()):.3g} inside the image; "
+                "expected V > 0 everywhere",
+            )
+    rid_spec = _rid_file(config.rig, folder)
+    rid = build_rid(rid_spec, folder, project_path, "lights[0].rid")
+
+    # The scene.
+    poses = sample_views(config.scene, rng_views)
+    times_s = sample_exposure_times(config.scene, rng_exposure)
+    exposure_specs = [ExposureSpec(exposure_time_s=float(t)) for t in times_s]
+    reference = exposure_specs[0].factor()
+    views = [
+        View(v.R_camera_world, v.t_camera_world, e.factor() / reference)
+        for v, e in zip(poses, exposure_specs, strict=True)
+    ]
+    relative_rig = sample_rig(config.rig, rng_rig)
+    relative_rig = Rig(tuple(light.replace(rid=rid) for light in relative_rig.lights))
+    peak = peak_signal(camera, views, relative_rig, sensor=sensor.model, vignetting=vignetting)
+    k = signal_scale(peak, sensor)
+    rig = Rig(tuple(light.replace(scale=light.scale * k) for light in relative_rig.lights))
+    measured = [
+        perturb_view(
+            v,
+            rng_pose,
+            position_sigma_m=config.pose_noise_m,
+            angle_sigma_rad=math.radians(config.pose_noise_deg),
+        )
+        for v in views
+    ]
+    initial = [
+        initial_guess(
+            light,
+            rng_init,
+            offset_m=config.init_offset_m,
+            offset_rad=math.radians(config.init_offset_deg),
+        )
+        for light in rig.lights
+    ]
+
+    # The images.
+    n = len(views)
+    digits = max(2, len(str(n - 1)))
+    suffix = _SUFFIX[config.image_format]
+    image_paths: list[Path] = []
+    view_truth: list[dict[str, Any]] = []
+    black = sensor.black_level
+    for i, view in enumerate(views):
+        started = time.perf_counter()
+        name = f"view_{i:0{digits}d}"
+        signal = render_image(camera, view, rig, sensor=sensor.model, vignetting=vignetting)
+        dn, saturated = apply_sensor(signal, sensor, rng_sensor)
+        path = folder / IMAGES_DIR / f"{name}{suffix}"
+        atomic_write_bytes(path, _encode_image(dn, config.image_format))
+        image_paths.append(path)
+        valid = int(signal.count())
+        view_truth.append(
+            {
+                "name": name,
+                "path": f"{IMAGES_DIR}/{name}{suffix}",
+                "T_camera_world": _pose_spec(view).model_dump(exclude_none=True),
+                "T_camera_world_measured": _pose_spec(measured[i]).model_dump(exclude_none=True),
+                "center_world_m": view.center_world.tolist(),
+                **_view_geometry(view),
+                "exposure_time_s": float(times_s[i]),
+                "exposure": view.exposure,
+                "peak_signal_dn": float(signal.max()) if valid else 0.0,
+                "valid_pixels": valid,
+                "saturated_pixels": int(np.count_nonzero(saturated)),
+            }
+        )
+        if progress is not None:
+            geometry = _view_geometry(view)
+            progress(
+                f"{name}{suffix} {i + 1}/{n}: distance {geometry['distance_m']:.2f} m, "
+                f"tilt {geometry['tilt_deg']:.1f} deg, exposure 1/{1.0 / times_s[i]:.0f} s, "
+                f"peak {view_truth[-1]['peak_signal_dn']:.0f} DN above black, "
+                f"{view_truth[-1]['saturated_pixels']} saturated "
+                f"({time.perf_counter() - started:.1f} s)"
+            )
+
+    # The project.
+    gain, read_variance = noise_model(sensor)
+    spec = ProjectFile(
+        camera=CameraSpec(path=CAMERA_NAME),
+        sensor=SensorSpec(
+            model=sensor.model,
+            vignetting=vignetting_rel,
+            black_level=black,
+            white_level=white_level(sensor),
+            noise=NoiseSpec(gain=gain, read_variance=read_variance),
+        ),
+        images=[
+            ImageSpec(
+                path=truth["path"],
+                name=truth["name"],
+                T_camera_world=_pose_spec(measured[i]),
+                exposure=exposure_specs[i],
+            )
+            for i, truth in enumerate(view_truth)
+        ],
+        lights=[
+            LightSpec(
+                name=light.name,
+                rid=rid_spec,
+                pose=_pose_kind(light.rid),
+                initial=_initial_spec(initial[j]),
+            )
+            for j, light in enumerate(rig.lights)
+        ],
+        selection=SelectionSpec(),
+        solver=SolverSpec(),
+    )
+
+    # The truth.
+    rid_truth = describe_rid(rid)
+    if rid_spec.path is not None:
+        rid_truth["path"] = rid_spec.path
+    truth = {
+        "format": TRUTH_FORMAT,
+        "version": 1,
+        "lightcal_version": __version__,
+        "seed": config.seed,
+        "camera": _camera_dict(camera),
+        "sensor": {
+            "model": sensor.model,
+            "bit_depth": sensor.bit_depth,
+            "black_level_dn": black,
+            "white_level_dn": white_level(sensor),
+            "full_well_e": sensor.full_well_e,
+            "read_noise_e": sensor.read_noise_e,
+            "conversion_gain_dn_per_e": conversion_gain(sensor),
+            "noise": sensor.noise,
+            "noise_model": {"gain": gain, "read_variance": read_variance},
+            "exposure_target": sensor.exposure_target,
+            "vignetting_coeffs": (
+                None if sensor.vignetting_coeffs is None else list(sensor.vignetting_coeffs)
+            ),
+            "vignetting_path": vignetting_rel,
+        },
+        "views": view_truth,
+        "lights": [
+            {
+                "name": light.name,
+                "scale": light.scale,
+                "relative_scale": relative.scale,
+                "pose_kind": "isotropic"
+                if isinstance(light.rid, IsotropicRID)
+                else ("symmetric" if light.rid.symmetric else "general"),
+                "rid": rid_truth,
+                **describe_pose(light.R_camera_light, light.t_camera_light),
+                "initial": describe_pose(initial[j].R_camera_light, initial[j].t_camera_light),
+            }
+            for j, (light, relative) in enumerate(zip(rig.lights, relative_rig.lights, strict=True))
+        ],
+        "options": {
+            "pose_noise_mm": config.pose_noise_m * 1000.0,
+            "pose_noise_deg": config.pose_noise_deg,
+            "init_offset_m": config.init_offset_m,
+            "init_offset_deg": config.init_offset_deg,
+            "image_format": config.image_format,
+        },
+        "config": {
+            "scene": asdict(config.scene),
+            "rig": asdict(config.rig),
+            "sensor": asdict(config.sensor),
+        },
+    }
+    atomic_write_text(folder / TRUTH_NAME, json.dumps(truth, indent=2) + "\n")
+    save_project(spec, project_path)
+    try:
+        load_project(project_path)  # the dataset must load: fail here rather than later
+    except InputError as exc:
+        raise InputError(final_dir / PROJECT_NAME, exc.detail) from exc
+
+    return SynthDataset(
+        folder=folder,
+        project_path=project_path,
+        truth_path=folder / TRUTH_NAME,
+        image_paths=image_paths,
+        camera=camera,
+        views=views,
+        measured_views=measured,
+        rig=rig,
+        initial_lights=initial,
+        vignetting=vignetting,
+    )
+
+
+def read_truth(path: str | Path) -> dict[str, Any]:
+    """The content of a truth.json (a plain dictionary, format checked)."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise InputError(p, "file not found: expected a lightcal synth truth.json") from exc
+    except json.JSONDecodeError as exc:
+        raise InputError(p, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT:
+        raise InputError(p, f"expected a truth file with format {TRUTH_FORMAT!r}")
+    return data
