@@ -525,17 +525,15 @@ def solve(
     return best
 
 
-def calibrate_project(
+def solve_project(
     project: Project,
+    model: CalibrationModel,
     *,
-    progress: ProgressFn | None = None,
     on_iteration: Callable[[IterationReport], None] | None = None,
-) -> tuple[CalibrationModel, CalibrationResult]:
-    """Load, select, solve and summarise a project."""
-    loaded = load_images(project, progress=progress)
-    model = build_model(project, loaded, progress=progress)
+) -> SolveOutcome:
+    """`solve` with the project's multi-start settings."""
     so = project.spec.solver
-    outcome = solve(
+    return solve(
         model,
         multistart=so.multistart,
         multistart_position_m=so.multistart_position_m,
@@ -543,4 +541,16 @@ def calibrate_project(
         seed=project.selection.seed,
         on_iteration=on_iteration,
     )
-    return model, summarise(model, outcome)
+
+
+def calibrate_project(
+    project: Project,
+    *,
+    progress: ProgressFn | None = None,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+) -> tuple[LoadedImages, CalibrationModel, CalibrationResult]:
+    """Load, select, solve and summarise a project."""
+    loaded = load_images(project, progress=progress)
+    model = build_model(project, loaded, progress=progress)
+    outcome = solve_project(project, model, on_iteration=on_iteration)
+    return loaded, model, summarise(model, outcome)

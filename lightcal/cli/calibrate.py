@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.calibration import build_model, load_images, solve, summarise
+    from lightcal.calibration import build_model, load_images, solve_project, summarise
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
 
@@ -36,20 +36,12 @@ def run(args: argparse.Namespace) -> int:
                 highlight=False,
             )
 
-    so = project.spec.solver
     if not args.quiet:
         console.print(
             f"{len(model.images)} images, {model.m} pixels, {model.layout.n} parameters",
             highlight=False,
         )
-    outcome = solve(
-        model,
-        multistart=so.multistart,
-        multistart_position_m=so.multistart_position_m,
-        multistart_angle_deg=so.multistart_angle_deg,
-        seed=project.selection.seed,
-        on_iteration=on_iteration,
-    )
+    outcome = solve_project(project, model, on_iteration=on_iteration)
     result = summarise(model, outcome)
     write_result(result_to_file(result, project=project.path), args.out)
     for lr in result.lights:
