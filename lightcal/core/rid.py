@@ -207,7 +207,7 @@ def _check_theta_knots(theta_rad: np.ndarray, name: str) -> np.ndarray:
 def _pchip_slopes_even(theta: np.ndarray, values: np.ndarray) -> np.ndarray:
     """PCHIP knot slopes with the slope on the axis forced to 0 (even extension)."""
     slopes = PchipInterpolator(theta, values, axis=-1).derivative()(theta)
-    slopes = np.array(slopes, dtype=np.float64)
+    slopes = np.ascontiguousarray(slopes, dtype=np.float64)
     slopes[..., 0] = 0.0
     return slopes
 

@@ -13,32 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lightcal.core.rid import RID
-
-
-def check_rotation(R: np.ndarray, name: str, *, tol: float = 1e-6) -> np.ndarray:
-    """Return R as a float64 (3, 3) rotation, or raise ValueError naming `name`."""
-    R = np.asarray(R, dtype=np.float64)
-    if R.shape != (3, 3):
-        raise ValueError(f"{name}: expected a 3x3 rotation matrix, got shape {R.shape}")
-    if not np.all(np.isfinite(R)):
-        raise ValueError(f"{name}: expected finite values, got NaN or inf")
-    err = float(np.abs(R.T @ R - np.eye(3)).max())
-    if err > tol or np.linalg.det(R) <= 0.0:
-        raise ValueError(
-            f"{name}: expected a rotation matrix (orthonormal, det +1), "
-            f"got |R^T R - I| = {err:.2g}, det = {np.linalg.det(R):.6g}"
-        )
-    return R
-
-
-def check_vector3(v: np.ndarray, name: str) -> np.ndarray:
-    """Return v as a finite float64 (3,) vector, or raise ValueError naming `name`."""
-    v = np.asarray(v, dtype=np.float64)
-    if v.shape != (3,):
-        raise ValueError(f"{name}: expected 3 values, got shape {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name}: expected finite values, got NaN or inf")
-    return v
+from lightcal.core.rotations import as_finite_array, check_rotation_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,8 +32,8 @@ class View:
     center_world: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        R = check_rotation(self.R_camera_world, "R_camera_world")
-        t = check_vector3(self.t_camera_world, "t_camera_world")
+        R = check_rotation_matrix(self.R_camera_world, name="R_camera_world")
+        t = as_finite_array(self.t_camera_world, (3,), name="t_camera_world")
         if not (math.isfinite(self.exposure) and self.exposure > 0.0):
             raise ValueError(f"exposure: expected a finite value > 0, got {self.exposure}")
         center = -R.T @ t
@@ -85,8 +60,8 @@ class View:
 
         The camera's y axis (image down) is aligned with -`up_world` as far as possible.
         """
-        c = check_vector3(center_world, "center_world")
-        z = check_vector3(target_world, "target_world") - c
+        c = as_finite_array(center_world, (3,), name="center_world")
+        z = as_finite_array(target_world, (3,), name="target_world") - c
         if np.linalg.norm(z) == 0.0:
             raise ValueError("target_world: expected a point different from center_world")
         z = z / np.linalg.norm(z)
@@ -119,10 +94,14 @@ class Light:
 
     def __post_init__(self) -> None:
         object.__setattr__(
-            self, "t_camera_light", check_vector3(self.t_camera_light, "t_camera_light")
+            self,
+            "t_camera_light",
+            as_finite_array(self.t_camera_light, (3,), name="t_camera_light"),
         )
         object.__setattr__(
-            self, "R_camera_light", check_rotation(self.R_camera_light, "R_camera_light")
+            self,
+            "R_camera_light",
+            check_rotation_matrix(self.R_camera_light, name="R_camera_light"),
         )
         if not (math.isfinite(self.scale) and self.scale > 0.0):
             raise ValueError(f"light scale: expected a finite value > 0, got {self.scale}")

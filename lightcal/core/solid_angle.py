@@ -7,8 +7,8 @@ viewpoint,
 
 The triple product is evaluated as a . ((b - a) x (c - a)), which is the same number
 but free of the cancellation that ruins b x c for tiny, distant triangles: footprints of
-1e-12 sr keep their relative precision. The result is signed (positive when a, b, c run
-counter-clockwise seen from the viewpoint). A quad is split into (P1, P2, P3) and
+1e-12 sr keep their relative precision. The result is signed: positive when a, b, c run
+clockwise seen from the viewpoint (a . (e1 x e2) > 0). A quad is split into (P1, P2, P3) and
 (P1, P3, P4); its solid angle is the absolute value of the signed sum, exact for any
 simple planar quad.
 
