@@ -1,0 +1,163 @@
+"""`lightcal camera calibrate | import`: camera intrinsics files.
+
+- `lightcal camera calibrate IMAGES... --board BOARD --out camera.yaml [--n-dist 5]`:
+  intrinsics from views of a chessboard or ChArUco board
+  (`lightcal.io.intrinsics.calibrate_intrinsics`); prints the reprojection RMS of every
+  view used and the reason for every view rejected, and writes an OpenCV-compatible YAML
+  (or XML, or JSON, by the suffix of `--out`).
+- `lightcal camera import FILE --out camera.yaml`: converts an OpenCV YAML/XML/JSON file or
+  a COLMAP cameras.txt (principal point shifted by half a pixel, see
+  `lightcal.io.camera_file.read_camera`) to the format of `--out`.
+
+IMAGES may name files or folders (every image directly in a folder, sorted by name).
+Images are read as grey values (camera raw: demosaiced luminance at full size); 8-bit
+images need no response curve here, only the corners matter.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from lightcal.core.camera import Camera
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("camera", help="calibrate or import camera intrinsics")
+    actions = p.add_subparsers(dest="camera_command", metavar="ACTION", required=True)
+
+    c = actions.add_parser(
+        "calibrate",
+        help="intrinsics from images of a chessboard or ChArUco board",
+        description=(
+            "Find the board's corners in every image, calibrate the camera "
+            "(cv2.calibrateCamera), reject views with a poor fit and write the intrinsics."
+        ),
+    )
+    c.add_argument("images", type=Path, nargs="+", metavar="IMAGES", help="image files or folders")
+    c.add_argument("--board", type=Path, required=True, help="board file (chessboard, charuco)")
+    c.add_argument(
+        "--out", type=Path, required=True, help="camera file to write (.yaml, .yml, .xml, .json)"
+    )
+    c.add_argument(
+        "--n-dist",
+        type=int,
+        choices=(4, 5, 8),
+        default=5,
+        help="distortion coefficients to fit: 4 (k1 k2 p1 p2), 5 (+k3), 8 (rational) (5)",
+    )
+    c.add_argument(
+        "--max-rms-px",
+        type=float,
+        default=1.0,
+        help="views above max(3 x median, this) reprojection RMS are rejected (1)",
+    )
+    c.set_defaults(func=run_calibrate)
+
+    i = actions.add_parser(
+        "import",
+        help="convert an OpenCV YAML/XML/JSON file or a COLMAP cameras.txt",
+        description="Read a camera file and write it in the format of --out's suffix.",
+    )
+    i.add_argument("file", type=Path, metavar="FILE", help="camera file to read")
+    i.add_argument(
+        "--out", type=Path, required=True, help="camera file to write (.yaml, .yml, .xml, .json)"
+    )
+    i.add_argument(
+        "--camera-id", type=int, default=None, help="COLMAP: which camera of cameras.txt"
+    )
+    i.set_defaults(func=run_import)
+
+
+def _expand(inputs: list[Path]) -> list[Path]:
+    """Files as given; folders replaced by their image files (sorted)."""
+    from lightcal.errors import InputError
+    from lightcal.project_init import list_images
+
+    paths: list[Path] = []
+    for item in inputs:
+        if item.is_dir():
+            paths += list_images(item)
+        elif item.exists():
+            paths.append(item)
+        else:
+            raise InputError(item, "image file not found")
+    return paths
+
+
+def _display_names(paths: list[Path]) -> list[str]:
+    """File names, or the paths as given where two files share a name."""
+    names = [p.name for p in paths]
+    return [p.name if names.count(p.name) == 1 else str(p) for p in paths]
+
+
+def _describe(camera: Camera) -> str:
+    dist = ", ".join(f"{v:+.5f}" for v in camera.dist_opencv)
+    return (
+        f"fx {camera.fx:.3f} px, fy {camera.fy:.3f} px, cx {camera.cx:.3f} px, "
+        f"cy {camera.cy:.3f} px, {camera.width}x{camera.height}, distortion [{dist}]"
+    )
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    from lightcal.errors import InputError
+    from lightcal.io.board_file import read_board
+    from lightcal.io.boards import CharucoBoard, Chessboard
+    from lightcal.io.camera_file import write_camera
+    from lightcal.io.images import read_image
+    from lightcal.io.intrinsics import calibrate_intrinsics
+
+    board = read_board(args.board)
+    if not isinstance(board, Chessboard | CharucoBoard):
+        raise InputError(
+            args.board,
+            "an ArUco grid gives too few points per view for intrinsics: expected a "
+            "chessboard or charuco board",
+        )
+    paths = _expand(list(args.images))
+    all_names = _display_names(paths)
+    images = []
+    names = []
+    unreadable: dict[str, str] = {}
+    for path, name in zip(paths, all_names, strict=True):
+        try:
+            image = read_image(path, channel="luminance", assume_linear=True)
+        except InputError as exc:
+            unreadable[name] = exc.detail
+            continue
+        images.append(image.values)
+        names.append(name)
+    try:
+        result = calibrate_intrinsics(
+            images, board, n_dist=args.n_dist, max_rms_px=args.max_rms_px, sources=names
+        )
+    except InputError:
+        for name, reason in unreadable.items():
+            print(f"{name}: rejected: {reason}")
+        raise
+    rms = dict(zip(result.used, result.per_image_rms_px, strict=True))
+    reasons = {**dict(result.rejected), **unreadable}
+    for name in all_names:
+        if name in rms:
+            print(f"{name}: reprojection RMS {rms[name]:.3f} px")
+        else:
+            print(f"{name}: rejected: {reasons[name]}")
+    write_camera(result.camera, args.out)
+    print(_describe(result.camera))
+    print(
+        f"{len(result.used)} views used, {len(all_names) - len(result.used)} rejected, "
+        f"reprojection RMS {result.rms_px:.3f} px; camera written to {args.out}"
+    )
+    return 0
+
+
+def run_import(args: argparse.Namespace) -> int:
+    from lightcal.io.camera_file import read_camera, write_camera
+
+    camera = read_camera(args.file, camera_id=args.camera_id)
+    write_camera(camera, args.out)
+    print(_describe(camera))
+    print(f"camera written to {args.out}")
+    return 0

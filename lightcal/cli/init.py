@@ -1,0 +1,95 @@
+"""`lightcal init IMAGE_DIR --camera CAM --board BOARD`: a project from a folder of images.
+
+Detects the board in every image, prints one line per image (markers, reprojection RMS
+and camera position, or why it was rejected), writes the marker masks and the project
+file (see `lightcal.project_init`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "init",
+        help="assemble a project from a folder of images of the wall with markers",
+        description=(
+            "Detect the board's markers in every image of IMAGE_DIR, estimate each camera "
+            "pose, reject images with too few markers, write masks over the markers "
+            "(masks/ beside the project) and the project file."
+        ),
+    )
+    p.add_argument("image_dir", type=Path, metavar="IMAGE_DIR", help="folder of images")
+    p.add_argument("--camera", type=Path, required=True, help="camera file (intrinsics)")
+    p.add_argument("--board", type=Path, required=True, help="board file (aruco_grid, charuco)")
+    light = p.add_mutually_exclusive_group()
+    light.add_argument(
+        "--light-ies", type=Path, metavar="FILE", help="the light's IES (.ies) or EULUMDAT (.ldt)"
+    )
+    light.add_argument(
+        "--half-angle-deg",
+        type=float,
+        default=None,
+        help="the light's half-intensity angle, degrees (default 30 without --light-ies)",
+    )
+    p.add_argument(
+        "--initial-position",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("X", "Y", "Z"),
+        help="initial light position in the camera frame (x right, y down, z forward), metres",
+    )
+    p.add_argument(
+        "--initial-axis",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 1.0),
+        metavar=("X", "Y", "Z"),
+        help="initial light axis in the camera frame (default 0 0 1: the optical axis)",
+    )
+    p.add_argument("--out", type=Path, default=Path("project.json"), help="project file to write")
+    p.add_argument("--min-markers", type=int, default=4, help="fewest markers per image (4)")
+    p.add_argument(
+        "--mask-margin-px", type=float, default=3.0, help="padding of the marker masks (3)"
+    )
+    p.add_argument(
+        "--max-rms-px", type=float, default=1.0, help="largest marker reprojection RMS (1)"
+    )
+    p.add_argument("--black-level", type=float, default=None, help="black level of the images")
+    p.add_argument("--white-level", type=float, default=None, help="white level of the images")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from lightcal.project_init import ImageOutcome, init_project
+
+    def on_image(outcome: ImageOutcome) -> None:
+        print(outcome.report_line(), flush=True)
+
+    result = init_project(
+        args.image_dir,
+        camera_path=args.camera,
+        board_path=args.board,
+        out_path=args.out,
+        light_file=args.light_ies,
+        half_angle_deg=args.half_angle_deg,
+        initial_position_m=args.initial_position,
+        initial_axis_camera=args.initial_axis,
+        min_markers=args.min_markers,
+        mask_margin_px=args.mask_margin_px,
+        max_rms_px=args.max_rms_px,
+        black_level=args.black_level,
+        white_level=args.white_level,
+        on_image=on_image,
+    )
+    for warning in result.warnings:
+        print(f"warning: {warning}")
+    n_ok, n_all = len(result.accepted), len(result.images)
+    print(
+        f"{n_ok} of {n_all} images accepted, {n_all - n_ok} rejected; masks in "
+        f"{result.project_path.parent / 'masks'}; project written to {result.project_path}"
+    )
+    return 0

@@ -1,0 +1,290 @@
+"""The board file: a small JSON or YAML description of one calibration board.
+
+`lightcal init --board` (marker poses) and `lightcal camera calibrate --board`
+(intrinsics) read it. One mapping with a `type` and the fields of the matching
+`lightcal.io.boards` class (lengths in metres, the world placement of the board as that
+module defines it):
+
+```yaml
+version: 1                 # optional
+type: aruco_grid           # aruco_grid | charuco | chessboard
+dictionary: DICT_4X4_50
+markers_x: 8
+markers_y: 6
+marker_length_m: 0.10
+separation_m: 0.20
+first_id: 0                # optional
+origin_world_m: [-1.1, 0.8] # optional: the board's top-left corner on the wall
+```
+
+`charuco` takes `dictionary`, `squares_x`, `squares_y`, `square_length_m`,
+`marker_length_m` and `origin_world_m`; `chessboard` takes `inner_x`, `inner_y` and
+`square_length_m`. JSON for `.json`, YAML for `.yaml` / `.yml`. Every problem is an
+`InputError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError
+
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_write_text
+from lightcal.io.boards import ArucoGridBoard, Board, CharucoBoard, Chessboard
+
+__all__ = [
+    "BOARD_FILE_VERSION",
+    "ArucoGridSpec",
+    "BoardSpec",
+    "CharucoSpec",
+    "ChessboardSpec",
+    "board_from_spec",
+    "board_to_spec",
+    "parse_board",
+    "read_board",
+    "write_board",
+]
+
+BOARD_FILE_VERSION: Literal[1] = 1
+
+_SUFFIXES = (".json", ".yaml", ".yml")
+
+
+def _not_bool(value: Any) -> Any:
+    """YAML `yes` / JSON `true` are not numbers (pydantic would take them as 1)."""
+    if isinstance(value, bool):
+        raise ValueError(f"expected a number, got {value!r}")
+    return value
+
+
+Count = Annotated[int, BeforeValidator(_not_bool)]
+Number = Annotated[float, BeforeValidator(_not_bool)]
+PositiveLength = Annotated[float, BeforeValidator(_not_bool), Field(gt=0)]
+Origin = Annotated[list[Number], Field(min_length=2, max_length=2)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class ArucoGridSpec(_Model):
+    """A grid of ArUco markers (`lightcal.io.boards.ArucoGridBoard`)."""
+
+    version: Literal[1] = BOARD_FILE_VERSION
+    type: Literal["aruco_grid"]
+    dictionary: str
+    markers_x: Count = Field(ge=1)
+    markers_y: Count = Field(ge=1)
+    marker_length_m: PositiveLength
+    separation_m: PositiveLength
+    first_id: Count = Field(default=0, ge=0)
+    origin_world_m: Origin = Field(default_factory=lambda: [0.0, 0.0])
+
+
+class CharucoSpec(_Model):
+    """A ChArUco board (`lightcal.io.boards.CharucoBoard`)."""
+
+    version: Literal[1] = BOARD_FILE_VERSION
+    type: Literal["charuco"]
+    dictionary: str
+    squares_x: Count = Field(ge=2)
+    squares_y: Count = Field(ge=2)
+    square_length_m: PositiveLength
+    marker_length_m: PositiveLength
+    origin_world_m: Origin = Field(default_factory=lambda: [0.0, 0.0])
+
+
+class ChessboardSpec(_Model):
+    """A plain chessboard (`lightcal.io.boards.Chessboard`), for intrinsics only."""
+
+    version: Literal[1] = BOARD_FILE_VERSION
+    type: Literal["chessboard"]
+    inner_x: Count = Field(ge=2)
+    inner_y: Count = Field(ge=2)
+    square_length_m: PositiveLength
+
+
+BoardSpec = Annotated[ArucoGridSpec | CharucoSpec | ChessboardSpec, Field(discriminator="type")]
+"""The content of a board file (a discriminated union on `type`)."""
+
+_ADAPTER: TypeAdapter[ArucoGridSpec | CharucoSpec | ChessboardSpec] = TypeAdapter(BoardSpec)
+
+_TYPES = "aruco_grid, charuco or chessboard"
+
+
+def _format_loc(loc: tuple[Any, ...]) -> str:
+    # The discriminator value is the first element of a union error's location: drop it.
+    parts = loc[1:] if loc and loc[0] in ("aruco_grid", "charuco", "chessboard") else loc
+    out = ""
+    for part in parts:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | ChessboardSpec:
+    """Validate a parsed board document.
+
+    Args:
+        data: The parsed JSON / YAML content.
+        source: The file it came from, for error messages.
+
+    Returns:
+        The validated spec.
+
+    Raises:
+        InputError: Not a mapping, an unknown `type` or version, a missing or invalid field.
+    """
+    if not isinstance(data, dict):
+        raise InputError(source, f"expected a mapping with a 'type' ({_TYPES}) at the top level")
+    version = data.get("version", BOARD_FILE_VERSION)
+    if version != BOARD_FILE_VERSION:
+        raise InputError(
+            source, f"version: this lightcal reads board file version 1, got {version!r}"
+        )
+    kind = data.get("type")
+    if kind not in ("aruco_grid", "charuco", "chessboard"):
+        raise InputError(source, f"type: expected {_TYPES}, got {kind!r}")
+    try:
+        return _ADAPTER.validate_python(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
+        msg = err["msg"].removeprefix("Value error, ")
+        raise InputError(source, f"{_format_loc(err['loc'])}: {msg}{more}") from exc
+
+
+def board_from_spec(
+    spec: ArucoGridSpec | CharucoSpec | ChessboardSpec, source: str | Path = "board"
+) -> Board:
+    """The board object of a spec; a board the spec cannot build is an InputError on `source`."""
+    try:
+        if isinstance(spec, ArucoGridSpec):
+            return ArucoGridBoard(
+                spec.dictionary,
+                spec.markers_x,
+                spec.markers_y,
+                spec.marker_length_m,
+                spec.separation_m,
+                first_id=spec.first_id,
+                origin_world_m=(spec.origin_world_m[0], spec.origin_world_m[1]),
+            )
+        if isinstance(spec, CharucoSpec):
+            return CharucoBoard(
+                spec.dictionary,
+                spec.squares_x,
+                spec.squares_y,
+                spec.square_length_m,
+                spec.marker_length_m,
+                origin_world_m=(spec.origin_world_m[0], spec.origin_world_m[1]),
+            )
+        return Chessboard(spec.inner_x, spec.inner_y, spec.square_length_m)
+    except InputError as exc:
+        raise InputError(source, f"{exc.source}: {exc.detail}") from exc
+
+
+def board_to_spec(board: Board) -> ArucoGridSpec | CharucoSpec | ChessboardSpec:
+    """The file description of a board object."""
+    if isinstance(board, ArucoGridBoard):
+        return ArucoGridSpec(
+            type="aruco_grid",
+            dictionary=board.dictionary,
+            markers_x=board.markers_x,
+            markers_y=board.markers_y,
+            marker_length_m=board.marker_length_m,
+            separation_m=board.separation_m,
+            first_id=board.first_id,
+            origin_world_m=list(board.origin_world_m),
+        )
+    if isinstance(board, CharucoBoard):
+        return CharucoSpec(
+            type="charuco",
+            dictionary=board.dictionary,
+            squares_x=board.squares_x,
+            squares_y=board.squares_y,
+            square_length_m=board.square_length_m,
+            marker_length_m=board.marker_length_m,
+            origin_world_m=list(board.origin_world_m),
+        )
+    if isinstance(board, Chessboard):
+        return ChessboardSpec(
+            type="chessboard",
+            inner_x=board.inner_x,
+            inner_y=board.inner_y,
+            square_length_m=board.square_length_m,
+        )
+    raise InputError(
+        "board", f"expected an ArucoGridBoard, CharucoBoard or Chessboard, got {type(board)}"
+    )
+
+
+def _check_suffix(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise InputError(
+            path, f"unsupported board file suffix {path.suffix!r}: expected .json, .yaml or .yml"
+        )
+    return suffix
+
+
+def read_board(path: str | Path) -> Board:
+    """Read a board file (JSON or YAML by suffix, format in the module docstring).
+
+    Args:
+        path: The board file.
+
+    Returns:
+        An `ArucoGridBoard`, `CharucoBoard` or `Chessboard`.
+
+    Raises:
+        InputError: The file is missing, unreadable, not valid JSON / YAML, or describes
+            no valid board; the message names the file (and line or field).
+    """
+    path = Path(path)
+    suffix = _check_suffix(path)
+    if not path.is_file():
+        raise InputError(path, "board file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read the board file ({exc})") from exc
+    if not text.strip():
+        raise InputError(path, f"empty file: expected a board description with a 'type' ({_TYPES})")
+    try:
+        data = json.loads(text) if suffix == ".json" else yaml.safe_load(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise InputError(
+            path, f"not valid YAML: {getattr(exc, 'problem', None) or exc}", line=line
+        ) from exc
+    return board_from_spec(parse_board(data, path), path)
+
+
+def write_board(board: Board, path: str | Path) -> None:
+    """Write a board file atomically (JSON for `.json`, YAML for `.yaml` / `.yml`).
+
+    Raises:
+        InputError: Unsupported suffix, or the folder does not exist / cannot be written.
+    """
+    path = Path(path)
+    suffix = _check_suffix(path)
+    data = board_to_spec(board).model_dump(mode="json")
+    if suffix == ".json":
+        text = json.dumps(data, indent=2) + "\n"
+    else:
+        text = yaml.safe_dump(data, sort_keys=False)
+    if not path.parent.is_dir():
+        raise InputError(path, f"cannot write: folder {str(path.parent)!r} does not exist")
+    try:
+        atomic_write_text(path, text)
+    except OSError as exc:
+        raise InputError(path, f"cannot write: {exc.strerror or exc}") from exc

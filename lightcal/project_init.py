@@ -1,0 +1,435 @@
+"""Assemble a project file from a folder of photographs of the wall (`lightcal init`).
+
+`init_project` reads every image of a folder (any format `lightcal.io.images.read_image`
+takes), finds the board's markers and the camera pose of each image
+(`lightcal.io.marker_pose.estimate_pose`), rejects the images with too few markers or a
+poor fit (each with its reason), writes one marker mask per accepted image, reads the
+EXIF exposure, and writes the project (`lightcal.io.project`) with the light's RID and
+its initial guess. Paths in the project are relative to the project file's folder.
+
+Masks: `masks/<name>.png` next to the project file, 8-bit, 255 on the pixels to exclude:
+every printed area of the board (all markers of an ArUco grid, detected or not, or the
+whole ChArUco board) projected with the image's pose and padded by `mask_margin_px`
+(`MarkerPose.marker_mask`), so that the calibration only uses the white wall.
+
+Exposure: when every accepted image carries EXIF exposure settings, the project gets
+them (the calibration uses them relative to the first image); when none does, every
+image gets exposure 1 (the same settings assumed); when only some do, a warning says so
+and every image gets exposure 1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from lightcal.core.camera import Camera
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_write_bytes
+from lightcal.io.board_file import read_board
+from lightcal.io.boards import ArucoGridBoard, CharucoBoard
+from lightcal.io.camera_file import read_camera
+from lightcal.io.exif import Exposure
+from lightcal.io.images import SUPPORTED_EXTENSIONS, LinearImage, read_image
+from lightcal.io.marker_pose import MarkerPose, estimate_pose, pose_report
+from lightcal.io.project import (
+    CameraSpec,
+    ExposureSpec,
+    ImageSpec,
+    InitialSpec,
+    LightSpec,
+    PoseSpec,
+    ProjectFile,
+    RIDSpec,
+    SensorSpec,
+    build_rid,
+    project_from_spec,
+    save_project,
+)
+
+__all__ = ["MASKS_DIR", "ImageOutcome", "InitResult", "init_project", "list_images"]
+
+MASKS_DIR = "masks"
+"""Folder (next to the project file) of the marker masks."""
+
+_LIGHT_FILE_TYPES = {".ies": "ies", ".ldt": "ldt"}
+
+
+@dataclass(frozen=True, eq=False)
+class ImageOutcome:
+    """What `init_project` made of one image.
+
+    Attributes:
+        name: The image's name in the project (its file stem, or file name when stems clash).
+        path: The image file.
+        pose: The marker pose, None when the image was rejected.
+        reason: Why the image was rejected, None when it was accepted.
+        exposure: EXIF exposure settings, None when absent (or the image was rejected).
+        mask_path: The mask written for an accepted image, else None.
+    """
+
+    name: str
+    path: Path
+    pose: MarkerPose | None
+    reason: str | None
+    exposure: Exposure | None = None
+    mask_path: Path | None = None
+
+    @property
+    def accepted(self) -> bool:
+        """True when the image is in the project."""
+        return self.pose is not None
+
+    def report_line(self) -> str:
+        """One line: markers, reprojection RMS and camera position, or the rejection."""
+        if self.pose is not None:
+            return pose_report([dataclasses.replace(self.pose, source=self.path.name)])
+        return pose_report([InputError(self.path.name, self.reason or "rejected")])
+
+
+@dataclass(frozen=True, eq=False)
+class InitResult:
+    """The outcome of `init_project`.
+
+    Attributes:
+        project_path: The project file written.
+        spec: Its content.
+        images: One outcome per image file found, in name order.
+        warnings: Things the user should know (e.g. partial EXIF exposure).
+    """
+
+    project_path: Path
+    spec: ProjectFile
+    images: list[ImageOutcome]
+    warnings: list[str]
+
+    @property
+    def accepted(self) -> list[ImageOutcome]:
+        return [o for o in self.images if o.accepted]
+
+    @property
+    def rejected(self) -> list[ImageOutcome]:
+        return [o for o in self.images if not o.accepted]
+
+    def report(self) -> str:
+        """One line per image (see `ImageOutcome.report_line`)."""
+        return "\n".join(o.report_line() for o in self.images)
+
+
+def list_images(image_dir: str | Path) -> list[Path]:
+    """The image files directly in a folder (extensions `read_image` takes), sorted by name.
+
+    Raises:
+        InputError: The folder does not exist, is not a folder, or holds no image.
+    """
+    folder = Path(image_dir)
+    if not folder.exists():
+        raise InputError(folder, "image folder not found")
+    if not folder.is_dir():
+        raise InputError(folder, "not a folder: expected a folder of images of the wall")
+    paths = sorted(
+        p
+        for p in folder.iterdir()
+        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in SUPPORTED_EXTENSIONS
+    )
+    if not paths:
+        raise InputError(
+            folder,
+            "no images found: expected image files (.png, .jpg, .tif, .tiff, .npy, .exr or "
+            "camera raw such as .dng, .cr2, .nef, .arw) directly in the folder",
+        )
+    return paths
+
+
+def _names(paths: Sequence[Path]) -> list[str]:
+    stems = [p.stem for p in paths]
+    return [p.stem if stems.count(p.stem) == 1 else p.name for p in paths]
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """`path` relative to `folder` (POSIX separators), or absolute when impossible."""
+    try:
+        return Path(os.path.relpath(path.resolve(), folder.resolve())).as_posix()
+    except ValueError:  # another drive (Windows)
+        return path.resolve().as_posix()
+
+
+def _rid_spec(
+    light_file: Path | None, half_angle_deg: float | None, folder: Path, out_path: Path
+) -> RIDSpec:
+    """The project's RID entry; the file is read once here so a bad one fails early."""
+    if light_file is not None and half_angle_deg is not None:
+        raise InputError("light", "give either a light file or a half angle, not both")
+    if light_file is None:
+        half = 30.0 if half_angle_deg is None else half_angle_deg
+        if not (math.isfinite(half) and 0.0 < half < 90.0):
+            raise InputError("half_angle_deg", f"expected a value in (0, 90) degrees, got {half!r}")
+        return RIDSpec(type="half_angle", half_angle_deg=half)
+    kind = _LIGHT_FILE_TYPES.get(light_file.suffix.lower())
+    if kind is None:
+        raise InputError(
+            light_file,
+            f"unsupported light file suffix {light_file.suffix!r}: expected .ies or .ldt",
+        )
+    if not light_file.is_file():
+        raise InputError(light_file, "light file not found")
+    spec = RIDSpec(type=kind, path=_relative(light_file, folder))  # type: ignore[arg-type]
+    build_rid(spec, folder, out_path, "lights[0].rid")
+    return spec
+
+
+def _vector3(name: str, values: Sequence[float]) -> list[float]:
+    out = [float(v) for v in values]
+    if len(out) != 3 or not all(math.isfinite(v) for v in out):
+        raise InputError(name, f"expected three finite numbers, got {list(values)!r}")
+    return out
+
+
+def _camera_for(image: LinearImage, camera: Camera, name: str) -> Camera:
+    """The camera of the image as read (binned when the reader binned a raw file)."""
+    height, width = image.shape
+    if (width, height) == (camera.width, camera.height):
+        return camera
+    b = image.binning
+    if b > 1 and (width, height) == (camera.width // b, camera.height // b):
+        return camera.binned(b)
+    raise InputError(
+        name,
+        f"image is {width}x{height} px, expected {camera.width}x{camera.height} px "
+        "(the camera's size)",
+    )
+
+
+def _encode_mask(mask: np.ndarray) -> bytes:
+    ok, encoded = cv2.imencode(".png", np.where(mask, 255, 0).astype(np.uint8))
+    if not ok:  # pragma: no cover - OpenCV always encodes an 8-bit PNG
+        raise InputError("mask", "OpenCV could not encode a PNG")
+    return bytes(encoded.tobytes())
+
+
+def _exposure_specs(
+    outcomes: Sequence[ImageOutcome], warnings: list[str]
+) -> list[float | ExposureSpec | None]:
+    """The project's exposure entries of the accepted images (see the module docstring)."""
+    exposures = [o.exposure for o in outcomes]
+    known = [e for e in exposures if e is not None]
+    if not known:
+        return [None] * len(outcomes)
+    if len(known) < len(exposures):
+        missing = [o.path.name for o in outcomes if o.exposure is None]
+        warnings.append(
+            f"EXIF exposure found in {len(known)} of {len(exposures)} images (missing in "
+            f"{', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}): ignored, every "
+            "image gets exposure 1; give the exposures in the project or estimate per-image "
+            "gains (solver.estimate_gains)"
+        )
+        return [None] * len(outcomes)
+    reference = known[0]
+    try:
+        factors = [e.relative_factor(reference) for e in known]
+    except InputError as exc:
+        warnings.append(
+            f"EXIF exposure settings are inconsistent across the images ({exc.source} "
+            f"{exc.detail}): ignored, every image gets exposure 1"
+        )
+        return [None] * len(outcomes)
+    if all(e.exposure_time_s is not None for e in known):
+        specs: list[float | ExposureSpec | None] = []
+        for e in known:
+            assert e.exposure_time_s is not None
+            settings: dict[str, float] = {"exposure_time_s": e.exposure_time_s}
+            if e.iso is not None:
+                settings["iso"] = e.iso
+            if e.f_number is not None:
+                settings["f_number"] = e.f_number
+            specs.append(ExposureSpec(**settings))
+        return specs
+    return list(factors)
+
+
+def init_project(
+    image_dir: str | Path,
+    *,
+    camera_path: str | Path,
+    board_path: str | Path,
+    out_path: str | Path = "project.json",
+    light_file: str | Path | None = None,
+    half_angle_deg: float | None = None,
+    initial_position_m: Sequence[float] = (0.0, 0.0, 0.0),
+    initial_axis_camera: Sequence[float] = (0.0, 0.0, 1.0),
+    min_markers: int = 4,
+    mask_margin_px: float = 3.0,
+    max_rms_px: float = 1.0,
+    black_level: float | None = None,
+    white_level: float | None = None,
+    on_image: Callable[[ImageOutcome], None] | None = None,
+) -> InitResult:
+    """Detect the markers in a folder of images and write a project file.
+
+    Args:
+        image_dir: Folder of photographs of the wall (not searched recursively).
+        camera_path: Camera file (OpenCV YAML/JSON/XML or COLMAP cameras.txt) of the images.
+        board_path: Board file (`lightcal.io.board_file`): an `aruco_grid` or `charuco`.
+        out_path: The project file to write (JSON, or YAML for .yaml/.yml); the masks go
+            to `masks/` beside it.
+        light_file: The light's IES (.ies) or EULUMDAT (.ldt) file.
+        half_angle_deg: Or its half-intensity angle (a cos^m profile); 30 degrees when
+            neither is given.
+        initial_position_m: (3,) initial guess of the light position, camera frame, metres.
+        initial_axis_camera: (3,) initial guess of the light axis, camera frame.
+        min_markers: Images with fewer detected markers are rejected.
+        mask_margin_px: Padding of the marker masks, pixels.
+        max_rms_px: Images whose marker reprojection RMS exceeds this are rejected.
+        black_level: Black level of the images (source units), written to the project.
+        white_level: White level of the images (source units), written to the project.
+        on_image: Called with each image's outcome as soon as it is known.
+
+    Returns:
+        What was written, with one outcome per image.
+
+    Raises:
+        InputError: No images, no usable image, an unreadable camera, board or light file,
+            a chessboard as board, or an initial guess behind the wall.
+    """
+    out = Path(out_path)
+    folder = out.parent
+    if not folder.is_dir():
+        raise InputError(out, f"cannot write: folder {str(folder)!r} does not exist")
+    if isinstance(min_markers, bool) or not isinstance(min_markers, int) or min_markers < 1:
+        raise InputError("min_markers", f"expected an int >= 1, got {min_markers!r}")
+    if not (math.isfinite(mask_margin_px) and mask_margin_px >= 0.0):
+        raise InputError("mask_margin_px", f"expected a value >= 0 pixels, got {mask_margin_px!r}")
+    if not (math.isfinite(max_rms_px) and max_rms_px > 0.0):
+        raise InputError("max_rms_px", f"expected a value > 0 pixels, got {max_rms_px!r}")
+    position = _vector3("initial_position_m", initial_position_m)
+    axis = _vector3("initial_axis_camera", initial_axis_camera)
+    if math.hypot(*axis) == 0.0:
+        raise InputError("initial_axis_camera", "expected a non-zero direction, got (0, 0, 0)")
+
+    paths = list_images(image_dir)
+    camera_file = Path(camera_path)
+    camera = read_camera(camera_file)
+    board_file = Path(board_path)
+    board = read_board(board_file)
+    if not isinstance(board, ArucoGridBoard | CharucoBoard):
+        raise InputError(
+            board_file,
+            "a chessboard has no markers, so it gives no camera pose on the wall: expected "
+            "an aruco_grid or charuco board",
+        )
+    rid = _rid_spec(None if light_file is None else Path(light_file), half_angle_deg, folder, out)
+    print_polygons = board.outline_world()
+
+    masks_dir = folder / MASKS_DIR
+    outcomes: list[ImageOutcome] = []
+    for path, name in zip(paths, _names(paths), strict=True):
+        outcome = _process_image(
+            path,
+            name,
+            camera,
+            board,
+            print_polygons,
+            masks_dir,
+            min_markers=min_markers,
+            mask_margin_px=mask_margin_px,
+            max_rms_px=max_rms_px,
+            black_level=black_level,
+            white_level=white_level,
+        )
+        outcomes.append(outcome)
+        if on_image is not None:
+            on_image(outcome)
+
+    accepted = [o for o in outcomes if o.accepted]
+    if not accepted:
+        reasons = "; ".join(f"{o.path.name}: {o.reason}" for o in outcomes[:5])
+        more = ", ..." if len(outcomes) > 5 else ""
+        raise InputError(
+            image_dir,
+            f"no usable images: all {len(outcomes)} were rejected ({reasons}{more})",
+        )
+
+    warnings: list[str] = []
+    if light_file is None and half_angle_deg is None:
+        warnings.append(
+            "no light file nor half angle given: the light is assumed to have a cos^m profile "
+            "of half angle 30 degrees (give its IES/LDT file or half angle for a true fit)"
+        )
+    exposures = _exposure_specs(accepted, warnings)
+    images = []
+    for o, exposure in zip(accepted, exposures, strict=True):
+        assert o.pose is not None and o.mask_path is not None
+        images.append(
+            ImageSpec(
+                path=_relative(o.path, folder),
+                name=o.name,
+                T_camera_world=PoseSpec(
+                    R=o.pose.R_camera_world.tolist(), t=o.pose.t_camera_world.tolist()
+                ),
+                exposure=exposure,
+                mask=_relative(o.mask_path, folder),
+            )
+        )
+    spec = ProjectFile(
+        camera=CameraSpec(path=_relative(camera_file, folder)),
+        sensor=SensorSpec(black_level=black_level, white_level=white_level),
+        images=images,
+        lights=[
+            LightSpec(
+                name="light",
+                rid=rid,
+                initial=InitialSpec(position_m=position, axis_camera=axis),
+            )
+        ],
+    )
+    # The project must load (files present, initial light in front of the wall).
+    project_from_spec(spec, out.resolve())
+    save_project(spec, out)
+    return InitResult(project_path=out, spec=spec, images=outcomes, warnings=warnings)
+
+
+def _process_image(
+    path: Path,
+    name: str,
+    camera: Camera,
+    board: ArucoGridBoard | CharucoBoard,
+    print_polygons: np.ndarray,
+    masks_dir: Path,
+    *,
+    min_markers: int,
+    mask_margin_px: float,
+    max_rms_px: float,
+    black_level: float | None,
+    white_level: float | None,
+) -> ImageOutcome:
+    """Read, detect, check and mask one image; an input problem rejects it with the reason."""
+    try:
+        image = read_image(path, black_level=black_level, white_level=white_level)
+        image_camera = _camera_for(image, camera, name)
+        pose = estimate_pose(
+            image.values, image_camera, board, min_markers=min_markers, source=name
+        )
+    except InputError as exc:
+        return ImageOutcome(name, path, None, exc.detail)
+    if pose.reprojection_rms_px > max_rms_px:
+        return ImageOutcome(
+            name,
+            path,
+            None,
+            f"marker reprojection RMS {pose.reprojection_rms_px:.3f} px, expected at most "
+            f"{max_rms_px:g} px",
+        )
+    height, width = image.shape
+    everything = dataclasses.replace(pose, mask_polygons_world=print_polygons)
+    mask = everything.marker_mask(height, width, margin_px=mask_margin_px)
+    masks_dir.mkdir(exist_ok=True)
+    mask_path = masks_dir / f"{name}.png"
+    atomic_write_bytes(mask_path, _encode_mask(mask))
+    return ImageOutcome(name, path, pose, None, image.exposure, mask_path)
