@@ -15,7 +15,7 @@ What it builds (README.md in this folder says the same for users):
 3. 12 views of the wall (`images/`) at 0.8 - 2.5 m, tilted up to 30 degrees, lit by the
    LED only: the irradiance is rendered with lightcal's energy-preserving renderer
    (`render_image`, sensor model `radiance`), multiplied by the albedo averaged over each
-   pixel (the print sampled on 3 x 3 sub-pixels, `tests/board_rendering.render_plane_image`),
+   pixel (the print sampled on 3 x 3 sub-pixels, `lightcal.io.plane_texture.render_plane_image`),
    blurred by the lens (Gaussian PSF, sigma 0.5 px), exposed with a shutter time chosen
    per view (EXIF in the PNG), then through the sensor model (`apply_sensor`: shot and
    read noise, 14 bits, black level 512) and written as 16-bit PNG.
@@ -75,7 +75,7 @@ from lightcal.io.board_file import write_board  # noqa: E402
 from lightcal.io.boards import ArucoGridBoard, Chessboard  # noqa: E402
 from lightcal.io.ies import read_ies, write_ies  # noqa: E402
 from lightcal.io.photometric_table import PhotometricTable, table_to_rid  # noqa: E402
-from tests.board_rendering import look_at_pose, render_plane_image  # noqa: E402
+from lightcal.io.plane_texture import look_at_pose, render_plane_image  # noqa: E402
 
 SEED = 2020
 """Seed of every random choice (the year of Song et al.)."""

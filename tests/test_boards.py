@@ -17,7 +17,7 @@ from lightcal.io.boards import (
     aruco_dictionary,
     aruco_dictionary_names,
 )
-from tests.board_rendering import look_at_pose, render_plane_image
+from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 
 def _opencv_points_in_world(points_board, origin):

@@ -15,7 +15,7 @@ from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
 from lightcal.io.boards import ArucoGridBoard, Chessboard
 from lightcal.io.camera_file import read_camera, write_camera
-from tests.board_rendering import look_at_pose, render_plane_image
+from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 WIDTH, HEIGHT = 640, 480
 CAMERA = Camera.from_params(

@@ -12,7 +12,7 @@ from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 from lightcal.io.boards import ArucoGridBoard, CharucoBoard, Chessboard
 from lightcal.io.intrinsics import calibrate_intrinsics
-from tests.board_rendering import look_at_pose, render_plane_image
+from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 WIDTH, HEIGHT = 800, 600
 CAMERA = Camera.from_params(

@@ -19,7 +19,7 @@ from lightcal.io.marker_pose import (
     pose_report,
     stretch_to_uint8,
 )
-from tests.board_rendering import look_at_pose, render_plane_image
+from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 CAMERA = Camera.from_params(
     fx=1400.0,
