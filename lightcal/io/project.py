@@ -436,21 +436,17 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
             _resolve(folder, im.mask, source, f"{field}.mask", "mask file") if im.mask else None
         )
         names.append(im.name or Path(im.path).stem)
-        exposure = 1.0
-        if isinstance(im.exposure, float | int):
-            exposure = float(im.exposure)
-        elif isinstance(im.exposure, ExposureSpec):
-            exposure = im.exposure.factor()
+    exposures = _exposure_factors(spec, image_paths, source)
+    for i, im in enumerate(spec.images):
         try:
             views.append(
-                View(im.T_camera_world.rotation(), np.array(im.T_camera_world.t), exposure)
+                View(im.T_camera_world.rotation(), np.array(im.T_camera_world.t), exposures[i])
             )
         except ValueError as exc:
-            raise InputError(source, f"{field}.T_camera_world: {exc}") from exc
+            raise InputError(source, f"images[{i}].T_camera_world: {exc}") from exc
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise InputError(source, f"images: two images are named {dup!r}; names must be unique")
-    _normalise_exposures(spec, views)
 
     lights: list[LightUnknown] = []
     for j, ls in enumerate(spec.lights):
@@ -528,16 +524,46 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     )
 
 
-def _normalise_exposures(spec: ProjectFile, views: list[View]) -> None:
-    """Exposure settings are relative: divide by the first image's (in place via rebuild)."""
-    if not any(isinstance(im.exposure, ExposureSpec) for im in spec.images):
-        return
-    first = spec.images[0].exposure
-    ref = first.factor() if isinstance(first, ExposureSpec) else 1.0
+def _exposure_factors(spec: ProjectFile, image_paths: list[Path], source: Path) -> list[float]:
+    """Relative exposure g_i of every image.
+
+    An explicit factor is used as given. Settings (an `ExposureSpec`, or the file's EXIF
+    when `exposure` is null) become t x ISO / N^2 relative to the first image that has
+    settings. When some images have settings, every image without an explicit factor
+    must have them too (else its exposure would be a guess); when none has, g_i = 1.
+    """
+    from lightcal.io.exif import Exposure, read_exposure
+
+    settings: list[Exposure | None] = []
     for i, im in enumerate(spec.images):
         if isinstance(im.exposure, ExposureSpec):
-            v = views[i]
-            views[i] = View(v.R_camera_world, v.t_camera_world, im.exposure.factor() / ref)
+            e = im.exposure
+            settings.append(Exposure(e.exposure_time_s, e.iso, e.f_number))
+        elif im.exposure is None:
+            exif = read_exposure(image_paths[i])
+            settings.append(exif if exif is not None and exif.exposure_time_s else None)
+        else:
+            settings.append(None)
+    known = [e for e in settings if e is not None]
+    factors = []
+    for i, im in enumerate(spec.images):
+        if isinstance(im.exposure, float | int) and not isinstance(im.exposure, bool):
+            factors.append(float(im.exposure))
+        elif settings[i] is not None:
+            try:
+                factors.append(settings[i].relative_factor(known[0]))  # type: ignore[union-attr]
+            except ValueError as exc:
+                raise InputError(source, f"images[{i}].exposure: {exc}") from exc
+        elif known:
+            raise InputError(
+                source,
+                f"images[{i}].exposure: not given and {image_paths[i].name} has no EXIF "
+                "exposure time, while other images' exposures come from settings; "
+                "give the exposure of every image",
+            )
+        else:
+            factors.append(1.0)
+    return factors
 
 
 def save_project(spec: ProjectFile, path: str | Path) -> None:
