@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.optimize import nnls
 
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
@@ -170,8 +171,10 @@ def image_data(
         binning=b,
     )
     keep = np.nonzero(fp.valid)[0]
-    if sel.strategy == "random":
-        keep = keep[: sel.n_per_image]
+    if sel.strategy == "random" and keep.size > sel.n_per_image:
+        # A random N of the valid ones (not the first N: pixels are sorted by row).
+        rng = np.random.default_rng([sel.seed, index, 1])
+        keep = np.sort(rng.permutation(keep)[: sel.n_per_image])
     fp = _subset(fp, keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
@@ -222,9 +225,15 @@ def fit_scales(images: list[ImageData], unknowns: list[LightUnknown], offset: fl
         rhs.append((im.observed - offset) / im.sigma)
     A = np.concatenate(cols)
     y = np.concatenate(rhs)
-    s, *_ = np.linalg.lstsq(A, y, rcond=None)
-    floor = 1e-9 * max(float(np.abs(s).max()), 1e-300)
-    return [float(max(v, floor)) for v in s]
+    s, _ = nnls(A, y)
+    largest = float(s.max())
+    if not largest > 0.0:
+        # The start explains none of the light (aimed away, or data below the offset):
+        # the ratio of mean magnitudes gives the solver a scale to start from.
+        largest = float(np.abs(y).mean() / max(float(A.sum(axis=1).mean()), 1e-300)) or 1.0
+        s = np.full(A.shape[1], largest)
+    # A light the start leaves dark keeps a scale it can grow from.
+    return [float(max(v, 1e-3 * largest)) for v in s]
 
 
 def build_model(

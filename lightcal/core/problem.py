@@ -22,7 +22,7 @@ import numpy as np
 
 from lightcal.core.footprint import Footprints
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
-from lightcal.core.rid import RID, CosPowerRID, SymmetricTableRID
+from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
 from lightcal.core.scene import Light, Rig, View
 
 RidEstimate = Literal["none", "cos_power", "curve"]
@@ -84,14 +84,21 @@ class LightUnknown:
     def kind(self) -> PoseKind:
         if self.pose_kind is not None:
             return self.pose_kind
+        if isinstance(self.initial.rid, IsotropicRID) and self.estimate_rid == "none":
+            return "isotropic"  # orientation unobservable
         return "symmetric" if self.initial.rid.symmetric else "general"
+
+
+def _exp(v: float) -> float:
+    """exp(v) with v clipped to +-700: finite for any parameter the solver tries."""
+    return math.exp(min(max(v, -700.0), 700.0))
 
 
 def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:
     """The monotone "curve" RID of `q` (K,) free parameters on [0, theta_max]."""
     k = q.shape[0]
     theta = np.linspace(0.0, theta_max_rad, k + 1)
-    values = np.concatenate([[1.0], np.exp(-np.cumsum(np.exp(q)))])
+    values = np.concatenate([[1.0], np.exp(-np.cumsum(np.exp(np.clip(q, -700.0, 6.0))))])
     return SymmetricTableRID(theta, values)
 
 
@@ -208,7 +215,7 @@ class ParameterLayout:
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
         u = block.unknown
         if u.estimate_rid == "cos_power":
-            return CosPowerRID(math.exp(float(x[block.rid][0])))
+            return CosPowerRID(_exp(float(x[block.rid][0])))
         if u.estimate_rid == "curve":
             return curve_rid(block.curve_theta_max, x[block.rid])
         return u.initial.rid
@@ -219,7 +226,7 @@ class ParameterLayout:
             rid if rid is not None else self.rid_of(block, x),
             t,
             R,
-            scale=math.exp(float(x[block.log_scale])),
+            scale=_exp(float(x[block.log_scale])),
             name=block.unknown.initial.name,
         )
 

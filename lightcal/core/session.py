@@ -95,8 +95,8 @@ class SolverSession:
         """Hold the solve after the current iteration."""
         with self._cond:
             if self._state == "running":
+                # The worker finishes its iteration and reports "paused" at the gate.
                 self._budget = 0
-                self._state = "paused"
                 self._cond.notify_all()
 
     def stop(self, *, wait: bool = True) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
@@ -25,6 +25,8 @@ from lightcal.core.rotations import left_jacobian_so3
 
 # Each light's position may move at most this far (per camera-frame axis) from the origin.
 DEFAULT_POSITION_BOUND_M = 5.0
+# How far beyond the span of its start and the camera centre a light may move (m).
+LIGHT_MOUNT_MARGIN_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,20 @@ class IterationReport:
     nfev: int
 
 
+def robust_cost(r: np.ndarray, loss: Loss, f_scale: float) -> float:
+    """least_squares' cost 0.5 C^2 sum rho((r / C)^2) of residuals r (m,)."""
+    z = (r / f_scale) ** 2
+    if loss == "linear":
+        rho = z
+    elif loss == "huber":
+        rho = np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
+    elif loss == "soft_l1":
+        rho = 2.0 * (np.sqrt(1.0 + z) - 1.0)
+    else:  # cauchy
+        rho = np.log1p(z)
+    return 0.5 * f_scale**2 * float(np.sum(rho))
+
+
 class CalibrationModel:
     """Residuals and Jacobian of a calibration problem.
 
@@ -102,7 +118,8 @@ class CalibrationModel:
         if not unknowns:
             raise ValueError("calibration: expected at least one light")
         self.images = images
-        self.unknowns = unknowns
+        self.unknowns = [_with_curve_range(u, images) for u in unknowns]
+        unknowns = self.unknowns
         self.options = options
         self.layout = ParameterLayout.build(
             unknowns,
@@ -142,25 +159,29 @@ class CalibrationModel:
         return out
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """(m,) weighted residuals (m_obs - m_render) / sigma."""
-        if self._cache_x is not None and np.array_equal(x, self._cache_x):
-            assert self._cache_r is not None
-            return self._cache_r
-        self.nfev += 1
-        r = np.empty(self.m)
-        for i, (values, _) in enumerate(self.predict(x)):
-            im = self.images[i]
-            r[self.bounds[i] : self.bounds[i + 1]] = (im.observed - values) / im.sigma
-        self._cache_x = x.copy()
-        self._cache_r = r
-        return r
+        """(m,) weighted residuals (m_obs - m_render) / sigma.
+
+        Computed together with the Jacobian (one render with gradients): trf asks for
+        the Jacobian at every point whose residuals it accepts, so this renders once
+        per accepted step instead of twice.
+        """
+        if self._cache_x is None or not np.array_equal(x, self._cache_x):
+            self.nfev += 1
+            self._evaluate(x)
+        assert self._cache_r is not None
+        return self._cache_r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """(m, n) d residuals / d x."""
-        if self._cache_J_x is not None and np.array_equal(x, self._cache_J_x):
-            assert self._cache_J is not None
-            return self._cache_J
+        if self._cache_J_x is None or not np.array_equal(x, self._cache_J_x):
+            self._evaluate(x)
+        assert self._cache_J is not None
+        return self._cache_J
+
+    def _evaluate(self, x: np.ndarray) -> None:
+        """Residuals and Jacobian at x, cached."""
         lay = self.layout
+        r = np.empty(self.m)
         J = np.zeros((self.m, lay.n))
         gains = lay.gain_factors(x)
         preds = self.predict(x, want_grad=True)
@@ -168,6 +189,7 @@ class CalibrationModel:
         for i, (values, sh) in enumerate(preds):
             im = self.images[i]
             rows = slice(self.bounds[i], self.bounds[i + 1])
+            r[rows] = (im.observed - values) / im.sigma
             inv_sigma = -1.0 / im.sigma  # d r / d m_render
             g = gains[i]
             for j, block in enumerate(lay.blocks):
@@ -192,9 +214,10 @@ class CalibrationModel:
                 J[rows, lay.gains.start + i - 1] = base * inv_sigma
             if lay.offset_index is not None:
                 J[rows, lay.offset_index] = inv_sigma
+        self._cache_x = x.copy()
+        self._cache_r = r
         self._cache_J_x = x.copy()
         self._cache_J = J
-        return J
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
         """d m_render / d (RID params of light j) on image i by central differences."""
@@ -237,7 +260,7 @@ class CalibrationModel:
         return IterationReport(
             iteration,
             x.copy(),
-            0.5 * float(r @ r),
+            robust_cost(r, self.options.loss, self.options.f_scale),
             float(np.abs(J.T @ r).max()),
             self.per_image_rms(x),
             self.nfev,
@@ -246,30 +269,71 @@ class CalibrationModel:
     # -- bounds -------------------------------------------------------------------------
 
     def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds: positions within +-position_bound_m and, along the camera axis, in
-        front of the wall for every view whatever the lateral position in the box."""
+        """Box bounds that keep every light in front of the wall in every view.
+
+        Each light's lateral (camera x, y) position is boxed to the span of its start and
+        the camera centre, widened by d, and its forward position z below z_max(d), the
+        largest z that keeps the light in front of the wall in every view for any lateral
+        position in the box. d is the largest value (up to LIGHT_MOUNT_MARGIN_M) that leaves
+        at least a quarter of the start's forward room z_max(0) - z0. Scales and RID
+        parameters stay unbounded: bounding them degrades trf's steps (it scales
+        variables by their distance to finite bounds); the model clips their
+        exponentials instead (`ParameterLayout`).
+        """
         lo = np.full(self.layout.n, -np.inf)
         hi = np.full(self.layout.n, np.inf)
         b = self.options.position_bound_m
+        x0 = self.layout.x0
         for block in self.layout.blocks:
             s = block.pose.start
-            lo[s : s + 3] = -b
-            hi[s : s + 3] = b
-            z0 = self.layout.x0[s + 2]
-            lateral = np.abs(self.layout.x0[s : s + 2]).max() + 0.5
-            z_hi = np.inf
-            for im in self.images:
-                R = im.view.R_camera_world
-                cz = im.view.center_world[2]
-                # world z of the light = cz + sum_k R[k, 2] t_k must stay > 0.
-                if R[2, 2] < 0.0:
-                    slack = cz - lateral * (abs(R[0, 2]) + abs(R[1, 2]))
-                    z_hi = min(z_hi, 0.98 * slack / -R[2, 2])
-            if z_hi > z0:
-                hi[s + 2] = min(b, z_hi)
-                lo[s : s + 2] = np.maximum(lo[s : s + 2], -lateral)
-                hi[s : s + 2] = np.minimum(hi[s : s + 2], lateral)
+            # The lateral box spans the start and the camera centre (lights are mounted
+            # near it), widened by d on every side.
+            near = np.minimum(x0[s : s + 2], 0.0)
+            far = np.maximum(x0[s : s + 2], 0.0)
+            z0 = float(x0[s + 2])
+
+            def z_max(d: float, near: np.ndarray = near, far: np.ndarray = far) -> float:
+                z = b
+                for im in self.images:
+                    R = im.view.R_camera_world
+                    if R[2, 2] >= 0.0:
+                        continue  # the camera axis does not point at the wall
+                    # world z = c_z + sum_k R[k, 2] t_k, worst case over the lateral box.
+                    worst = im.view.center_world[2]
+                    for k in range(2):
+                        worst += min(R[k, 2] * (near[k] - d), R[k, 2] * (far[k] + d))
+                    z = min(z, 0.98 * worst / -R[2, 2])
+                return z
+
+            room = z_max(0.0) - z0
+            d = min(b, LIGHT_MOUNT_MARGIN_M)
+            while d > 1e-3 and z_max(d) - z0 < 0.25 * room:
+                d *= 0.8
+            lo[s : s + 2] = np.maximum(near - d, -b)
+            hi[s : s + 2] = np.minimum(far + d, b)
+            lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
+            hi[s + 2] = max(z_max(d), z0 + 1e-9)
         return lo, hi
+
+
+def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
+    """A "curve" RID without a set range spans the angles the selected pixels are seen
+    at from the initial light (knots beyond them would be unobservable)."""
+    if unknown.estimate_rid != "curve" or unknown.curve_max_angle_rad is not None:
+        return unknown
+    light = unknown.initial
+    largest = 0.0
+    for im in images:
+        L = light.position_world(im.view)
+        axis = light.rotation_world(im.view)[:, 2]
+        w = im.footprints.corners_world.mean(axis=(1, 2)) - L
+        cos = (w @ axis) / np.linalg.norm(w, axis=1)
+        largest = max(largest, float(np.arccos(np.clip(cos.min(), -1.0, 1.0))))
+    # 1 % margin keeps the seen pixels off the last knot, where f drops to 0; knots far
+    # beyond the angles the pixels are seen at are unobservable and
+    # make the solve wander (measured: 1.05 and 1.15 x fail to converge on tests).
+    theta_max = min(math.radians(89.0), 1.01 * largest) if largest > 0 else None
+    return replace(unknown, curve_max_angle_rad=theta_max)
 
 
 @dataclass

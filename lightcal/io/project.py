@@ -191,6 +191,12 @@ class LightSpec(_Model):
     initial: InitialSpec
     estimate_rid: Literal["none", "cos_power", "curve"] = "none"
     curve_knots: int = Field(default=6, ge=2, le=30)
+    curve_max_angle_deg: float | None = Field(
+        default=None,
+        gt=0,
+        le=89,
+        description="range of a 'curve' RID; null: the largest angle the pixels are seen at",
+    )
 
 
 class RegionSpec(_Model):
@@ -478,6 +484,9 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                 pose_kind=pose_kind,
                 estimate_rid=ls.estimate_rid,
                 curve_knots=ls.curve_knots,
+                curve_max_angle_rad=(
+                    math.radians(ls.curve_max_angle_deg) if ls.curve_max_angle_deg else None
+                ),
             )
         )
     if len({ls.name for ls in spec.lights}) != len(spec.lights):

@@ -1,0 +1,366 @@
+"""The calibration solver: residuals, analytic Jacobian, bounds, losses, iteration reports."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.render import shade
+from lightcal.core.scene import Rig
+from lightcal.core.solver import (
+    CalibrationModel,
+    IterationReport,
+    SolverOptions,
+    run_least_squares,
+)
+from tests import calib_scenes as cs
+
+CAMERA = cs.small_camera()
+
+
+def _numeric_jacobian(model: CalibrationModel, x: np.ndarray) -> np.ndarray:
+    """Central differences of the weighted residuals, step 1e-6 relative."""
+    J = np.zeros((model.m, x.size))
+    for k in range(x.size):
+        h = 1e-6 * max(1.0, abs(x[k]))
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        J[:, k] = (model.residuals(xp) - model.residuals(xm)) / (2 * h)
+    return J
+
+
+def _three_views():
+    return cs.views(3, seed=2)
+
+
+def _jacobian_case(name: str) -> tuple[Rig, list[LightUnknown], dict]:
+    sym = cs.symmetric_light()
+    gen = cs.general_light()
+    iso = cs.isotropic_light()
+    two = cs.two_light_rig()
+    cases: dict[str, tuple[Rig, list[LightUnknown], dict]] = {
+        "symmetric_gains_offset": (
+            Rig.single(sym),
+            [LightUnknown(cs.start_near(sym))],
+            {"estimate_gains": True, "estimate_offset": True, "offset": 3.0},
+        ),
+        "isotropic": (
+            Rig.single(iso),
+            [LightUnknown(cs.start_near(iso), pose_kind="isotropic")],
+            {},
+        ),
+        "general": (Rig.single(gen), [LightUnknown(cs.start_near(gen))], {}),
+        "general_subsampled": (
+            Rig.single(gen),
+            [LightUnknown(cs.start_near(gen))],
+            {"rid_subsamples": 3},
+        ),
+        "symmetric_as_general": (
+            Rig.single(sym),
+            [LightUnknown(cs.start_near(sym), pose_kind="general")],
+            {},
+        ),
+        "cos_power": (
+            Rig.single(sym),
+            [LightUnknown(cs.start_near(sym), estimate_rid="cos_power")],
+            {},
+        ),
+        "curve": (
+            Rig.single(sym),
+            [LightUnknown(cs.start_near(sym), estimate_rid="curve", curve_knots=4)],
+            {},
+        ),
+        "two_lights_gains": (
+            two,
+            [LightUnknown(cs.start_near(light)) for light in two.lights],
+            {"estimate_gains": True},
+        ),
+    }
+    return cases[name]
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "symmetric_gains_offset",
+        "isotropic",
+        "general",
+        "general_subsampled",
+        "symmetric_as_general",
+        "cos_power",
+        "curve",
+        "two_lights_gains",
+    ],
+)
+def test_jacobian_matches_finite_differences(case):
+    rig, unknowns, options = _jacobian_case(case)
+    images = cs.observe(
+        CAMERA, _three_views(), rig, n_per_image=40, rng=np.random.default_rng(1), noise=(0.5, 4.0)
+    )
+    model = CalibrationModel(images, unknowns, SolverOptions(**options))
+    x = model.layout.x0.copy()
+    J = model.jacobian(x)
+    Jn = _numeric_jacobian(model, x)
+    assert J.shape == (model.m, model.layout.n)
+    for k, name in enumerate(model.layout.names):
+        scale = np.abs(Jn[:, k]).max()
+        assert scale > 0.0, name
+        assert np.abs(J[:, k] - Jn[:, k]).max() <= 1e-6 * scale, name
+
+
+def test_residuals_are_weighted_differences():
+    light = cs.symmetric_light()
+    images = cs.observe(
+        CAMERA, _three_views(), Rig.single(light), n_per_image=30, rng=np.random.default_rng(4),
+        noise=(0.8, 9.0),
+    )  # fmt: skip
+    start = cs.start_near(light)
+    model = cs.model_of(images, [start], estimate_gains=True, offset=2.0)
+    x = model.layout.x0.copy()
+    x[model.layout.gains] = np.log([1.5, 0.5])
+    r = model.residuals(x)
+    gains = [1.0, 1.5, 0.5]
+    for i, im in enumerate(images):
+        rendered = 2.0 + gains[i] * shade(im.footprints, im.view, Rig.single(start)).values
+        expected = (im.observed - rendered) / im.sigma
+        np.testing.assert_allclose(r[model.bounds[i] : model.bounds[i + 1]], expected, rtol=1e-12)
+    rms = model.per_image_rms(x)
+    for i, im in enumerate(images):
+        d = r[model.bounds[i] : model.bounds[i + 1]] * im.sigma
+        assert rms[i] == pytest.approx(math.sqrt(np.mean(d**2)), rel=1e-12)
+
+
+# ---------------------------------------------------------------------- options, errors
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"loss": "l2"}, r"^loss: expected one of linear, huber, soft_l1, cauchy, got 'l2'$"),
+        ({"f_scale": 0.0}, r"^f_scale: expected a finite value > 0, got 0.0$"),
+        ({"f_scale": math.inf}, r"^f_scale: expected a finite value > 0, got inf$"),
+        ({"max_iterations": 0}, r"^max_iterations: expected >= 1, got 0$"),
+    ],
+)
+def test_solver_option_errors(options, message):
+    with pytest.raises(ValueError, match=message):
+        SolverOptions(**options)
+
+
+def test_model_needs_images_and_lights():
+    light = cs.symmetric_light()
+    images = cs.observe(CAMERA, _three_views(), Rig.single(light), rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"^calibration: expected at least one image"):
+        CalibrationModel([], [LightUnknown(light)], SolverOptions())
+    with pytest.raises(ValueError, match=r"^calibration: expected at least one light$"):
+        CalibrationModel(images, [], SolverOptions())
+
+
+# ---------------------------------------------------------------------- solves, reports
+
+
+@pytest.fixture(scope="module")
+def noisy_problem():
+    """12 views, 100 pixels each, Poisson-Gaussian noise, a symmetric light."""
+    light = cs.symmetric_light()
+    images = cs.observe(
+        CAMERA, cs.views(12), Rig.single(light), rng=np.random.default_rng(7), noise=(0.5, 4.0)
+    )
+    return light, images
+
+
+def test_noise_free_solve_recovers_the_truth():
+    light = cs.symmetric_light()
+    images = cs.observe(CAMERA, cs.views(12), Rig.single(light), rng=np.random.default_rng(3))
+    model = cs.model_of(images, [cs.start_near(light)])
+    out = run_least_squares(model)
+    assert out.success and out.status > 0
+    est = model.layout.rig(out.x).lights[0]
+    position_err, axis_err = cs.pose_errors(est, light)
+    assert position_err < 1e-9
+    assert axis_err < 1e-6
+    assert est.scale == pytest.approx(light.scale, rel=1e-9)
+    assert out.cost < 1e-12
+
+
+def test_iteration_reports(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [cs.start_near(light)])
+    seen: list[IterationReport] = []
+    out = run_least_squares(model, on_iteration=seen.append)
+    assert seen == out.history
+    assert [rep.iteration for rep in seen] == list(range(len(seen)))
+    assert out.iterations == seen[-1].iteration >= 3
+    np.testing.assert_array_equal(seen[0].x, model.layout.x0)
+    costs = [rep.cost for rep in seen]
+    assert all(b <= a for a, b in itertools.pairwise(costs))
+    assert [rep.nfev for rep in seen] == sorted(rep.nfev for rep in seen)
+    for rep in (seen[0], seen[-1]):
+        r = model.residuals(rep.x)
+        J = model.jacobian(rep.x)
+        assert rep.cost == pytest.approx(0.5 * r @ r, rel=1e-12)
+        assert rep.gradient_norm == pytest.approx(np.abs(J.T @ r).max(), rel=1e-12)
+        np.testing.assert_allclose(rep.per_image_rms, model.per_image_rms(rep.x), rtol=1e-12)
+        assert rep.per_image_rms.shape == (12,)
+    # Converged: the gradient is tiny compared with the start's, the cost is chi^2 / 2.
+    assert seen[-1].gradient_norm < 1e-6 * seen[0].gradient_norm
+    assert out.cost == pytest.approx(seen[-1].cost, rel=1e-12)
+
+
+def test_poisson_gaussian_weights_give_unit_variance_residuals(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [light])
+    # At the truth the weighted residuals are standard normal: 2 cost / m ~ 1 +- sqrt(2 / m).
+    r = model.residuals(model.layout.x0)
+    assert np.mean(r**2) == pytest.approx(1.0, abs=4 * math.sqrt(2 / model.m))
+    # The sigmas follow the noise model: sigma^2 = 0.5 * signal + 4.
+    im = images[0]
+    np.testing.assert_allclose(im.sigma**2, 0.5 * np.maximum(im.observed, 0) + 4.0)
+    out = run_least_squares(cs.model_of(images, [cs.start_near(light)]))
+    dof = model.m - model.layout.n
+    assert 2 * out.cost / dof == pytest.approx(1.0, abs=4 * math.sqrt(2 / dof))
+
+
+def test_max_iterations_stops_the_solve(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [cs.start_near(light)], max_iterations=2)
+    out = run_least_squares(model)
+    assert out.status == 0
+    assert not out.success
+    assert out.message == "stopped after the maximum of 2 iterations"
+    assert out.iterations == 2
+    assert [rep.iteration for rep in out.history] == [0, 1, 2]
+    np.testing.assert_array_equal(out.x, out.history[-1].x)
+
+
+def test_callback_can_stop_the_solve(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [cs.start_near(light)])
+
+    def stop_at_1(rep: IterationReport) -> None:
+        if rep.iteration == 1:
+            raise StopIteration
+
+    out = run_least_squares(model, on_iteration=stop_at_1)
+    assert out.status == -2
+    assert not out.success
+    assert out.iterations == 1
+    np.testing.assert_array_equal(out.x, out.history[-1].x)
+
+    def stop_at_start(rep: IterationReport) -> None:
+        raise StopIteration
+
+    out = run_least_squares(model, on_iteration=stop_at_start)
+    assert (out.status, out.iterations) == (-2, 0)
+    assert out.message == "stopped before the first iteration"
+    np.testing.assert_array_equal(out.x, model.layout.x0)
+
+
+def test_explicit_start_vector(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [light])
+    x0 = model.layout.x0.copy()
+    x0[:3] += [0.03, -0.02, 0.01]
+    out = run_least_squares(model, x0)
+    np.testing.assert_array_equal(out.history[0].x, x0)
+    assert out.success
+    est = model.layout.rig(out.x).lights[0]
+    assert cs.pose_errors(est, light)[0] < 0.01
+
+
+# ------------------------------------------------------------------------- robust losses
+
+
+def _with_outliers(images, rng, fraction=0.1):
+    """Copies of images with `fraction` of their pixels tripled (specular glints)."""
+    out = []
+    for im in images:
+        obs = im.observed.copy()
+        bad = rng.random(obs.size) < fraction
+        obs[bad] *= 3.0
+        out.append(ImageData(im.name, im.view, im.footprints, obs, im.sigma))
+    return out
+
+
+@pytest.mark.parametrize("loss", ["huber", "soft_l1", "cauchy"])
+def test_robust_losses_resist_outliers(noisy_problem, loss):
+    light, images = noisy_problem
+    dirty = _with_outliers(images, np.random.default_rng(11))
+    start = cs.start_near(light)
+    plain = run_least_squares(cs.model_of(dirty, [start]))
+    model = cs.model_of(dirty, [start], loss=loss, f_scale=3.0)
+    robust = run_least_squares(model)
+    assert robust.success
+    plain_err = cs.pose_errors(model.layout.rig(plain.x).lights[0], light)
+    robust_err = cs.pose_errors(model.layout.rig(robust.x).lights[0], light)
+    assert robust_err[0] < 0.01
+    assert robust_err[0] < 0.5 * plain_err[0]
+    assert robust_err[1] < 0.5 * plain_err[1]
+
+
+def test_reported_cost_follows_the_robust_loss(noisy_problem):
+    light, images = noisy_problem
+    dirty = _with_outliers(images, np.random.default_rng(11))
+    out = run_least_squares(cs.model_of(dirty, [cs.start_near(light)], loss="cauchy", f_scale=3))
+    assert out.history[-1].cost == pytest.approx(out.cost, rel=1e-9)
+
+
+# --------------------------------------------------------------------------------- bounds
+
+
+def _lowest_world_z(model: CalibrationModel, lo: np.ndarray, hi: np.ndarray) -> float:
+    """The smallest world z any position in the box [lo, hi] (first light) gets in any view."""
+    worst = math.inf
+    for im in model.images:
+        R = im.view.R_camera_world
+        z = im.view.center_world[2] + sum(min(R[k, 2] * lo[k], R[k, 2] * hi[k]) for k in range(3))
+        worst = min(worst, z)
+    return worst
+
+
+@pytest.mark.parametrize("distance_range_m", [(0.8, 2.5), (2.0, 4.0)])
+def test_bounds_keep_the_light_in_front_of_the_wall(distance_range_m):
+    light = cs.symmetric_light()
+    vs = cs.views(8, distance_range_m=distance_range_m, seed=3)
+    images = cs.observe(CAMERA, vs, Rig.single(light), n_per_image=20, rng=np.random.default_rng(0))
+    model = cs.model_of(images, [cs.start_near(light)])
+    lo, hi = model.parameter_bounds()
+    assert lo.shape == hi.shape == (model.layout.n,)
+    assert np.all(lo[:3] >= -5.0) and np.all(hi[:3] <= 5.0)
+    assert np.all(lo[:3] < model.layout.x0[:3]) and np.all(model.layout.x0[:3] < hi[:3])
+    # Angles and scale are free.
+    assert np.all(np.isinf(lo[3:])) and np.all(np.isinf(hi[3:]))
+    assert _lowest_world_z(model, lo, hi) > 0.0
+    # Random positions in the box render in every view (none is behind the wall).
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        x = model.layout.x0.copy()
+        x[:3] = rng.uniform(lo[:3], hi[:3])
+        est = model.layout.rig(x).lights[0]
+        assert all(est.position_world(im.view)[2] > 0.0 for im in model.images)
+
+
+def test_bounds_with_close_views():
+    light = cs.symmetric_light()
+    vs = cs.views(8, distance_range_m=(0.3, 0.6), seed=3)
+    images = cs.observe(CAMERA, vs, Rig.single(light), n_per_image=20, rng=np.random.default_rng(0))
+    model = cs.model_of(images, [cs.start_near(light, position_m=0.02)])
+    lo, hi = model.parameter_bounds()
+    assert _lowest_world_z(model, lo, hi) > 0.0
+
+
+def test_start_outside_the_bounds_is_clipped(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [light], position_bound_m=0.2)
+    lo, hi = model.parameter_bounds()
+    assert hi[0] == pytest.approx(0.2)
+    x0 = model.layout.x0.copy()
+    x0[0] = 0.5
+    out = run_least_squares(model, x0)
+    assert out.history[0].x[0] == pytest.approx(0.2, abs=1e-9)
+    assert np.all(out.x >= lo) and np.all(out.x <= hi)
