@@ -19,6 +19,7 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from threading import Lock
 
+import numba
 import numpy as np
 
 from lightcal.core import render_kernels as rk
@@ -197,25 +198,18 @@ class _CornerGridCache:
 def corner_grid(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Undistorted normalised coordinates of every pixel corner.
 
+    Computed by a parallel kernel with the arithmetic of `Camera.pixels_to_normalized`.
+
     Returns:
         grid_xy (H+1, W+1, 2) and grid_ok (H+1, W+1); corner (j, i) sits at pixel
-        coordinates (i - 1/2, j - 1/2).
+        coordinates (i - 1/2, j - 1/2); grid_xy is (0, 0) where grid_ok is False.
     """
-    h, w = camera.height, camera.width
-    u = np.arange(w + 1, dtype=np.float64) - 0.5
-    v = np.arange(h + 1, dtype=np.float64) - 0.5
-    rows = []
-    oks = []
-    # Row bands bound the temporary memory of the vectorised undistortion.
-    band = max(1, 2_000_000 // (w + 1))
-    for start in range(0, h + 1, band):
-        vv, uu = np.meshgrid(v[start : start + band], u, indexing="ij")
-        xy, ok = camera.pixels_to_normalized(np.stack([uu.ravel(), vv.ravel()], axis=1))
-        rows.append(xy.reshape((*vv.shape, 2)))
-        oks.append(ok.reshape(vv.shape))
-    grid_xy = np.ascontiguousarray(np.concatenate(rows, axis=0))
-    grid_ok = np.concatenate(oks, axis=0)
-    grid_xy[~grid_ok] = 0.0
+    grid_xy = np.empty((camera.height + 1, camera.width + 1, 2))
+    grid_ok = np.empty((camera.height + 1, camera.width + 1), dtype=np.bool_)
+    with numba.parallel_chunksize(8):  # dynamic scheduling: rows cost unequal Newton work
+        rk.undistorted_corner_grid(
+            np.ascontiguousarray(camera.K), np.ascontiguousarray(camera.dist), grid_xy, grid_ok
+        )
     return grid_xy, grid_ok
 
 
@@ -249,35 +243,45 @@ def render_image(
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
     grid_xy, grid_ok = _GRID_CACHE.get(camera)
     hb, wb = camera.height // b, camera.width // b
-    weight = np.zeros((hb, wb, b * b))
-    valid = np.zeros((hb, wb), dtype=np.bool_)
-    R = view.R_camera_world
-    center = view.center_world
-    rk.geometry_image(grid_xy, grid_ok, R, center, _SENSOR_CODES[sensor], vmap, b, weight, valid)
-    out = np.zeros((hb, wb))
-    for light in rig.lights:
-        L_world, R_world_light = light_in_view(light, view)
-        if L_world[2] <= 0.0:
-            continue
-        d = light.rid.data()
-        rk.flux_image(
+    # Lights on or behind the wall illuminate nothing in this view.
+    lit = [
+        (light, *light_in_view(light, view))
+        for light in rig.lights
+        if light.position_world(view)[2] > 0.0
+    ]
+    lights_world = np.array([p for _, p, _ in lit], dtype=np.float64).reshape(len(lit), 3)
+    R_world_lights = np.array([r for _, _, r in lit], dtype=np.float64).reshape(len(lit), 3, 3)
+    scales = np.array([light.scale for light, _, _ in lit], dtype=np.float64)
+    kind, params, theta, n_theta, phi, n_phi, values, slopes = rk.stack_rid_data(
+        [light.rid.data() for light, _, _ in lit]
+    )
+    out = np.empty((hb, wb))
+    invalid = np.empty((hb, wb), dtype=np.bool_)
+    # Dynamic scheduling of the row chunks: the machine's cores may be shared.
+    with numba.parallel_chunksize(1):
+        rk.render_image_fused(
             grid_xy,
-            R,
-            center,
-            weight,
-            valid,
-            L_world,
-            np.ascontiguousarray(R_world_light),
-            d.kind,
-            d.params,
-            d.theta_knots,
-            d.phi_knots,
-            d.values,
-            d.slopes,
+            grid_ok,
+            np.ascontiguousarray(view.R_camera_world),
+            np.ascontiguousarray(view.center_world),
+            _SENSOR_CODES[sensor],
+            vmap,
+            b,
+            lights_world,
+            R_world_lights,
+            scales,
+            kind,
+            params,
+            theta,
+            n_theta,
+            phi,
+            n_phi,
+            values,
+            slopes,
             n_sub,
-            light.scale,
+            float(view.exposure),
+            float(offset),
             out,
+            invalid,
         )
-    out = offset + view.exposure * out
-    out[~valid] = np.nan
-    return np.ma.masked_array(out, mask=~valid)
+    return np.ma.masked_array(out, mask=invalid, copy=False)

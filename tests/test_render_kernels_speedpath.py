@@ -1,0 +1,375 @@
+"""Exactness of the renderer's fast paths (lightcal.core.render_kernels).
+
+The fast paths (the fused full-image kernel, the one-arctangent quad solid angle, the
+branch-free cos^m, the parallel corner grid, the n = 1 path of `flux_pixels`) must give
+the numbers of the plain kernels and of the NumPy reference to ~1e-12 relative.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from lightcal.core import render
+from lightcal.core import render_kernels as rk
+from lightcal.core.camera import Camera
+from lightcal.core.footprint import check_vignetting, pixel_footprints
+from lightcal.core.render_reference import flux_reference, render_image_reference
+from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID, SymmetricTableRID, Table2DRID
+from lightcal.core.scene import Light, Rig, View
+from lightcal.core.solid_angle import quad_solid_angle
+
+RTOL = 1e-12
+
+
+def _rotation_x(angle_rad: float) -> np.ndarray:
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rotation_y(angle_rad: float) -> np.ndarray:
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _camera(width: int = 40, height: int = 30, focal_px: float = 45.0, dist=()) -> Camera:
+    return Camera.from_params(
+        fx=focal_px,
+        fy=focal_px * 1.02,
+        cx=(width - 1) / 2 + 0.7,
+        cy=(height - 1) / 2 - 0.4,
+        width=width,
+        height=height,
+        dist=dist,
+    )
+
+
+DISTORTION = (-0.12, 0.03, 0.0007, -0.0011, -0.004)
+VIEW = View.looking_at(np.array([0.3, -0.2, 1.4]), np.array([0.05, 0.1, 0.0]), exposure=1.7)
+
+
+def _table_2d() -> Table2DRID:
+    theta = np.linspace(0.0, 1.4, 8)
+    phi = np.linspace(0.0, 2 * math.pi, 6, endpoint=False)
+    values = np.cos(theta)[None, :] ** 2 * (1.0 + 0.3 * np.cos(phi)[:, None]) + 0.05
+    return Table2DRID(theta, phi, values)
+
+
+RIDS = {
+    "isotropic": IsotropicRID(),
+    "cos_power": CosPowerRID(3.7),
+    "gaussian": GaussianRID(0.6),
+    "table_1d": SymmetricTableRID(np.linspace(0.0, 1.5, 9), np.cos(np.linspace(0.0, 1.5, 9)) + 0.1),
+    "table_2d": _table_2d(),
+}
+
+
+def _light(rid, *, t=(0.08, -0.05, 0.02), tilt=0.15, scale=1.3) -> Light:
+    return Light(rid, np.array(t), _rotation_x(tilt) @ _rotation_y(-0.1), scale=scale)
+
+
+def _render_two_kernels(
+    camera: Camera,
+    view: View,
+    rig: Rig,
+    *,
+    sensor: str = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+    offset: float = 0.0,
+    rid_subsamples: int = 1,
+) -> np.ma.MaskedArray:
+    """The full image by `geometry_image` + `flux_image` (the plain kernels)."""
+    b = binning
+    vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
+    grid_xy, grid_ok = render.corner_grid(camera)
+    hb, wb = camera.height // b, camera.width // b
+    weight = np.zeros((hb, wb, b * b))
+    valid = np.zeros((hb, wb), dtype=np.bool_)
+    R = view.R_camera_world
+    codes = {"radiance": 0, "cos4": 1, "paper": 2, "map": 3}
+    rk.geometry_image(grid_xy, grid_ok, R, view.center_world, codes[sensor], vmap, b, weight, valid)
+    out = np.zeros((hb, wb))
+    for light in rig.lights:
+        L_world = light.position_world(view)
+        if L_world[2] <= 0.0:
+            continue
+        d = light.rid.data()
+        rk.flux_image(
+            grid_xy,
+            R,
+            view.center_world,
+            weight,
+            valid,
+            L_world,
+            np.ascontiguousarray(light.rotation_world(view)),
+            d.kind,
+            d.params,
+            d.theta_knots,
+            d.phi_knots,
+            d.values,
+            d.slopes,
+            rid_subsamples,
+            light.scale,
+            out,
+        )
+    out = offset + view.exposure * out
+    out[~valid] = np.nan
+    return np.ma.masked_array(out, mask=~valid)
+
+
+def _assert_images_close(fast: np.ma.MaskedArray, plain: np.ma.MaskedArray) -> None:
+    np.testing.assert_array_equal(np.ma.getmaskarray(fast), np.ma.getmaskarray(plain))
+    ok = ~np.ma.getmaskarray(plain)
+    assert np.all(np.isnan(fast.data[~ok]))
+    np.testing.assert_allclose(fast.data[ok], plain.data[ok], rtol=RTOL, atol=0.0)
+
+
+# --- elementary functions -----------------------------------------------------------
+
+
+def test_log_positive_matches_libm_to_two_ulp() -> None:
+    rng = np.random.default_rng(1)
+    xs = np.concatenate(
+        [
+            rng.uniform(0.0, 1.0, 2000),
+            1.0 - rng.uniform(0.0, 1e-7, 300),
+            np.exp(rng.uniform(-740.0, 700.0, 500)),
+            [1.0, 0.5, 2.0, math.sqrt(2.0), 5e-324, 1e-310, 2.2250738585072014e-308],
+        ]
+    )
+    for x in xs:
+        expected = math.log(x)
+        got = rk.log_positive(x)
+        assert abs(got - expected) <= 4.5e-16 * max(abs(expected), 1e-300) or got == expected, x
+
+
+def test_exp_real_matches_libm_and_underflows_to_zero() -> None:
+    rng = np.random.default_rng(2)
+    for y in np.concatenate([rng.uniform(-745.0, 709.0, 2000), rng.uniform(-1.0, 1.0, 500)]):
+        expected = math.exp(y)
+        assert rk.exp_real(y) == pytest.approx(expected, rel=5e-16, abs=1e-320), y
+    assert rk.exp_real(0.0) == 1.0
+    assert rk.exp_real(-1500.0) == 0.0
+
+
+@pytest.mark.parametrize("m", [0.0, 0.5, 1.0, 2.7, 13.3, 80.0])
+def test_cos_power_matches_pow(m: float) -> None:
+    rng = np.random.default_rng(3)
+    cs = np.concatenate([rng.uniform(1e-3, 1.0, 1500), 1.0 - rng.uniform(0.0, 1e-9, 200)])
+    for c in cs:
+        expected = c**m
+        # exp(m ln c) carries the rounding of y = m ln c: |y| ulp at worst.
+        tol = (abs(m * math.log(c)) + 4.0) * 2.3e-16
+        assert rk.cos_power(c, m) == pytest.approx(expected, rel=tol), (c, m)
+    assert rk.cos_power(0.0, m) == 0.0
+    assert rk.cos_power(-0.3, m) == 0.0
+    assert rk.cos_power(1.0, m) == 1.0
+
+
+def test_atan_series_is_exact_in_its_range() -> None:
+    for x in np.linspace(-rk.ATAN_SERIES_MAX, rk.ATAN_SERIES_MAX, 2001):
+        assert rk.atan_series(x) == pytest.approx(math.atan(x), rel=3e-16, abs=1e-300)
+
+
+def test_quad_omega_equals_two_atan2_including_large_angles() -> None:
+    rng = np.random.default_rng(4)
+    for _ in range(3000):
+        scale = 10.0 ** rng.uniform(-9, 1)
+        n1, n2 = rng.normal(size=2) * scale
+        d1, d2 = rng.normal(size=2) + rng.choice([0.0, 1.5])
+        expected = abs(2.0 * math.atan2(n1, d1) + 2.0 * math.atan2(n2, d2))
+        assert rk.quad_omega(n1, d1, n2, d2) == pytest.approx(expected, rel=1e-13, abs=1e-15)
+
+
+def test_quad_omega_near_the_hemisphere() -> None:
+    # A 2 x 2 m quad 1 mm below the viewpoint: its solid angle approaches 2 pi, the
+    # combined denominator goes negative and the two atan2 take over.
+    L = np.array([0.0, 0.0, 1e-3])
+    quad = np.array([[[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]]])
+    expected = quad_solid_angle(L, quad)[0]
+    assert expected > 6.2
+    d = IsotropicRID().data()
+    got = rk._quad_flux_fast(quad[None], 0, 0, L[0], L[1], L[2], np.eye(3), d.kind, d.params,
+                             d.theta_knots, d.phi_knots, d.values, d.slopes)  # fmt: skip
+    assert got == pytest.approx(expected, rel=1e-13)
+
+
+# --- flux_pixels: the n = 1 path without gradients ---------------------------------
+
+
+@pytest.mark.parametrize("rid_name", list(RIDS))
+def test_flux_pixels_fast_path_matches_gradient_path_and_reference(rid_name: str) -> None:
+    camera = _camera(dist=DISTORTION)
+    rng = np.random.default_rng(5)
+    pixels = np.stack([rng.integers(0, 40, 300), rng.integers(0, 30, 300)], axis=1)
+    fp = pixel_footprints(camera, VIEW, pixels, binning=1)
+    light = _light(RIDS[rid_name])
+    L_world = light.position_world(VIEW)
+    R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
+    d = light.rid.data()
+    fast = np.zeros(len(fp))
+    plain = np.zeros(len(fp))
+    for want_grad, out, grad in (
+        (False, fast, np.zeros((1, 6))),
+        (True, plain, np.zeros((len(fp), 6))),
+    ):
+        # want_grad: the general quad loop (the plain kernel).
+        rk.flux_pixels(fp.corners_world, fp.weights, fp.valid, L_world, R_wl, d.kind, d.params,
+                       d.theta_knots, d.phi_knots, d.values, d.slopes, 1, want_grad, out,
+                       grad)  # fmt: skip
+    np.testing.assert_allclose(fast, plain, rtol=RTOL, atol=0.0)
+    ref = flux_reference(fp, L_world, R_wl, light.rid, 1)
+    np.testing.assert_allclose(fast, ref, rtol=RTOL, atol=0.0)
+
+
+def test_flux_pixels_falls_back_for_quads_off_the_wall() -> None:
+    quad = np.array([[0.0, 0.0, 0.1], [0.01, 0.0, 0.1], [0.01, 0.01, 0.0], [0.0, 0.01, 0.0]])
+    corners = quad[None, None]
+    L = np.array([0.02, -0.03, 1.0])
+    d = IsotropicRID().data()
+    out = np.zeros(1)
+    rk.flux_pixels(corners, np.ones((1, 1)), np.ones(1, dtype=bool), L, np.eye(3), d.kind,
+                   d.params, d.theta_knots, d.phi_knots, d.values, d.slopes, 1, False, out,
+                   np.zeros((1, 6)))  # fmt: skip
+    assert out[0] == pytest.approx(quad_solid_angle(L, corners[0])[0], rel=1e-13)
+
+
+# --- the corner grid -------------------------------------------------------------------
+
+
+def test_corner_grid_is_bit_identical_to_pixels_to_normalized() -> None:
+    # Strong barrel distortion: the outer corners fall outside the model's valid region.
+    camera = Camera.from_params(
+        fx=30.0,
+        fy=31.0,
+        cx=20.3,
+        cy=14.6,
+        width=40,
+        height=30,
+        dist=(-0.6, 0.1, 0.0, 0.0),
+        skew=0.4,
+    )
+    grid_xy, grid_ok = render.corner_grid(camera)
+    assert grid_xy.shape == (31, 41, 2) and grid_ok.shape == (31, 41)
+    vv, uu = np.meshgrid(np.arange(31) - 0.5, np.arange(41) - 0.5, indexing="ij")
+    xy, ok = camera.pixels_to_normalized(np.stack([uu.ravel(), vv.ravel()], axis=1))
+    np.testing.assert_array_equal(grid_ok, ok.reshape(31, 41))
+    assert 0 < np.count_nonzero(~grid_ok) < grid_ok.size
+    expected = np.where(ok[:, None], xy, 0.0).reshape(31, 41, 2)
+    np.testing.assert_array_equal(grid_xy, expected)
+
+
+# --- the fused image kernel ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("rid_name", list(RIDS))
+def test_render_image_matches_plain_kernels_per_rid(rid_name: str) -> None:
+    camera = _camera(dist=DISTORTION)
+    rig = Rig.single(_light(RIDS[rid_name]))
+    fast = render.render_image(camera, VIEW, rig, offset=0.25)
+    _assert_images_close(fast, _render_two_kernels(camera, VIEW, rig, offset=0.25))
+    assert not np.ma.getmaskarray(fast).any()
+
+
+@pytest.mark.parametrize("sensor", ["radiance", "cos4", "paper", "map"])
+@pytest.mark.parametrize("binning", [1, 2, 3])
+def test_render_image_matches_plain_kernels_per_sensor_and_binning(
+    sensor: str, binning: int
+) -> None:
+    camera = _camera(dist=DISTORTION)
+    rng = np.random.default_rng(6)
+    vmap = rng.uniform(0.5, 1.0, (camera.height, camera.width)) if sensor == "map" else None
+    rig = Rig((_light(RIDS["cos_power"]), _light(RIDS["table_1d"], t=(-0.1, 0.0, 0.0), scale=0.4)))
+    options: dict[str, Any] = dict(sensor=sensor, vignetting=vmap, binning=binning, offset=0.01)
+    fast = render.render_image(camera, VIEW, rig, **options)
+    assert fast.shape == (camera.height // binning, camera.width // binning)
+    _assert_images_close(fast, _render_two_kernels(camera, VIEW, rig, **options))
+
+
+@pytest.mark.parametrize("binning", [1, 2])
+def test_render_image_with_rid_subsampling(binning: int) -> None:
+    camera = _camera(dist=DISTORTION)
+    rig = Rig((_light(RIDS["gaussian"]), _light(RIDS["isotropic"], t=(0.0, 0.1, 0.0))))
+    fast = render.render_image(camera, VIEW, rig, rid_subsamples=3, binning=binning)
+    plain = _render_two_kernels(camera, VIEW, rig, rid_subsamples=3, binning=binning)
+    _assert_images_close(fast, plain)
+
+
+def test_render_image_masks_the_horizon_and_takes_the_large_angle_branch() -> None:
+    # A 116-degree camera 5 cm above the wall looking along it: the upper rows miss the
+    # wall. A light 1 mm off the wall in view: footprints near it subtend large solid
+    # angles, where the one-arctangent series does not apply.
+    camera = Camera.from_params(fx=12.0, fy=12.0, cx=19.5, cy=14.5, width=40, height=30)
+    view = View.looking_at(np.array([0.0, 0.0, 0.05]), np.array([0.0, 1.0, 0.0]))
+    p_world = np.array([0.0, 0.04, 1e-3])
+    light = Light(IsotropicRID(), view.R_camera_world @ p_world + view.t_camera_world)
+    assert light.position_world(view) == pytest.approx(p_world)
+    rig = Rig.single(light)
+    fast = render.render_image(camera, view, rig)
+    plain = _render_two_kernels(camera, view, rig)
+    mask = np.ma.getmaskarray(fast)
+    assert mask.any() and not mask.all()
+    _assert_images_close(fast, plain)
+    pix = np.argwhere(~mask)[:, ::-1]
+    fp = pixel_footprints(camera, view, pix)
+    omega = quad_solid_angle(p_world, fp.corners_world[:, 0])
+    assert omega.max() > 0.5  # tan(omega / 2) far beyond ATAN_SERIES_MAX
+
+
+def test_render_image_matches_numpy_reference() -> None:
+    camera = _camera(width=24, height=18, dist=DISTORTION)
+    rig = Rig((_light(RIDS["cos_power"]), _light(RIDS["table_2d"], t=(-0.05, 0.03, 0.01))))
+    all_options: list[dict[str, Any]] = [{}, {"sensor": "cos4", "binning": 2}, {"sensor": "paper"}]
+    for options in all_options:
+        fast = render.render_image(camera, VIEW, rig, offset=0.1, **options)
+        ref = render_image_reference(camera, VIEW, rig, offset=0.1, **options)
+        _assert_images_close(fast, ref)
+
+
+def test_render_image_light_behind_the_wall_gives_the_offset() -> None:
+    camera = _camera()
+    p_world = np.array([0.0, 0.0, -3.0])
+    behind = Light(IsotropicRID(), VIEW.R_camera_world @ p_world + VIEW.t_camera_world)
+    assert behind.position_world(VIEW)[2] < 0.0
+    img = render.render_image(camera, VIEW, Rig.single(behind), offset=0.3)
+    np.testing.assert_array_equal(img.data, np.full((30, 40), 0.3))
+
+
+def test_stack_rid_data_pads_tables() -> None:
+    datas = [RIDS["cos_power"].data(), RIDS["table_2d"].data(), RIDS["table_1d"].data()]
+    kind, params, theta, n_theta, phi, n_phi, values, slopes = rk.stack_rid_data(datas)
+    assert kind.tolist() == [d.kind for d in datas]
+    assert n_theta.tolist() == [1, 8, 9] and n_phi.tolist() == [1, 6, 1]
+    assert values.shape == (3, 6, 9) and slopes.shape == (3, 6, 9)
+    np.testing.assert_array_equal(values[1, :6, :8], datas[1].values)
+    np.testing.assert_array_equal(theta[2, :9], datas[2].theta_knots)
+    np.testing.assert_array_equal(phi[1, :6], datas[1].phi_knots)
+    assert params[0, 0] == 3.7
+
+
+@pytest.mark.parametrize("want_grad", [False, True])
+def test_flux_pixels_parallel_and_serial_kernels_agree_bitwise(want_grad: bool) -> None:
+    camera = _camera(width=120, height=100, dist=DISTORTION)
+    vv, uu = np.meshgrid(np.arange(100), np.arange(120), indexing="ij")
+    pixels = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    fp = pixel_footprints(camera, VIEW, pixels, binning=1)
+    assert len(fp) >= rk.SERIAL_WORK // 4  # the public entry point picks the parallel kernel
+    light = _light(RIDS["table_1d"])
+    L_world = light.position_world(VIEW)
+    R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
+    d = light.rid.data()
+    results = []
+    for kernel in (rk.flux_pixels, rk._flux_pixels_serial):
+        flux = np.zeros(len(fp))
+        grad = np.zeros((len(fp), 6))
+        kernel(fp.corners_world, fp.weights, fp.valid, L_world, R_wl, d.kind, d.params,
+               d.theta_knots, d.phi_knots, d.values, d.slopes, 1, want_grad, flux,
+               grad)  # fmt: skip
+        results.append((flux, grad))
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    np.testing.assert_array_equal(results[0][1], results[1][1])
+    assert np.mean(results[0][0] > 0.0) > 0.5  # most pixels lie inside the table
