@@ -19,9 +19,9 @@ from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
 from lightcal.io.boards import ArucoGridBoard, Chessboard
 from lightcal.io.camera_file import write_camera
+from lightcal.io.plane_texture import look_at_pose, render_plane_image
 from lightcal.io.project import ExposureSpec, load_project
 from lightcal.project_init import init_project
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 WIDTH, HEIGHT = 640, 480
 CAMERA = Camera.from_params(

@@ -1,0 +1,328 @@
+"""What the user can do: every action changes `AppState` under its lock or queues a
+request for the worker, and returns at once (viser runs callbacks in a thread pool, so
+several may run at the same time). `Controller` (the worker) inherits these.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from app.picking import pick, rect_to_polygon
+from app.scene3d import Scene3D
+from app.session_file import parse_session
+from app.state import (
+    ALL_DIRT,
+    AppState,
+    LightGuess,
+    OverlayKind,
+    SelectionSettings,
+    UserRegion,
+)
+from lightcal.calibration import LoadedImages
+from lightcal.errors import LightcalError
+from lightcal.io.project import Project
+
+log = logging.getLogger("lightcal.app")
+
+
+class Actions:
+    """The user's actions on the shared state (thread-safe, non-blocking).
+
+    Attributes:
+        server: the viser server (notifications go to its browsers).
+        state: the shared state.
+        scene: the 3D view (its frustum planes turn clicks into pixels).
+    """
+
+    server: Any
+    state: AppState
+    scene: Scene3D
+    truth: list[LightGuess] | None
+    upload_root: Path
+    session_path: Path | None
+
+    def _base_pose(self, j: int) -> LightGuess:
+        st = self.state
+        d = st.display
+        if d is not None and d.source == "estimate" and j < len(d.rig.lights):
+            light = d.rig.lights[j]
+            return LightGuess(light.t_camera_light.copy(), light.R_camera_light.copy())
+        return st.guess[j]
+
+    def set_guess(
+        self,
+        j: int,
+        *,
+        position_m: np.ndarray | None = None,
+        R_camera_light: np.ndarray | None = None,
+    ) -> None:
+        """Change light j's initial guess (what is not given stays as shown now)."""
+        st = self.state
+        with st.lock:
+            base = self._base_pose(j)
+            pos = base.position_m if position_m is None else np.asarray(position_m, float)
+            R = base.R_camera_light if R_camera_light is None else np.asarray(R_camera_light, float)
+            if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(R))):
+                return
+            guess = list(st.guess)
+            guess[j] = LightGuess(pos.copy(), R.copy())
+            st.guess = guess
+            st.resume_x = None
+            st.setup_changed(selection=False)
+
+    def reset_guess(self) -> None:
+        """Back to the project's initial guess."""
+        st = self.state
+        with st.lock:
+            st.guess = [
+                LightGuess(u.initial.t_camera_light.copy(), u.initial.R_camera_light.copy())
+                for u in st.project.lights
+            ]
+            st.resume_x = None
+            st.setup_changed(selection=False)
+
+    def set_selection(self, settings: SelectionSettings, *, image: str | None = None) -> None:
+        """Pixel selection settings for every image (image None) or one image."""
+        st = self.state
+        with st.lock:
+            if image is None:
+                if settings == st.selection:
+                    return
+                st.selection = settings
+            else:
+                st.image_index(image)
+                if st.selection_per_image.get(image) == settings:
+                    return
+                st.selection_per_image[image] = settings
+            st.resume_x = None
+            st.setup_changed(selection=True)
+
+    def clear_selection_override(self, image: str) -> None:
+        """Image `image` uses the global selection settings again."""
+        st = self.state
+        with st.lock:
+            if st.selection_per_image.pop(image, None) is not None:
+                st.setup_changed(selection=True)
+
+    def add_region(self, region: UserRegion) -> None:
+        """Add an include/exclude region."""
+        st = self.state
+        with st.lock:
+            if region.image is not None:
+                st.image_index(region.image)
+            st.regions = [*st.regions, region]
+            st.resume_x = None
+            st.setup_changed(selection=True)
+
+    def clear_regions(self, image: str | None = None) -> None:
+        """Remove the user regions of one image (or all)."""
+        st = self.state
+        with st.lock:
+            keep = [r for r in st.regions if image is not None and r.image != image]
+            if len(keep) != len(st.regions):
+                st.regions = keep
+                st.setup_changed(selection=True)
+
+    def add_point(self, index: int, u: float, v: float) -> None:
+        """Add a clicked pixel of image `index` (full-resolution coordinates)."""
+        st = self.state
+        with st.lock:
+            cam = st.loaded.camera
+            ui, vi = round(u), round(v)
+            if not (0 <= ui < cam.width and 0 <= vi < cam.height):
+                return
+            name = st.project.names[index]
+            pts = st.points.setdefault(name, [])
+            if (ui, vi) not in pts:
+                pts.append((ui, vi))
+                st.setup_changed(selection=True)
+
+    def remove_points_near(self, index: int, u: float, v: float, *, radius_px: float = 8.0) -> None:
+        """Remove clicked pixels of image `index` within `radius_px` of (u, v)."""
+        st = self.state
+        with st.lock:
+            name = st.project.names[index]
+            pts = st.points.get(name, [])
+            keep = [p for p in pts if (p[0] - u) ** 2 + (p[1] - v) ** 2 > radius_px**2]
+            if len(keep) != len(pts):
+                st.points[name] = keep
+                st.setup_changed(selection=True)
+
+    def clear_points(self, image: str | None = None) -> None:
+        """Remove the clicked pixels of one image (or all)."""
+        st = self.state
+        with st.lock:
+            if image is None:
+                changed = any(st.points.values())
+                st.points = {}
+            else:
+                changed = bool(st.points.pop(image, None))
+            if changed:
+                st.setup_changed(selection=True)
+
+    def set_overlay(self, kind: OverlayKind | None, *, image: str | None = None) -> None:
+        """What the frusta show: for every image (image None), or for one (kind None: as all)."""
+        st = self.state
+        with st.lock:
+            if image is None:
+                assert kind is not None
+                st.overlay_default = kind
+            elif kind is None:
+                st.overlay_per_image.pop(image, None)
+            else:
+                st.image_index(image)
+                st.overlay_per_image[image] = kind
+            st.mark("overlays", "widgets", changed=True)
+
+    def set_show_selection(self, show: bool) -> None:
+        st = self.state
+        with st.lock:
+            st.show_selection = bool(show)
+            st.mark("selection", "widgets", changed=True)
+
+    def set_rays(self, which: str) -> None:
+        """Rays for "none", "all" or one image name."""
+        st = self.state
+        with st.lock:
+            if which not in ("none", "all"):
+                st.image_index(which)
+            st.rays_image = which
+            st.mark("light", "widgets", changed=True)
+
+    def set_ref_image(self, index: int) -> None:
+        """Put the gizmo on image `index`'s camera."""
+        st = self.state
+        with st.lock:
+            if not 0 <= index < len(st.project.names) or index == st.ref_image:
+                return
+            st.ref_image = index
+            st.mark(*ALL_DIRT, changed=True)
+
+    def step(self) -> None:
+        self.state.request("step")
+
+    def run(self) -> None:
+        self.state.request("run")
+
+    def pause(self) -> None:
+        self.state.request("pause")
+
+    def reset(self) -> None:
+        self.state.request("reset")
+
+    def click(self, origin: np.ndarray, direction: np.ndarray, *, mode: str) -> None:
+        """A click in the 3D view: add or remove a pixel of the image under it."""
+        if mode not in ("add", "remove"):
+            return
+        hit = pick(self.scene.planes, np.asarray(origin), np.asarray(direction))
+        if hit is None:
+            return
+        i, u, v = hit
+        if mode == "add":
+            self.add_point(i, u, v)
+        else:
+            self.remove_points_near(i, u, v)
+
+    def rect(
+        self,
+        screen_min: tuple[float, float],
+        screen_max: tuple[float, float],
+        *,
+        camera_position: np.ndarray,
+        camera_wxyz: np.ndarray,
+        fov_y_rad: float,
+        aspect: float,
+        include: bool,
+        client: Any = None,
+    ) -> UserRegion | None:
+        """A rectangle dragged in the 3D view: a region on the image under its centre."""
+        hit = rect_to_polygon(
+            self.scene.planes,
+            camera_position,
+            camera_wxyz,
+            fov_y_rad=fov_y_rad,
+            aspect=aspect,
+            screen_min=screen_min,
+            screen_max=screen_max,
+        )
+        if hit is None:
+            self.notify(
+                client,
+                "No image under the rectangle",
+                "Shift-drag over an image on a camera frustum (tip: View > Look through image).",
+            )
+            return None
+        index, poly = hit
+        region = UserRegion(
+            "polygon",
+            tuple((float(u), float(v)) for u, v in poly),
+            include,
+            self.state.project.names[index],
+        )
+        self.add_region(region)
+        return region
+
+    def request_download(self, what: str, client: Any = None) -> None:
+        """Queue a download: "result", "report" or "session"."""
+        self.state.request("download", what=what, client=client)
+
+    def save_session(self, client: Any = None) -> None:
+        self.state.request("save_session", client=client)
+
+    def load_saved_session(self, client: Any = None) -> None:
+        self.state.request("load_saved_session", client=client)
+
+    def load_session_bytes(self, name: str, content: bytes, client: Any = None) -> None:
+        try:
+            session = parse_session(content, name)
+        except LightcalError as exc:
+            self.notify(client, "Session not loaded", str(exc), error=True)
+            return
+        self.state.request("apply_session", session=session, client=client, source=name)
+
+    def switch_project(
+        self,
+        project: Project,
+        loaded: LoadedImages,
+        *,
+        truth: list[LightGuess] | None,
+        keep_choices: bool,
+        client: Any = None,
+        note: str = "",
+    ) -> None:
+        """Show another project (uploads); keep_choices keeps guess and selection."""
+        self.state.request(
+            "switch_project",
+            project=project,
+            loaded=loaded,
+            truth=truth,
+            keep=keep_choices,
+            client=client,
+            note=note,
+        )
+
+    def notify(self, client: Any, title: str, body: str, *, error: bool = False) -> None:
+        """A message in the page: a notification (for `client`, else every browser) and
+        the messages box (everyone)."""
+        st = self.state
+        with st.lock:
+            st.messages = [*st.messages[-5:], (("⚠ " if error else "") + title, body)]
+            st.mark("status")
+        targets = [client] if client is not None else list(self.server.get_clients().values())
+        for c in targets:
+            try:
+                c.add_notification(
+                    title,
+                    body,
+                    color="red" if error else "blue",
+                    auto_close_seconds=None if error else 8.0,
+                )
+            except Exception:  # a browser that just left
+                log.debug("notification failed", exc_info=True)
+
+    def _on_gizmo(self, j: int, position_m: np.ndarray, R: np.ndarray, client: Any) -> None:
+        self.set_guess(j, position_m=position_m, R_camera_light=R)

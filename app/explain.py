@@ -1,0 +1,91 @@
+"""The explanation panel: what lightcal computes, in words and pictures.
+
+The pictures are PNGs in the repository's `static/` folder, drawn by
+`static/make_figures.py` (NumPy and OpenCV only). A missing picture is replaced by a
+line saying how to draw it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
+
+SECTIONS: tuple[tuple[str, str, str | None], ...] = (
+    (
+        "What is calibrated",
+        "A light is mounted rigidly on a camera. Its pose relative to the camera, "
+        "`T_camera_light` (position p_cl in metres and the direction of its axis), is the "
+        "same in every photo. Photos of a flat white wall (z = 0) from several known camera "
+        "poses show the light's pattern; lightcal moves a model light until the rendered "
+        "photos match the real ones (after Song et al. 2020).",
+        "frames.png",
+    ),
+    (
+        "One pixel's footprint",
+        "Each pixel's four corners are undistorted and cast as rays onto the wall; they "
+        "outline a small quad, the pixel's footprint. A pixel whose corner ray misses the "
+        "wall is masked, never guessed.",
+        "footprint.png",
+    ),
+    (
+        "Light reaching the footprint",
+        "Seen from the light, the footprint covers a solid angle Omega_Q (computed exactly). "
+        "The flux is I0 f Omega_Q, with f the light's relative intensity towards the "
+        "footprint; divided by the footprint's area it gives the irradiance, and the "
+        "Lambertian wall turns it into the radiance the pixel sees.",
+        "solid_angle.png",
+    ),
+    (
+        "The light's angular profile (RID)",
+        "f(theta) falls off with the angle from the light's axis. The cones in the 3D view "
+        "show where it is half (half-intensity angle) and 1 % (cut-off). A profile can come "
+        "from a formula, a table, or an IES/LDT file (Files tab).",
+        "rid.png",
+    ),
+    (
+        "Fitting",
+        "The solver (least squares) changes the light's position, axis and brightness scale "
+        "to make rendered pixel values equal the real ones at the selected pixels (Pixels "
+        "tab). The residual maps show what is left; the result lists each number with its "
+        "1-sigma uncertainty and warns when the photos lack distance or angle variety.",
+        "residual.png",
+    ),
+)
+
+
+def load_figure(name: str) -> np.ndarray | None:
+    """(H, W, 3) uint8 RGB of a static picture, or None when missing or unreadable."""
+    path = STATIC_DIR / name
+    if not path.is_file():
+        return None
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        return None
+    return np.ascontiguousarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+
+
+def add_explanation(gui: Any) -> list[str]:
+    """Add the explanation's folders to the current GUI container.
+
+    Returns:
+        names of the pictures that were missing.
+    """
+    missing = []
+    for k, (title, body, figure) in enumerate(SECTIONS):
+        with gui.add_folder(title, expand_by_default=k == 0):
+            gui.add_markdown(body)
+            if figure is not None:
+                rgb = load_figure(figure)
+                if rgb is None:
+                    missing.append(figure)
+                    gui.add_markdown(
+                        f"*(picture {figure} missing: run `python static/make_figures.py`)*"
+                    )
+                else:
+                    gui.add_image(rgb, format="png")
+    return missing

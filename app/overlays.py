@@ -1,0 +1,261 @@
+"""The pictures on the camera frusta: real, rendered or residual images, downscaled.
+
+Exact values stay on the server; what goes to the browsers is an RGB picture of at
+most `max_side` pixels on its long side, JPEG-encoded by viser. Rendered images use
+the camera binned so that the long side has about `render_side` pixels
+(`Camera.binned`): one footprint per super-pixel, which is what a display needs and
+~b^2 times cheaper than the exact binned render. The residual (real minus rendered) is
+compared on the same binned grid (`bin_values`) and shown with a diverging colour map
+on a symmetric scale shared by all images (the legend).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from app.state import Display, OverlayKind, UserRegion
+from lightcal.calibration import LoadedImages
+from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
+from lightcal.core.camera import Camera
+from lightcal.core.problem import with_view
+from lightcal.core.render import render_image
+from lightcal.core.selection import bin_values
+from lightcal.io.project import Project
+
+INCLUDE_RGB = (40, 210, 60)
+EXCLUDE_RGB = (235, 40, 40)
+SELECTED_RGB = (40, 230, 90)
+POINT_RGB = (255, 215, 0)
+MASK_RGB = np.array([200, 0, 200], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class DisplayGeometry:
+    """Sizes of one project's pictures.
+
+    Attributes:
+        camera: intrinsics of the images as loaded (W x H).
+        render_binning: b of the rendered (and residual) images.
+        render_camera: `camera.binned(render_binning)`.
+        width, height: size of the pictures sent to the browsers.
+    """
+
+    camera: Camera
+    render_binning: int
+    render_camera: Camera
+    width: int
+    height: int
+
+
+def display_geometry(
+    camera: Camera, *, max_side: int = 640, render_side: int = 200
+) -> DisplayGeometry:
+    """Sizes for a camera: pictures of long side <= max_side, renders of ~render_side."""
+    long_side = max(camera.width, camera.height)
+    b = max(1, math.ceil(long_side / render_side))
+    s = min(1.0, max_side / long_side)
+    w = max(1, round(camera.width * s))
+    h = max(1, round(camera.height * s))
+    return DisplayGeometry(camera, b, camera.binned(b) if b > 1 else camera, w, h)
+
+
+def full_to_display(points_px: np.ndarray, geo: DisplayGeometry) -> np.ndarray:
+    """(N, 2) full-resolution pixel coordinates -> picture coordinates (centres at integers)."""
+    p = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    sx = geo.width / geo.camera.width
+    sy = geo.height / geo.camera.height
+    return np.stack([(p[:, 0] + 0.5) * sx - 0.5, (p[:, 1] + 0.5) * sy - 0.5], axis=1)
+
+
+def binned_to_full(points: np.ndarray, binning: int) -> np.ndarray:
+    """(N, 2) pixel indices of a b x b binned grid -> full-resolution centre coordinates."""
+    return (np.asarray(points, dtype=np.float64).reshape(-1, 2) + 0.5) * binning - 0.5
+
+
+class OverlayImages:
+    """The pictures of one project's images.
+
+    Args:
+        project: the project.
+        loaded: its images.
+        max_side, render_side: see `display_geometry`.
+    """
+
+    def __init__(
+        self, project: Project, loaded: LoadedImages, *, max_side: int = 640, render_side: int = 200
+    ) -> None:
+        self.project = project
+        self.loaded = loaded
+        self.geo = display_geometry(loaded.camera, max_side=max_side, render_side=render_side)
+        b = self.geo.render_binning
+        self.real_rgb: list[np.ndarray] = []
+        self.real_binned: list[np.ndarray] = []
+        self.white: list[float] = []
+        self.mask_display: list[np.ndarray] = []
+        for i, img in enumerate(loaded.images):
+            values = np.where(img.saturated, np.nan, img.values)
+            finite = values[np.isfinite(values)]
+            white = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+            white = white if white > 0 else 1.0
+            self.white.append(white)
+            self.real_rgb.append(self._resize(grey_rgb(img.values, white)))
+            binned = bin_values(values, b) if b > 1 else values
+            self.real_binned.append(binned)
+            bad = img.saturated.astype(np.float32)
+            if loaded.excluded[i] is not None:
+                bad = np.maximum(bad, np.asarray(loaded.excluded[i], dtype=np.float32))
+            small = cv2.resize(bad, (self.geo.width, self.geo.height), interpolation=cv2.INTER_AREA)
+            self.mask_display.append(small > 0.0)
+        self._vignetting = self._binned_vignetting()
+        shape = (self.geo.height, self.geo.width, 3)
+        self._mask_colour = np.empty(shape, np.uint8)
+        self._mask_colour[:] = MASK_RGB.astype(np.uint8)
+        self._selected_colour = np.empty(shape, np.uint8)
+        self._selected_colour[:] = SELECTED_RGB
+
+    def _resize(self, rgb: np.ndarray, *, nearest: bool = False) -> np.ndarray:
+        h, w = rgb.shape[:2]
+        if (w, h) == (self.geo.width, self.geo.height):
+            return rgb
+        if nearest:
+            interp = cv2.INTER_NEAREST
+        else:
+            interp = cv2.INTER_AREA if w > self.geo.width else cv2.INTER_LINEAR
+        return cv2.resize(rgb, (self.geo.width, self.geo.height), interpolation=interp)
+
+    def _binned_vignetting(self) -> np.ndarray | None:
+        p = self.project
+        if p.spec.sensor.model != "map" or p.vignetting_path is None:
+            return None
+        from lightcal.io.vignetting_file import load_vignetting
+
+        cam = self.geo.camera
+        vmap = load_vignetting(p.vignetting_path, width=cam.width, height=cam.height)
+        b = self.geo.render_binning
+        return bin_values(vmap, b) if b > 1 else vmap
+
+    def render(self, index: int, display: Display) -> np.ma.MaskedArray:
+        """(h, w) rendered values of image `index` on the binned grid (masked off the wall)."""
+        view = self.project.views[index]
+        view = with_view(view, exposure=view.exposure * display.gains[index])
+        sensor = self.project.spec.sensor.model
+        out = render_image(
+            self.geo.render_camera,
+            view,
+            display.rig,
+            sensor=sensor,
+            vignetting=self._vignetting,
+            offset=0.0,
+            rid_subsamples=self.project.solver.rid_subsamples,
+        )
+        if sensor == "paper":
+            # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
+            out = out / float(self.geo.render_binning**2)
+        return out + display.offset
+
+    def residual(self, index: int, rendered: np.ma.MaskedArray) -> np.ma.MaskedArray:
+        """(h, w) real minus rendered on the binned grid, masked where either is unknown."""
+        real = self.real_binned[index]
+        h, w = rendered.shape
+        diff = real[:h, :w] - np.ma.filled(rendered.astype(np.float64), np.nan)
+        return np.ma.masked_invalid(diff)
+
+    def picture(
+        self,
+        index: int,
+        kind: OverlayKind,
+        *,
+        rendered: np.ma.MaskedArray | None = None,
+        residual_vmax: float = 1.0,
+    ) -> np.ndarray:
+        """(H_d, W_d, 3) uint8 picture of image `index` showing `kind`."""
+        if kind == "real" or rendered is None:
+            return self.real_rgb[index].copy()
+        if kind == "rendered":
+            return self._resize(grey_rgb(rendered, self.white[index]))
+        res = self.residual(index, rendered)
+        return self._resize(diverging_rgb(res, residual_vmax), nearest=True)
+
+    def draw_selection(
+        self,
+        rgb: np.ndarray,
+        index: int,
+        *,
+        selected: np.ndarray,
+        binning: int,
+        regions: tuple[UserRegion, ...],
+        points: tuple[tuple[int, int], ...],
+    ) -> np.ndarray:
+        """Draw masks, regions, the selected pixels and clicked points on a picture.
+
+        Args:
+            rgb: (H_d, W_d, 3) picture (modified and returned).
+            index: which image.
+            selected: (N, 2) selected (super-)pixels in the grid binned by `binning`.
+            binning: b of `selected`.
+            regions: user regions that apply to this image.
+            points: clicked full-resolution pixels.
+        """
+        geo = self.geo
+        mask = self.mask_display[index]
+        if mask.any():
+            _blend_where(rgb, mask, self._mask_colour, 0.5)
+        for r in regions:
+            pts = np.array(r.points, dtype=np.float64)
+            if r.kind == "rect":
+                (u0, v0), (u1, v1) = pts
+                pts = np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
+            d = np.round(full_to_display(pts, geo)).astype(np.int32)
+            cv2.polylines(rgb, [d], True, INCLUDE_RGB if r.include else EXCLUDE_RGB, 2)
+        if len(selected):
+            d = np.round(full_to_display(binned_to_full(selected, binning), geo)).astype(int)
+            d[:, 0] = np.clip(d[:, 0], 0, geo.width - 1)
+            d[:, 1] = np.clip(d[:, 1], 0, geo.height - 1)
+            marks = np.zeros((geo.height, geo.width), np.uint8)
+            marks[d[:, 1], d[:, 0]] = 1
+            radius = max(1, round(0.5 * binning * geo.width / geo.camera.width))
+            if len(selected) < 4000:
+                radius = max(radius, 2)
+            kernel = np.ones((2 * radius - 1, 2 * radius - 1), np.uint8)
+            hit = cv2.dilate(marks, kernel) > 0
+            _blend_where(rgb, hit, self._selected_colour, 0.65)
+        for u, v in points:
+            x, y = np.round(full_to_display(np.array([[u, v]]), geo)[0]).astype(int)
+            cv2.drawMarker(rgb, (int(x), int(y)), POINT_RGB, cv2.MARKER_CROSS, 9, 2)
+        return rgb
+
+
+def _blend_where(rgb: np.ndarray, where: np.ndarray, colour: np.ndarray, alpha: float) -> None:
+    """rgb = (1 - alpha) rgb + alpha colour where `where` (H, W) is True, in place."""
+    mixed = cv2.addWeighted(rgb, 1.0 - alpha, colour, alpha, 0.0)
+    cv2.copyTo(mixed, where.astype(np.uint8), rgb)  # ~20x faster than np.copyto(where=)
+
+
+def shared_vmax(residuals: list[np.ma.MaskedArray]) -> float:
+    """One colour scale for all residual maps: the 99th percentile of every |residual|."""
+    parts = [np.ma.compressed(r) for r in residuals if r is not None]
+    if not parts:
+        return 1.0
+    return robust_vmax(np.concatenate(parts))
+
+
+def legend_picture(vmax: float, *, width: int = 320, height: int = 56) -> np.ndarray:
+    """(height, width, 3) colour bar of the residual map with its scale (pixel values)."""
+    img = np.full((height, width, 3), 255, np.uint8)
+    pad = 14
+    bar = np.linspace(-vmax, vmax, width - 2 * pad)[None, :].repeat(16, axis=0)
+    img[6:22, pad : width - pad] = diverging_rgb(bar, vmax)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    v = f"{vmax:.4g}"
+    for frac, text in ((0.0, f"-{v}"), (0.5, "0"), (1.0, f"+{v}")):
+        x = pad + frac * (width - 2 * pad - 1)
+        cv2.line(img, (int(x), 22), (int(x), 27), (20, 20, 20), 1)
+        size = cv2.getTextSize(text, font, 0.42, 1)[0][0]
+        x0 = int(np.clip(x - size / 2, 0, width - size))
+        cv2.putText(img, text, (x0, 41), font, 0.42, (20, 20, 20), 1, cv2.LINE_AA)
+    cv2.putText(img, "real - rendered", (pad, 54), font, 0.38, (90, 90, 90), 1, cv2.LINE_AA)
+    return img

@@ -1,0 +1,93 @@
+"""The result as the page shows it, and the files it can download.
+
+The numbers come from `lightcal.calibration.summarise` (uncertainties, pose-variety
+warnings); the files from `lightcal.io.result_file` (result JSON) and
+`lightcal.report.write_report` (the report folder, zipped here).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import tempfile
+import zipfile
+from pathlib import Path
+
+from lightcal.calibration import CalibrationResult, LoadedImages
+from lightcal.core.solver import CalibrationModel
+from lightcal.io.project import Project
+from lightcal.io.result_file import result_to_file
+
+
+def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
+    """The Result panel's text."""
+    if result is None:
+        return (
+            "No result yet. Press **Step** or **Run** in the Solve tab; the estimate with its "
+            "uncertainties (1 sigma) appears here when the solver pauses or finishes."
+        )
+    head = "converged" if result.converged else f"not converged ({state})"
+    lines = [
+        f"**{head}**: {result.message}  ",
+        f"{result.iterations} iterations, {sum(result.pixels_used)} pixels, cost {result.cost:.6g}",
+        "",
+    ]
+    for lr in result.lights:
+        p, sp = lr.pose["position_m"], lr.sigma["position_m"]
+        ax, sax = lr.pose["axis_camera"], lr.sigma["axis_camera"]
+        lines += [
+            f"#### {lr.name} ({lr.pose_kind})",
+            "| quantity | value | ± 1 sigma |",
+            "|---|---|---|",
+        ]
+        for k, axis_name in enumerate("xyz"):
+            lines.append(f"| position {axis_name} (mm) | {p[k] * 1e3:+.3f} | {sp[k] * 1e3:.2g} |")
+        if lr.pose_kind != "isotropic":
+            for k, axis_name in enumerate("xyz"):
+                lines.append(f"| axis {axis_name} | {ax[k]:+.5f} | {sax[k]:.2g} |")
+            lines.append(
+                "| axis from optical axis (deg) | "
+                f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} "
+                f"| {lr.sigma['axis_angle_from_optical_axis_deg']:.2g} |"
+            )
+            lines.append(
+                f"| roll (deg) | {lr.pose['roll_deg']:+.3f} | {lr.sigma['roll_deg']:.2g} |"
+            )
+            lines.append(
+                f"| pitch (deg) | {lr.pose['pitch_deg']:+.3f} | {lr.sigma['pitch_deg']:.2g} |"
+            )
+        lines.append(f"| scale | {lr.scale:.5g} | {lr.scale_sigma:.2g} |")
+        lines.append("")
+    if result.warnings:
+        lines.append("#### ⚠ Warnings")
+        lines += [f"- {w}" for w in result.warnings]
+        lines.append("")
+    lines += ["#### Images", "| image | pixels | RMS (pixel values) |", "|---|---|---|"]
+    for name, n, rms in zip(
+        result.image_names, result.pixels_used, result.per_image_rms, strict=True
+    ):
+        rms_text = f"{rms:.4g}" if math.isfinite(rms) else "-"
+        lines.append(f"| {name} | {n} | {rms_text} |")
+    return "\n".join(lines)
+
+
+def result_json_bytes(result: CalibrationResult, project: Project) -> bytes:
+    """The result file (`lightcal calibrate --out` format) as bytes."""
+    return (result_to_file(result, project=project.path).model_dump_json(indent=2) + "\n").encode()
+
+
+def report_zip_bytes(
+    project: Project, loaded: LoadedImages, model: CalibrationModel, result: CalibrationResult
+) -> bytes:
+    """The report folder (`lightcal calibrate --report`) plus the result JSON, zipped."""
+    from lightcal.report import write_report
+
+    buf = io.BytesIO()
+    with tempfile.TemporaryDirectory(prefix="lightcal-report-") as tmp:
+        folder = Path(tmp) / "report"
+        files = write_report(folder, project, loaded, model, result)
+        with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for f in files:
+                zf.write(f, f"report/{f.name}")
+            zf.writestr("report/result.json", result_json_bytes(result, project))
+    return buf.getvalue()

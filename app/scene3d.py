@@ -1,0 +1,406 @@
+"""The 3D view: the wall, one frustum per image carrying its picture, the light(s).
+
+World frame (MODEL.md): the wall is z = 0, cameras at z > 0; the browser's "up" is -y
+(image up for cameras looking at the wall the usual way). Each camera is a frustum node
+`/cameras/<i>` posed by `T_world_camera`; everything in the camera (rig) frame hangs
+below it, so a node's local pose there is exactly `T_camera_light`:
+
+- `/cameras/<ref>/light<j>`: the draggable gizmo of light j on the reference image's
+  camera, with its bulb and cones (half-intensity and cut-off angles of the RID);
+- `/cameras/<i>/light<j>`: the same light drawn on every other camera pose;
+- `/cameras/<i>/truth<j>`: the true light in demo mode (a ghost);
+- `/rays`: rays from the light to the wall for the selected pixels (world frame).
+
+`Scene3D` only draws what it is given; it never changes the app state itself: the
+gizmo and pointer callbacks it is built with do that.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import viser
+
+from app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
+from app.state import LightGuess
+from lightcal.core.footprint import pixel_footprints
+from lightcal.core.rid import RID
+from lightcal.core.rotations import matrix_from_quaternion_wxyz, quaternion_wxyz_from_matrix
+from lightcal.core.scene import Light, Rig
+from lightcal.io.project import Project
+
+LIGHT_RGB = (255, 170, 0)
+TRUTH_RGB = (40, 200, 90)
+RAY_RGB = (255, 200, 40)
+CAMERA_RGB = (60, 60, 70)
+REF_CAMERA_RGB = (230, 120, 0)
+WALL_RGB = (228, 226, 220)
+MAX_RAYS_PER_IMAGE = 300
+CONE_MAX_ANGLE_RAD = math.radians(85.0)
+
+GizmoCallback = Callable[[int, np.ndarray, np.ndarray, Any], None]
+
+
+def cone_mesh(
+    half_angle_rad: float, length_m: float, *, n: int = 40
+) -> tuple[np.ndarray, np.ndarray]:
+    """An open cone with its apex at the origin around +z.
+
+    Args:
+        half_angle_rad: angle between the axis and the surface (capped at 85 degrees).
+        length_m: slant length.
+        n: segments around the axis.
+
+    Returns:
+        vertices (n + 1, 3) and faces (n, 3).
+    """
+    a = min(max(half_angle_rad, 1e-3), CONE_MAX_ANGLE_RAD)
+    r = length_m * math.sin(a)
+    h = length_m * math.cos(a)
+    phi = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+    ring = np.stack([r * np.cos(phi), r * np.sin(phi), np.full(n, h)], axis=1)
+    vertices = np.vstack([np.zeros((1, 3)), ring])
+    k = np.arange(n)
+    faces = np.stack([np.zeros(n, np.int64), 1 + k, 1 + (k + 1) % n], axis=1)
+    return vertices, faces
+
+
+def cone_lines(
+    half_angle_rad: float, length_m: float, *, n_ring: int = 48, n_generators: int = 8
+) -> np.ndarray:
+    """Outline of the cone of `cone_mesh`: its end ring and some generator lines.
+
+    Returns:
+        (n_ring + n_generators, 2, 3) line segments.
+    """
+    a = min(max(half_angle_rad, 1e-3), CONE_MAX_ANGLE_RAD)
+    r = length_m * math.sin(a)
+    h = length_m * math.cos(a)
+    phi = np.linspace(0.0, 2.0 * math.pi, n_ring + 1)
+    ring = np.stack([r * np.cos(phi), r * np.sin(phi), np.full(phi.shape, h)], axis=1)
+    segs = [np.stack([ring[:-1], ring[1:]], axis=1)]
+    k = np.arange(n_generators) * (n_ring // n_generators)
+    gen = np.zeros((n_generators, 2, 3))
+    gen[:, 1] = ring[k]
+    segs.append(gen)
+    return np.concatenate(segs)
+
+
+def rid_angles(rid: RID) -> tuple[float, float]:
+    """(half-intensity angle, 1 % cut-off angle) of a RID, radians."""
+    return rid.angle_at_level_rad(0.5), rid.angle_at_level_rad(0.01)
+
+
+def _rid_key(rid: RID) -> bytes:
+    d = rid.data()
+    parts = [type(rid).__name__.encode(), np.int64(d.kind).tobytes()]
+    parts += [
+        np.asarray(a, dtype=np.float64).tobytes() for a in (d.params, d.theta_knots, d.values)
+    ]
+    return b"|".join(parts)
+
+
+def wall_extent(project: Project, *, margin: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
+    """(2,) min and max world x, y of the wall seen by the images (with a margin)."""
+    cam = project.camera
+    corners_px = np.array(
+        [[0, 0], [cam.width - 1, 0], [cam.width - 1, cam.height - 1], [0, cam.height - 1]]
+    )
+    pts = []
+    for view in project.views:
+        fp = pixel_footprints(cam, view, corners_px)
+        c = fp.corners_world.reshape(-1, 3)
+        pts.append(c[np.all(np.isfinite(c), axis=1), :2])
+        pts.append(view.center_world[None, :2])
+    xy = np.concatenate(pts)
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = margin * max(float((hi - lo).max()), 0.1)
+    return lo - pad, hi + pad
+
+
+def _pose(light: Light | LightGuess) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(light, Light):
+        return light.t_camera_light, light.R_camera_light
+    return light.position_m, light.R_camera_light
+
+
+class Scene3D:
+    """Scene nodes of one project and how to update them.
+
+    Args:
+        server: the viser server (server-level scene: every browser sees the same).
+        on_gizmo: called with (light index, position_m (3,), R_camera_light (3, 3), client)
+            when a browser drags a gizmo.
+    """
+
+    def __init__(self, server: viser.ViserServer, *, on_gizmo: GizmoCallback) -> None:
+        self.server = server
+        self.scene = server.scene
+        self.on_gizmo = on_gizmo
+        self.frusta: list[Any] = []
+        self.planes: list[FrustumPlane] = []
+        self.gizmos: list[Any] = []
+        self.light_frames: dict[tuple[int, int], Any] = {}
+        self._cone_keys: list[bytes | None] = []
+        self._gizmo_pose: list[tuple[np.ndarray, np.ndarray] | None] = []
+        self.rays: Any = None
+        self.ref_image = 0
+        self.cone_length_m = 0.3
+        self.light_size_m = 0.02
+
+    # -- building ---------------------------------------------------------------------------
+
+    def build(
+        self,
+        project: Project,
+        *,
+        pictures: list[np.ndarray],
+        guess: list[LightGuess],
+        ref_image: int,
+        truth: list[LightGuess] | None,
+    ) -> None:
+        """(Re)create every node for a project."""
+        scene = self.scene
+        scene.reset()
+        scene.set_up_direction("-y")
+        self.project = project
+        cam = project.camera
+        dist = float(np.median([v.center_world[2] for v in project.views]))
+        depth = 0.25 * dist
+        self.cone_length_m = 0.8 * depth  # short of the pictures: they stay visible
+        self.light_size_m = 0.012 * dist
+        lo, hi = wall_extent(project)
+        verts = np.array(
+            [[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]]
+        )
+        scene.add_mesh_simple(
+            "/wall",
+            verts.astype(np.float32),
+            np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+            color=WALL_RGB,
+            side="double",
+        )
+        centre = 0.5 * (lo + hi)
+        size = float((hi - lo).max())
+        scene.add_grid(
+            "/wall_grid",
+            width=size,
+            height=size,
+            plane="xy",
+            cell_size=0.1,
+            section_size=0.5,
+            position=(float(centre[0]), float(centre[1]), 0.001),
+        )
+        scene.add_label("/wall_label", "wall (z = 0)", position=(float(lo[0]), float(lo[1]), 0.0))
+        fov = cam.fov_y_rad
+        scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
+        self.frusta = []
+        self.planes = []
+        for i, view in enumerate(project.views):
+            R_wc = view.R_camera_world.T
+            h = scene.add_camera_frustum(
+                f"/cameras/{i}",
+                fov=fov,
+                aspect=cam.aspect,
+                scale=scale,
+                thickness=1.5,
+                thickness_units="screen",
+                color=REF_CAMERA_RGB if i == ref_image else CAMERA_RGB,
+                image=pictures[i],
+                format="jpeg",
+                jpeg_quality=80,
+                wxyz=quaternion_wxyz_from_matrix(R_wc),
+                position=view.center_world,
+            )
+            self.frusta.append(h)
+            self.planes.append(
+                frustum_plane(
+                    R_wc,
+                    view.center_world,
+                    fov_y_rad=fov,
+                    aspect=cam.aspect,
+                    scale=scale,
+                    width_px=cam.width,
+                    height_px=cam.height,
+                )
+            )
+            scene.add_label(
+                f"/cameras/{i}/name",
+                project.names[i],
+                position=(0.0, -1.15 * self.planes[i].half_height_m, self.planes[i].depth_m),
+            )
+        self.ref_image = ref_image
+        self._build_lights(guess)
+        if truth:
+            self._build_truth(truth)
+        self.rays = None
+        mid = np.mean([v.center_world for v in project.views], axis=0)
+        self.server.initial_camera.position = mid + np.array([0.0, 0.6 * dist, 1.4 * dist])
+        self.server.initial_camera.look_at = (float(centre[0]), float(centre[1]), 0.0)
+        self.server.initial_camera.up = (0.0, -1.0, 0.0)
+
+    def _build_lights(self, guess: list[LightGuess]) -> None:
+        scene = self.scene
+        n_img = len(self.project.views)
+        self.gizmos = []
+        self.light_frames = {}
+        self._cone_keys = [None] * len(guess)
+        self._gizmo_pose = [None] * len(guess)
+        for j, g in enumerate(guess):
+            t, R = _pose(g)
+            gizmo = scene.add_transform_controls(
+                f"/cameras/{self.ref_image}/light{j}",
+                scale=2.5 * self.light_size_m * 4,
+                line_width=2.0,
+                depth_test=False,
+                wxyz=quaternion_wxyz_from_matrix(R),
+                position=t,
+            )
+            gizmo.on_update(self._gizmo_callback(j))
+            self.gizmos.append(gizmo)
+            self._gizmo_pose[j] = (t.copy(), R.copy())
+            for i in range(n_img):
+                if i == self.ref_image:
+                    continue
+                self.light_frames[(i, j)] = scene.add_frame(
+                    f"/cameras/{i}/light{j}",
+                    show_axes=False,
+                    wxyz=quaternion_wxyz_from_matrix(R),
+                    position=t,
+                )
+            for i in range(n_img):
+                scene.add_icosphere(
+                    f"/cameras/{i}/light{j}/bulb",
+                    radius=self.light_size_m,
+                    color=LIGHT_RGB,
+                )
+
+    def _build_truth(self, truth: list[LightGuess]) -> None:
+        for j, g in enumerate(truth):
+            for i in range(len(self.project.views)):
+                base = f"/cameras/{i}/truth{j}"
+                self.scene.add_frame(
+                    base,
+                    show_axes=False,
+                    wxyz=quaternion_wxyz_from_matrix(g.R_camera_light),
+                    position=g.position_m,
+                )
+                self.scene.add_icosphere(
+                    f"{base}/bulb", radius=self.light_size_m, color=TRUTH_RGB, opacity=0.55
+                )
+                axis = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, self.cone_length_m]]], np.float32)
+                self.scene.add_line_segments(
+                    f"{base}/axis", axis, TRUTH_RGB, thickness=0.25 * self.light_size_m
+                )
+
+    def _gizmo_callback(self, j: int) -> Callable[[Any], None]:
+        def cb(event: Any) -> None:
+            t = np.asarray(event.target.position, dtype=np.float64)
+            R = matrix_from_quaternion_wxyz(np.asarray(event.target.wxyz, dtype=np.float64))
+            self._gizmo_pose[j] = (t.copy(), R.copy())
+            self.on_gizmo(j, t, R, event.client)
+
+        return cb
+
+    # -- updates ----------------------------------------------------------------------------
+
+    def set_pictures(self, pictures: dict[int, np.ndarray]) -> None:
+        """Replace the pictures of some frusta."""
+        for i, rgb in pictures.items():
+            self.frusta[i].image = rgb
+
+    def set_lights(self, lights: list[Light | LightGuess]) -> None:
+        """Pose every light node (gizmo and copies) and refresh its cones."""
+        for j, light in enumerate(lights):
+            if j >= len(self.gizmos):
+                break
+            t, R = _pose(light)
+            q = quaternion_wxyz_from_matrix(R)
+            seen = self._gizmo_pose[j]
+            if seen is None or not (
+                np.allclose(seen[0], t, atol=1e-12) and np.allclose(seen[1], R, atol=1e-12)
+            ):
+                self.gizmos[j].position = t
+                self.gizmos[j].wxyz = q
+                self._gizmo_pose[j] = (t.copy(), R.copy())
+            for i in range(len(self.project.views)):
+                frame = self.light_frames.get((i, j))
+                if frame is not None:
+                    frame.position = t
+                    frame.wxyz = q
+            if isinstance(light, Light):
+                self._set_cones(j, light.rid)
+        if lights and isinstance(lights[0], LightGuess):
+            for j, u in enumerate(self.project.lights):
+                self._set_cones(j, u.initial.rid)
+
+    def _set_cones(self, j: int, rid: RID) -> None:
+        """Cone outlines (half-intensity: bold, 1 % cut-off: thin) on every camera, and a
+        translucent half-intensity cone on the gizmo."""
+        key = _rid_key(rid)
+        if j < len(self._cone_keys) and self._cone_keys[j] == key:
+            return
+        self._cone_keys[j] = key
+        half, cut = rid_angles(rid)
+        for i in range(len(self.project.views)):
+            base = f"/cameras/{i}/light{j}"
+            for name, angle, width in (("cone_half", half, 2.0), ("cone_cut", cut, 1.0)):
+                self.scene.add_line_segments(
+                    f"{base}/{name}",
+                    cone_lines(angle, self.cone_length_m).astype(np.float32),
+                    LIGHT_RGB,
+                    thickness=width,
+                    thickness_units="screen",
+                )
+        v, f = cone_mesh(half, self.cone_length_m)
+        self.scene.add_mesh_simple(
+            f"/cameras/{self.ref_image}/light{j}/cone_fill",
+            v.astype(np.float32),
+            f.astype(np.uint32),
+            color=LIGHT_RGB,
+            opacity=0.25,
+            side="double",
+            cast_shadow=False,
+            receive_shadow=False,
+        )
+
+    def set_rays(self, rig: Rig | None, wall_points: tuple[np.ndarray, ...], which: str) -> None:
+        """Rays from each light to the selected pixels' footprint centres.
+
+        Args:
+            rig: the lights (None: no rays).
+            wall_points: per image (N, 3) footprint centres, world frame.
+            which: "all", "none" or an image name.
+        """
+        names = self.project.names
+        if rig is None:
+            which = "none"
+        images = (
+            range(len(names)) if which == "all" else [i for i, n in enumerate(names) if n == which]
+        )
+        segs = []
+        for i in images:
+            pts = wall_points[i]
+            if len(pts) == 0:
+                continue
+            if len(pts) > MAX_RAYS_PER_IMAGE:
+                pts = pts[:: math.ceil(len(pts) / MAX_RAYS_PER_IMAGE)]
+            view = self.project.views[i]
+            assert rig is not None
+            for light in rig.lights:
+                src = light.position_world(view)
+                seg = np.empty((len(pts), 2, 3))
+                seg[:, 0] = src
+                seg[:, 1] = pts
+                segs.append(seg)
+        if not segs:
+            if self.rays is not None:
+                self.rays.visible = False
+            return
+        points = np.concatenate(segs).astype(np.float32)
+        self.rays = self.scene.add_line_segments(
+            "/rays", points, RAY_RGB, thickness=0.12 * self.light_size_m
+        )

@@ -1,0 +1,199 @@
+"""Build and run the app: `build_app(project)` gives a running `LightcalApp`.
+
+The server binds 127.0.0.1 unless told otherwise and never opens viser's share tunnel
+(its button is hidden). Everything the browsers see is server-level, so every browser
+shows the same state and a late joiner gets the current one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import viser
+
+from app.controller import Controller
+from app.demo_truth import read_truth_lights, truth_path_for
+from app.panels import Panels
+from app.session_file import SessionFile, default_session_path, read_session
+from app.state import AppState
+from app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
+from lightcal.calibration import load_images
+from lightcal.errors import InputError, LightcalError
+from lightcal.io.project import load_project
+
+REPO_DIR = Path(__file__).resolve().parents[1]
+
+
+def default_project_path() -> Path:
+    """The sample project shipped with the repository."""
+    return REPO_DIR / "sample_data" / "project.json"
+
+
+def default_state_dir() -> Path:
+    """`$XDG_STATE_HOME/lightcal` (default ~/.local/state/lightcal)."""
+    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(base) / "lightcal"
+
+
+def disable_share_tunnel(server: viser.ViserServer) -> None:
+    """Never open viser's share tunnel (to an outside service): hide its button (done by
+    `Panels`), drop the browser's share requests and disable the method."""
+    from viser import _messages
+
+    ws = server._websock_server
+    for message_cls in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
+        if message_cls in ws._incoming_handlers:
+            ws.unregister_handler(message_cls)
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise RuntimeError("lightcal app: the share tunnel is disabled")
+
+    setattr(server, "request_share_url", refuse)  # noqa: B010
+
+
+@dataclass
+class LightcalApp:
+    """A running app.
+
+    Attributes:
+        server: the viser server.
+        state: the shared state.
+        controller: actions and the worker thread.
+        panels: the GUI handles.
+        url: where to open it.
+    """
+
+    server: viser.ViserServer
+    state: AppState
+    controller: Controller
+    panels: Panels
+    url: str
+
+    def wait_idle(self, timeout: float = 30.0) -> bool:
+        """Block until every queued request is handled and drawn."""
+        return self.controller.wait_idle(timeout)
+
+    def close(self) -> None:
+        """Stop the worker, the solve and the server (writes the last autosave)."""
+        self.controller.close()
+        self.server.stop()
+
+
+def build_app(
+    project_path: str | Path,
+    *,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    demo: bool = False,
+    session_path: Path | bool | None = True,
+    restore: bool = True,
+    state_dir: Path | None = None,
+    follow_iterations: bool = True,
+    upload_limit_bytes: int = MAX_UPLOAD_BYTES,
+) -> LightcalApp:
+    """Load a project and start the app's server.
+
+    Args:
+        project_path: the project file.
+        host: interface to bind (127.0.0.1: this machine only).
+        port: TCP port (0: any free port; viser takes the next free one when busy).
+        demo: show the true light from `truth.json` beside the project.
+        session_path: the autosave file; True: the default (beside the project), False
+            or None: no autosave.
+        restore: restore the autosaved session when it exists.
+        state_dir: folder for uploads (default `default_state_dir()`).
+        follow_iterations: the solver waits for each iteration to be drawn.
+        upload_limit_bytes: the per-file upload cap.
+
+    Raises:
+        InputError: the project, its images or the truth file cannot be read.
+    """
+    path = Path(project_path).resolve()
+    project = load_project(path)
+    loaded = load_images(project)
+    truth = None
+    if demo:
+        truth = read_truth_lights(truth_path_for(path))
+        if len(truth) != len(project.lights):
+            raise InputError(
+                truth_path_for(path),
+                f"lights: {len(truth)} true lights but the project has {len(project.lights)}",
+            )
+    state_dir = state_dir if state_dir is not None else default_state_dir()
+    if session_path is True:
+        session_file: Path | None = default_session_path(path, state_dir)
+    elif session_path is False or session_path is None:
+        session_file = None
+    else:
+        session_file = Path(session_path)
+    restored: SessionFile | None = None
+    notes: list[tuple[str, str]] = []
+    if restore and session_file is not None and session_file.is_file():
+        try:
+            restored = read_session(session_file)
+        except LightcalError as exc:
+            bad = session_file.with_suffix(session_file.suffix + ".bad")
+            with contextlib.suppress(OSError):
+                session_file.replace(bad)
+            notes.append(("Session not restored", f"{exc}. The file was kept as {bad.name}."))
+
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner; we print the URL
+        server = viser.ViserServer(host=host, port=port, verbose=False)
+    disable_share_tunnel(server)
+    state = AppState(project, loaded)
+    controller = Controller(
+        server,
+        state,
+        truth=truth,
+        session_path=session_file,
+        state_dir=state_dir,
+        follow_iterations=follow_iterations,
+    )
+
+    def reject(client_id: int, filename: str, size: int) -> None:
+        client = server.get_clients().get(client_id)
+        controller.notify(
+            client,
+            f"Upload rejected: {filename}",
+            f"{filename}: the file is {format_size(size)}; uploads are limited to "
+            f"{format_size(upload_limit_bytes)} per file",
+            error=True,
+        )
+
+    install_size_guard(server, reject, limit=upload_limit_bytes)
+    panels = Panels(server, controller, upload_limit_bytes=upload_limit_bytes)
+    controller.panels = panels
+    controller.start(restored, source=str(session_file) if session_file else "")
+    if restored is not None:
+        notes.append(
+            (
+                "Session restored",
+                f"Your previous session (saved {restored.saved_at}) was restored from "
+                f"{session_file}. To begin anew, start `lightcal app --fresh`.",
+            )
+        )
+    controller.startup_notes = notes
+
+    @server.on_client_connect
+    def _(client: Any) -> None:
+        for title, body in controller.startup_notes:
+            client.add_notification(title, body, auto_close_seconds=12.0)
+
+    shown_host = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
+    url = f"http://{shown_host}:{server.get_port()}"
+    return LightcalApp(server, state, controller, panels, url)
+
+
+def serve_forever(app: LightcalApp) -> None:
+    """Keep the app running until Ctrl-C, then close it."""
+    try:
+        while True:
+            time.sleep(1.0)
+    finally:
+        app.close()

@@ -1,0 +1,277 @@
+"""The app session on disk: the user's choices and the solve's progress, as JSON.
+
+A session file records the initial guess, the pixel selection (settings, per-image
+overrides, regions, clicked pixels), what each image shows, and the solve's history
+(so the plots and the current estimate come back). The app autosaves it atomically
+after every change (`<project stem>.session.json` beside the project, or in the state
+folder when the project's folder is read-only) and restores it at start; the user may
+also save a copy, reload it, download it and upload one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
+from lightcal.core.selection import Strategy
+from lightcal.core.solver import IterationReport
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_write_text
+
+SESSION_FORMAT: Literal["lightcal-app-session"] = "lightcal-app-session"
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Mat3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
+Point2 = Annotated[list[float], Field(min_length=2, max_length=2)]
+Pixel2 = Annotated[list[int], Field(min_length=2, max_length=2)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class GuessModel(_Model):
+    name: str
+    position_m: Vec3
+    R_camera_light: Mat3
+
+
+class SelectionModel(_Model):
+    strategy: Strategy = "random"
+    n_per_image: int = Field(default=100, ge=1)
+    grid_step: int = Field(default=32, ge=1)
+    binning: int = Field(default=1, ge=1)
+    seed: int = 0
+
+
+class RegionModel(_Model):
+    kind: Literal["rect", "polygon"]
+    points: list[Point2] = Field(min_length=2)
+    include: bool = True
+    image: str | None = None
+
+
+class IterationModel(_Model):
+    iteration: int = Field(ge=0)
+    x: list[float]
+    cost: float
+    gradient_norm: float
+    per_image_rms: list[float | None]
+    nfev: int
+
+
+class SolveModel(_Model):
+    parameter_names: list[str]
+    state: str
+    history: list[IterationModel]
+
+
+class SessionFile(_Model):
+    """One app session (version 1)."""
+
+    format: Literal["lightcal-app-session"] = SESSION_FORMAT
+    version: Literal[1] = 1
+    project: str
+    saved_at: str
+    lights: list[GuessModel]
+    selection: SelectionModel
+    selection_per_image: dict[str, SelectionModel] = Field(default_factory=dict)
+    regions: list[RegionModel] = Field(default_factory=list)
+    points: dict[str, list[Pixel2]] = Field(default_factory=dict)
+    overlay_default: OverlayKind = "real"
+    overlay_per_image: dict[str, OverlayKind] = Field(default_factory=dict)
+    show_selection: bool = True
+    rays_image: str = "none"
+    ref_image: int = Field(default=0, ge=0)
+    solve: SolveModel | None = None
+
+
+def default_session_path(project_path: Path, state_dir: Path) -> Path:
+    """`<stem>.session.json` beside the project, or in `state_dir` if that is read-only."""
+    folder = project_path.parent
+    if os.access(folder, os.W_OK):
+        return folder / f"{project_path.stem}.session.json"
+    digest = hashlib.sha1(str(project_path.resolve()).encode()).hexdigest()[:10]
+    return state_dir / "sessions" / f"{project_path.stem}-{digest}.session.json"
+
+
+def _selection_model(s: SelectionSettings) -> SelectionModel:
+    return SelectionModel(
+        strategy=s.strategy,
+        n_per_image=s.n_per_image,
+        grid_step=s.grid_step,
+        binning=s.binning,
+        seed=s.seed,
+    )
+
+
+def _settings(m: SelectionModel) -> SelectionSettings:
+    return SelectionSettings(m.strategy, m.n_per_image, m.grid_step, m.binning, m.seed)
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+def session_from_state(state: AppState) -> SessionFile:
+    """The session file of the current state (call under `state.lock`)."""
+    names = [u.initial.name for u in state.project.lights]
+    solve = None
+    if state.history:
+        solve = SolveModel(
+            parameter_names=list(state.parameter_names),
+            state=state.solver_state,
+            history=[
+                IterationModel(
+                    iteration=r.iteration,
+                    x=[float(v) for v in r.x],
+                    cost=float(r.cost),
+                    gradient_norm=float(r.gradient_norm),
+                    per_image_rms=[_finite_or_none(v) for v in r.per_image_rms],
+                    nfev=int(r.nfev),
+                )
+                for r in state.history
+            ],
+        )
+    return SessionFile(
+        project=str(state.project.path),
+        saved_at=time.strftime("%Y-%m-%d %H:%M:%S"),
+        lights=[
+            GuessModel(
+                name=n, position_m=g.position_m.tolist(), R_camera_light=g.R_camera_light.tolist()
+            )
+            for n, g in zip(names, state.guess, strict=True)
+        ],
+        selection=_selection_model(state.selection),
+        selection_per_image={k: _selection_model(v) for k, v in state.selection_per_image.items()},
+        regions=[
+            RegionModel(
+                kind=r.kind, points=[list(p) for p in r.points], include=r.include, image=r.image
+            )
+            for r in state.regions
+        ],
+        points={k: [list(p) for p in v] for k, v in state.points.items() if v},
+        overlay_default=state.overlay_default,
+        overlay_per_image=dict(state.overlay_per_image),
+        show_selection=state.show_selection,
+        rays_image=state.rays_image,
+        ref_image=state.ref_image,
+        solve=solve,
+    )
+
+
+def session_json(session: SessionFile) -> str:
+    """The file's text."""
+    return session.model_dump_json(indent=1) + "\n"
+
+
+def write_session(session: SessionFile, path: Path) -> None:
+    """Write a session file atomically (its folder is created)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, session_json(session))
+
+
+def parse_session(text: str | bytes, source: str | Path) -> SessionFile:
+    """Validate a session file's content; InputError naming the field on any problem."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(source, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    except UnicodeDecodeError as exc:
+        raise InputError(source, "not a text file: expected a lightcal session JSON") from exc
+    if not isinstance(data, dict) or data.get("format") != SESSION_FORMAT:
+        raise InputError(source, f"expected a lightcal session file (format {SESSION_FORMAT!r})")
+    try:
+        return SessionFile.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        raise InputError(source, f"{loc}: {err['msg']}") from exc
+
+
+def read_session(path: Path) -> SessionFile:
+    """Read a session file; InputError naming it on any problem."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError as exc:
+        raise InputError(path, "session file not found") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read the session file ({exc})") from exc
+    return parse_session(text, path)
+
+
+def apply_session(state: AppState, session: SessionFile) -> list[str]:
+    """Put a session's choices into the state (call under `state.lock`).
+
+    Choices naming images or lights the project does not have are skipped.
+
+    Returns:
+        warnings about what was skipped.
+    """
+    warnings: list[str] = []
+    names = set(state.project.names)
+    light_names = [u.initial.name for u in state.project.lights]
+    by_name = {g.name: g for g in session.lights}
+    guess = list(state.guess)
+    for j, name in enumerate(light_names):
+        g = by_name.get(name)
+        if g is None:
+            warnings.append(f"the session has no light named {name!r}; kept the project's")
+            continue
+        R = np.array(g.R_camera_light, dtype=np.float64)
+        if abs(np.linalg.det(R) - 1.0) > 1e-4 or np.abs(R.T @ R - np.eye(3)).max() > 1e-4:
+            warnings.append(f"light {name!r}: R_camera_light is not a rotation; kept the project's")
+            continue
+        guess[j] = LightGuess(np.array(g.position_m, dtype=np.float64), R)
+    state.guess = guess
+    state.selection = _settings(session.selection)
+
+    def known(name: str | None, what: str) -> bool:
+        if name is None or name in names:
+            return True
+        warnings.append(f"{what}: the project has no image named {name!r}; skipped")
+        return False
+
+    state.selection_per_image = {
+        k: _settings(v) for k, v in session.selection_per_image.items() if known(k, "selection")
+    }
+    state.regions = [
+        UserRegion(r.kind, tuple((float(p[0]), float(p[1])) for p in r.points), r.include, r.image)
+        for r in session.regions
+        if known(r.image, "region")
+    ]
+    state.points = {
+        k: [(int(p[0]), int(p[1])) for p in v]
+        for k, v in session.points.items()
+        if known(k, "points")
+    }
+    state.overlay_default = session.overlay_default
+    state.overlay_per_image = {
+        k: v for k, v in session.overlay_per_image.items() if known(k, "overlay")
+    }
+    state.show_selection = session.show_selection
+    if session.rays_image in ("none", "all") or session.rays_image in names:
+        state.rays_image = session.rays_image
+    if session.ref_image < len(state.project.names):
+        state.ref_image = session.ref_image
+    if session.solve is not None and session.solve.history:
+        state.parameter_names = list(session.solve.parameter_names)
+        state.history = [
+            IterationReport(
+                h.iteration,
+                np.array(h.x, dtype=np.float64),
+                h.cost,
+                h.gradient_norm,
+                np.array([np.nan if v is None else v for v in h.per_image_rms]),
+                h.nfev,
+            )
+            for h in session.solve.history
+        ]
+    return warnings

@@ -1,0 +1,277 @@
+"""The app's shared state: one lock, the user's choices, the solve as last reported.
+
+Every browser sees and edits this one state. GUI and scene callbacks (viser's thread
+pool) change it only through `AppState` methods under `lock`, mark what must be redrawn
+(`dirty`) and queue requests for the worker (`lightcal app`'s one worker thread, see
+`app.controller`), then `notify()`. Exact values live here; the scene only shows them.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from lightcal.calibration import CalibrationResult, LoadedImages
+from lightcal.core.scene import Rig
+from lightcal.core.selection import Strategy
+from lightcal.core.solver import IterationReport
+from lightcal.io.project import Project
+
+OverlayKind = Literal["real", "rendered", "residual"]
+OVERLAY_KINDS: tuple[OverlayKind, ...] = ("real", "rendered", "residual")
+SolverState = Literal["idle", "running", "paused", "finished", "stopped", "failed"]
+
+# What a redraw may have to refresh.
+Dirt = Literal["scene", "overlays", "light", "selection", "plots", "status", "result", "widgets"]
+ALL_DIRT: frozenset[Dirt] = frozenset(
+    ("scene", "overlays", "light", "selection", "plots", "status", "result", "widgets")
+)
+
+
+@dataclass(frozen=True)
+class LightGuess:
+    """The pose of one light the user set (camera frame).
+
+    Attributes:
+        position_m: (3,) emitter position in the camera frame, m.
+        R_camera_light: (3, 3) rotation light -> camera.
+    """
+
+    position_m: np.ndarray
+    R_camera_light: np.ndarray
+
+
+@dataclass(frozen=True)
+class SelectionSettings:
+    """How pixels are chosen (the editable part of `SelectionOptions`)."""
+
+    strategy: Strategy = "random"
+    n_per_image: int = 100
+    grid_step: int = 32
+    binning: int = 1
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class UserRegion:
+    """An include/exclude region drawn in the app.
+
+    Attributes:
+        kind: "rect" (2 opposite corners) or "polygon" (>= 3 vertices).
+        points: (K, 2) vertices (u, v) in full-resolution pixel coordinates.
+        include: include (True) or exclude (False).
+        image: the image name it applies to; None for every image.
+    """
+
+    kind: Literal["rect", "polygon"]
+    points: tuple[tuple[float, float], ...]
+    include: bool
+    image: str | None
+
+
+@dataclass(frozen=True)
+class Display:
+    """What the rendered overlays and the light show.
+
+    Attributes:
+        rig: the lights (estimate while solving, else the initial guess with fitted scale).
+        gains: per project image, the gain on top of its exposure.
+        offset: the offset added to every value.
+        source: "guess" or "estimate".
+    """
+
+    rig: Rig
+    gains: tuple[float, ...]
+    offset: float
+    source: Literal["guess", "estimate"]
+
+
+@dataclass
+class Download:
+    """A file prepared for one browser (tests read it when no browser asked)."""
+
+    name: str
+    content: bytes
+
+
+class AppState:
+    """Everything the browsers share. Use `lock` for every access.
+
+    Args:
+        project: the project shown.
+        loaded: its images.
+    """
+
+    def __init__(self, project: Project, loaded: LoadedImages) -> None:
+        self.lock = threading.RLock()
+        self.cond = threading.Condition(self.lock)
+        self.closing = False
+        self.requests: deque[tuple[str, dict[str, Any]]] = deque()
+        self.dirty: set[Dirt] = set(ALL_DIRT)
+        self.messages: list[tuple[str, str]] = []  # (title, body) shown in the page
+        self.downloads: list[Download] = []
+        self.load_project(project, loaded)
+
+    # -- project --------------------------------------------------------------------------
+
+    def load_project(self, project: Project, loaded: LoadedImages) -> None:
+        """Show a (new) project: every choice back to the project's defaults."""
+        self.project = project
+        self.loaded = loaded
+        self.guess: list[LightGuess] = [
+            LightGuess(u.initial.t_camera_light.copy(), u.initial.R_camera_light.copy())
+            for u in project.lights
+        ]
+        sel = project.selection
+        self.selection = SelectionSettings(
+            sel.strategy, sel.n_per_image, sel.grid_step, sel.binning, sel.seed
+        )
+        self.selection_per_image: dict[str, SelectionSettings] = {}
+        self.regions: list[UserRegion] = []
+        self.points: dict[str, list[tuple[int, int]]] = {}
+        self.overlay_default: OverlayKind = "real"
+        self.overlay_per_image: dict[str, OverlayKind] = {}
+        self.show_selection = True
+        self.rays_image: str = project.names[0]
+        self.ref_image = 0
+        # Selection as computed by the worker: per project image, the (N, 2) chosen
+        # (super-)pixels, their binning, and the footprint centres (N, 3) on the wall.
+        self.selected: list[np.ndarray] = [np.zeros((0, 2), np.int64) for _ in project.names]
+        self.selected_binning: list[int] = [1 for _ in project.names]
+        self.selected_wall_points: list[np.ndarray] = [np.zeros((0, 3)) for _ in project.names]
+        self.selection_rev_done = -1
+        self.setup_rev = 0  # bumped by every change of guess or selection
+        self.selection_rev = 0  # bumped by every change of the selection only
+        self.session_gen = 0  # bumped whenever the solve is thrown away
+        self.solver_state: SolverState = "idle"
+        self.solver_message = ""
+        self.history: list[IterationReport] = []
+        self.parameter_names: list[str] = []
+        self.result: CalibrationResult | None = None
+        self.display: Display | None = None
+        self.resume_x: np.ndarray | None = None
+        self.drawn: tuple[int, int] = (-1, -1)  # (session_gen, iteration) last drawn
+        self.changed = True  # something worth autosaving happened
+        self.dirty = set(ALL_DIRT)
+
+    # -- requests -------------------------------------------------------------------------
+
+    def request(self, kind: str, **payload: Any) -> None:
+        """Queue a request for the worker (call with or without the lock held)."""
+        with self.cond:
+            self.requests.append((kind, payload))
+            self.cond.notify_all()
+
+    def mark(self, *dirt: Dirt, changed: bool = False) -> None:
+        """Mark parts of the page for redrawing; `changed`: worth autosaving."""
+        with self.cond:
+            self.dirty.update(dirt)
+            self.changed = self.changed or changed
+            self.cond.notify_all()
+
+    def setup_changed(self, *, selection: bool) -> None:
+        """The initial guess or the selection changed: the solve starts over."""
+        with self.cond:
+            self.setup_rev += 1
+            if selection:
+                self.selection_rev += 1
+            self.request("setup_changed")
+            self.mark("light", "overlays", "selection", "widgets", "status", changed=True)
+
+    def image_index(self, name: str) -> int:
+        """Index of an image by name (ValueError naming it when unknown)."""
+        try:
+            return self.project.names.index(name)
+        except ValueError:
+            raise ValueError(
+                f"image: expected one of {', '.join(self.project.names)}, got {name!r}"
+            ) from None
+
+    def overlay_of(self, index: int) -> OverlayKind:
+        """What the frustum of image `index` shows."""
+        return self.overlay_per_image.get(self.project.names[index], self.overlay_default)
+
+    def selection_of(self, index: int) -> SelectionSettings:
+        """The selection settings of image `index` (its own, else the global ones)."""
+        return self.selection_per_image.get(self.project.names[index], self.selection)
+
+    def regions_of(self, index: int) -> list[UserRegion]:
+        """The user regions that apply to image `index`."""
+        name = self.project.names[index]
+        return [r for r in self.regions if r.image is None or r.image == name]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A consistent copy of what one redraw shows (taken under the lock).
+
+    Attributes:
+        dirty: what to refresh.
+        session_gen, iteration: the solve and iteration shown.
+        display: lights, gains, offset to render with (None: not computed yet).
+        guess: the user's guess per light.
+        overlay: per image what its frustum shows.
+        selected, selected_binning, wall_points: the selection per image.
+        regions: per image the user regions that apply.
+        points: per image the clicked pixels.
+        show_selection: draw the selection on the images.
+        rays_image: image whose rays are drawn ("all", "none" or a name).
+        ref_image: the image whose camera carries the gizmo.
+        solver_state, solver_message, history, parameter_names, result: the solve.
+    """
+
+    dirty: frozenset[Dirt]
+    session_gen: int
+    iteration: int
+    display: Display | None
+    guess: tuple[LightGuess, ...]
+    overlay: tuple[OverlayKind, ...]
+    selected: tuple[np.ndarray, ...]
+    selected_binning: tuple[int, ...]
+    wall_points: tuple[np.ndarray, ...]
+    regions: tuple[tuple[UserRegion, ...], ...]
+    points: tuple[tuple[tuple[int, int], ...], ...]
+    show_selection: bool
+    rays_image: str
+    ref_image: int
+    solver_state: SolverState
+    solver_message: str
+    history: tuple[IterationReport, ...]
+    parameter_names: tuple[str, ...]
+    result: CalibrationResult | None
+    selection_summary: tuple[int, ...] = field(default=())
+
+
+def take_frame(state: AppState) -> Frame:
+    """Copy what a redraw needs and clear the dirty flags (call under `state.lock`)."""
+    names = state.project.names
+    n = len(names)
+    it = state.history[-1].iteration if state.history else -1
+    frame = Frame(
+        dirty=frozenset(state.dirty),
+        session_gen=state.session_gen,
+        iteration=it,
+        display=state.display,
+        guess=tuple(state.guess),
+        overlay=tuple(state.overlay_of(i) for i in range(n)),
+        selected=tuple(state.selected),
+        selected_binning=tuple(state.selected_binning),
+        wall_points=tuple(state.selected_wall_points),
+        regions=tuple(tuple(state.regions_of(i)) for i in range(n)),
+        points=tuple(tuple(state.points.get(nm, [])) for nm in names),
+        show_selection=state.show_selection,
+        rays_image=state.rays_image,
+        ref_image=state.ref_image,
+        solver_state=state.solver_state,
+        solver_message=state.solver_message,
+        history=tuple(state.history),
+        parameter_names=tuple(state.parameter_names),
+        result=state.result,
+        selection_summary=tuple(len(s) for s in state.selected),
+    )
+    state.dirty.clear()
+    return frame
