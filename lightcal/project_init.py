@@ -230,7 +230,7 @@ def _exposure_specs(
             "image gets exposure 1; give the exposures in the project or estimate per-image "
             "gains (solver.estimate_gains)"
         )
-        return [None] * len(outcomes)
+        return [1.0] * len(outcomes)
     reference = known[0]
     try:
         factors = [e.relative_factor(reference) for e in known]
@@ -239,7 +239,7 @@ def _exposure_specs(
             f"EXIF exposure settings are inconsistent across the images ({exc.source} "
             f"{exc.detail}): ignored, every image gets exposure 1"
         )
-        return [None] * len(outcomes)
+        return [1.0] * len(outcomes)
     if all(e.exposure_time_s is not None for e in known):
         specs: list[float | ExposureSpec | None] = []
         for e in known:

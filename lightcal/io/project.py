@@ -533,6 +533,13 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     )
 
 
+def _settings_value(e: Any) -> float:
+    """t x ISO / N^2 with `ExposureSpec`'s defaults for settings unknown in every image."""
+    iso = e.iso if e.iso is not None else 100.0
+    f_number = e.f_number if e.f_number is not None else 1.0
+    return float(e.exposure_time_s * iso / f_number**2)
+
+
 def _exposure_factors(spec: ProjectFile, image_paths: list[Path], source: Path) -> list[float]:
     """Relative exposure g_i of every image.
 
@@ -560,9 +567,11 @@ def _exposure_factors(spec: ProjectFile, image_paths: list[Path], source: Path) 
             factors.append(float(im.exposure))
         elif settings[i] is not None:
             try:
-                factors.append(settings[i].relative_factor(known[0]))  # type: ignore[union-attr]
+                # Validates that the same settings are known in both (else a guess).
+                settings[i].relative_factor(known[0])  # type: ignore[union-attr]
             except ValueError as exc:
                 raise InputError(source, f"images[{i}].exposure: {exc}") from exc
+            factors.append(_settings_value(settings[i]) / _settings_value(known[0]))
         elif known:
             raise InputError(
                 source,
