@@ -35,6 +35,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter,
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.boards import ArucoGridBoard, Board, CharucoBoard, Chessboard
+from lightcal.io.document import read_document
 
 __all__ = [
     "BOARD_FILE_VERSION",
@@ -248,24 +249,12 @@ def read_board(path: str | Path) -> Board:
     """
     path = Path(path)
     suffix = _check_suffix(path)
-    if not path.is_file():
-        raise InputError(path, "board file not found")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read the board file ({exc})") from exc
-    if not text.strip():
-        raise InputError(path, f"empty file: expected a board description with a 'type' ({_TYPES})")
-    try:
-        data = json.loads(text) if suffix == ".json" else yaml.safe_load(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise InputError(
-            path, f"not valid YAML: {getattr(exc, 'problem', None) or exc}", line=line
-        ) from exc
+    data = read_document(
+        path,
+        what="board file",
+        as_json=suffix == ".json",
+        empty=f"empty file: expected a board description with a 'type' ({_TYPES})",
+    )
     return board_from_spec(parse_board(data, path), path)
 
 

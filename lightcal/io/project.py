@@ -30,6 +30,7 @@ from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.document import read_document
 
 PROJECT_VERSION: Literal[1] = 1
 
@@ -296,27 +297,6 @@ def _format_loc(loc: tuple[Any, ...]) -> str:
     return out or "(top level)"
 
 
-def _read_document(path: Path) -> Any:
-    if not path.is_file():
-        raise InputError(path, "project file not found")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read the project file ({exc})") from exc
-    try:
-        if path.suffix.lower() == ".json":
-            return json.loads(text)
-        return yaml.safe_load(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise InputError(
-            path, f"not valid YAML: {getattr(exc, 'problem', exc)}", line=line
-        ) from exc
-
-
 def parse_project(data: Any, source: str | Path) -> ProjectFile:
     """Validate a project document (already parsed JSON/YAML); InputError on any problem."""
     if not isinstance(data, dict):
@@ -422,7 +402,10 @@ def _build_camera(spec: CameraSpec, folder: Path, source: Path) -> Camera:
 def load_project(path: str | Path) -> Project:
     """Read and validate a project file (JSON, or YAML for .yaml/.yml)."""
     source = Path(path).resolve()
-    spec = parse_project(_read_document(source), source)
+    spec = parse_project(
+        read_document(source, what="project file", as_json=source.suffix.lower() == ".json"),
+        source,
+    )
     return project_from_spec(spec, source)
 
 
