@@ -36,7 +36,7 @@ from lightcal.core.rid_eval import (
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
     RIDData,
-    _hermite,
+    hermite,
     rid_value_grad,
     rid_value_grad_direction,
 )
@@ -399,7 +399,7 @@ def _rid_value(
     if kind == KIND_GAUSSIAN:
         return math.exp(-0.5 * (theta / params[0]) ** 2)
     if kind == KIND_TABLE_1D:
-        return _hermite(theta, theta_knots, values[0], slopes[0])[0]
+        return hermite(theta, theta_knots, values[0], slopes[0])[0]
     phi = math.atan2(uy, ux) if rho > 0.0 else 0.0
     return rid_value_grad(theta, phi, kind, params, theta_knots, phi_knots, values, slopes)[0]
 

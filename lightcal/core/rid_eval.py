@@ -54,7 +54,7 @@ class RIDData(NamedTuple):
 
 
 @numba.njit(cache=True, inline="always")
-def _hermite(
+def hermite(
     x: float, knots: np.ndarray, values: np.ndarray, slopes: np.ndarray
 ) -> tuple[float, float]:
     """Cubic Hermite value and derivative at x; 0 beyond the last knot."""
@@ -129,7 +129,7 @@ def rid_value_grad(
         f = math.exp(-0.5 * (theta / s) ** 2)
         return f, -f * theta / (s * s), 0.0
     if kind == KIND_TABLE_1D:
-        f, df = _hermite(theta, theta_knots, values[0], slopes[0])
+        f, df = hermite(theta, theta_knots, values[0], slopes[0])
         return f, df, 0.0
     # KIND_TABLE_2D: periodic rows in phi.
     n_p = phi_knots.shape[0]
@@ -157,10 +157,10 @@ def rid_value_grad(
     d_2 = phi_knots[j2] - phi_knots[j1]
     if d_2 <= 0.0:
         d_2 += TWO_PI
-    gm, dgm = _hermite(theta, theta_knots, values[jm], slopes[jm])
-    g0, dg0 = _hermite(theta, theta_knots, values[j], slopes[j])
-    g1, dg1 = _hermite(theta, theta_knots, values[j1], slopes[j1])
-    g2, dg2 = _hermite(theta, theta_knots, values[j2], slopes[j2])
+    gm, dgm = hermite(theta, theta_knots, values[jm], slopes[jm])
+    g0, dg0 = hermite(theta, theta_knots, values[j], slopes[j])
+    g1, dg1 = hermite(theta, theta_knots, values[j1], slopes[j1])
+    g2, dg2 = hermite(theta, theta_knots, values[j2], slopes[j2])
     s0 = (g1 - gm) / (d_m + d_1)
     s1 = (g2 - g0) / (d_1 + d_2)
     ds0 = (dg1 - dgm) / (d_m + d_1)
