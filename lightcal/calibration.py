@@ -343,12 +343,10 @@ def _numeric_jacobian(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> 
 
 def covariance(model: CalibrationModel, x: np.ndarray) -> np.ndarray:
     """Parameter covariance s^2 (J^T J)^-1, s^2 the residual variance (reduced chi^2)."""
-    J = model.jacobian(x)
     r = model.residuals(x)
-    m, n = J.shape
-    dof = max(m - n, 1)
+    JtJ = model.normal_matrix(x)
+    dof = max(model.m - model.layout.n, 1)
     s2 = float(r @ r) / dof
-    JtJ = J.T @ J
     try:
         return s2 * np.linalg.inv(JtJ)
     except np.linalg.LinAlgError:

@@ -227,7 +227,7 @@ def test_wait_after_pause_returns_when_the_worker_holds(model):
     entered = threading.Event()
     release = threading.Event()
     calls = [0]
-    jacobian = model.jacobian
+    jacobian = model.solver_jacobian
 
     def slow_jacobian(x: np.ndarray) -> np.ndarray:
         calls[0] += 1
@@ -236,7 +236,7 @@ def test_wait_after_pause_returns_when_the_worker_holds(model):
             release.wait(TIMEOUT_S)
         return jacobian(x)
 
-    model.jacobian = slow_jacobian
+    model.solver_jacobian = slow_jacobian
     s = SolverSession(model)
     try:
         s.run()

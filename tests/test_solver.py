@@ -15,6 +15,8 @@ from lightcal.core.solver import (
     CalibrationModel,
     IterationReport,
     SolverOptions,
+    _r_factor,
+    _stack_r_factors,
     run_least_squares,
 )
 from tests import calib_scenes as cs
@@ -364,3 +366,74 @@ def test_start_outside_the_bounds_is_clipped(noisy_problem):
     out = run_least_squares(model, x0)
     assert out.history[0].x[0] == pytest.approx(0.2, abs=1e-9)
     assert np.all(out.x >= lo) and np.all(out.x <= hi)
+
+
+# ------------------------------------------------------------- the QR-compressed problem
+
+
+@pytest.mark.parametrize("case", ["symmetric_gains_offset", "two_lights_gains", "curve"])
+def test_reduced_problem_has_the_full_problems_model(case):
+    rig, unknowns, options = _jacobian_case(case)
+    images = cs.observe(
+        CAMERA, _three_views(), rig, n_per_image=40, rng=np.random.default_rng(1), noise=(0.5, 4.0)
+    )
+    model = CalibrationModel(images, unknowns, SolverOptions(**options))
+    assert model.compressed
+    x = model.layout.x0.copy()
+    r, J = model.residuals(x), model.jacobian(x)
+    r_red, J_red = model.reduced(x)
+    n = model.layout.n
+    assert r_red.shape == (n + 1,) and J_red.shape == (n + 1, n)
+    assert np.all(J_red[-1] == 0.0)
+    assert r_red @ r_red == pytest.approx(r @ r, rel=1e-12)
+    np.testing.assert_allclose(
+        J_red.T @ r_red, J.T @ r, rtol=1e-9, atol=1e-9 * np.abs(J.T @ r).max()
+    )
+    JtJ = J.T @ J
+    np.testing.assert_allclose(J_red.T @ J_red, JtJ, rtol=1e-9, atol=1e-12 * np.abs(JtJ).max())
+    # trf's quadratic model of any step is the full problem's.
+    for p in np.random.default_rng(0).normal(size=(5, n)) * 1e-3:
+        full = J @ p + r
+        red = J_red @ p + r_red
+        assert red @ red == pytest.approx(full @ full, rel=1e-10)
+
+
+def test_compressed_solve_follows_the_full_solve(noisy_problem):
+    light, images = noisy_problem
+    start = [cs.start_near(light)]
+    full = cs.model_of(images, start, compress=False)
+    reduced = cs.model_of(images, start)
+    assert reduced.compressed and not full.compressed
+    out_full = run_least_squares(full)
+    out_red = run_least_squares(reduced)
+    assert out_red.success and out_full.success
+    assert out_red.iterations == out_full.iterations
+    np.testing.assert_allclose(out_red.x, out_full.x, rtol=0, atol=1e-9)
+    for a, b in zip(out_red.history, out_full.history, strict=True):
+        assert a.cost == pytest.approx(b.cost, rel=1e-9)
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+
+
+def test_robust_losses_use_the_full_problem(noisy_problem):
+    light, images = noisy_problem
+    model = cs.model_of(images, [cs.start_near(light)], loss="huber")
+    assert not model.compressed
+    x = model.layout.x0
+    assert model.solver_residuals(x).shape == (model.m,)
+    assert model.solver_jacobian(x).shape == (model.m, model.layout.n)
+
+
+def test_stacked_r_factors_equal_the_r_factor_of_the_stack():
+    rng = np.random.default_rng(3)
+    blocks = [rng.normal(size=(k, 4)) for k in (50, 2, 7)]
+    tops = [_r_factor(b[:, :3], b[:, 3]) for b in blocks]
+    assert [t.shape for t in tops] == [(4, 4), (2, 4), (4, 4)]
+    R = _stack_r_factors(tops, 4)
+    whole = np.linalg.qr(np.concatenate(blocks), mode="r")
+    # Unique up to the sign of each row.
+    np.testing.assert_allclose(np.abs(R), np.abs(whole), atol=1e-12)
+    np.testing.assert_allclose(R.T @ R, whole.T @ whole, atol=1e-10)
+    # Fewer rows than columns in all: zero rows pad the factor.
+    assert _stack_r_factors([tops[1]], 4)[2:].tolist() == [[0.0] * 4] * 2
+    # A block with non-finite residuals makes the whole problem NaN (trf: a failed step).
+    assert np.all(np.isnan(_stack_r_factors([tops[0], None], 4)))

@@ -16,12 +16,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.linalg
 from scipy.optimize import OptimizeResult, least_squares
 
 from lightcal.core.pose import axis_from_angles, axis_jacobian
 from lightcal.core.problem import ImageData, LightUnknown, Loss, ParameterLayout
 from lightcal.core.render import shade
 from lightcal.core.rotations import left_jacobian_so3
+from lightcal.core.scene import Rig
 
 # Each light's position may move at most this far (per camera-frame axis) from the origin.
 DEFAULT_POSITION_BOUND_M = 5.0
@@ -43,6 +45,9 @@ class SolverOptions:
         rid_subsamples: RID sub-sampling n x n per footprint.
         tolerance: ftol = xtol = gtol of least_squares.
         position_bound_m: box bound on each light's camera-frame position coordinates.
+        compress: with the linear loss, hand trf the QR-compressed problem
+            (`CalibrationModel.reduced`): the same iterates, at a cost and memory that
+            no longer grow with the pixel count beyond one render per evaluation.
     """
 
     loss: Loss = "linear"
@@ -54,6 +59,7 @@ class SolverOptions:
     rid_subsamples: int = 1
     tolerance: float = 1e-12
     position_bound_m: float = DEFAULT_POSITION_BOUND_M
+    compress: bool = True
 
     def __post_init__(self) -> None:
         if self.loss not in ("linear", "huber", "soft_l1", "cauchy"):
@@ -135,28 +141,32 @@ class CalibrationModel:
         self._cache_r: np.ndarray | None = None
         self._cache_J_x: np.ndarray | None = None
         self._cache_J: np.ndarray | None = None
+        self._cache_R: np.ndarray | None = None
         self.nfev = 0
 
     # -- evaluation -------------------------------------------------------------------
 
+    @property
+    def compressed(self) -> bool:
+        """trf works on the QR-compressed problem (`reduced`): linear loss only."""
+        return self.options.compress and self.options.loss == "linear"
+
     def predict(self, x: np.ndarray, *, want_grad: bool = False) -> list:
         """Render every image at x: list of (values (N,), Shading or None)."""
-        rig = self.layout.rig(x)
-        gains = self.layout.gain_factors(x)
-        offset = self.layout.offset(x)
-        out = []
-        for i, im in enumerate(self.images):
-            sh = shade(
-                im.footprints,
-                im.view,
-                rig,
-                offset=0.0,
-                rid_subsamples=self.options.rid_subsamples,
-                want_grad=want_grad,
-            )
-            values = offset + gains[i] * sh.values.filled(np.nan)
-            out.append((values, sh))
-        return out
+        return [self._predict_image(x, i, want_grad=want_grad) for i in range(len(self.images))]
+
+    def _predict_image(self, x: np.ndarray, i: int, *, want_grad: bool) -> tuple:
+        im = self.images[i]
+        sh = shade(
+            im.footprints,
+            im.view,
+            self.layout.rig(x),
+            offset=0.0,
+            rid_subsamples=self.options.rid_subsamples,
+            want_grad=want_grad,
+        )
+        values = self.layout.offset(x) + self.layout.gain_factors(x)[i] * sh.values.filled(np.nan)
+        return values, sh
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """(m,) weighted residuals (m_obs - m_render) / sigma.
@@ -167,57 +177,112 @@ class CalibrationModel:
         """
         if self._cache_x is None or not np.array_equal(x, self._cache_x):
             self.nfev += 1
-            self._evaluate(x)
+            self._evaluate(x, full_jacobian=not self.compressed)
         assert self._cache_r is not None
         return self._cache_r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """(m, n) d residuals / d x."""
         if self._cache_J_x is None or not np.array_equal(x, self._cache_J_x):
-            self._evaluate(x)
+            self._evaluate(x, full_jacobian=True)
         assert self._cache_J is not None
         return self._cache_J
 
-    def _evaluate(self, x: np.ndarray) -> None:
-        """Residuals and Jacobian at x, cached."""
-        lay = self.layout
+    def reduced(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The QR-compressed problem at x: (r~ (n+1,), J~ (n+1, n)).
+
+        With [J r] = Q [[R, Q^T r], [0, rho]] (thin QR of the (m, n+1) matrix),
+        r~ = (Q^T r, rho) and J~ = (R; 0) satisfy |r~| = |r|, J~^T r~ = J^T r,
+        J~^T J~ = J^T J and |J~ p + r~| = |J p + r| for every step p: trf's quadratic
+        model, gradient, Jacobian scaling and cost are those of the full problem, so
+        its iterates are the same (to rounding) while every iteration costs O(n^3)
+        instead of an SVD of the (m, n) Jacobian, and no (m, n) matrix is kept.
+        """
+        self.residuals(x)
+        assert self._cache_R is not None
+        return self._cache_R[:, -1], self._cache_R[:, :-1]
+
+    def solver_residuals(self, x: np.ndarray) -> np.ndarray:
+        """The residuals handed to least_squares: `reduced` when compressed, else full."""
+        return self.reduced(x)[0] if self.compressed else self.residuals(x)
+
+    def solver_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """The Jacobian handed to least_squares, matching `solver_residuals`."""
+        return self.reduced(x)[1] if self.compressed else self.jacobian(x)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """(n,) J^T r at x."""
+        r_s, J_s = self.solver_residuals(x), self.solver_jacobian(x)
+        return J_s.T @ r_s
+
+    def normal_matrix(self, x: np.ndarray) -> np.ndarray:
+        """(n, n) J^T J at x (Gauss-Newton approximation of the cost's Hessian)."""
+        J_s = self.solver_jacobian(x)
+        return J_s.T @ J_s
+
+    def _evaluate(self, x: np.ndarray, *, full_jacobian: bool) -> None:
+        """Residuals, the QR-compressed problem and optionally the full Jacobian at x."""
+        n = self.layout.n
         r = np.empty(self.m)
-        J = np.zeros((self.m, lay.n))
-        gains = lay.gain_factors(x)
-        preds = self.predict(x, want_grad=True)
-        rig = lay.rig(x)
-        for i, (values, sh) in enumerate(preds):
-            im = self.images[i]
+        J = np.empty((self.m, n)) if full_jacobian else None
+        tops = []
+        pose_maps = self._pose_maps(x)
+        for i, im in enumerate(self.images):
             rows = slice(self.bounds[i], self.bounds[i + 1])
-            r[rows] = (im.observed - values) / im.sigma
-            inv_sigma = -1.0 / im.sigma  # d r / d m_render
-            g = gains[i]
-            for j, block in enumerate(lay.blocks):
-                light = rig.lights[j]
-                gp = sh.grad_position[j] * g
-                gr = sh.grad_rotation[j] * g
-                p = x[block.pose]
-                cols = [gp]
-                kind = block.param.kind
-                if kind == "symmetric":
-                    axis = axis_from_angles(p[3], p[4])
-                    Ja = axis_jacobian(p[3], p[4])  # (3, 2)
-                    cols.append(gr @ np.cross(axis[:, None], Ja, axis=0))
-                elif kind == "general":
-                    cols.append(gr @ left_jacobian_so3(p[3:6]))
-                J[rows, block.pose] = np.concatenate(cols, axis=1) * inv_sigma[:, None]
-                J[rows, block.log_scale] = g * light.scale * sh.flux[j] * inv_sigma
-                if block.rid.stop > block.rid.start:
-                    J[rows, block.rid] = self._rid_jacobian(x, i, j, block) * inv_sigma[:, None]
-            base = values - lay.offset(x)
-            if lay.gains.stop > lay.gains.start and i > 0:
-                J[rows, lay.gains.start + i - 1] = base * inv_sigma
-            if lay.offset_index is not None:
-                J[rows, lay.offset_index] = inv_sigma
+            values, sh = self._predict_image(x, i, want_grad=True)
+            r_i = (im.observed - values) / im.sigma
+            r[rows] = r_i
+            J_i = self._image_jacobian(x, i, values, sh, pose_maps)
+            if J is not None:
+                J[rows] = J_i
+            if self.compressed and r_i.size:
+                tops.append(_r_factor(J_i, r_i) if np.all(np.isfinite(r_i)) else None)
+        if self.compressed:
+            self._cache_R = _stack_r_factors(tops, n + 1)
         self._cache_x = x.copy()
         self._cache_r = r
-        self._cache_J_x = x.copy()
-        self._cache_J = J
+        if J is not None:
+            self._cache_J_x = x.copy()
+            self._cache_J = J
+
+    def _pose_maps(self, x: np.ndarray) -> list[np.ndarray]:
+        """Per light: (6, k) map from (d/dt, d/d delta) (camera frame) to its k pose columns."""
+        maps = []
+        for block in self.layout.blocks:
+            p = x[block.pose]
+            kind = block.param.kind
+            k = block.pose.stop - block.pose.start
+            M = np.zeros((6, k))
+            M[:3, :3] = np.eye(3)
+            if kind == "symmetric":
+                axis = axis_from_angles(p[3], p[4])
+                M[3:, 3:] = np.cross(axis[:, None], axis_jacobian(p[3], p[4]), axis=0)
+            elif kind == "general":
+                M[3:, 3:] = left_jacobian_so3(p[3:6])
+            maps.append(M)
+        return maps
+
+    def _image_jacobian(
+        self, x: np.ndarray, i: int, values: np.ndarray, sh, pose_maps: list[np.ndarray]
+    ) -> np.ndarray:
+        """(N_i, n) d residuals / d x of image i from its shading with gradients."""
+        lay = self.layout
+        im = self.images[i]
+        g = lay.gain_factors(x)[i]
+        J = np.zeros((len(im.observed), lay.n))
+        rig = lay.rig(x)
+        for j, block in enumerate(lay.blocks):
+            G = np.concatenate([sh.grad_position[j], sh.grad_rotation[j]], axis=1)
+            J[:, block.pose] = G @ (g * pose_maps[j])
+            J[:, block.log_scale] = g * rig.lights[j].scale * sh.flux[j]
+            if block.rid.stop > block.rid.start:
+                J[:, block.rid] = self._rid_jacobian(x, i, j, block)
+        if lay.gains.stop > lay.gains.start and i > 0:
+            J[:, lay.gains.start + i - 1] = values - lay.offset(x)
+        if lay.offset_index is not None:
+            J[:, lay.offset_index] = 1.0
+        J *= (-1.0 / im.sigma)[:, None]  # d r / d m_render
+        return J
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
         """d m_render / d (RID params of light j) on image i by central differences."""
@@ -233,8 +298,6 @@ class CalibrationModel:
                 xs = x.copy()
                 xs[k] += sgn * h
                 lights[j] = lay.light_of(block, xs)
-                from lightcal.core.scene import Rig
-
                 sh = shade(
                     im.footprints,
                     im.view,
@@ -256,12 +319,11 @@ class CalibrationModel:
 
     def report(self, x: np.ndarray, iteration: int) -> IterationReport:
         r = self.residuals(x)
-        J = self.jacobian(x)
         return IterationReport(
             iteration,
             x.copy(),
             robust_cost(r, self.options.loss, self.options.f_scale),
-            float(np.abs(J.T @ r).max()),
+            float(np.abs(self.gradient(x)).max()),
             self.per_image_rms(x),
             self.nfev,
         )
@@ -314,6 +376,37 @@ class CalibrationModel:
             lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
             hi[s + 2] = max(z_max(d), z0 + 1e-9)
         return lo, hi
+
+
+def _r_factor(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Upper-triangular R factor (min(N, n+1), n+1) of [J r], J (N, n), r (N,)."""
+    A = np.empty((J.shape[0], J.shape[1] + 1), order="F")  # LAPACK's order: no copy
+    A[:, :-1] = J
+    A[:, -1] = r
+    return _economic_r(A)
+
+
+def _economic_r(A: np.ndarray) -> np.ndarray:
+    """R (min(N, k), k) of the thin QR of A (N, k); A (Fortran order) is overwritten."""
+    _, r = scipy.linalg.qr(A, mode="raw", overwrite_a=True, check_finite=False)
+    return np.asarray(r)
+
+
+def _stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
+    """R factor (width, width) of the row-stack of matrices whose R factors are `tops`.
+
+    QR of the stacked (k, width) upper-triangular factors is that of the stack of the
+    original blocks (Q is orthogonal). A None (a block with non-finite residuals) makes
+    the whole result NaN, which trf treats as a failed step.
+    """
+    if any(t is None for t in tops):
+        return np.full((width, width), np.nan)
+    out = np.zeros((width, width))
+    if tops:
+        stack = np.concatenate([t for t in tops if t is not None])
+        top = _economic_r(np.asfortranarray(stack))
+        out[: top.shape[0]] = top
+    return out
 
 
 def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
@@ -403,9 +496,9 @@ def run_least_squares(
             raise StopIteration
 
     res = least_squares(
-        model.residuals,
+        model.solver_residuals,
         x_start,
-        jac=model.jacobian,
+        jac=model.solver_jacobian,
         bounds=(lo, hi),
         method="trf",
         loss=opts.loss,
