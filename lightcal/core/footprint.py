@@ -18,6 +18,11 @@ offset + gain * sum_lights scale * sum_k weight_k * Phi_k / I0 over its quads k,
 
 For the first three a super-pixel uses the mean V of its pixels and the union's area:
 the value of one big pixel. `paper` values of a super-pixel are the mean of its pixels'.
+
+The work is one parallel compiled pass (`footprint_kernels`) that writes the outputs
+directly. A dense selection reads its corners from the camera's cached corner grid
+(`corner_grid`, built once per camera); a sparse one undistorts its own corners. Both give
+the same numbers, bit for bit.
 """
 
 from __future__ import annotations
@@ -25,16 +30,32 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numba
 import numpy as np
 
+from lightcal.core import footprint_kernels as fk
+from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
+from lightcal.core.corner_grid import GRID_CACHE, CornerGrid
 from lightcal.core.scene import View
 
 SensorModel = Literal["radiance", "cos4", "paper", "map"]
 SENSOR_MODELS: tuple[SensorModel, ...] = ("radiance", "cos4", "paper", "map")
 
-# Corner offsets of a pixel in cyclic order P1..P4 (u right, v down).
-_CORNER_OFFSETS = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+_SENSOR_CODES = {
+    "radiance": rk.SENSOR_RADIANCE,
+    "cos4": rk.SENSOR_COS4,
+    "paper": rk.SENSOR_PAPER,
+    "map": rk.SENSOR_MAP,
+}
+
+GRID_MIN_CORNER_SHARE = 0.5
+"""Build the camera's corner grid for a selection whose own corners number at least this
+share of the grid's (H+1)(W+1) (see `_corner_grid_for`)."""
+
+# Placeholders for the kernel's unused grid / map arguments.
+_NO_GRID: CornerGrid = (np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.bool_))
+_NO_MAP = np.ones((1, 1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,47 +154,58 @@ def pixel_footprints(
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     b = int(binning)
-    p = check_pixels(pixels, camera.width // b, camera.height // b)
-    if sensor == "map":
-        vignetting = check_vignetting(vignetting, camera)
+    p = np.ascontiguousarray(check_pixels(pixels, camera.width // b, camera.height // b))
+    vmap = check_vignetting(vignetting, camera) if sensor == "map" else _NO_MAP
     n = p.shape[0]
     k = b * b
-    jj, ii = np.meshgrid(np.arange(b), np.arange(b), indexing="ij")
-    member = (p[:, None, :] * b + np.stack([ii.ravel(), jj.ravel()], axis=1)[None]).reshape(
-        n * k, 2
+    grid = _corner_grid_for(camera, n, b)
+    grid_xy, grid_ok = _NO_GRID if grid is None else grid
+    corners = np.empty((n, k, 4, 3))
+    weights = np.empty((n, k))
+    valid = np.empty(n, dtype=np.bool_)
+    area = np.empty(n)
+    args = (
+        p,
+        b,
+        grid is not None,
+        grid_xy,
+        grid_ok,
+        np.ascontiguousarray(camera.K),
+        np.ascontiguousarray(camera.dist),
+        np.ascontiguousarray(view.R_camera_world),
+        np.ascontiguousarray(view.center_world),
+        _SENSOR_CODES[sensor],
+        vmap,
     )
-    corner_px = (member[:, None, :] + _CORNER_OFFSETS[None]).reshape(-1, 2)
-    xy, ok = camera.pixels_to_normalized(corner_px)
-    points, hit = corners_to_wall(xy, ok, view)
-    corners = points.reshape(n, k, 4, 3)
-    valid: np.ndarray = np.all(hit.reshape(n, k * 4), axis=1)
-
-    d1 = corners[:, :, 2, :2] - corners[:, :, 0, :2]
-    d2 = corners[:, :, 3, :2] - corners[:, :, 1, :2]
-    quad_area = 0.5 * np.abs(d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0])  # (n, k)
-    area = quad_area.sum(axis=1)
-
-    if sensor == "paper":
-        centroid = corners.mean(axis=2)  # (n, k, 3)
-        offset = view.center_world - centroid
-        d2sum = np.einsum("nkd,nkd->nk", offset, offset)
-        weights = (view.center_world[2] / np.sqrt(d2sum)) / d2sum / k
+    outputs = (corners, weights, valid, area)
+    chunk_pixels = max(1, fk.CHUNK_CORNERS // (b + 1) ** 2)
+    if n <= chunk_pixels:
+        fk.pixel_footprints_serial(*args, *outputs)
     else:
-        if sensor == "cos4":
-            xy_mean = xy.reshape(n, k, 4, 2).mean(axis=2)
-            cos2 = 1.0 / (1.0 + np.einsum("nkd,nkd->nk", xy_mean, xy_mean))
-            v_mean = (cos2 * cos2).mean(axis=1)
-        elif sensor == "map":
-            assert vignetting is not None
-            v_mean = vignetting[member[:, 1], member[:, 0]].reshape(n, k).mean(axis=1)
-        else:
-            v_mean = np.ones(n)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            weights = np.repeat((v_mean / area)[:, None], k, axis=1)
-    weights = np.where(valid[:, None], weights, 0.0)
-    corners[~valid] = np.nan
-    area = np.where(valid, area, np.nan)
+        # Dynamic scheduling of the chunks: the machine's cores may be shared.
+        with numba.parallel_chunksize(1):
+            fk.pixel_footprints_parallel(*args, chunk_pixels, *outputs)
     return Footprints(p, corners, weights, valid, area)
+
+
+def _corner_grid_for(camera: Camera, n_pixels: int, binning: int) -> CornerGrid | None:
+    """The camera's corner grid when reading the corners from it pays, else None.
+
+    A cached grid always pays (a look-up is ~10x cheaper than an undistortion). Otherwise
+    the direct path undistorts the (b+1)^2 corners of each of the n_pixels super-pixels,
+    the grid (H+1)(W+1) corners at about the same cost per corner, once per camera (it is
+    cached for the next views). It is built when the selection's corners number at least
+    `GRID_MIN_CORNER_SHARE` of the grid's: the first call then costs at most ~2x the
+    direct path, the following views of the camera are ~4x cheaper (every pixel of a
+    binning-1 image: 0.04 s instead of 0.4 s of CPU for 375,000 pixels); a sparse
+    selection on a large sensor undistorts only its own corners.
+    """
+    grid = GRID_CACHE.lookup(camera)
+    n_corners = n_pixels * (binning + 1) ** 2
+    n_grid = (camera.height + 1) * (camera.width + 1)
+    if grid is None and n_corners >= GRID_MIN_CORNER_SHARE * n_grid:
+        grid = GRID_CACHE.get(camera)
+    return grid
 
 
 def check_vignetting(vignetting: np.ndarray | None, camera: Camera) -> np.ndarray:

@@ -15,15 +15,15 @@ its contribution is 0, as the physics says.
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass
-from threading import Lock
 
 import numba
 import numpy as np
 
 from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
+from lightcal.core.corner_grid import GRID_CACHE
+from lightcal.core.corner_grid import corner_grid as corner_grid  # re-exported
 from lightcal.core.footprint import (
     SENSOR_MODELS,
     Footprints,
@@ -169,53 +169,6 @@ def render_pixels(
     return shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples).values
 
 
-class _CornerGridCache:
-    """Undistorted corner grids per camera (they cost far more than a render)."""
-
-    def __init__(self, max_entries: int = 2) -> None:
-        self._entries: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
-        self._lock = Lock()
-        self._max = max_entries
-
-    def get(self, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-        key = (
-            camera.K.tobytes()
-            + camera.dist.tobytes()
-            + bytes(f"{camera.width}x{camera.height}", "ascii")
-        )
-        with self._lock:
-            if key in self._entries:
-                self._entries.move_to_end(key)
-                return self._entries[key]
-        grid = corner_grid(camera)
-        with self._lock:
-            self._entries[key] = grid
-            while len(self._entries) > self._max:
-                self._entries.popitem(last=False)
-        return grid
-
-
-def corner_grid(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """Undistorted normalised coordinates of every pixel corner.
-
-    Computed by a parallel kernel with the arithmetic of `Camera.pixels_to_normalized`.
-
-    Returns:
-        grid_xy (H+1, W+1, 2) and grid_ok (H+1, W+1); corner (j, i) sits at pixel
-        coordinates (i - 1/2, j - 1/2); grid_xy is (0, 0) where grid_ok is False.
-    """
-    grid_xy = np.empty((camera.height + 1, camera.width + 1, 2))
-    grid_ok = np.empty((camera.height + 1, camera.width + 1), dtype=np.bool_)
-    with numba.parallel_chunksize(8):  # dynamic scheduling: rows cost unequal Newton work
-        rk.undistorted_corner_grid(
-            np.ascontiguousarray(camera.K), np.ascontiguousarray(camera.dist), grid_xy, grid_ok
-        )
-    return grid_xy, grid_ok
-
-
-_GRID_CACHE = _CornerGridCache()
-
-
 def render_image(
     camera: Camera,
     view: View,
@@ -241,7 +194,7 @@ def render_image(
     n_sub = _check_subsamples(rid_subsamples)
     b = int(binning)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
-    grid_xy, grid_ok = _GRID_CACHE.get(camera)
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
     hb, wb = camera.height // b, camera.width // b
     # Lights on or behind the wall illuminate nothing in this view.
     lit = [
