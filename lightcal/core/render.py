@@ -70,6 +70,60 @@ def light_in_view(light: Light, view: View) -> tuple[np.ndarray, np.ndarray]:
     return light.position_world(view), light.rotation_world(view)
 
 
+def light_flux(
+    footprints: Footprints,
+    view: View,
+    light: Light,
+    *,
+    rid_subsamples: int = 1,
+    want_grad: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """One light's flux into pixels per unit scale, and its world-frame gradients.
+
+    Args:
+        footprints: from `pixel_footprints` for this view.
+        view: the camera pose and exposure.
+        light: the light (its scale is not applied).
+        rid_subsamples: n, RID sub-sampling of each footprint quad (n x n).
+        want_grad: also compute the gradients.
+
+    Returns:
+        flux: (N,) exposure * sum_k weight_k Phi_k / I0; 0 where the footprint is invalid
+            or the light is on or behind the wall.
+        grad_world: (N, 6) d flux / d (L_world (3), delta_world (3)), delta_world a left
+            rotation perturbation of R_world_light; None unless want_grad.
+    """
+    n_sub = _check_subsamples(rid_subsamples)
+    n = len(footprints)
+    flux = np.zeros(n)
+    grad = np.zeros((n, 6)) if want_grad else None
+    L_world, R_world_light = light_in_view(light, view)
+    if L_world[2] <= 0.0:
+        return flux, grad
+    d = light.rid.data()
+    rk.flux_pixels(
+        footprints.corners_world,
+        footprints.weights,
+        footprints.valid,
+        L_world,
+        np.ascontiguousarray(R_world_light),
+        d.kind,
+        d.params,
+        d.theta_knots,
+        d.phi_knots,
+        d.values,
+        d.slopes,
+        n_sub,
+        want_grad,
+        flux,
+        grad if grad is not None else np.zeros((1, 6)),
+    )
+    flux *= view.exposure
+    if grad is not None:
+        grad *= view.exposure
+    return flux, grad
+
+
 def shade(
     footprints: Footprints,
     view: View,
@@ -92,43 +146,21 @@ def shade(
     Returns:
         The shading.
     """
-    n_sub = _check_subsamples(rid_subsamples)
     n = len(footprints)
     n_l = len(rig.lights)
     flux = np.zeros((n_l, n))
     gpos = np.zeros((n_l, n, 3)) if want_grad else None
     grot = np.zeros((n_l, n, 3)) if want_grad else None
-    grad_buf = np.zeros((n, 6)) if want_grad else np.zeros((1, 6))
     R = view.R_camera_world
     for i, light in enumerate(rig.lights):
-        L_world, R_world_light = light_in_view(light, view)
-        if L_world[2] <= 0.0:
-            continue
-        d = light.rid.data()
-        rk.flux_pixels(
-            footprints.corners_world,
-            footprints.weights,
-            footprints.valid,
-            L_world,
-            np.ascontiguousarray(R_world_light),
-            d.kind,
-            d.params,
-            d.theta_knots,
-            d.phi_knots,
-            d.values,
-            d.slopes,
-            n_sub,
-            want_grad,
-            flux[i],
-            grad_buf,
+        flux[i], grad = light_flux(
+            footprints, view, light, rid_subsamples=rid_subsamples, want_grad=want_grad
         )
-        flux[i] *= view.exposure
-        if want_grad:
+        if grad is not None:
             assert gpos is not None and grot is not None
             # L_world = C + R^T t  =>  d/dt = R d/dL_world;  delta_world = R^T delta_camera.
-            g = grad_buf * (view.exposure * light.scale)
-            gpos[i] = g[:, :3] @ R.T
-            grot[i] = g[:, 3:] @ R.T
+            gpos[i] = grad[:, :3] @ (light.scale * R.T)
+            grot[i] = grad[:, 3:] @ (light.scale * R.T)
     scales = np.array([light.scale for light in rig.lights])
     total = offset + scales @ flux
     values = np.ma.masked_array(np.where(footprints.valid, total, np.nan), mask=~footprints.valid)

@@ -19,9 +19,10 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import OptimizeResult, least_squares
 
+from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.pose import axis_from_angles, axis_jacobian
 from lightcal.core.problem import ImageData, LightUnknown, Loss, ParameterLayout
-from lightcal.core.render import shade
+from lightcal.core.render import light_flux, shade
 from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
 
@@ -151,23 +152,6 @@ class CalibrationModel:
         """trf works on the QR-compressed problem (`reduced`): linear loss only."""
         return self.options.compress and self.options.loss == "linear"
 
-    def predict(self, x: np.ndarray, *, want_grad: bool = False) -> list:
-        """Render every image at x: list of (values (N,), Shading or None)."""
-        return [self._predict_image(x, i, want_grad=want_grad) for i in range(len(self.images))]
-
-    def _predict_image(self, x: np.ndarray, i: int, *, want_grad: bool) -> tuple:
-        im = self.images[i]
-        sh = shade(
-            im.footprints,
-            im.view,
-            self.layout.rig(x),
-            offset=0.0,
-            rid_subsamples=self.options.rid_subsamples,
-            want_grad=want_grad,
-        )
-        values = self.layout.offset(x) + self.layout.gain_factors(x)[i] * sh.values.filled(np.nan)
-        return values, sh
-
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """(m,) weighted residuals (m_obs - m_render) / sigma.
 
@@ -222,21 +206,23 @@ class CalibrationModel:
 
     def _evaluate(self, x: np.ndarray, *, full_jacobian: bool) -> None:
         """Residuals, the QR-compressed problem and optionally the full Jacobian at x."""
+        with single_threaded_blas():
+            self._evaluate_blas_limited(x, full_jacobian=full_jacobian)
+
+    def _evaluate_blas_limited(self, x: np.ndarray, *, full_jacobian: bool) -> None:
         n = self.layout.n
         r = np.empty(self.m)
         J = np.empty((self.m, n)) if full_jacobian else None
         tops = []
         pose_maps = self._pose_maps(x)
-        for i, im in enumerate(self.images):
+        for i in range(len(self.images)):
             rows = slice(self.bounds[i], self.bounds[i + 1])
-            values, sh = self._predict_image(x, i, want_grad=True)
-            r_i = (im.observed - values) / im.sigma
-            r[rows] = r_i
-            J_i = self._image_jacobian(x, i, values, sh, pose_maps)
+            A = self._image_system(x, i, pose_maps)
+            r[rows] = A[:, n]
             if J is not None:
-                J[rows] = J_i
-            if self.compressed and r_i.size:
-                tops.append(_r_factor(J_i, r_i) if np.all(np.isfinite(r_i)) else None)
+                J[rows] = A[:, :n]
+            if self.compressed and A.shape[0]:
+                tops.append(_economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
         if self.compressed:
             self._cache_R = _stack_r_factors(tops, n + 1)
         self._cache_x = x.copy()
@@ -262,27 +248,50 @@ class CalibrationModel:
             maps.append(M)
         return maps
 
-    def _image_jacobian(
-        self, x: np.ndarray, i: int, values: np.ndarray, sh, pose_maps: list[np.ndarray]
-    ) -> np.ndarray:
-        """(N_i, n) d residuals / d x of image i from its shading with gradients."""
+    def _image_system(self, x: np.ndarray, i: int, pose_maps: list[np.ndarray]) -> np.ndarray:
+        """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals.
+
+        One render with gradients per light; the world-frame gradients go to the pose
+        columns through one (N, 6) x (6, k) product per light.
+        """
         lay = self.layout
         im = self.images[i]
+        view = im.view
+        n = lay.n
         g = lay.gain_factors(x)[i]
-        J = np.zeros((len(im.observed), lay.n))
+        offset = lay.offset(x)
         rig = lay.rig(x)
+        A = np.zeros((len(im.observed), n + 1), order="F")
+        total = np.zeros(len(im.observed))
+        # d L_world / d t = R^T and delta_world = R^T delta_camera: rows (world) -> camera.
+        R_t = view.R_camera_world.T
+        to_camera = np.zeros((6, 6))
+        to_camera[:3, :3] = R_t
+        to_camera[3:, 3:] = R_t
         for j, block in enumerate(lay.blocks):
-            G = np.concatenate([sh.grad_position[j], sh.grad_rotation[j]], axis=1)
-            J[:, block.pose] = G @ (g * pose_maps[j])
-            J[:, block.log_scale] = g * rig.lights[j].scale * sh.flux[j]
+            light = rig.lights[j]
+            flux, grad_world = light_flux(
+                im.footprints,
+                view,
+                light,
+                rid_subsamples=self.options.rid_subsamples,
+                want_grad=True,
+            )
+            assert grad_world is not None
+            total += light.scale * flux
+            A[:, block.pose] = grad_world @ ((g * light.scale) * (to_camera @ pose_maps[j]))
+            A[:, block.log_scale] = (g * light.scale) * flux
             if block.rid.stop > block.rid.start:
-                J[:, block.rid] = self._rid_jacobian(x, i, j, block)
+                A[:, block.rid] = self._rid_jacobian(x, i, j, block)
+        values = np.where(im.footprints.valid, offset + g * total, np.nan)
         if lay.gains.stop > lay.gains.start and i > 0:
-            J[:, lay.gains.start + i - 1] = values - lay.offset(x)
+            A[:, lay.gains.start + i - 1] = values - offset
         if lay.offset_index is not None:
-            J[:, lay.offset_index] = 1.0
-        J *= (-1.0 / im.sigma)[:, None]  # d r / d m_render
-        return J
+            A[:, lay.offset_index] = 1.0
+        inv_sigma = 1.0 / im.sigma
+        A[:, :n] *= -inv_sigma[:, None]  # d r / d m_render
+        A[:, n] = (im.observed - values) * inv_sigma
+        return A
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
         """d m_render / d (RID params of light j) on image i by central differences."""
@@ -376,14 +385,6 @@ class CalibrationModel:
             lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
             hi[s + 2] = max(z_max(d), z0 + 1e-9)
         return lo, hi
-
-
-def _r_factor(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Upper-triangular R factor (min(N, n+1), n+1) of [J r], J (N, n), r (N,)."""
-    A = np.empty((J.shape[0], J.shape[1] + 1), order="F")  # LAPACK's order: no copy
-    A[:, :-1] = J
-    A[:, -1] = r
-    return _economic_r(A)
 
 
 def _economic_r(A: np.ndarray) -> np.ndarray:
@@ -495,21 +496,22 @@ def run_least_squares(
             hit_limit = True
             raise StopIteration
 
-    res = least_squares(
-        model.solver_residuals,
-        x_start,
-        jac=model.solver_jacobian,
-        bounds=(lo, hi),
-        method="trf",
-        loss=opts.loss,
-        f_scale=opts.f_scale,
-        x_scale="jac",
-        ftol=opts.tolerance,
-        xtol=opts.tolerance,
-        gtol=opts.tolerance,
-        max_nfev=20 * opts.max_iterations,
-        callback=callback,
-    )
+    with single_threaded_blas():  # trf's SVD of a full (m, n) Jacobian: see blas_threads
+        res = least_squares(
+            model.solver_residuals,
+            x_start,
+            jac=model.solver_jacobian,
+            bounds=(lo, hi),
+            method="trf",
+            loss=opts.loss,
+            f_scale=opts.f_scale,
+            x_scale="jac",
+            ftol=opts.tolerance,
+            xtol=opts.tolerance,
+            gtol=opts.tolerance,
+            max_nfev=20 * opts.max_iterations,
+            callback=callback,
+        )
     iterations = history[-1].iteration if history else 0
     status, message = int(res.status), str(res.message)
     if hit_limit:
