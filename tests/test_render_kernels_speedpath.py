@@ -1,17 +1,21 @@
 """Exactness of the renderer's fast paths (lightcal.core.render_kernels).
 
 The fast paths (the fused full-image kernel, the one-arctangent quad solid angle, the
-branch-free cos^m, the parallel corner grid, the n = 1 path of `flux_pixels`) must give
-the numbers of the plain kernels and of the NumPy reference to ~1e-12 relative.
+branch-free cos^m, the parallel corner grid, the n = 1 paths of `flux_pixels` with and
+without gradients) must give the numbers of the plain kernels (`_flux_pixels_plain`:
+`_quad_flux` for every quad) and of the NumPy reference to ~1e-12 relative, and their
+gradients those of the plain kernel to ~1e-9 and central finite differences.
 """
 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from lightcal.core import render
 from lightcal.core import render_kernels as rk
@@ -128,6 +132,27 @@ def _assert_images_close(fast: np.ma.MaskedArray, plain: np.ma.MaskedArray) -> N
     np.testing.assert_allclose(fast.data[ok], plain.data[ok], rtol=RTOL, atol=0.0)
 
 
+def _run(
+    kernel: Any,
+    quads: Any,
+    L_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: Any,
+    *,
+    want_grad: bool,
+    n_sub: int = 1,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(flux (N,), grad (N, 6)) of quads (corners_world, weights, valid) by a flux kernel."""
+    d = rid.data()
+    n = quads.corners_world.shape[0]
+    flux = np.full(n, np.nan)
+    grad = np.full((n, 6), np.nan)
+    kernel(quads.corners_world, quads.weights, quads.valid, L_world, R_world_light, d.kind,
+           d.params, d.theta_knots, d.phi_knots, d.values, d.slopes, n_sub, want_grad, flux,
+           grad)  # fmt: skip
+    return flux, grad
+
+
 # --- elementary functions -----------------------------------------------------------
 
 
@@ -181,8 +206,12 @@ def test_quad_omega_equals_two_atan2_including_large_angles() -> None:
         scale = 10.0 ** rng.uniform(-9, 1)
         n1, n2 = rng.normal(size=2) * scale
         d1, d2 = rng.normal(size=2) + rng.choice([0.0, 1.5])
-        expected = abs(2.0 * math.atan2(n1, d1) + 2.0 * math.atan2(n2, d2))
-        assert rk.quad_omega(n1, d1, n2, d2) == pytest.approx(expected, rel=1e-13, abs=1e-15)
+        signed = 2.0 * math.atan2(n1, d1) + 2.0 * math.atan2(n2, d2)
+        got = rk.quad_omega(n1, d1, n2, d2)
+        assert got == pytest.approx(abs(signed), rel=1e-13, abs=1e-15)
+        got_signed = rk.quad_omega_signed(n1, d1, n2, d2)
+        assert got_signed == pytest.approx(signed, rel=1e-13, abs=1e-15)
+        assert abs(got_signed) == got
 
 
 def test_quad_omega_near_the_hemisphere() -> None:
@@ -210,32 +239,165 @@ def test_flux_pixels_fast_path_matches_gradient_path_and_reference(rid_name: str
     light = _light(RIDS[rid_name])
     L_world = light.position_world(VIEW)
     R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
-    d = light.rid.data()
-    fast = np.zeros(len(fp))
-    plain = np.zeros(len(fp))
-    for want_grad, out, grad in (
-        (False, fast, np.zeros((1, 6))),
-        (True, plain, np.zeros((len(fp), 6))),
-    ):
-        # want_grad: the general quad loop (the plain kernel).
-        rk.flux_pixels(fp.corners_world, fp.weights, fp.valid, L_world, R_wl, d.kind, d.params,
-                       d.theta_knots, d.phi_knots, d.values, d.slopes, 1, want_grad, out,
-                       grad)  # fmt: skip
+    fast, _ = _run(rk.flux_pixels, fp, L_world, R_wl, light.rid, want_grad=False)
+    fast_grad_path, _ = _run(rk.flux_pixels, fp, L_world, R_wl, light.rid, want_grad=True)
+    plain, _ = _run(rk._flux_pixels_plain, fp, L_world, R_wl, light.rid, want_grad=True)
     np.testing.assert_allclose(fast, plain, rtol=RTOL, atol=0.0)
+    np.testing.assert_allclose(fast_grad_path, plain, rtol=RTOL, atol=0.0)
     ref = flux_reference(fp, L_world, R_wl, light.rid, 1)
     np.testing.assert_allclose(fast, ref, rtol=RTOL, atol=0.0)
 
 
-def test_flux_pixels_falls_back_for_quads_off_the_wall() -> None:
-    quad = np.array([[0.0, 0.0, 0.1], [0.01, 0.0, 0.1], [0.01, 0.01, 0.0], [0.0, 0.01, 0.0]])
-    corners = quad[None, None]
+@pytest.mark.parametrize("want_grad", [False, True])
+def test_flux_pixels_falls_back_for_quads_off_the_wall(want_grad: bool) -> None:
+    # Pixel 0: a quad on the wall and one tilted off it; pixel 1: two quads on the wall.
+    tilted = np.array([[0.0, 0.0, 0.1], [0.01, 0.0, 0.1], [0.01, 0.01, 0.0], [0.0, 0.01, 0.0]])
+    flat = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.01, 0.01, 0.0], [0.0, 0.01, 0.0]])
+    shift = np.array([0.02, -0.01, 0.0])
+    corners = np.stack([np.stack([flat + shift, tilted]), np.stack([flat, flat - shift])])
+    quads = SimpleNamespace(
+        corners_world=corners, weights=np.array([[0.7, 1.3], [1.1, 0.4]]), valid=np.ones(2, bool)
+    )
     L = np.array([0.02, -0.03, 1.0])
-    d = IsotropicRID().data()
-    out = np.zeros(1)
-    rk.flux_pixels(corners, np.ones((1, 1)), np.ones(1, dtype=bool), L, np.eye(3), d.kind,
-                   d.params, d.theta_knots, d.phi_knots, d.values, d.slopes, 1, False, out,
-                   np.zeros((1, 6)))  # fmt: skip
-    assert out[0] == pytest.approx(quad_solid_angle(L, corners[0])[0], rel=1e-13)
+    flux, grad = _run(rk.flux_pixels, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad)
+    omega = quad_solid_angle(L, corners.reshape(4, 4, 3)).reshape(2, 2)
+    np.testing.assert_allclose(flux, np.sum(quads.weights * omega, axis=1), rtol=1e-13)
+    plain, plain_grad = _run(
+        rk._flux_pixels_plain, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad
+    )
+    assert flux[0] == plain[0]  # the same quad loop
+    if want_grad:
+        np.testing.assert_array_equal(grad[0], plain_grad[0])
+        np.testing.assert_allclose(grad[1], plain_grad[1], rtol=1e-12)
+        assert np.all(grad[:, :3] != 0.0)
+
+
+# --- flux_pixels: the n = 1 path with gradients ------------------------------------
+
+GRAD_RTOL = 1e-9
+
+
+def _axis_down(tilt_x_rad: float, tilt_y_rad: float) -> np.ndarray:
+    """R_world_light whose axis (light +z) points at the wall (world -z), tilted."""
+    return _rotation_x(math.pi - tilt_x_rad) @ _rotation_y(tilt_y_rad)
+
+
+LIGHT_POSES = {
+    # (L_world, R_world_light) around VIEW's footprints (centred near (0.05, 0.1)).
+    "above": (np.array([0.12, -0.05, 0.8]), _axis_down(0.2, -0.1)),
+    "oblique": (np.array([1.6, -1.1, 0.25]), _axis_down(-0.775, -0.775)),  # grazing
+    "near_wall": (np.array([0.05, 0.1, 0.003]), _axis_down(1.2, 0.3)),  # huge solid angles
+}
+
+
+def _weighted_quads(
+    camera: Camera, view: View, pixels: np.ndarray, binning: int, rng: np.random.Generator
+) -> SimpleNamespace:
+    """Footprints with weights varying between quads and every 7th pixel invalid."""
+    fp = pixel_footprints(camera, view, pixels, binning=binning)
+    valid = fp.valid.copy()
+    valid[::7] = False
+    weights = fp.weights * rng.uniform(0.5, 2.0, fp.weights.shape)
+    return SimpleNamespace(corners_world=fp.corners_world, weights=weights, valid=valid)
+
+
+def _assert_grads_close(
+    got: np.ndarray, expected: np.ndarray, rtol: float, *, atol_of_max: float = 0.0
+) -> None:
+    """Per pixel, position and rotation parts each within rtol of the part's norm
+    (plus atol_of_max times the largest such norm)."""
+    for part in (slice(0, 3), slice(3, 6)):
+        err = np.abs(got[:, part] - expected[:, part])
+        scale = np.linalg.norm(expected[:, part], axis=1, keepdims=True)
+        tol = rtol * scale + atol_of_max * scale.max()
+        assert np.all(err <= tol), np.max(err / np.maximum(scale, 1e-300))
+
+
+def _assert_fast_gradients_match_plain(
+    quads: SimpleNamespace, L_world: np.ndarray, R_wl: np.ndarray, rid: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    flux, grad = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
+    plain, plain_grad = _run(rk._flux_pixels_plain, quads, L_world, R_wl, rid, want_grad=True)
+    # atol: where u_z -> 0 (f ~ 1e-23 at the edge of a cos^m), the plain kernel's
+    # cos(atan2(rho, u_z)) keeps only ~1e-16 / u_z relative precision; the fast path
+    # takes u_z as it is.
+    np.testing.assert_allclose(flux, plain, rtol=RTOL, atol=1e-13 * np.max(plain))
+    _assert_grads_close(grad, plain_grad, GRAD_RTOL, atol_of_max=1e-13)
+    assert np.all(flux[~quads.valid] == 0.0) and np.all(grad[~quads.valid] == 0.0)
+    values, _ = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=False)
+    np.testing.assert_allclose(flux, values, rtol=RTOL, atol=0.0)
+    return flux, grad
+
+
+@pytest.mark.parametrize("binning", [1, 3])
+@pytest.mark.parametrize("pose", list(LIGHT_POSES))
+@pytest.mark.parametrize("rid_name", list(RIDS))
+def test_flux_pixels_fast_gradient_matches_plain_kernel(
+    rid_name: str, pose: str, binning: int
+) -> None:
+    camera = _camera(dist=DISTORTION)
+    vv, uu = np.mgrid[0 : 30 // binning, 0 : 40 // binning]
+    pixels = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    quads = _weighted_quads(camera, VIEW, pixels, binning, np.random.default_rng(7))
+    assert quads.corners_world.shape[1] == binning * binning
+    L_world, R_wl = LIGHT_POSES[pose]
+    flux, _ = _assert_fast_gradients_match_plain(quads, L_world, R_wl, RIDS[rid_name])
+    assert np.count_nonzero(flux) > 0.3 * len(flux)
+    if pose == "near_wall":
+        # Quads far outside the series' range (tan(omega / 2) >> ATAN_SERIES_MAX).
+        omega = quad_solid_angle(L_world, quads.corners_world[quads.valid].reshape(-1, 4, 3))
+        assert omega.max() > 1.0
+
+
+@pytest.mark.parametrize("rid_name", list(RIDS))
+def test_flux_pixels_fast_gradient_near_the_horizon(rid_name: str) -> None:
+    # 116-degree camera 5 cm above the wall looking along it (as in the image test above);
+    # the light 1 mm off the wall facing along +y: footprints from huge solid angles below
+    # the light to long slivers near the horizon.
+    camera = Camera.from_params(fx=12.0, fy=12.0, cx=19.5, cy=14.5, width=40, height=30)
+    view = View.looking_at(np.array([0.0, 0.0, 0.05]), np.array([0.0, 1.0, 0.0]))
+    vv, uu = np.mgrid[0:30, 0:40]
+    pixels = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    quads = _weighted_quads(camera, view, pixels, 1, np.random.default_rng(8))
+    quads.valid[::7] = pixel_footprints(camera, view, pixels[::7]).valid  # all that hit
+    assert 0 < np.count_nonzero(quads.valid) < len(pixels)
+    L_world = np.array([0.0, 0.04, 1e-3])
+    flux, _ = _assert_fast_gradients_match_plain(
+        quads, L_world, _axis_down(-1.2, 0.1), RIDS[rid_name]
+    )
+    omega = quad_solid_angle(L_world, quads.corners_world[quads.valid, 0])
+    assert omega.max() > 0.5 and omega.min() < 1e-4
+    assert np.count_nonzero(flux) > 0.3 * np.count_nonzero(quads.valid)
+
+
+@pytest.mark.parametrize("rid_name", list(RIDS))
+def test_flux_pixels_fast_gradient_matches_finite_differences(rid_name: str) -> None:
+    camera = _camera(dist=DISTORTION)
+    rng = np.random.default_rng(9)
+    pixels = np.stack([rng.integers(0, 20, 40), rng.integers(0, 15, 40)], axis=1)
+    quads = _weighted_quads(camera, VIEW, pixels, 2, rng)
+    rid = RIDS[rid_name]
+    for L_world, R_wl in (LIGHT_POSES["above"], LIGHT_POSES["oblique"]):
+        flux, grad = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
+        h = 1e-6
+        fd = np.zeros_like(grad)
+        for j in range(3):
+            step = np.zeros(3)
+            step[j] = h
+            # Position: L +- h e_j; rotation: R -> exp(+- h [e_j]x) R (left perturbation).
+            for sign in (1.0, -1.0):
+                f_pos, _ = _run(rk.flux_pixels, quads, L_world + sign * step, R_wl, rid,
+                                want_grad=True)  # fmt: skip
+                R_rot = Rotation.from_rotvec(sign * step).as_matrix() @ R_wl
+                f_rot, _ = _run(rk.flux_pixels, quads, L_world, R_rot, rid, want_grad=True)
+                fd[:, j] += sign * f_pos / (2 * h)
+                fd[:, 3 + j] += sign * f_rot / (2 * h)
+        assert np.count_nonzero(flux) > 0.5 * len(flux)
+        _assert_grads_close(grad, fd, 2e-6)
+        if rid_name == "isotropic":
+            assert np.all(grad[:, 3:] == 0.0)
+        else:
+            assert np.count_nonzero(np.linalg.norm(grad[:, 3:], axis=1)) > 0.5 * len(flux)
 
 
 # --- the corner grid -------------------------------------------------------------------
@@ -351,25 +513,25 @@ def test_stack_rid_data_pads_tables() -> None:
     assert params[0, 0] == 3.7
 
 
+@pytest.mark.parametrize("rid_name", ["table_1d", "cos_power"])
 @pytest.mark.parametrize("want_grad", [False, True])
-def test_flux_pixels_parallel_and_serial_kernels_agree_bitwise(want_grad: bool) -> None:
+def test_flux_pixels_parallel_and_serial_kernels_agree_bitwise(
+    want_grad: bool, rid_name: str
+) -> None:
     camera = _camera(width=120, height=100, dist=DISTORTION)
     vv, uu = np.meshgrid(np.arange(100), np.arange(120), indexing="ij")
     pixels = np.stack([uu.ravel(), vv.ravel()], axis=1)
     fp = pixel_footprints(camera, VIEW, pixels, binning=1)
-    assert len(fp) >= rk.SERIAL_WORK // 4  # the public entry point picks the parallel kernel
-    light = _light(RIDS["table_1d"])
+    # 12,000 pixels: chunks of ~47 pixels, not multiples of the gradient path's blocks.
+    assert len(fp) % rk.GRAD_BLOCK != 0
+    light = _light(RIDS[rid_name])
     L_world = light.position_world(VIEW)
     R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
-    d = light.rid.data()
-    results = []
-    for kernel in (rk.flux_pixels, rk._flux_pixels_serial):
-        flux = np.zeros(len(fp))
-        grad = np.zeros((len(fp), 6))
-        kernel(fp.corners_world, fp.weights, fp.valid, L_world, R_wl, d.kind, d.params,
-               d.theta_knots, d.phi_knots, d.values, d.slopes, 1, want_grad, flux,
-               grad)  # fmt: skip
-        results.append((flux, grad))
-    np.testing.assert_array_equal(results[0][0], results[1][0])
-    np.testing.assert_array_equal(results[0][1], results[1][1])
-    assert np.mean(results[0][0] > 0.0) > 0.5  # most pixels lie inside the table
+    results = [
+        _run(kernel, fp, L_world, R_wl, light.rid, want_grad=want_grad)
+        for kernel in (rk._flux_pixels_parallel, rk._flux_pixels_serial, rk.flux_pixels)
+    ]
+    for flux, grad in results[1:]:
+        np.testing.assert_array_equal(results[0][0], flux)
+        np.testing.assert_array_equal(results[0][1], grad)
+    assert np.mean(results[0][0] > 0.0) > 0.5  # most pixels lie inside the RID
