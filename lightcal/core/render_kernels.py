@@ -424,37 +424,14 @@ def _quad_flux_fast(
 
     `_quad_flux` with n = 1 and no gradient; indices, not a view: a view per pixel costs.
     """
-    x1 = corners_world[i, k, 0, 0]
-    y1 = corners_world[i, k, 0, 1]
-    x2 = corners_world[i, k, 1, 0]
-    y2 = corners_world[i, k, 1, 1]
-    x3 = corners_world[i, k, 2, 0]
-    y3 = corners_world[i, k, 2, 1]
-    x4 = corners_world[i, k, 3, 0]
-    y4 = corners_world[i, k, 3, 1]
-    az = 0.0 - lz
-    lz2 = az * az
-    a_x = x1 - lx
-    a_y = y1 - ly
-    b_x = x2 - lx
-    b_y = y2 - ly
-    c_x = x3 - lx
-    c_y = y3 - ly
-    d_x = x4 - lx
-    d_y = y4 - ly
-    l1 = math.sqrt(a_x * a_x + a_y * a_y + lz2)
-    l2 = math.sqrt(b_x * b_x + b_y * b_y + lz2)
-    l3 = math.sqrt(c_x * c_x + c_y * c_y + lz2)
-    l4 = math.sqrt(d_x * d_x + d_y * d_y + lz2)
-    n1, d1, n2, d2 = _quad_terms(
-        x1, y1, x2, y2, x3, y3, x4, y4, a_x, a_y, l1, b_x, b_y, l2, c_x, c_y, l3, d_x, d_y, l4, az
-    )
-    omega = quad_omega(n1, d1, n2, d2)
+    omega = quad_omega(*_wall_quad_terms(corners_world, i, k, lx, ly, lz))
     if rid_kind == KIND_ISOTROPIC:
         return omega
-    mx = 0.25 * (x1 + x2 + x3 + x4) - lx
-    my = 0.25 * (y1 + y2 + y3 + y4) - ly
-    r = math.sqrt(mx * mx + my * my + lz2)
+    c = corners_world
+    mx = 0.25 * (c[i, k, 0, 0] + c[i, k, 1, 0] + c[i, k, 2, 0] + c[i, k, 3, 0]) - lx
+    my = 0.25 * (c[i, k, 0, 1] + c[i, k, 1, 1] + c[i, k, 2, 1] + c[i, k, 3, 1]) - ly
+    az = 0.0 - lz
+    r = math.sqrt(mx * mx + my * my + az * az)
     wx = mx / r
     wy = my / r
     wz = az / r
@@ -657,11 +634,11 @@ def quad_omega_signed(n1: float, d1: float, n2: float, d2: float) -> float:
     return 2.0 * math.atan2(n1, d1) + 2.0 * math.atan2(n2, d2)
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _wall_quad_omega_signed(
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _wall_quad_terms(
     corners_world: np.ndarray, i: int, k: int, lx: float, ly: float, lz: float
-) -> float:
-    """Signed solid angle of quad corners_world[i, k] (4, 3) on the wall, any size."""
+) -> tuple[float, float, float, float]:
+    """`_quad_terms` (n1, d1, n2, d2) of quad corners_world[i, k] (4, 3) on the wall z = 0."""
     x1 = corners_world[i, k, 0, 0]
     y1 = corners_world[i, k, 0, 1]
     x2 = corners_world[i, k, 1, 0]
@@ -684,10 +661,17 @@ def _wall_quad_omega_signed(
     l2 = math.sqrt(b_x * b_x + b_y * b_y + azz)
     l3 = math.sqrt(c_x * c_x + c_y * c_y + azz)
     l4 = math.sqrt(d_x * d_x + d_y * d_y + azz)
-    n1, d1, n2, d2 = _quad_terms(
+    return _quad_terms(
         x1, y1, x2, y2, x3, y3, x4, y4, a_x, a_y, l1, b_x, b_y, l2, c_x, c_y, l3, d_x, d_y, l4, az
     )
-    return quad_omega_signed(n1, d1, n2, d2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _wall_quad_omega_signed(
+    corners_world: np.ndarray, i: int, k: int, lx: float, ly: float, lz: float
+) -> float:
+    """Signed solid angle of quad corners_world[i, k] (4, 3) on the wall, any size."""
+    return quad_omega_signed(*_wall_quad_terms(corners_world, i, k, lx, ly, lz))
 
 
 @numba.njit(cache=True, error_model="numpy")
