@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from lightcal.core import solver
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
@@ -377,7 +378,7 @@ def test_reduced_problem_has_the_full_problems_model(case):
     images = cs.observe(
         CAMERA, _three_views(), rig, n_per_image=40, rng=np.random.default_rng(1), noise=(0.5, 4.0)
     )
-    model = CalibrationModel(images, unknowns, SolverOptions(**options))
+    model = CalibrationModel(images, unknowns, SolverOptions(**options, compress=True))
     assert model.compressed
     x = model.layout.x0.copy()
     r, J = model.residuals(x), model.jacobian(x)
@@ -402,7 +403,7 @@ def test_compressed_solve_follows_the_full_solve(noisy_problem):
     light, images = noisy_problem
     start = [cs.start_near(light)]
     full = cs.model_of(images, start, compress=False)
-    reduced = cs.model_of(images, start)
+    reduced = cs.model_of(images, start, compress=True)
     assert reduced.compressed and not full.compressed
     out_full = run_least_squares(full)
     out_red = run_least_squares(reduced)
@@ -414,9 +415,23 @@ def test_compressed_solve_follows_the_full_solve(noisy_problem):
         np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
 
 
+def test_the_compressed_problem_is_chosen_by_pixel_count(noisy_problem, monkeypatch):
+    light, images = noisy_problem
+    start = [cs.start_near(light)]
+    m = sum(len(im.observed) for im in images)
+    monkeypatch.setattr(solver, "COMPRESS_MIN_PIXELS", m + 1)
+    assert not cs.model_of(images, start).compressed
+    assert cs.model_of(images, start, compress=True).compressed
+    monkeypatch.setattr(solver, "COMPRESS_MIN_PIXELS", m)
+    model = cs.model_of(images, start)
+    assert model.compressed
+    assert model.solver_residuals(model.layout.x0).shape == (model.layout.n + 1,)
+    assert not cs.model_of(images, start, compress=False).compressed
+
+
 def test_robust_losses_use_the_full_problem(noisy_problem):
     light, images = noisy_problem
-    model = cs.model_of(images, [cs.start_near(light)], loss="huber")
+    model = cs.model_of(images, [cs.start_near(light)], loss="huber", compress=True)
     assert not model.compressed
     x = model.layout.x0
     assert model.solver_residuals(x).shape == (model.m,)
