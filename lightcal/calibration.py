@@ -179,12 +179,13 @@ def image_data(
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
     noise = project.spec.sensor.noise
-    if noise is not None:
-        signal = np.maximum(observed - project.spec.sensor.offset, 0.0)
-        sigma = np.sqrt((noise.gain * signal + noise.read_variance) / (b * b))
-    else:
-        sigma = np.ones(len(observed))
-    return ImageData(project.names[index], view, fp, observed, sigma)
+    if noise is None:
+        return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
+    # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
+    gain, read_variance = noise.gain / (b * b), noise.read_variance / (b * b)
+    signal = np.maximum(observed - project.spec.sensor.offset, 0.0)
+    sigma = np.sqrt(gain * signal + read_variance)
+    return ImageData(project.names[index], view, fp, observed, sigma, (gain, read_variance))
 
 
 def _subset(fp, keep: np.ndarray):

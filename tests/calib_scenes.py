@@ -139,6 +139,7 @@ def observe(
     offset: float = 0.0,
     measured_views: list[View] | None = None,
     min_fraction: float = 0.02,
+    noise_model: bool = False,
 ) -> list[ImageData]:
     """Random lit pixels of each view, as the solver sees them.
 
@@ -154,6 +155,7 @@ def observe(
         offset: added to every value.
         measured_views: the poses the solver is told (pose error); default the true ones.
         min_fraction: pixels darker than this fraction of the image's brightest are skipped.
+        noise_model: hand the solver the noise model (`ImageData.noise`: it re-weights).
 
     Returns:
         One `ImageData` per view with all-valid footprints built from `measured_views`.
@@ -186,7 +188,8 @@ def observe(
             variance = gain * signal + read_variance
             observed = signal + offset + rng.normal(size=signal.shape) * np.sqrt(variance)
             sigma = np.sqrt(gain * np.maximum(observed - offset, 0.0) + read_variance)
-        out.append(ImageData(f"view_{i:02d}", told_view, fp, observed, sigma))
+        known = noise if noise_model else None
+        out.append(ImageData(f"view_{i:02d}", told_view, fp, observed, sigma, known))
     return out
 
 

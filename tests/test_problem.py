@@ -268,3 +268,15 @@ def test_light_scale_round_trips_through_log_scale():
     light = Light(cs.symmetric_light().rid, np.array([0.0, 0.1, 0.0]), scale=1e-7)
     lay = _layout([LightUnknown(light)])
     assert lay.rig(lay.x0).lights[0].scale == pytest.approx(1e-7, rel=1e-14)
+
+
+def test_wild_log_scales_stay_finite_and_their_squares_too():
+    light = Light(cs.symmetric_light().rid, np.array([0.0, 0.1, 0.0]), scale=1.0)
+    lay = _layout([LightUnknown(light)])
+    x = lay.x0.copy()
+    block = lay.blocks[0]
+    for v, expected in ((1e4, math.exp(300.0)), (-1e4, math.exp(-300.0))):
+        x[block.log_scale] = v
+        scale = lay.rig(x).lights[0].scale
+        assert scale == expected
+        assert math.isfinite(1e7 * (1e3 * scale) ** 2)  # a cost of 1e7 residuals stays finite

@@ -333,3 +333,21 @@ def test_noise_floor_rules(tmp_path):
     path = _project(tmp_path, _straight_view(), image)
     project = load_project(path)
     assert noise_floor(project, img) == pytest.approx(0.01 * np.percentile(image, 99))
+
+
+def test_project_noise_model_reaches_the_solver_per_super_pixel(tmp_path):
+    image = 50.0 + np.arange(H * W, dtype=np.float64).reshape(H, W) % 17.0
+    path = _project(
+        tmp_path,
+        _straight_view(),
+        image,
+        sensor={"offset": 10.0, "noise": {"gain": 2.0, "read_variance": 8.0}},
+        selection={"strategy": "all", "binning": 2, "min_signal": 1.0},
+    )
+    _, data = _selected(path)
+    # A 2 x 2 super-pixel is the mean of 4 pixels: a quarter of their variance.
+    assert data.noise == (0.5, 2.0)
+    np.testing.assert_allclose(data.sigma, np.sqrt(0.5 * (data.observed - 10.0) + 2.0), rtol=1e-14)
+    without = _project(tmp_path, _straight_view(), image, selection={"strategy": "all"})
+    _, plain = _selected(without)
+    assert plain.noise is None and np.all(plain.sigma == 1.0)

@@ -32,7 +32,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             console.print(
                 f"iteration {rep.iteration:3d}  cost {rep.cost:.6e}  "
-                f"|grad| {rep.gradient_norm:.3e}  evaluations {rep.nfev}",
+                f"|grad| {rep.gradient_norm:.3e}  evaluations {rep.nfev}"
+                + ("  (weights from the rendered values)" if rep.reweighted else ""),
                 highlight=False,
             )
 

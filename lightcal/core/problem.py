@@ -39,6 +39,9 @@ class ImageData:
         footprints: footprints of the N selected pixels (all valid).
         observed: (N,) measured linear pixel values.
         sigma: (N,) noise standard deviation of each value (1 when unweighted).
+        noise: (gain, read_variance) of a Poisson-Gaussian sensor, in the units of
+            `observed`: variance = gain * (value - offset) + read_variance. When given, the
+            solver re-weights from rendered values (`SolverOptions.reweight`).
     """
 
     name: str
@@ -46,6 +49,7 @@ class ImageData:
     footprints: Footprints
     observed: np.ndarray
     sigma: np.ndarray
+    noise: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.footprints)
@@ -60,6 +64,15 @@ class ImageData:
             raise ValueError(f"{self.name}: sigma: expected values > 0")
         if not np.all(self.footprints.valid):
             raise ValueError(f"{self.name}: expected only valid footprints (select valid pixels)")
+        if self.noise is not None:
+            gain, read_variance = (float(v) for v in self.noise)
+            if not (math.isfinite(gain) and gain >= 0.0):
+                raise ValueError(f"{self.name}: noise: expected a finite gain >= 0, got {gain}")
+            if not (math.isfinite(read_variance) and read_variance > 0.0):
+                raise ValueError(
+                    f"{self.name}: noise: expected a finite read variance > 0, got {read_variance}"
+                )
+            object.__setattr__(self, "noise", (gain, read_variance))
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,8 +103,10 @@ class LightUnknown:
 
 
 def _exp(v: float) -> float:
-    """exp(v) with v clipped to +-700: finite for any parameter the solver tries."""
-    return math.exp(min(max(v, -700.0), 700.0))
+    """exp(v) with v clipped to +-300: finite for any parameter the solver tries, and
+    small enough (1e130) that trf's sum of squared residuals of a wild trial step stays
+    finite (with +-700 it overflowed, with a RuntimeWarning, before being rejected)."""
+    return math.exp(min(max(v, -300.0), 300.0))
 
 
 def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:
