@@ -672,6 +672,7 @@ class Panels:
             f"iteration {last.iteration}, cost {last.cost:.6g}, "
             f"|gradient| {last.gradient_norm:.3g}, "
             f"{last.nfev} evaluations"
+            + (" (re-weighted: pixel sigmas from the rendered values)" if last.reweighted else "")
         )
 
     def _update_plots(self, frame: Frame) -> None:

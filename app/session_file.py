@@ -65,6 +65,7 @@ class IterationModel(_Model):
     gradient_norm: float
     per_image_rms: list[float | None]
     nfev: int
+    reweighted: bool = False
 
 
 class SolveModel(_Model):
@@ -136,6 +137,7 @@ def session_from_state(state: AppState) -> SessionFile:
                     gradient_norm=float(r.gradient_norm),
                     per_image_rms=[_finite_or_none(v) for v in r.per_image_rms],
                     nfev=int(r.nfev),
+                    reweighted=bool(r.reweighted),
                 )
                 for r in state.history
             ],
@@ -271,6 +273,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
                 h.gradient_norm,
                 np.array([np.nan if v is None else v for v in h.per_image_rms]),
                 h.nfev,
+                h.reweighted,
             )
             for h in session.solve.history
         ]

@@ -30,12 +30,19 @@ from app.panels import pose_angles_deg, rotation_from_angles_deg
 from app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
 from app.scene3d import cone_lines, cone_mesh
 from app.server import LightcalApp, build_app
-from app.session_file import parse_session, read_session
+from app.session_file import (
+    apply_session,
+    parse_session,
+    read_session,
+    session_from_state,
+    session_json,
+)
 from app.state import Display
 from lightcal.calibration import image_data
 from lightcal.core.pose import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
+from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable
@@ -683,6 +690,23 @@ def test_save_and_reload_session(app: LightcalApp) -> None:
     _idle(app)
     assert st.selection.seed == 7 and app.panels.seed.value == 7
     assert st.messages[-1][0] == "Session restored"
+
+
+def test_session_keeps_which_iterations_were_reweighted(app: LightcalApp) -> None:
+    st = app.state
+    n = len(st.parameter_names) or 6
+    rms = np.ones(len(st.project.names))
+    st.history = [
+        IterationReport(0, np.zeros(n), 2.0, 1.0, rms, 1),
+        IterationReport(1, np.zeros(n), 1.5, 0.1, rms, 2, reweighted=True),
+    ]
+    text = session_json(session_from_state(st))
+    st.history = []
+    apply_session(st, parse_session(text, "s.json"))
+    assert [h.reweighted for h in st.history] == [False, True]
+    assert "re-weighted" in app.panels._status_text(
+        SimpleNamespace(history=st.history, solver_state="finished", solver_message="")
+    )
 
 
 def test_demo_mode_shows_the_true_light(synthetic: SyntheticProject, tmp_path: Path) -> None:
