@@ -530,6 +530,8 @@ def solve(
             continue
         if out.cost < best.cost:
             best = out
+    if multistart:
+        model.set_weights_at(best.weights_at)  # the weights the best solve ended with
     return best
 
 

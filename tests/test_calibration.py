@@ -252,6 +252,22 @@ def test_multistart_keeps_the_best(clean):
     assert cs.pose_errors(est, light)[0] < 0.01
 
 
+def test_multistart_leaves_the_best_solves_weights(clean):
+    light, images = clean
+    noisy = [
+        ImageData(im.name, im.view, im.footprints, im.observed, im.sigma, NOISE)
+        for im in cs.add_noise(images, NOISE, np.random.default_rng(2))
+    ]
+    model = cs.model_of(noisy, [cs.start_near(light, position_m=0.2, angle_deg=25.0)])
+    assert model.reweights
+    best = solve(model, multistart=3, seed=4)
+    assert best.weights_at is not None
+    np.testing.assert_array_equal(model.weights_at, best.weights_at)
+    # The summary sees the residuals the best solve converged with.
+    r = model.residuals(best.x)
+    assert 0.5 * float(r @ r) == pytest.approx(best.cost, rel=1e-9)
+
+
 # ---------------------------------------------------------------------- whole projects
 
 

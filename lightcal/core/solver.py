@@ -491,7 +491,11 @@ class _StateAtX:
 
 @dataclass
 class SolveOutcome:
-    """What least_squares returned plus the iteration history."""
+    """What least_squares returned plus the iteration history.
+
+    `weights_at`: the parameters the final pixel weights were rendered at (None: the
+    data's sigmas); `CalibrationModel.set_weights_at` restores them.
+    """
 
     x: np.ndarray
     status: int
@@ -502,6 +506,7 @@ class SolveOutcome:
     cost: float
     time_s: float
     history: list[IterationReport] = field(default_factory=list)
+    weights_at: np.ndarray | None = None
 
 
 def run_least_squares(
@@ -564,6 +569,7 @@ def run_least_squares(
         float(res.cost),
         time.perf_counter() - t0,
         history,
+        None if model.weights_at is None else model.weights_at.copy(),
     )
 
 
