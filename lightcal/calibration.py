@@ -516,16 +516,26 @@ def solve(
     multistart_angle_deg: float = 30.0,
     seed: int = 0,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
 ) -> SolveOutcome:
-    """Solve from the initial guess and `multistart` random starts; keep the best."""
+    """Solve from the initial guess and `multistart` random starts; keep the best.
+
+    `on_iteration` sees every start's iterations (each numbered from 0); `on_start(k, n)`
+    is called before start k of n (0: the initial guess).
+    """
+    n_starts = 1 + multistart
+    if on_start is not None:
+        on_start(0, n_starts)
     best = run_least_squares(model, on_iteration=on_iteration)
     rng = np.random.default_rng(seed)
-    for _ in range(multistart):
+    for k in range(1, n_starts):
         x0 = perturbed_start(
             model, rng, position_m=multistart_position_m, angle_deg=multistart_angle_deg
         )
+        if on_start is not None:
+            on_start(k, n_starts)
         try:
-            out = run_least_squares(model, x0)
+            out = run_least_squares(model, x0, on_iteration=on_iteration)
         except ValueError:
             continue
         if out.cost < best.cost:
@@ -540,6 +550,7 @@ def solve_project(
     model: CalibrationModel,
     *,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
 ) -> SolveOutcome:
     """`solve` with the project's multi-start settings."""
     so = project.spec.solver
@@ -550,6 +561,7 @@ def solve_project(
         multistart_angle_deg=so.multistart_angle_deg,
         seed=project.selection.seed,
         on_iteration=on_iteration,
+        on_start=on_start,
     )
 
 

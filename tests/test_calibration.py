@@ -243,11 +243,20 @@ def test_multistart_keeps_the_best(clean):
     model = cs.model_of(noisy, [cs.start_near(light, position_m=0.2, angle_deg=25.0)])
     single = solve(model)
     reports: list[IterationReport] = []
-    multi = solve(model, multistart=3, seed=4, on_iteration=reports.append)
+    starts: list[tuple[int, int]] = []
+    multi = solve(
+        model,
+        multistart=3,
+        seed=4,
+        on_iteration=reports.append,
+        on_start=lambda k, n: starts.append((k, n)),
+    )
     again = solve(model, multistart=3, seed=4)
     assert multi.cost <= single.cost * (1 + 1e-12)
     np.testing.assert_array_equal(multi.x, again.x)
-    assert reports and reports[0].iteration == 0
+    # Every start is reported, each numbered from 0.
+    assert starts == [(0, 4), (1, 4), (2, 4), (3, 4)]
+    assert [rep.iteration for rep in reports].count(0) == 4
     est = model.layout.rig(multi.x).lights[0]
     assert cs.pose_errors(est, light)[0] < 0.01
 

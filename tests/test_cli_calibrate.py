@@ -69,6 +69,8 @@ def test_calibrate_with_report(dataset, tmp_path, capsys):
     assert "## light (symmetric)" in summary
     text = " ".join(captured.err.split())  # rich wraps long lines
     assert "iteration 0 cost" in text
+    assert "(weights from the rendered values)" in text  # the noise model re-weights
+    assert "start 1 of" not in text  # a single start
     assert "light: position [" in text
     assert "converged: " in text and "result written to" in text
 
@@ -93,6 +95,16 @@ def test_calibrate_stopped_by_max_iterations_exits_1(dataset, tmp_path, capsys):
     assert result.status == 0 and result.iterations == 1
     assert result.message == "stopped after the maximum of 1 iterations"
     assert "did not converge: stopped after the maximum of 1 iterations" in err
+
+
+def test_calibrate_reports_every_start(dataset, tmp_path, capsys):
+    project = _project_copy(dataset, tmp_path, solver={"multistart": 1})
+    assert main(["calibrate", str(project), "--out", str(tmp_path / "r.json")]) == 0
+    text = " ".join(capsys.readouterr().err.split())
+    first = text.index("start 1 of 2: the initial guess")
+    second = text.index("start 2 of 2: a random start near it")
+    assert first < text.index("iteration 0 cost", first) < second
+    assert "iteration 0 cost" in text[second:]
 
 
 def test_broken_project_exits_2_with_one_line(dataset, tmp_path, capsys):

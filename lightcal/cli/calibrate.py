@@ -42,7 +42,13 @@ def run(args: argparse.Namespace) -> int:
             f"{len(model.images)} images, {model.m} pixels, {model.layout.n} parameters",
             highlight=False,
         )
-    outcome = solve_project(project, model, on_iteration=on_iteration)
+
+    def on_start(k: int, n: int) -> None:
+        if not args.quiet and n > 1:
+            what = "the initial guess" if k == 0 else "a random start near it"
+            console.print(f"start {k + 1} of {n}: {what}", highlight=False)
+
+    outcome = solve_project(project, model, on_iteration=on_iteration, on_start=on_start)
     result = summarise(model, outcome)
     write_result(result_to_file(result, project=project.path), args.out)
     for lr in result.lights:
