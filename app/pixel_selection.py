@@ -15,9 +15,9 @@ from dataclasses import replace
 import numpy as np
 
 from app.state import SelectionSettings, UserRegion
-from lightcal.calibration import LoadedImages, image_data, noise_floor, regions_for
+from lightcal.calibration import LoadedImages, image_data
 from lightcal.core.problem import ImageData
-from lightcal.core.selection import SelectionOptions, binned_candidates, candidate_mask
+from lightcal.core.selection import SelectionOptions
 from lightcal.io.project import Project, RegionSpec
 
 
@@ -62,39 +62,6 @@ def effective_binning(settings: SelectionSettings) -> int:
     return settings.binning if settings.strategy == "all" else 1
 
 
-def candidate_points(
-    project: Project, loaded: LoadedImages, index: int, points: np.ndarray, binning: int
-) -> np.ndarray:
-    """The clicked pixels that may enter the calibration, in the (binned) grid.
-
-    Args:
-        project: the project with the user's selection (`project_with_selection`).
-        loaded: its images.
-        index: which image.
-        points: (K, 2) clicked full-resolution pixels (u, v).
-        binning: b of the selection grid.
-
-    Returns:
-        (M, 2) int64 unique (binned) pixel indices that are candidates.
-    """
-    img = loaded.images[index]
-    cand = candidate_mask(
-        img.values,
-        saturated=img.saturated,
-        excluded=loaded.excluded[index],
-        regions=regions_for(project, index),
-        min_signal=noise_floor(project, img),
-    )
-    if binning > 1:
-        cand = binned_candidates(cand, binning)
-    p = np.asarray(points, dtype=np.int64).reshape(-1, 2) // binning
-    h, w = cand.shape
-    inside = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
-    p = p[inside]
-    p = p[cand[p[:, 1], p[:, 0]]]
-    return np.unique(p, axis=0) if p.size else np.zeros((0, 2), np.int64)
-
-
 def select_image(
     project: Project,
     loaded: LoadedImages,
@@ -114,21 +81,8 @@ def select_image(
         points: clicked full-resolution pixels of this image.
     """
     p = project_with_selection(project, settings, regions)
-    data = image_data(p, loaded, index)
-    if not points:
-        return data
-    b = effective_binning(settings)
-    extra = candidate_points(p, loaded, index, np.array(points), b)
-    if extra.size == 0:
-        return data
-    both = np.unique(np.concatenate([data.footprints.pixels, extra]), axis=0)
-    # Explicit pixels are kept as given (the random strategy would cut them to N).
-    explicit = p if settings.strategy != "random" else _as_grid(p)
-    return image_data(explicit, loaded, index, pixels=both)
-
-
-def _as_grid(project: Project) -> Project:
-    return replace(project, selection=replace(project.selection, strategy="grid"))
+    clicked = np.array(points, dtype=np.int64).reshape(-1, 2) // effective_binning(settings)
+    return image_data(p, loaded, index, extra_pixels=clicked)
 
 
 def footprint_centres(data: ImageData) -> np.ndarray:

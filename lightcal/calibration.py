@@ -134,6 +134,7 @@ def image_data(
     index: int,
     *,
     pixels: np.ndarray | None = None,
+    extra_pixels: np.ndarray | None = None,
 ) -> ImageData:
     """The selected pixels of one image as solver input.
 
@@ -143,6 +144,10 @@ def image_data(
         index: which image.
         pixels: (N, 2) explicit pixel choice (in the binned grid); default: the project's
             selection strategy.
+        extra_pixels: (K, 2) pixels (in the binned grid, e.g. clicked by a user) added to
+            the selection when they are candidates (valid, unsaturated, above the noise
+            floor, inside the regions and masks); the random strategy's cut to N never
+            drops them. Others are ignored.
     """
     img = loaded.images[index]
     view = project.views[index]
@@ -161,6 +166,9 @@ def image_data(
         values = bin_values(values, b)
     if pixels is None:
         pixels = select_pixels(cand, sel, image_index=index, oversample=1.5)
+    extra = _candidates_among(cand, extra_pixels)
+    if extra.size:
+        pixels = np.unique(np.concatenate([np.asarray(pixels, np.int64), extra]), axis=0)
     vignetting = _vignetting(project, loaded.camera)
     fp = pixel_footprints(
         loaded.camera,
@@ -172,9 +180,12 @@ def image_data(
     )
     keep = np.nonzero(fp.valid)[0]
     if sel.strategy == "random" and keep.size > sel.n_per_image:
-        # A random N of the valid ones (not the first N: pixels are sorted by row).
+        # A random N of the valid ones (not the first N: pixels are sorted by row),
+        # plus the extra pixels.
+        is_extra = _rows_in(fp.pixels[keep], extra)
         rng = np.random.default_rng([sel.seed, index, 1])
-        keep = np.sort(rng.permutation(keep)[: sel.n_per_image])
+        chosen = rng.permutation(keep[~is_extra])[: sel.n_per_image]
+        keep = np.sort(np.concatenate([chosen, keep[is_extra]]))
     fp = _subset(fp, keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
@@ -186,6 +197,30 @@ def image_data(
     signal = np.maximum(observed - project.spec.sensor.offset, 0.0)
     sigma = np.sqrt(gain * signal + read_variance)
     return ImageData(project.names[index], view, fp, observed, sigma, (gain, read_variance))
+
+
+def _candidates_among(cand: np.ndarray, pixels: np.ndarray | None) -> np.ndarray:
+    """(M, 2) unique int64 rows of `pixels` (K, 2) inside the (H, W) mask `cand` and True."""
+    if pixels is None:
+        return np.zeros((0, 2), np.int64)
+    p = np.asarray(pixels, dtype=np.int64).reshape(-1, 2)
+    h, w = cand.shape
+    p = p[(p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)]
+    p = p[cand[p[:, 1], p[:, 0]]]
+    return np.unique(p, axis=0) if p.size else np.zeros((0, 2), np.int64)
+
+
+def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(N,) which rows of `rows` (N, 2) appear in `table` (M, 2) (int64 pixel indices)."""
+    if table.size == 0:
+        return np.zeros(len(rows), dtype=bool)
+    return np.isin(_pixel_keys(rows), _pixel_keys(table))
+
+
+def _pixel_keys(pixels: np.ndarray) -> np.ndarray:
+    """(N,) one int64 per (u, v) row of `pixels` (N, 2), u, v < 2^31."""
+    p = np.asarray(pixels, dtype=np.int64)
+    return (p[:, 1] << 32) + p[:, 0]
 
 
 def _subset(fp, keep: np.ndarray):

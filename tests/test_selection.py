@@ -351,3 +351,29 @@ def test_project_noise_model_reaches_the_solver_per_super_pixel(tmp_path):
     without = _project(tmp_path, _straight_view(), image, selection={"strategy": "all"})
     _, plain = _selected(without)
     assert plain.noise is None and np.all(plain.sigma == 1.0)
+
+
+def test_extra_pixels_join_the_selection_when_they_are_candidates(tmp_path):
+    image = np.full((H, W), 100.0)
+    image[3, 4] = 1000.0  # saturated (white level 1000)
+    path = _project(
+        tmp_path,
+        _straight_view(),
+        image,
+        sensor={"white_level": 1000.0},
+        selection={"strategy": "random", "n_per_image": 5, "seed": 1},
+    )
+    project = load_project(path)
+    loaded = load_images(project)
+    plain = image_data(project, loaded, 0)
+    chosen = {(int(u), int(v)) for u, v in plain.footprints.pixels}
+    assert len(chosen) == 5
+    clicked = np.array([[1, 1], [2, 7], [4, 3], [-1, 0], [W, 0], [2, 7]])
+    data = image_data(project, loaded, 0, extra_pixels=clicked)
+    got = {(int(u), int(v)) for u, v in data.footprints.pixels}
+    # The two valid clicks are kept on top of N random pixels; the saturated and the
+    # outside ones are ignored; a click repeated counts once.
+    assert {(1, 1), (2, 7)} <= got
+    assert (4, 3) not in got
+    assert len(got) == 5 + 2  # N random ones besides the clicks
+    assert len(data.observed) == len(got)
