@@ -3,7 +3,9 @@
 Run `python benchmarks/calibrate.py` (a few minutes on 2 cores) or `--quick` for a
 smoke run. Every measurement runs in a fresh subprocess (`--measure NAME ...`), so its
 peak memory (VmHWM from /proc/self/status) belongs to it alone. Nothing is asserted: the
-figures are printed beside their targets, with the machine's load average.
+figures are printed beside their targets, with the machine's load average. The images
+carry the sensor's noise model, so every solve includes the re-weighting pass (sigmas
+from the rendered values, then trf again), as a project with a noise model does.
 
 - paper: the paper's problem size, 12 images x 100 pixels, one symmetric light, noise;
   wall-clock time of `run_least_squares` from a start 5 cm / 8 degrees off, median over
@@ -136,7 +138,7 @@ def observe(
             signal = signal[keep]
         observed = signal + rng.normal(size=signal.shape) * np.sqrt(gain * signal + read_variance)
         sigma = np.sqrt(gain * np.maximum(observed, 0.0) + read_variance)
-        out.append(ImageData(f"view_{i:02d}", told_view, fp, observed, sigma))
+        out.append(ImageData(f"view_{i:02d}", told_view, fp, observed, sigma, SYNTH_NOISE))
     return out
 
 
@@ -245,7 +247,7 @@ def measure_dense(width: int, height: int, compress: bool = True) -> dict[str, A
     for i, (view, (pixels, observed)) in enumerate(zip(views, observations, strict=True)):
         sigma = np.sqrt(gain * np.maximum(observed, 0.0) + read_variance)
         fp = pixel_footprints(camera, view, pixels)
-        images.append(ImageData(f"view_{i:02d}", view, fp, observed, sigma))
+        images.append(ImageData(f"view_{i:02d}", view, fp, observed, sigma, SYNTH_NOISE))
     model = CalibrationModel(images, [LightUnknown(start)], SolverOptions(compress=compress))
     build_s = time.perf_counter() - t0
     rss_built = peak_rss_mb()
