@@ -248,7 +248,8 @@ def measure_dense(width: int, height: int, compress: bool = True) -> dict[str, A
         sigma = np.sqrt(gain * np.maximum(observed, 0.0) + read_variance)
         fp = pixel_footprints(camera, view, pixels)
         images.append(ImageData(f"view_{i:02d}", view, fp, observed, sigma, SYNTH_NOISE))
-    model = CalibrationModel(images, [LightUnknown(start)], SolverOptions(compress=compress))
+    options = SolverOptions(compress=bool(compress))  # "0" / "1" on the command line
+    model = CalibrationModel(images, [LightUnknown(start)], options)
     build_s = time.perf_counter() - t0
     rss_built = peak_rss_mb()
     t0 = time.perf_counter()

@@ -148,6 +148,7 @@ def test_residuals_are_weighted_differences():
         ({"f_scale": 0.0}, r"^f_scale: expected a finite value > 0, got 0.0$"),
         ({"f_scale": math.inf}, r"^f_scale: expected a finite value > 0, got inf$"),
         ({"max_iterations": 0}, r"^max_iterations: expected >= 1, got 0$"),
+        ({"compress": 0}, r"^compress: expected true, false or null, got 0$"),
     ],
 )
 def test_solver_option_errors(options, message):

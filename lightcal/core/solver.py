@@ -80,6 +80,8 @@ class SolverOptions:
             )
         if not (self.f_scale > 0 and math.isfinite(self.f_scale)):
             raise ValueError(f"f_scale: expected a finite value > 0, got {self.f_scale}")
+        if self.compress is not None and not isinstance(self.compress, bool):
+            raise ValueError(f"compress: expected true, false or null, got {self.compress!r}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations: expected >= 1, got {self.max_iterations}")
 
