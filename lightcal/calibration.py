@@ -21,6 +21,7 @@ from lightcal.core.footprint import pixel_footprints
 from lightcal.core.pose import describe_pose
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
+from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Rig
 from lightcal.core.selection import (
@@ -463,6 +464,31 @@ def variety_warnings(model: CalibrationModel, cov: np.ndarray) -> list[str]:
     return warnings
 
 
+def dark_light_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
+    """Warnings for lights that light (almost) none of the selected pixels at x.
+
+    Such a light's pose is not determined by the data: the solver may have parked it
+    pointing away or behind the wall while another light explains the images (two
+    similar beams close together invite this).
+    """
+    rig = model.layout.rig(x)
+    gains = model.layout.gain_factors(x)
+    share = np.zeros(len(rig.lights))
+    for i, im in enumerate(model.images):
+        sh = shade(im.footprints, im.view, rig, rid_subsamples=model.options.rid_subsamples)
+        share += gains[i] * np.array([light.scale for light in rig.lights]) * sh.flux.sum(axis=1)
+    total = float(share.sum())
+    out = []
+    for light, s in zip(rig.lights, share, strict=True):
+        if not (total > 0.0 and s > 1e-6 * total):
+            out.append(
+                f"light '{light.name}' lights none of the selected pixels at the solution "
+                "(it points away or sits behind the wall): its pose is not determined; "
+                "start it nearer its true pose, or calibrate the lights one at a time"
+            )
+    return out
+
+
 def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResult:
     """Turn a solve into a `CalibrationResult` with uncertainties and warnings."""
     x = outcome.x
@@ -473,7 +499,7 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
         v = _pose_vector(model, j, x)
         G = _numeric_jacobian(functools.partial(_pose_vector, model, j), x)
         sig = np.sqrt(np.clip(np.diag(G @ cov @ G.T), 0, None))
-        scale = math.exp(float(x[block.log_scale]))
+        scale = lay.light_of(block, x).scale  # exp(log-scale), clipped as the model
         rid_desc = None
         if block.unknown.estimate_rid != "none":
             rid = lay.rid_of(block, x)
@@ -486,7 +512,8 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
                 "values": np.asarray(rid(theta)).tolist(),
             }
             if block.unknown.estimate_rid == "cos_power":
-                rid_desc["m"] = math.exp(float(x[block.rid][0]))
+                assert isinstance(rid, CosPowerRID)
+                rid_desc["m"] = rid.m
         lights.append(
             LightResult(
                 block.unknown.initial.name,
@@ -516,7 +543,7 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
         converged=outcome.success,
         cost=outcome.cost,
         time_s=outcome.time_s,
-        warnings=variety_warnings(model, cov),
+        warnings=dark_light_warnings(model, x) + variety_warnings(model, cov),
         parameter_names=list(lay.names),
         x=x.tolist(),
         covariance=cov.tolist(),

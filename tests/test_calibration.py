@@ -13,13 +13,14 @@ from lightcal.calibration import (
     build_model,
     calibrate_project,
     covariance,
+    dark_light_warnings,
     fit_scales,
     load_images,
     perturbed_start,
     solve,
     summarise,
 )
-from lightcal.core.pose import describe_pose
+from lightcal.core.pose import describe_pose, rotation_from_axis
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.scene import Rig
@@ -134,6 +135,22 @@ def test_summary_of_gains_and_two_lights():
     for lr, light in zip(res.lights, rig.lights, strict=True):
         np.testing.assert_allclose(lr.pose["position_m"], light.t_camera_light, atol=1e-9)
         assert lr.scale == pytest.approx(light.scale, rel=1e-8)
+
+
+def test_warning_for_a_light_that_lights_no_pixel():
+    rig = cs.two_light_rig()
+    images = cs.observe(CAMERA, cs.views(6, seed=4), rig, rng=np.random.default_rng(2))
+    left, right = rig.lights
+    model = cs.model_of(images, [left, right])
+    assert dark_light_warnings(model, model.layout.x0) == []
+    # The right light turned to face away from the wall: it lights nothing.
+    away = right.replace(R_camera_light=rotation_from_axis(np.array([0.0, 0.6, -0.8])))
+    model = cs.model_of(images, [left, away])
+    assert dark_light_warnings(model, model.layout.x0) == [
+        "light 'right' lights none of the selected pixels at the solution (it points away "
+        "or sits behind the wall): its pose is not determined; start it nearer its true "
+        "pose, or calibrate the lights one at a time"
+    ]
 
 
 # ------------------------------------------------------------------------ uncertainties

@@ -102,11 +102,15 @@ class LightUnknown:
         return "symmetric" if self.initial.rid.symmetric else "general"
 
 
+#: Log-parameters (scales, the cos^m exponent) are clipped to +-LOG_CLIP before exp.
+LOG_CLIP = 300.0
+
+
 def _exp(v: float) -> float:
     """exp(v) with v clipped to +-300: finite for any parameter the solver tries, and
     small enough (1e130) that trf's sum of squared residuals of a wild trial step stays
     finite (with +-700 it overflowed, with a RuntimeWarning, before being rejected)."""
-    return math.exp(min(max(v, -300.0), 300.0))
+    return math.exp(min(max(v, -LOG_CLIP), LOG_CLIP))
 
 
 def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:

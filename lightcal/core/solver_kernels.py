@@ -1,0 +1,86 @@
+"""Compiled (numba) assembly of each image's [J r] system for the solver.
+
+NumPy built each image's system in several passes over its (N, n + 1) rows (a product,
+column assignments, a row scaling, the residual), each a trip through memory; these
+kernels do it in one pass per light plus one final pass, rows in parallel.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, parallel=True)
+def add_light_columns(
+    A: np.ndarray,
+    total: np.ndarray,
+    grad_world: np.ndarray,
+    flux: np.ndarray,
+    pose_map: np.ndarray,
+    pose_start: int,
+    scale_column: int,
+    d_value_d_log_scale_per_flux: float,
+    scale: float,
+) -> None:
+    """Write one light's pose and log-scale columns of d m_render / d x and add its values.
+
+    Args:
+        A: (N, n + 1) the image's system (pose columns written, not added).
+        total: (N,) sum over lights of scale * flux, added to.
+        grad_world: (N, 6) d flux / d (L_world, delta_world).
+        flux: (N,) the light's flux per unit scale.
+        pose_map: (6, k) world gradient -> the light's k pose columns, gain and scale included.
+        pose_start: the first pose column.
+        scale_column: the log-scale column.
+        d_value_d_log_scale_per_flux: gain * s (d m / d log s = gain * s * flux), or 0
+            where log s is clipped.
+        scale: s.
+    """
+    k = pose_map.shape[1]
+    for i in numba.prange(A.shape[0]):
+        for c in range(k):
+            acc = 0.0
+            for d in range(6):
+                acc += grad_world[i, d] * pose_map[d, c]
+            A[i, pose_start + c] = acc
+        A[i, scale_column] = d_value_d_log_scale_per_flux * flux[i]
+        total[i] += scale * flux[i]
+
+
+@numba.njit(cache=True, parallel=True)
+def finish_rows(
+    A: np.ndarray,
+    total: np.ndarray,
+    valid: np.ndarray,
+    observed: np.ndarray,
+    sigma: np.ndarray,
+    gain: float,
+    offset: float,
+    gain_column: int,
+    offset_column: int,
+) -> None:
+    """Values, the gain and offset columns, d r / d x = -(d m / d x) / sigma and r.
+
+    m = offset + gain * total (NaN where the footprint is invalid); column -1 of A
+    receives r = (observed - m) / sigma. `gain_column` / `offset_column` < 0: none.
+
+    Args:
+        A: (N, n + 1) the image's system, columns 0..n-1 holding d m / d x.
+        total: (N,) sum over lights of scale * flux.
+        valid: (N,) footprints that are valid.
+        observed, sigma: (N,) the measured values and their noise.
+        gain, offset: the image's gain and the offset.
+        gain_column, offset_column: their columns, or -1.
+    """
+    n = A.shape[1] - 1
+    for i in numba.prange(A.shape[0]):
+        m = offset + gain * total[i] if valid[i] else np.nan
+        if gain_column >= 0:
+            A[i, gain_column] = m - offset
+        if offset_column >= 0:
+            A[i, offset_column] = 1.0
+        inv = 1.0 / sigma[i]
+        for c in range(n):
+            A[i, c] = -A[i, c] * inv
+        A[i, n] = (observed[i] - m) * inv
