@@ -775,3 +775,29 @@ def test_an_empty_pixel_selection_renders_to_an_empty_array() -> None:
     assert shading.flux.shape == (2, 0)
     assert shading.grad_position is not None and shading.grad_position.shape == (2, 0, 3)
     assert shading.grad_rotation is not None and shading.grad_rotation.shape == (2, 0, 3)
+
+
+def test_light_flux_writes_into_a_given_buffer_and_checks_it() -> None:
+    from lightcal.core.render import light_flux
+
+    camera = pinhole_camera()
+    view = oblique_view()
+    light = two_light_rig(rid_model("cos_power")).lights[0]
+    fp = pixel_footprints(camera, view, all_pixels(camera.width, camera.height)[::7])
+    flux, grad = light_flux(fp, view, light, want_grad=True)
+    assert grad is not None
+    buffer = np.full((len(fp), 6), np.nan)
+    flux2, grad2 = light_flux(fp, view, light, want_grad=True, grad_out=buffer)
+    assert grad2 is buffer
+    np.testing.assert_array_equal(flux2, flux)
+    np.testing.assert_array_equal(grad2, grad)
+    # A light behind the wall lights nothing: the buffer is zeroed, not left as it was.
+    behind = light.replace(t_camera_light=light.t_camera_light + np.array([0.0, 0.0, 50.0]))
+    assert behind.position_world(view)[2] <= 0.0
+    buffer[:] = np.nan
+    flux3, _ = light_flux(fp, view, behind, want_grad=True, grad_out=buffer)
+    assert np.all(flux3 == 0.0) and np.all(buffer == 0.0)
+    with pytest.raises(
+        ValueError, match=_exact(f"grad_out: expected a C-contiguous float64 ({len(fp)}, 6) array")
+    ):
+        light_flux(fp, view, light, want_grad=True, grad_out=np.zeros((len(fp), 6)).T.copy().T)
