@@ -2,17 +2,24 @@
 
 NumPy built each image's system in several passes over its (N, n + 1) rows (a product,
 column assignments, a row scaling, the residual), each a trip through memory; these
-kernels do it in one pass per light plus one final pass, rows in parallel.
+kernels do it in one pass per light plus one final pass. Each is compiled twice: rows in
+parallel for large images, on the calling thread for small ones (`PARALLEL_MIN_ROWS`),
+where waking the thread pool would cost more than the work (with OMP_WAIT_POLICY=passive
+the paper-sized solve took 3x longer).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 
+#: Images with at least this many rows use the parallel kernels.
+PARALLEL_MIN_ROWS = 20_000
 
-@numba.njit(cache=True, parallel=True)
-def add_light_columns(
+
+def _add_light_columns(
     A: np.ndarray,
     total: np.ndarray,
     grad_world: np.ndarray,
@@ -48,8 +55,7 @@ def add_light_columns(
         total[i] += scale * flux[i]
 
 
-@numba.njit(cache=True, parallel=True)
-def finish_rows(
+def _finish_rows(
     A: np.ndarray,
     total: np.ndarray,
     valid: np.ndarray,
@@ -84,3 +90,25 @@ def finish_rows(
         for c in range(n):
             A[i, c] = -A[i, c] * inv
         A[i, n] = (observed[i] - m) * inv
+
+
+_add_light_columns_parallel = numba.njit(cache=True, parallel=True)(_add_light_columns)
+_add_light_columns_serial = numba.njit(cache=True)(_add_light_columns)
+_finish_rows_parallel = numba.njit(cache=True, parallel=True)(_finish_rows)
+_finish_rows_serial = numba.njit(cache=True)(_finish_rows)
+
+
+def add_light_columns(A: np.ndarray, *args: Any) -> None:
+    """`_add_light_columns`, in parallel for large images."""
+    if A.shape[0] >= PARALLEL_MIN_ROWS:
+        _add_light_columns_parallel(A, *args)
+    else:
+        _add_light_columns_serial(A, *args)
+
+
+def finish_rows(A: np.ndarray, *args: Any) -> None:
+    """`_finish_rows`, in parallel for large images."""
+    if A.shape[0] >= PARALLEL_MIN_ROWS:
+        _finish_rows_parallel(A, *args)
+    else:
+        _finish_rows_serial(A, *args)
