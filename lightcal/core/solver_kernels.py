@@ -2,24 +2,106 @@
 
 NumPy built each image's system in several passes over its (N, n + 1) rows (a product,
 column assignments, a row scaling, the residual), each a trip through memory; these
-kernels do it in one pass per light plus one final pass. Each is compiled twice: rows in
-parallel for large images, on the calling thread for small ones (`PARALLEL_MIN_ROWS`),
-where waking the thread pool would cost more than the work (with OMP_WAIT_POLICY=passive
-the paper-sized solve took 3x longer).
+kernels do it in one pass per light plus one final pass: rows in parallel for large
+images, on the calling thread for small ones (`PARALLEL_MIN_ROWS`), where waking the
+thread pool would cost more than the work (with OMP_WAIT_POLICY=passive the paper-sized
+solve took 3x longer). The row loops are inlined into a parallel and a serial entry point
+(separate functions: numba's cache does not tell apart two compilations of one function
+with different options).
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numba
 import numpy as np
 
 #: Images with at least this many rows use the parallel kernels.
 PARALLEL_MIN_ROWS = 20_000
+_CHUNKS = 64
 
 
-def _add_light_columns(
+@numba.njit(cache=True, inline="always")
+def _light_rows(
+    i0: int,
+    i1: int,
+    A: np.ndarray,
+    total: np.ndarray,
+    grad_world: np.ndarray,
+    flux: np.ndarray,
+    pose_map: np.ndarray,
+    pose_start: int,
+    scale_column: int,
+    d_value_d_log_scale_per_flux: float,
+    scale: float,
+) -> None:
+    k = pose_map.shape[1]
+    for i in range(i0, i1):
+        for c in range(k):
+            acc = 0.0
+            for d in range(6):
+                acc += grad_world[i, d] * pose_map[d, c]
+            A[i, pose_start + c] = acc
+        A[i, scale_column] = d_value_d_log_scale_per_flux * flux[i]
+        total[i] += scale * flux[i]
+
+
+@numba.njit(cache=True, parallel=True)
+def _add_light_columns_parallel(
+    A: np.ndarray,
+    total: np.ndarray,
+    grad_world: np.ndarray,
+    flux: np.ndarray,
+    pose_map: np.ndarray,
+    pose_start: int,
+    scale_column: int,
+    d_value_d_log_scale_per_flux: float,
+    scale: float,
+) -> None:
+    n = A.shape[0]
+    for ch in numba.prange(_CHUNKS):
+        _light_rows(
+            ch * n // _CHUNKS,
+            (ch + 1) * n // _CHUNKS,
+            A,
+            total,
+            grad_world,
+            flux,
+            pose_map,
+            pose_start,
+            scale_column,
+            d_value_d_log_scale_per_flux,
+            scale,
+        )
+
+
+@numba.njit(cache=True)
+def _add_light_columns_serial(
+    A: np.ndarray,
+    total: np.ndarray,
+    grad_world: np.ndarray,
+    flux: np.ndarray,
+    pose_map: np.ndarray,
+    pose_start: int,
+    scale_column: int,
+    d_value_d_log_scale_per_flux: float,
+    scale: float,
+) -> None:
+    _light_rows(
+        0,
+        A.shape[0],
+        A,
+        total,
+        grad_world,
+        flux,
+        pose_map,
+        pose_start,
+        scale_column,
+        d_value_d_log_scale_per_flux,
+        scale,
+    )
+
+
+def add_light_columns(
     A: np.ndarray,
     total: np.ndarray,
     grad_world: np.ndarray,
@@ -44,18 +126,98 @@ def _add_light_columns(
             where log s is clipped.
         scale: s.
     """
-    k = pose_map.shape[1]
-    for i in numba.prange(A.shape[0]):
-        for c in range(k):
-            acc = 0.0
-            for d in range(6):
-                acc += grad_world[i, d] * pose_map[d, c]
-            A[i, pose_start + c] = acc
-        A[i, scale_column] = d_value_d_log_scale_per_flux * flux[i]
-        total[i] += scale * flux[i]
+    kernel = (
+        _add_light_columns_parallel
+        if A.shape[0] >= PARALLEL_MIN_ROWS
+        else _add_light_columns_serial
+    )
+    kernel(
+        A,
+        total,
+        grad_world,
+        flux,
+        pose_map,
+        pose_start,
+        scale_column,
+        d_value_d_log_scale_per_flux,
+        scale,
+    )
 
 
-def _finish_rows(
+@numba.njit(cache=True, inline="always")
+def _finish(
+    i0: int,
+    i1: int,
+    A: np.ndarray,
+    total: np.ndarray,
+    valid: np.ndarray,
+    observed: np.ndarray,
+    sigma: np.ndarray,
+    gain: float,
+    offset: float,
+    gain_column: int,
+    offset_column: int,
+) -> None:
+    n = A.shape[1] - 1
+    for i in range(i0, i1):
+        m = offset + gain * total[i] if valid[i] else np.nan
+        if gain_column >= 0:
+            A[i, gain_column] = m - offset
+        if offset_column >= 0:
+            A[i, offset_column] = 1.0
+        inv = 1.0 / sigma[i]
+        for c in range(n):
+            A[i, c] = -A[i, c] * inv
+        A[i, n] = (observed[i] - m) * inv
+
+
+@numba.njit(cache=True, parallel=True)
+def _finish_rows_parallel(
+    A: np.ndarray,
+    total: np.ndarray,
+    valid: np.ndarray,
+    observed: np.ndarray,
+    sigma: np.ndarray,
+    gain: float,
+    offset: float,
+    gain_column: int,
+    offset_column: int,
+) -> None:
+    n = A.shape[0]
+    for ch in numba.prange(_CHUNKS):
+        _finish(
+            ch * n // _CHUNKS,
+            (ch + 1) * n // _CHUNKS,
+            A,
+            total,
+            valid,
+            observed,
+            sigma,
+            gain,
+            offset,
+            gain_column,
+            offset_column,
+        )
+
+
+@numba.njit(cache=True)
+def _finish_rows_serial(
+    A: np.ndarray,
+    total: np.ndarray,
+    valid: np.ndarray,
+    observed: np.ndarray,
+    sigma: np.ndarray,
+    gain: float,
+    offset: float,
+    gain_column: int,
+    offset_column: int,
+) -> None:
+    _finish(
+        0, A.shape[0], A, total, valid, observed, sigma, gain, offset, gain_column, offset_column
+    )
+
+
+def finish_rows(
     A: np.ndarray,
     total: np.ndarray,
     valid: np.ndarray,
@@ -79,36 +241,5 @@ def _finish_rows(
         gain, offset: the image's gain and the offset.
         gain_column, offset_column: their columns, or -1.
     """
-    n = A.shape[1] - 1
-    for i in numba.prange(A.shape[0]):
-        m = offset + gain * total[i] if valid[i] else np.nan
-        if gain_column >= 0:
-            A[i, gain_column] = m - offset
-        if offset_column >= 0:
-            A[i, offset_column] = 1.0
-        inv = 1.0 / sigma[i]
-        for c in range(n):
-            A[i, c] = -A[i, c] * inv
-        A[i, n] = (observed[i] - m) * inv
-
-
-_add_light_columns_parallel = numba.njit(cache=True, parallel=True)(_add_light_columns)
-_add_light_columns_serial = numba.njit(cache=True)(_add_light_columns)
-_finish_rows_parallel = numba.njit(cache=True, parallel=True)(_finish_rows)
-_finish_rows_serial = numba.njit(cache=True)(_finish_rows)
-
-
-def add_light_columns(A: np.ndarray, *args: Any) -> None:
-    """`_add_light_columns`, in parallel for large images."""
-    if A.shape[0] >= PARALLEL_MIN_ROWS:
-        _add_light_columns_parallel(A, *args)
-    else:
-        _add_light_columns_serial(A, *args)
-
-
-def finish_rows(A: np.ndarray, *args: Any) -> None:
-    """`_finish_rows`, in parallel for large images."""
-    if A.shape[0] >= PARALLEL_MIN_ROWS:
-        _finish_rows_parallel(A, *args)
-    else:
-        _finish_rows_serial(A, *args)
+    kernel = _finish_rows_parallel if A.shape[0] >= PARALLEL_MIN_ROWS else _finish_rows_serial
+    kernel(A, total, valid, observed, sigma, gain, offset, gain_column, offset_column)
