@@ -212,7 +212,8 @@ def rid_value_grad_direction(
         return 1.0, 0.0, 0.0, 0.0
     rho = math.sqrt(ux * ux + uy * uy)
     theta = math.atan2(rho, uz)
-    phi = math.atan2(uy, ux) if rho > 0.0 else 0.0
+    # Only 2-D tables depend on the azimuth (an atan2 saved for the symmetric kinds).
+    phi = math.atan2(uy, ux) if rho > 0.0 and kind == KIND_TABLE_2D else 0.0
     f, f_t, f_p = rid_value_grad(theta, phi, kind, params, theta_knots, phi_knots, values, slopes)
     # grad = f_t e_theta + (f_p / sin theta) e_phi, written without dividing by zero:
     # e_theta = (cos t cos p, cos t sin p, -sin t) = (uz ux / rho, uz uy / rho, -rho),
