@@ -1003,6 +1003,78 @@ def _wall_grad_range(
                 )
 
 
+@numba.njit(cache=True, inline="always")
+def _flux_range(
+    i0: int,
+    i1: int,
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    valid: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid_kind: int,
+    rid_params: np.ndarray,
+    rid_theta: np.ndarray,
+    rid_phi: np.ndarray,
+    rid_values: np.ndarray,
+    rid_slopes: np.ndarray,
+    n_sub: int,
+    want_grad: bool,
+    allow_fast: bool,
+    out_flux: np.ndarray,
+    out_grad: np.ndarray,
+) -> None:
+    """`flux_pixels` for pixels i0 .. i1 - 1; without `allow_fast` no fast path is taken.
+
+    The parallel, serial and plain entry points below inline it (they are separate
+    functions: numba's cache does not tell apart compilations of one function with
+    different options).
+    """
+    if allow_fast and want_grad and n_sub == 1:
+        _wall_grad_range(
+            i0,
+            i1,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            rid_kind,
+            rid_params,
+            rid_theta,
+            rid_phi,
+            rid_values,
+            rid_slopes,
+            out_flux,
+            out_grad,
+        )
+    else:
+        g = np.zeros(6)
+        gq = np.zeros(6)
+        for i in range(i0, i1):
+            _pixel_flux(
+                i,
+                corners_world,
+                weights,
+                valid,
+                light_world,
+                R_world_light,
+                rid_kind,
+                rid_params,
+                rid_theta,
+                rid_phi,
+                rid_values,
+                rid_slopes,
+                n_sub,
+                want_grad,
+                allow_fast,
+                g,
+                gq,
+                out_flux,
+                out_grad,
+            )
+
+
 @numba.njit(cache=True, parallel=True)
 def _flux_pixels_parallel(
     corners_world: np.ndarray,
@@ -1024,53 +1096,27 @@ def _flux_pixels_parallel(
     """`flux_pixels` on all threads, in chunks of pixels (scratch buffers per chunk)."""
     n = corners_world.shape[0]
     n_chunks = min(n, 256)
-    wall_grad = want_grad and n_sub == 1
     for ch in numba.prange(n_chunks):
-        i0 = ch * n // n_chunks
-        i1 = (ch + 1) * n // n_chunks
-        if wall_grad:
-            _wall_grad_range(
-                i0,
-                i1,
-                corners_world,
-                weights,
-                valid,
-                light_world,
-                R_world_light,
-                rid_kind,
-                rid_params,
-                rid_theta,
-                rid_phi,
-                rid_values,
-                rid_slopes,
-                out_flux,
-                out_grad,
-            )
-            continue
-        g = np.zeros(6)
-        gq = np.zeros(6)
-        for i in range(i0, i1):
-            _pixel_flux(
-                i,
-                corners_world,
-                weights,
-                valid,
-                light_world,
-                R_world_light,
-                rid_kind,
-                rid_params,
-                rid_theta,
-                rid_phi,
-                rid_values,
-                rid_slopes,
-                n_sub,
-                want_grad,
-                True,
-                g,
-                gq,
-                out_flux,
-                out_grad,
-            )
+        _flux_range(
+            ch * n // n_chunks,
+            (ch + 1) * n // n_chunks,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            rid_kind,
+            rid_params,
+            rid_theta,
+            rid_phi,
+            rid_values,
+            rid_slopes,
+            n_sub,
+            want_grad,
+            True,
+            out_flux,
+            out_grad,
+        )
 
 
 @numba.njit(cache=True)
@@ -1092,50 +1138,26 @@ def _flux_pixels_serial(
     out_grad: np.ndarray,
 ) -> None:
     """`flux_pixels` on the calling thread (small sets: no thread launch)."""
-    n = corners_world.shape[0]
-    if want_grad and n_sub == 1:
-        _wall_grad_range(
-            0,
-            n,
-            corners_world,
-            weights,
-            valid,
-            light_world,
-            R_world_light,
-            rid_kind,
-            rid_params,
-            rid_theta,
-            rid_phi,
-            rid_values,
-            rid_slopes,
-            out_flux,
-            out_grad,
-        )
-        return
-    g = np.zeros(6)
-    gq = np.zeros(6)
-    for i in range(n):
-        _pixel_flux(
-            i,
-            corners_world,
-            weights,
-            valid,
-            light_world,
-            R_world_light,
-            rid_kind,
-            rid_params,
-            rid_theta,
-            rid_phi,
-            rid_values,
-            rid_slopes,
-            n_sub,
-            want_grad,
-            True,
-            g,
-            gq,
-            out_flux,
-            out_grad,
-        )
+    _flux_range(
+        0,
+        corners_world.shape[0],
+        corners_world,
+        weights,
+        valid,
+        light_world,
+        R_world_light,
+        rid_kind,
+        rid_params,
+        rid_theta,
+        rid_phi,
+        rid_values,
+        rid_slopes,
+        n_sub,
+        want_grad,
+        True,
+        out_flux,
+        out_grad,
+    )
 
 
 @numba.njit(cache=True)
@@ -1157,30 +1179,26 @@ def _flux_pixels_plain(
     out_grad: np.ndarray,
 ) -> None:
     """`flux_pixels` without the fast paths: `_quad_flux` for every quad (for the tests)."""
-    g = np.zeros(6)
-    gq = np.zeros(6)
-    for i in range(corners_world.shape[0]):
-        _pixel_flux(
-            i,
-            corners_world,
-            weights,
-            valid,
-            light_world,
-            R_world_light,
-            rid_kind,
-            rid_params,
-            rid_theta,
-            rid_phi,
-            rid_values,
-            rid_slopes,
-            n_sub,
-            want_grad,
-            False,
-            g,
-            gq,
-            out_flux,
-            out_grad,
-        )
+    _flux_range(
+        0,
+        corners_world.shape[0],
+        corners_world,
+        weights,
+        valid,
+        light_world,
+        R_world_light,
+        rid_kind,
+        rid_params,
+        rid_theta,
+        rid_phi,
+        rid_values,
+        rid_slopes,
+        n_sub,
+        want_grad,
+        False,
+        out_flux,
+        out_grad,
+    )
 
 
 #: Below this many quad evaluations (pixels x quads x sub-quads, x 4 with gradients by
