@@ -19,7 +19,7 @@ from scipy.optimize import nnls
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.pose import describe_pose
-from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.problem import ImageData, LightUnknown, poisson_gaussian_sigma
 from lightcal.core.render import shade
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
@@ -194,10 +194,9 @@ def image_data(
     if noise is None:
         return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
     # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
-    gain, read_variance = noise.gain / (b * b), noise.read_variance / (b * b)
-    signal = np.maximum(observed - project.spec.sensor.offset, 0.0)
-    sigma = np.sqrt(gain * signal + read_variance)
-    return ImageData(project.names[index], view, fp, observed, sigma, (gain, read_variance))
+    per_value = (noise.gain / (b * b), noise.read_variance / (b * b))
+    sigma = poisson_gaussian_sigma(observed - project.spec.sensor.offset, per_value)
+    return ImageData(project.names[index], view, fp, observed, sigma, per_value)
 
 
 def _candidates_among(cand: np.ndarray, pixels: np.ndarray | None) -> np.ndarray:

@@ -103,30 +103,6 @@ def check_pixels(pixels: np.ndarray, width: int, height: int, name: str = "pixel
     return p
 
 
-def corners_to_wall(xy: np.ndarray, ok: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray]:
-    """Intersect rays of undistorted normalised coordinates with the wall z = 0.
-
-    Args:
-        xy: (M, 2) undistorted normalised coordinates (x/z, y/z), camera frame.
-        ok: (M,) coordinates that are valid.
-        view: the camera pose.
-
-    Returns:
-        points_world (M, 3) (NaN where invalid) and hit (M,): the ray meets the wall in
-        front of the camera.
-    """
-    rays_camera = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
-    d = rays_camera @ view.R_camera_world  # rows: R^T ray
-    c = view.center_world
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = -c[2] / d[:, 2]
-    hit = ok & (d[:, 2] < 0.0) & (lam > 0.0)
-    points = c + lam[:, None] * d
-    points[:, 2] = 0.0
-    points[~hit] = np.nan
-    return points, hit
-
-
 def pixel_footprints(
     camera: Camera,
     view: View,

@@ -29,6 +29,15 @@ RidEstimate = Literal["none", "cos_power", "curve"]
 Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
 
 
+def poisson_gaussian_sigma(signal: np.ndarray, noise: tuple[float, float]) -> np.ndarray:
+    """(N,) noise sigma of values whose `signal` (N,) above the offset is given.
+
+    sigma = sqrt(gain * max(signal, 0) + read_variance), noise = (gain, read_variance).
+    """
+    gain, read_variance = noise
+    return np.sqrt(gain * np.maximum(signal, 0.0) + read_variance)
+
+
 @dataclass(frozen=True, eq=False)
 class ImageData:
     """The selected pixels of one image.

@@ -23,7 +23,14 @@ from scipy.optimize import OptimizeResult, least_squares
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.pose import axis_from_angles, axis_jacobian
-from lightcal.core.problem import LOG_CLIP, ImageData, LightUnknown, Loss, ParameterLayout
+from lightcal.core.problem import (
+    LOG_CLIP,
+    ImageData,
+    LightUnknown,
+    Loss,
+    ParameterLayout,
+    poisson_gaussian_sigma,
+)
 from lightcal.core.render import light_flux, shade
 from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
@@ -375,9 +382,7 @@ class CalibrationModel:
                 if im.noise is None:
                     continue
                 sh = shade(im.footprints, im.view, rig, rid_subsamples=self.options.rid_subsamples)
-                signal = gains[i] * sh.values.filled(np.nan)
-                gain, read_variance = im.noise
-                sigma = np.sqrt(gain * np.maximum(signal, 0.0) + read_variance)
+                sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)
