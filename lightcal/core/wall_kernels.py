@@ -1,0 +1,374 @@
+"""Compiled (numba) evaluation of the wall's relative reflectance B(l, v).
+
+The renderer's footprint irradiance E (docs/model.md, "Rendering one pixel") is that of
+a Lambertian wall; a wall model multiplies each pixel's flux by
+
+    B(l, v) = pi f_r(l, v) / k_d,
+
+its BRDF relative to a Lambertian one whose albedo the light's scale absorbs (B = 1 for
+a Lambertian wall), evaluated with the light direction l and the view direction v at the
+pixel's footprint centre (see `lightcal.core.wall` for the models and their formulas).
+
+B depends on l only through mu_l = l_z (the wall normal is +z) and q = l . v, so every
+model returns B with dB/dmu_l, dB/dq and dB/d(parameters); `wall_factor` turns those into
+the gradient with respect to the light's world position:
+
+    dB/dL = (I - l l^T) (dB/dmu_l e_z + dB/dq v) / |L - P|.
+
+Models (``kind``): 0 Lambertian, 1 rough plastic (GGX coat over a diffuse base),
+2 Oren-Nayar (qualitative model). Parameters (``params``):
+plastic (alpha, eta, w), Oren-Nayar (sigma_rad,). Plastic tables: `tables` (3, 64),
+rows T(mu), dT/dalpha, dT/deta of the coat's rough transmittance on mu_k = k / 63.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+KIND_LAMBERTIAN = 0
+KIND_PLASTIC = 1
+KIND_OREN_NAYAR = 2
+
+#: Nodes of the transmittance table (mu = k / (TABLE_SIZE - 1)), as Mitsuba's roughplastic.
+TABLE_SIZE = 64
+#: Most parameters of any model (the width of the parameter-gradient output).
+MAX_PARAMS = 3
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _lerp_table(row: np.ndarray, mu: float) -> tuple[float, float]:
+    """Linear interpolation of a (TABLE_SIZE,) table at mu in [0, 1]: value and slope."""
+    x = mu * (TABLE_SIZE - 1)
+    k = min(max(int(x), 0), TABLE_SIZE - 2)
+    w = x - k
+    slope = (row[k + 1] - row[k]) * (TABLE_SIZE - 1)
+    return (1.0 - w) * row[k] + w * row[k + 1], slope
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def fresnel_dielectric(c: float, eta: float) -> tuple[float, float, float]:
+    """Unpolarised Fresnel reflectance of light arriving from outside at cos c > 0.
+
+    With g = sqrt(eta^2 - 1 + c^2): r_s = (c - g) / (c + g),
+    r_p = (eta^2 c - g) / (eta^2 c + g), F = (r_s^2 + r_p^2) / 2 (eta > 1).
+
+    Returns:
+        F, dF/dc, dF/deta.
+    """
+    g = math.sqrt(eta * eta - 1.0 + c * c)
+    g_c = c / g
+    g_e = eta / g
+    den_s = c + g
+    rs = (c - g) / den_s
+    rs_c = (2.0 * g - 2.0 * c * g_c) / (den_s * den_s)
+    rs_e = -2.0 * c * g_e / (den_s * den_s)
+    e2 = eta * eta
+    num_p = e2 * c - g
+    den_p = e2 * c + g
+    rp = num_p / den_p
+    rp_c = ((e2 - g_c) * den_p - num_p * (e2 + g_c)) / (den_p * den_p)
+    rp_e = ((2.0 * eta * c - g_e) * den_p - num_p * (2.0 * eta * c + g_e)) / (den_p * den_p)
+    return 0.5 * (rs * rs + rp * rp), rs * rs_c + rp * rp_c, rs * rs_e + rp * rp_e
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def ggx_d(h_z: float, alpha: float) -> tuple[float, float, float]:
+    """GGX normal distribution D = alpha^2 / (pi (1 + (alpha^2 - 1) h_z^2)^2).
+
+    Returns:
+        D, dD/dh_z, dD/dalpha.
+    """
+    a2 = alpha * alpha
+    k = 1.0 + (a2 - 1.0) * h_z * h_z
+    d = a2 / (math.pi * k * k)
+    d_h = -4.0 * a2 * (a2 - 1.0) * h_z / (math.pi * k * k * k)
+    d_a = 2.0 * alpha / (math.pi * k * k) * (1.0 - 2.0 * a2 * h_z * h_z / k)
+    return d, d_h, d_a
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def smith_g1(mu: float, alpha: float) -> tuple[float, float, float]:
+    """GGX Smith masking G1 = 2 / (1 + sqrt(1 + alpha^2 (1 - mu^2) / mu^2)), mu > 0.
+
+    Returns:
+        G1, dG1/dmu, dG1/dalpha.
+    """
+    t = (1.0 - mu * mu) / (mu * mu)
+    s = math.sqrt(1.0 + alpha * alpha * t)
+    inv = 1.0 / ((1.0 + s) * (1.0 + s))
+    return 2.0 * inv * (1.0 + s), 2.0 * alpha * alpha * inv / (s * mu * mu * mu), (
+        -2.0 * inv * alpha * t / s
+    )
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _plastic(
+    mu_l: float, q: float, mu_v: float, params: np.ndarray, tables: np.ndarray, dp: np.ndarray
+) -> tuple[float, float, float]:
+    """Rough plastic B, dB/dmu_l, dB/dq; dp[:3] receives dB/d(alpha, eta, w)."""
+    alpha = params[0]
+    eta = params[1]
+    w = params[2]
+    # Diffuse base seen through the coat, normalised to 1 at normal incidence.
+    t_l, t_l_mu = _lerp_table(tables[0], mu_l)
+    t_v, _ = _lerp_table(tables[0], mu_v)
+    ta_l, _ = _lerp_table(tables[1], mu_l)
+    ta_v, _ = _lerp_table(tables[1], mu_v)
+    te_l, _ = _lerp_table(tables[2], mu_l)
+    te_v, _ = _lerp_table(tables[2], mu_v)
+    t1 = tables[0, TABLE_SIZE - 1]
+    inv_t1_2 = 1.0 / (t1 * t1)
+    diffuse = t_l * t_v * inv_t1_2
+    diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, TABLE_SIZE - 1] / t1
+    diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, TABLE_SIZE - 1] / t1
+    # Specular coat: pi F D G1(l) G1(v) / (4 mu_l mu_v), half vector h = (l + v) / |l + v|.
+    n = math.sqrt(2.0 + 2.0 * q)
+    c = 0.5 * n  # l . h
+    h_z = (mu_l + mu_v) / n
+    f, f_c, f_e = fresnel_dielectric(c, eta)
+    d, d_h, d_a = ggx_d(h_z, alpha)
+    g_l, g_l_mu, g_l_a = smith_g1(mu_l, alpha)
+    g_v, _, g_v_a = smith_g1(mu_v, alpha)
+    k = math.pi / (4.0 * mu_l * mu_v)
+    spec = k * f * d * g_l * g_v
+    spec_mu = k * f * g_v * (d_h * g_l / n + d * g_l_mu) - spec / mu_l
+    spec_q = k * g_l * g_v * (f_c * d / (4.0 * c) - f * d_h * (mu_l + mu_v) / (n * n * n))
+    spec_a = k * f * (d_a * g_l * g_v + d * g_l_a * g_v + d * g_l * g_v_a)
+    spec_e = k * f_e * d * g_l * g_v
+    dp[0] = diffuse_a + w * spec_a
+    dp[1] = diffuse_e + w * spec_e
+    dp[2] = spec
+    return diffuse + w * spec, t_l_mu * t_v * inv_t1_2 + w * spec_mu, w * spec_q
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _oren_nayar(
+    mu_l: float, q: float, mu_v: float, params: np.ndarray, dp: np.ndarray
+) -> tuple[float, float, float]:
+    """Oren-Nayar (qualitative) B = A + B_on max(0, cos(phi_l - phi_v)) sin(a) tan(b).
+
+    sin(a) tan(b) cos(dphi) = (l_t . v_t) / max(mu_l, mu_v) with l_t . v_t = q - mu_l mu_v
+    the tangential components' product, a = max(theta_l, theta_v), b = min(...).
+    dp[0] receives dB/dsigma.
+    """
+    s2 = params[0] * params[0]
+    a = 1.0 - 0.5 * s2 / (s2 + 0.33)
+    b = 0.45 * s2 / (s2 + 0.09)
+    a_s = -0.33 * params[0] / ((s2 + 0.33) * (s2 + 0.33))
+    b_s = 0.081 * params[0] / ((s2 + 0.09) * (s2 + 0.09))
+    u = q - mu_l * mu_v
+    m = max(mu_l, mu_v)
+    if u <= 0.0:
+        dp[0] = a_s
+        return a, 0.0, 0.0
+    dp[0] = a_s + b_s * u / m
+    d_mu = -b * mu_v / m
+    if mu_l >= mu_v:
+        d_mu -= b * u / (m * m)
+    return a + b * u / m, d_mu, b / m
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def brdf_terms(
+    kind: int,
+    mu_l: float,
+    q: float,
+    mu_v: float,
+    params: np.ndarray,
+    tables: np.ndarray,
+    dp: np.ndarray,
+) -> tuple[float, float, float]:
+    """B, dB/dmu_l, dB/dq of model `kind`; dp (MAX_PARAMS,) receives dB/d(parameters)."""
+    if kind == KIND_PLASTIC:
+        return _plastic(mu_l, q, mu_v, params, tables, dp)
+    if kind == KIND_OREN_NAYAR:
+        return _oren_nayar(mu_l, q, mu_v, params, dp)
+    return 1.0, 0.0, 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _factor_range(
+    i0: int,
+    i1: int,
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_grad: bool,
+    out: np.ndarray,
+    out_d_light: np.ndarray,
+    out_d_params: np.ndarray,
+) -> None:
+    dp = np.zeros(MAX_PARAMS)
+    n_p = out_d_params.shape[1]
+    for i in range(i0, i1):
+        lx = light[0] - points[i, 0]
+        ly = light[1] - points[i, 1]
+        lz = light[2] - points[i, 2]
+        vx = camera[0] - points[i, 0]
+        vy = camera[1] - points[i, 1]
+        vz = camera[2] - points[i, 2]
+        r_l = math.sqrt(lx * lx + ly * ly + lz * lz)
+        r_v = math.sqrt(vx * vx + vy * vy + vz * vz)
+        lx /= r_l
+        ly /= r_l
+        lz /= r_l
+        vx /= r_v
+        vy /= r_v
+        vz /= r_v
+        if not (lz > 0.0 and vz > 0.0):  # light or camera not in front of the wall
+            out[i] = 0.0
+            if want_grad:
+                for d in range(3):
+                    out_d_light[i, d] = 0.0
+                for d in range(n_p):
+                    out_d_params[i, d] = 0.0
+            continue
+        q = lx * vx + ly * vy + lz * vz
+        b, b_mu, b_q = brdf_terms(kind, lz, q, vz, params, tables, dp)
+        out[i] = b
+        if want_grad:
+            # g = dB/dmu e_z + dB/dq v, then (I - l l^T) g / r_l.
+            gx = b_q * vx
+            gy = b_q * vy
+            gz = b_mu + b_q * vz
+            lg = lx * gx + ly * gy + lz * gz
+            out_d_light[i, 0] = (gx - lx * lg) / r_l
+            out_d_light[i, 1] = (gy - ly * lg) / r_l
+            out_d_light[i, 2] = (gz - lz * lg) / r_l
+            for d in range(n_p):
+                out_d_params[i, d] = dp[d]
+
+
+@numba.njit(cache=True, parallel=True)
+def _wall_factor_parallel(
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_grad: bool,
+    out: np.ndarray,
+    out_d_light: np.ndarray,
+    out_d_params: np.ndarray,
+) -> None:
+    n = points.shape[0]
+    n_chunks = min(n, 64)
+    for ch in numba.prange(n_chunks):
+        _factor_range(
+            ch * n // n_chunks,
+            (ch + 1) * n // n_chunks,
+            points,
+            light,
+            camera,
+            kind,
+            params,
+            tables,
+            want_grad,
+            out,
+            out_d_light,
+            out_d_params,
+        )
+
+
+@numba.njit(cache=True)
+def _wall_factor_serial(
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_grad: bool,
+    out: np.ndarray,
+    out_d_light: np.ndarray,
+    out_d_params: np.ndarray,
+) -> None:
+    _factor_range(
+        0,
+        points.shape[0],
+        points,
+        light,
+        camera,
+        kind,
+        params,
+        tables,
+        want_grad,
+        out,
+        out_d_light,
+        out_d_params,
+    )
+
+
+#: Below this many points `wall_factor` runs on the calling thread.
+SERIAL_POINTS = 20_000
+
+
+def wall_factor(
+    points_world: np.ndarray,
+    light_world: np.ndarray,
+    camera_world: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    *,
+    want_grad: bool,
+    out: np.ndarray,
+    out_d_light: np.ndarray,
+    out_d_params: np.ndarray,
+) -> None:
+    """Relative reflectance B at wall points, and its gradients; writes the outputs.
+
+    Args:
+        points_world: (N, 3) points on the wall (z = 0), world frame, m.
+        light_world: (3,) light position, world frame, m.
+        camera_world: (3,) camera centre, world frame, m.
+        kind, params, tables: the model (`WallReflectance.data()`).
+        want_grad: also write the gradients.
+        out: (N,) B (0 where the light or camera is not in front of the wall).
+        out_d_light: (N, 3) dB / dL_world (written when want_grad).
+        out_d_params: (N, P) dB / d(parameters), P <= MAX_PARAMS (written when want_grad).
+    """
+    kernel = _wall_factor_serial if len(points_world) < SERIAL_POINTS else _wall_factor_parallel
+    kernel(
+        points_world,
+        light_world,
+        camera_world,
+        int(kind),
+        params,
+        tables,
+        bool(want_grad),
+        out,
+        out_d_light,
+        out_d_params,
+    )
+
+
+@numba.njit(cache=True)
+def brdf_many(
+    mu_l: np.ndarray,
+    q: np.ndarray,
+    mu_v: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`brdf_terms` at N direction pairs (mu_l, q, mu_v (N,) each, all mu > 0).
+
+    Returns:
+        B, dB/dmu_l, dB/dq (N,) and dB/d(parameters) (N, MAX_PARAMS).
+    """
+    n = mu_l.shape[0]
+    b = np.empty(n)
+    b_mu = np.empty(n)
+    b_q = np.empty(n)
+    dp = np.zeros((n, MAX_PARAMS))
+    for i in range(n):
+        b[i], b_mu[i], b_q[i] = brdf_terms(kind, mu_l[i], q[i], mu_v[i], params, tables, dp[i])
+    return b, b_mu, b_q, dp
