@@ -27,6 +27,7 @@ the same numbers, bit for bit.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Literal
 
@@ -79,6 +80,15 @@ class Footprints:
 
     def __len__(self) -> int:
         return int(self.pixels.shape[0])
+
+    @functools.cached_property
+    def centres_world(self) -> np.ndarray:
+        """(N, 3) footprint centres (the mean of all quad corners), world frame, m.
+
+        Where the wall's reflectance is evaluated (`lightcal.core.wall`); NaN if invalid.
+        """
+        n = len(self)
+        return np.ascontiguousarray(self.corners_world.reshape(n, -1, 3).mean(axis=1))
 
 
 def check_pixels(pixels: np.ndarray, width: int, height: int, name: str = "pixels") -> np.ndarray:

@@ -32,6 +32,8 @@ from lightcal.core.footprint import (
     pixel_footprints,
 )
 from lightcal.core.scene import Light, Rig, View
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
+from lightcal.core.wall_kernels import MAX_PARAMS, wall_factor
 
 _SENSOR_CODES = {
     "radiance": rk.SENSOR_RADIANCE,
@@ -57,12 +59,14 @@ class Shading:
         grad_position: (L, N, 3) d value / d t_camera_light, or None.
         grad_rotation: (L, N, 3) d value / d delta, delta a left rotation perturbation of
             R_camera_light in the camera frame (R -> exp(delta) R), or None.
+        grad_wall: (N, P) d value / d (the wall model's parameters), or None.
     """
 
     values: np.ma.MaskedArray
     flux: np.ndarray
     grad_position: np.ndarray | None
     grad_rotation: np.ndarray | None
+    grad_wall: np.ndarray | None = None
 
 
 def light_in_view(light: Light, view: View) -> tuple[np.ndarray, np.ndarray]:
@@ -78,8 +82,13 @@ def light_flux(
     rid_subsamples: int = 1,
     want_grad: bool = False,
     grad_out: np.ndarray | None = None,
+    wall: WallReflectance = LAMBERTIAN,
+    wall_grad_out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """One light's flux into pixels per unit scale, and its world-frame gradients.
+
+    A wall model other than Lambertian multiplies each pixel's flux by its relative
+    reflectance B (`lightcal.core.wall`) at the footprint centre.
 
     Args:
         footprints: from `pixel_footprints` for this view.
@@ -89,6 +98,9 @@ def light_flux(
         want_grad: also compute the gradients.
         grad_out: (N, 6) C-contiguous float64 array the gradients are written to (a
             reused buffer spares the page faults of a fresh one); default a new one.
+        wall: the wall's reflectance model.
+        wall_grad_out: (N, P) array receiving d flux / d (wall parameters) when want_grad
+            (P the model's parameter count); ignored for a Lambertian wall.
 
     Returns:
         flux: (N,) exposure * sum_k weight_k Phi_k / I0; 0 where the footprint is invalid
@@ -108,6 +120,8 @@ def light_flux(
     if L_world[2] <= 0.0:
         if grad is not None:
             grad.fill(0.0)
+        if wall_grad_out is not None:
+            wall_grad_out.fill(0.0)
         return flux, grad
     d = light.rid.data()
     rk.flux_pixels(
@@ -130,7 +144,51 @@ def light_flux(
     flux *= view.exposure
     if grad is not None:
         grad *= view.exposure
+    if not wall.is_lambertian:
+        _apply_wall(footprints, view, L_world, wall, flux, grad, wall_grad_out)
     return flux, grad
+
+
+def _apply_wall(
+    footprints: Footprints,
+    view: View,
+    L_world: np.ndarray,
+    wall: WallReflectance,
+    flux: np.ndarray,
+    grad: np.ndarray | None,
+    wall_grad_out: np.ndarray | None,
+) -> None:
+    """Multiply flux (N,) by the wall's B at the footprint centres; chain the gradients.
+
+    d(flux B)/dL = B d flux/dL + flux dB/dL; d(flux B)/d delta = B d flux/d delta;
+    d(flux B)/d p = flux dB/dp (written to wall_grad_out (N, P)).
+    """
+    n = len(footprints)
+    want_grad = grad is not None
+    d = wall.data()
+    b = np.empty(n)
+    db_light = np.empty((n, 3)) if want_grad else np.empty((1, 3))
+    db_params = np.empty((n, MAX_PARAMS)) if want_grad else np.empty((1, MAX_PARAMS))
+    wall_factor(
+        footprints.centres_world,
+        L_world,
+        np.ascontiguousarray(view.center_world),
+        d.kind,
+        d.params,
+        d.tables,
+        want_grad=want_grad,
+        out=b,
+        out_d_light=db_light,
+        out_d_params=db_params,
+    )
+    if grad is not None:
+        grad[:, :3] *= b[:, None]
+        grad[:, :3] += flux[:, None] * db_light
+        grad[:, 3:] *= b[:, None]
+        if wall_grad_out is not None:
+            p = len(wall.parameter_names)
+            wall_grad_out[:] = flux[:, None] * db_params[:, :p]
+    flux *= b
 
 
 def shade(
@@ -141,6 +199,7 @@ def shade(
     offset: float = 0.0,
     rid_subsamples: int = 1,
     want_grad: bool = False,
+    wall: WallReflectance = LAMBERTIAN,
 ) -> Shading:
     """Render pixel values from precomputed footprints.
 
@@ -151,29 +210,41 @@ def shade(
         offset: black level / ambient offset b added to every value.
         rid_subsamples: n, RID sub-sampling of each footprint quad (n x n).
         want_grad: also compute the gradients (see `Shading`).
+        wall: the wall's reflectance model.
 
     Returns:
         The shading.
     """
     n = len(footprints)
     n_l = len(rig.lights)
+    n_p = len(wall.parameter_names)
     flux = np.zeros((n_l, n))
     gpos = np.zeros((n_l, n, 3)) if want_grad else None
     grot = np.zeros((n_l, n, 3)) if want_grad else None
+    gwall = np.zeros((n, n_p)) if want_grad else None
+    wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
     R = view.R_camera_world
     for i, light in enumerate(rig.lights):
         flux[i], grad = light_flux(
-            footprints, view, light, rid_subsamples=rid_subsamples, want_grad=want_grad
+            footprints,
+            view,
+            light,
+            rid_subsamples=rid_subsamples,
+            want_grad=want_grad,
+            wall=wall,
+            wall_grad_out=wall_grad,
         )
         if grad is not None:
             assert gpos is not None and grot is not None
             # L_world = C + R^T t  =>  d/dt = R d/dL_world;  delta_world = R^T delta_camera.
             gpos[i] = grad[:, :3] @ (light.scale * R.T)
             grot[i] = grad[:, 3:] @ (light.scale * R.T)
+        if wall_grad is not None and gwall is not None:
+            gwall += light.scale * wall_grad
     scales = np.array([light.scale for light in rig.lights])
     total = offset + scales @ flux
     values = np.ma.masked_array(np.where(footprints.valid, total, np.nan), mask=~footprints.valid)
-    return Shading(values, flux, gpos, grot)
+    return Shading(values, flux, gpos, grot, gwall)
 
 
 def render_pixels(
@@ -187,6 +258,7 @@ def render_pixels(
     binning: int = 1,
     offset: float = 0.0,
     rid_subsamples: int = 1,
+    wall: WallReflectance = LAMBERTIAN,
 ) -> np.ma.MaskedArray:
     """Render (super-)pixels of one view.
 
@@ -200,6 +272,7 @@ def render_pixels(
         binning: super-pixel side b.
         offset: black level / ambient offset.
         rid_subsamples: RID sub-sampling n per footprint (n x n).
+        wall: the wall's reflectance model.
 
     Returns:
         (N,) masked array of values, masked where the footprint is invalid.
@@ -207,7 +280,7 @@ def render_pixels(
     fp = pixel_footprints(
         camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
     )
-    return shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples).values
+    return shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall).values
 
 
 def render_image(
@@ -220,6 +293,7 @@ def render_image(
     binning: int = 1,
     offset: float = 0.0,
     rid_subsamples: int = 1,
+    wall: WallReflectance = LAMBERTIAN,
 ) -> np.ma.MaskedArray:
     """Render a whole image, optionally binned.
 
@@ -235,7 +309,6 @@ def render_image(
     n_sub = _check_subsamples(rid_subsamples)
     b = int(binning)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
-    grid_xy, grid_ok = GRID_CACHE.get(camera)
     hb, wb = camera.height // b, camera.width // b
     # Lights on or behind the wall illuminate nothing in this view.
     lit = [
@@ -243,6 +316,68 @@ def render_image(
         for light in rig.lights
         if light.position_world(view)[2] > 0.0
     ]
+    if wall.is_lambertian or not lit:
+        out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset)
+        return np.ma.masked_array(out, mask=invalid, copy=False)
+    # Each light's flux meets the wall's B for its own direction: one pass per light.
+    centres = _superpixel_centres(camera, view, b)
+    out = np.full((hb, wb), float(offset))
+    invalid = np.zeros((hb, wb), dtype=np.bool_)
+    d = wall.data()
+    camera_world = np.ascontiguousarray(view.center_world)
+    for entry in lit:
+        one, invalid = _render_fused(camera, view, [entry], sensor, vmap, b, n_sub, 0.0)
+        factor = np.empty(hb * wb)
+        wall_factor(
+            centres,
+            np.ascontiguousarray(entry[1]),
+            camera_world,
+            d.kind,
+            d.params,
+            d.tables,
+            want_grad=False,
+            out=factor,
+            out_d_light=np.empty((1, 3)),
+            out_d_params=np.empty((1, MAX_PARAMS)),
+        )
+        out += one * factor.reshape(hb, wb)
+    return np.ma.masked_array(out, mask=invalid, copy=False)
+
+
+def _superpixel_centres(camera: Camera, view: View, b: int) -> np.ndarray:
+    """(H//b * W//b, 3) footprint centres of the b x b super-pixels, world frame, m.
+
+    The mean of all corners of the super-pixel's pixel quads (`Footprints.centres_world` of
+    the same footprints); NaN where a corner misses the wall.
+    """
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
+    rays = np.concatenate([grid_xy, np.ones((*grid_xy.shape[:2], 1))], axis=2)
+    d_world = rays @ view.R_camera_world  # rows R^T d
+    c = view.center_world
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = -c[2] / d_world[..., 2]
+    ok = grid_ok & (lam > 0.0)
+    pts = c + lam[..., None] * d_world
+    pts[~ok] = np.nan
+    quad = 0.25 * (pts[:-1, :-1] + pts[1:, :-1] + pts[:-1, 1:] + pts[1:, 1:])
+    hb, wb = camera.height // b, camera.width // b
+    quad = quad[: hb * b, : wb * b].reshape(hb, b, wb, b, 3).mean(axis=(1, 3))
+    return np.ascontiguousarray(quad.reshape(-1, 3))
+
+
+def _render_fused(
+    camera: Camera,
+    view: View,
+    lit: list[tuple[Light, np.ndarray, np.ndarray]],
+    sensor: SensorModel,
+    vmap: np.ndarray,
+    b: int,
+    n_sub: int,
+    offset: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The fused kernel over lights `lit` (light, L_world, R_world_light): values, invalid."""
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
+    hb, wb = camera.height // b, camera.width // b
     lights_world = np.array([p for _, p, _ in lit], dtype=np.float64).reshape(len(lit), 3)
     R_world_lights = np.array([r for _, _, r in lit], dtype=np.float64).reshape(len(lit), 3, 3)
     scales = np.array([light.scale for light, _, _ in lit], dtype=np.float64)
@@ -278,4 +413,4 @@ def render_image(
             out,
             invalid,
         )
-    return np.ma.masked_array(out, mask=invalid, copy=False)
+    return out, invalid

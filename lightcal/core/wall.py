@@ -33,7 +33,7 @@ Lambertian numbers). Models:
   A = 1 - 0.5 s^2 / (s^2 + 0.33), B_on = 0.45 s^2 / (s^2 + 0.09), s = sigma (radians).
 
 The factor is evaluated once per (super-)pixel with l and v at the centre of its
-footprint (`footprint_centres`); `footprint_spread` bounds the error of that
+footprint (`Footprints.centres_world`); `footprint_spread` bounds the error of that
 approximation per pixel.
 """
 
@@ -57,6 +57,7 @@ __all__ = [
     "PlasticWall",
     "WallData",
     "WallReflectance",
+    "internal_reflectance",
     "make_wall",
     "rough_transmittance",
 ]
@@ -265,9 +266,7 @@ LAMBERTIAN = LambertianWall()
 def make_wall(model: str, parameters: dict[str, float] | None = None) -> WallReflectance:
     """A wall model by name with parameters by name (defaults for the others)."""
     if model not in WALL_MODELS:
-        raise ValueError(
-            f"wall model: expected one of {', '.join(WALL_MODELS)}, got {model!r}"
-        )
+        raise ValueError(f"wall model: expected one of {', '.join(WALL_MODELS)}, got {model!r}")
     cls = WALL_MODELS[model]
     params = dict(parameters or {})
     unknown = sorted(set(params) - set(cls.parameter_names))
@@ -318,7 +317,11 @@ def _vndf_normals(mu: np.ndarray, alpha: float, u1: np.ndarray, u2: np.ndarray) 
     p2 = (1.0 - s) * np.sqrt(1.0 - p1 * p1)[None, :] + s * p2[None, :]
     p1 = np.broadcast_to(p1[None, :], p2.shape)
     p3 = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
-    nh = p1[..., None] * t1[:, None, :] + p2[..., None] * t2[:, None, :] + p3[..., None] * vh[:, None, :]
+    nh = (
+        p1[..., None] * t1[:, None, :]
+        + p2[..., None] * t2[:, None, :]
+        + p3[..., None] * vh[:, None, :]
+    )
     ne = nh * np.array([alpha, alpha, 1.0])
     ne[..., 2] = np.maximum(ne[..., 2], 1e-12)
     return ne / np.linalg.norm(ne, axis=-1, keepdims=True)
@@ -405,12 +408,3 @@ def internal_reflectance(alpha: float, eta: float) -> float:
     """
     r = _interface_energy(float(alpha), 1.0 / float(eta), transmitted=False)
     return float(2.0 * np.mean(r * _mu_nodes()))
-
-
-# -- footprint geometry -----------------------------------------------------------------
-
-
-def footprint_centres(corners_world: np.ndarray) -> np.ndarray:
-    """(N, 3) centres of the footprints (N, K, 4, 3): the mean of all their corners."""
-    n = corners_world.shape[0]
-    return corners_world.reshape(n, -1, 3).mean(axis=1)

@@ -99,8 +99,10 @@ def smith_g1(mu: float, alpha: float) -> tuple[float, float, float]:
     t = (1.0 - mu * mu) / (mu * mu)
     s = math.sqrt(1.0 + alpha * alpha * t)
     inv = 1.0 / ((1.0 + s) * (1.0 + s))
-    return 2.0 * inv * (1.0 + s), 2.0 * alpha * alpha * inv / (s * mu * mu * mu), (
-        -2.0 * inv * alpha * t / s
+    return (
+        2.0 * inv * (1.0 + s),
+        2.0 * alpha * alpha * inv / (s * mu * mu * mu),
+        (-2.0 * inv * alpha * t / s),
     )
 
 
@@ -122,8 +124,9 @@ def _plastic(
     t1 = tables[0, TABLE_SIZE - 1]
     inv_t1_2 = 1.0 / (t1 * t1)
     diffuse = t_l * t_v * inv_t1_2
-    diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, TABLE_SIZE - 1] / t1
-    diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, TABLE_SIZE - 1] / t1
+    last = TABLE_SIZE - 1
+    diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, last] / t1
+    diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, last] / t1
     # Specular coat: pi F D G1(l) G1(v) / (4 mu_l mu_v), half vector h = (l + v) / |l + v|.
     n = math.sqrt(2.0 + 2.0 * q)
     c = 0.5 * n  # l . h
