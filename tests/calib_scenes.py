@@ -35,6 +35,7 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.solver import CalibrationModel, SolverOptions
 from lightcal.core.synth import SceneConfig, elliptical_beam_table, sample_views
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 
 WIDTH = 320
 HEIGHT = 240
@@ -140,6 +141,7 @@ def observe(
     measured_views: list[View] | None = None,
     min_fraction: float = 0.02,
     noise_model: bool = False,
+    wall: WallReflectance = LAMBERTIAN,
 ) -> list[ImageData]:
     """Random lit pixels of each view, as the solver sees them.
 
@@ -156,6 +158,7 @@ def observe(
         measured_views: the poses the solver is told (pose error); default the true ones.
         min_fraction: pixels darker than this fraction of the image's brightest are skipped.
         noise_model: hand the solver the noise model (`ImageData.noise`: it re-weights).
+        wall: the true wall's reflectance.
 
     Returns:
         One `ImageData` per view with all-valid footprints built from `measured_views`.
@@ -171,7 +174,7 @@ def observe(
         pix = pix[rng.permutation(len(pix))]
         fp_true = pixel_footprints(camera, view, pix)
         fp_told = pixel_footprints(camera, told_view, pix)
-        values = shade(fp_true, view, rig).values.filled(np.nan)
+        values = shade(fp_true, view, rig, wall=wall).values.filled(np.nan)
         ok = fp_true.valid & fp_told.valid & np.isfinite(values)
         peak = float(np.nanmax(np.where(ok, values, np.nan))) if ok.any() else 0.0
         ok &= values > min_fraction * peak

@@ -4,7 +4,8 @@ The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, t
 concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
 the log of its scale and optionally its RID parameters; then optionally one log-gain per
 image but the first (the first image's gain is fixed: a global gain is the lights'
-scales), and optionally the offset b.
+scales), optionally the offset b, and last the wall model's estimated parameters
+(`WallUnknown`).
 
 RID estimation (the paper's future work), for symmetric lights:
 - ``cos_power``: f = cos^m(theta) with x holding log m;
@@ -24,6 +25,7 @@ from lightcal.core.footprint import Footprints
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
 from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
 from lightcal.core.scene import Light, Rig, View
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 
 RidEstimate = Literal["none", "cos_power", "curve"]
 Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
@@ -111,6 +113,37 @@ class LightUnknown:
         return "symmetric" if self.initial.rid.symmetric else "general"
 
 
+@dataclass(frozen=True, eq=False)
+class WallUnknown:
+    """The wall's reflectance model and which of its parameters to estimate.
+
+    Args:
+        initial: the model with its initial (or fixed) parameter values.
+        estimate: names of the parameters to estimate (a subset of its parameter_names).
+    """
+
+    initial: WallReflectance = LAMBERTIAN
+    estimate: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "estimate", tuple(self.estimate))
+        names = self.initial.parameter_names
+        for nm in self.estimate:
+            if nm not in names:
+                expected = ", ".join(names) or "none"
+                raise ValueError(
+                    f"wall: estimate: {self.initial.name} has no parameter {nm!r}; "
+                    f"expected {expected}"
+                )
+        if len(set(self.estimate)) != len(self.estimate):
+            raise ValueError("wall: estimate: expected each parameter once")
+
+    @property
+    def indices(self) -> list[int]:
+        """Positions of the estimated parameters in the model's parameter vector."""
+        return [self.initial.parameter_names.index(nm) for nm in self.estimate]
+
+
 #: Log-parameters (scales, the cos^m exponent) are clipped to +-LOG_CLIP before exp.
 LOG_CLIP = 300.0
 
@@ -168,6 +201,8 @@ class ParameterLayout:
     n: int
     names: list[str]
     x0: np.ndarray = field(repr=False)
+    wall_unknown: WallUnknown = field(default_factory=WallUnknown)
+    wall: slice = field(default_factory=lambda: slice(0, 0))
 
     @classmethod
     def build(
@@ -178,6 +213,7 @@ class ParameterLayout:
         estimate_gains: bool,
         estimate_offset: bool,
         offset0: float,
+        wall: WallUnknown | None = None,
     ) -> ParameterLayout:
         blocks: list[_LightBlock] = []
         names: list[str] = []
@@ -227,6 +263,12 @@ class ParameterLayout:
             offset_index = len(x0)
             x0.append(offset0)
             names.append("offset")
+        wall = wall if wall is not None else WallUnknown()
+        start = len(x0)
+        p0 = wall.initial.parameters()
+        for k, nm in zip(wall.indices, wall.estimate, strict=True):
+            x0.append(float(p0[k]))
+            names.append(f"wall.{nm}")
         return cls(
             blocks,
             n_images,
@@ -238,6 +280,8 @@ class ParameterLayout:
             len(x0),
             names,
             np.array(x0, dtype=np.float64),
+            wall,
+            slice(start, len(x0)),
         )
 
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
@@ -270,6 +314,21 @@ class ParameterLayout:
 
     def offset(self, x: np.ndarray) -> float:
         return float(x[self.offset_index]) if self.offset_index is not None else self.offset0
+
+    def wall_of(self, x: np.ndarray) -> WallReflectance:
+        """The wall model at x (its estimated parameters taken from x)."""
+        w = self.wall_unknown
+        if not w.estimate:
+            return w.initial
+        p = w.initial.parameters()
+        p[w.indices] = x[self.wall]
+        return w.initial.with_parameters(p)
+
+    def wall_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds (k,) of the estimated wall parameters."""
+        b = self.wall_unknown.initial.parameter_bounds
+        idx = self.wall_unknown.indices
+        return np.array([b[k][0] for k in idx]), np.array([b[k][1] for k in idx])
 
 
 def _fit_cos_power(rid: RID) -> float:

@@ -29,11 +29,13 @@ from lightcal.core.problem import (
     LightUnknown,
     Loss,
     ParameterLayout,
+    WallUnknown,
     poisson_gaussian_sigma,
 )
 from lightcal.core.render import light_flux, shade
 from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
+from lightcal.core.wall import WallReflectance
 
 # Each light's position may move at most this far (per camera-frame axis) from the origin.
 DEFAULT_POSITION_BOUND_M = 5.0
@@ -140,10 +142,16 @@ class CalibrationModel:
         images: the selected pixels of each image.
         unknowns: the lights to calibrate.
         options: solver options.
+        wall: the wall's reflectance model and which of its parameters to estimate
+            (default: a Lambertian wall).
     """
 
     def __init__(
-        self, images: list[ImageData], unknowns: list[LightUnknown], options: SolverOptions
+        self,
+        images: list[ImageData],
+        unknowns: list[LightUnknown],
+        options: SolverOptions,
+        wall: WallUnknown | None = None,
     ) -> None:
         if not images:
             raise ValueError("calibration: expected at least one image with selected pixels")
@@ -159,6 +167,7 @@ class CalibrationModel:
             estimate_gains=options.estimate_gains,
             estimate_offset=options.estimate_offset,
             offset0=options.offset,
+            wall=wall,
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -246,7 +255,9 @@ class CalibrationModel:
         J = np.empty((self.m, n)) if full_jacobian else None
         tops = []
         lay = self.layout
-        at_x = _StateAtX(lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x))
+        at_x = _StateAtX(
+            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
+        )
         for i in range(len(self.images)):
             rows = slice(self.bounds[i], self.bounds[i + 1])
             A = self._image_system(x, i, at_x)
@@ -300,6 +311,13 @@ class CalibrationModel:
         to_camera = np.zeros((6, 6))
         to_camera[:3, :3] = R_t
         to_camera[3:, 3:] = R_t
+        wall = at_x.wall
+        wall_cols = lay.wall
+        wall_idx = lay.wall_unknown.indices
+        wall_grad = None
+        if not wall.is_lambertian:
+            wall_grad = np.empty((N, len(wall.parameter_names)))
+            A[:, wall_cols] = 0.0
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -309,6 +327,8 @@ class CalibrationModel:
                 rid_subsamples=self.options.rid_subsamples,
                 want_grad=True,
                 grad_out=grad_buffer,
+                wall=wall,
+                wall_grad_out=wall_grad,
             )
             assert grad_world is not None
             value_per_flux = g * light.scale
@@ -325,6 +345,8 @@ class CalibrationModel:
             )
             if block.rid.stop > block.rid.start:
                 A[:, block.rid] = self._rid_jacobian(x, i, j, block)
+            if wall_grad is not None and wall_idx:
+                A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
         sk.finish_rows(
             A,
             total,
@@ -357,6 +379,7 @@ class CalibrationModel:
                     im.view,
                     Rig(tuple(lights)),
                     rid_subsamples=self.options.rid_subsamples,
+                    wall=lay.wall_of(x),
                 )
                 vals.append(gain * sh.values.filled(np.nan))
             out[:, c] = (vals[0] - vals[1]) / (2 * h)
@@ -377,11 +400,17 @@ class CalibrationModel:
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
-            rig, gains = lay.rig(x), lay.gain_factors(x)
+            rig, gains, wall = lay.rig(x), lay.gain_factors(x), lay.wall_of(x)
             for i, im in enumerate(self.images):
                 if im.noise is None:
                     continue
-                sh = shade(im.footprints, im.view, rig, rid_subsamples=self.options.rid_subsamples)
+                sh = shade(
+                    im.footprints,
+                    im.view,
+                    rig,
+                    rid_subsamples=self.options.rid_subsamples,
+                    wall=wall,
+                )
                 sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
@@ -456,6 +485,7 @@ class CalibrationModel:
             hi[s : s + 2] = np.minimum(far + d, b)
             lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
             hi[s + 2] = max(z_max(d), z0 + 1e-9)
+        lo[self.layout.wall], hi[self.layout.wall] = self.layout.wall_bounds()
         return lo, hi
 
 
@@ -525,12 +555,13 @@ class _Buffers:
 
 @dataclass(frozen=True)
 class _StateAtX:
-    """What every image's system needs at x: the lights, gains, offset and pose maps."""
+    """What every image's system needs at x: the lights, gains, offset, pose maps, wall."""
 
     rig: Rig
     gains: np.ndarray
     offset: float
     pose_maps: list[np.ndarray]
+    wall: WallReflectance
 
 
 @dataclass
