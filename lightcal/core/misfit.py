@@ -1,0 +1,325 @@
+"""Is the fit explained by the noise? Residual tests after a solve.
+
+Two questions, each with a test whose false-alarm rate is fixed (`P_ALARM`):
+
+1. **Level**: chi^2 = sum r^2 of the weighted residuals r = (m_obs - m_render) / sigma
+   against the chi^2 distribution with m - n degrees of freedom. Only meaningful when
+   sigma is the real noise: from the sensor's noise model, or estimated from the images
+   themselves (`image_noise`). A value far above 1 per degree of freedom means the model
+   does not explain the data (wrong wall model, wrong poses, wrong RID, stray light).
+2. **Structure**: do the residuals depend on an angle? A one-way analysis of variance of r
+   over quantile bins of (a) the angle between the wall normal and the half vector of
+   the light and view directions (0 in the mirror direction: the signature of gloss),
+   (b) the angle of incidence (the signature of a non-Lambertian fall-off, e.g. a rough
+   matte wall). The F statistic compares the spread of the bin means to the spread
+   within the bins, so it holds whether or not sigma is known.
+
+The test is conservative about what it claims: a significant structure must also be large
+enough to matter (`MIN_EFFECT`, the RMS of the bin means in sigma units).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+#: False-alarm probability of each test on data the model explains.
+P_ALARM = 1e-3
+#: Quantile bins of each angle.
+N_BINS = 8
+#: A structure must move the bin means by at least this RMS (sigma units) to count.
+MIN_EFFECT = 0.1
+#: Above this chi^2 per degree of freedom the level test fails whatever its p-value (a
+#: fit whose residuals are 1.5x the noise is not explained by it, however few pixels).
+MAX_CHI2_PER_DOF = 1.5
+
+
+@dataclass(frozen=True)
+class AngleTrend:
+    """Weighted residuals against one angle.
+
+    Attributes:
+        angle: "mirror" (half vector to the wall normal) or "incidence".
+        bin_edges_deg: (k + 1,) quantile bin edges, degrees.
+        mean_residual: (k,) mean weighted residual per bin (sigma units).
+        mean_relative: (k,) mean relative residual (m_obs - m_render) / m_render per bin.
+        count: (k,) pixels per bin.
+        f_statistic, p_value: the one-way analysis of variance.
+        effect: RMS of the bin means (sigma units).
+    """
+
+    angle: str
+    bin_edges_deg: np.ndarray
+    mean_residual: np.ndarray
+    mean_relative: np.ndarray
+    count: np.ndarray
+    f_statistic: float
+    p_value: float
+    effect: float
+
+    @property
+    def significant(self) -> bool:
+        return self.p_value < P_ALARM and self.effect >= MIN_EFFECT
+
+    def to_dict(self) -> dict:
+        return {
+            "angle": self.angle,
+            "bin_edges_deg": self.bin_edges_deg.tolist(),
+            "mean_residual_sigma": self.mean_residual.tolist(),
+            "mean_relative_residual": self.mean_relative.tolist(),
+            "count": self.count.tolist(),
+            "f_statistic": self.f_statistic,
+            "p_value": self.p_value,
+            "effect_sigma": self.effect,
+            "significant": self.significant,
+        }
+
+
+@dataclass(frozen=True)
+class FitDiagnosis:
+    """The verdict on a fit.
+
+    Attributes:
+        noise_source: "model" (the sensor's noise model), "image" (estimated from each
+            image) or "none" (sigma = 1: the level test is skipped).
+        chi2, dof, chi2_per_dof, p_value: the level test (NaN p-value without noise).
+        mirror, incidence: the structure tests (None with too few pixels).
+        adequate: the residuals are explained by the noise.
+        findings: what the tests saw and what to try, one sentence each.
+    """
+
+    noise_source: str
+    chi2: float
+    dof: int
+    chi2_per_dof: float
+    p_value: float
+    mirror: AngleTrend | None
+    incidence: AngleTrend | None
+    adequate: bool
+    findings: list[str] = field(default_factory=list)
+
+    @property
+    def level_fails(self) -> bool:
+        if self.noise_source == "none" or self.dof <= 0:
+            return False
+        return self.chi2_per_dof > MAX_CHI2_PER_DOF or (
+            self.p_value < P_ALARM and self.chi2_per_dof > 1.0 + MIN_EFFECT**2
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "adequate": self.adequate,
+            "noise_source": self.noise_source,
+            "chi2": self.chi2,
+            "dof": self.dof,
+            "chi2_per_dof": self.chi2_per_dof,
+            "p_value": self.p_value,
+            "mirror": None if self.mirror is None else self.mirror.to_dict(),
+            "incidence": None if self.incidence is None else self.incidence.to_dict(),
+            "findings": list(self.findings),
+        }
+
+
+def angle_trend(
+    angle: str, angles_deg: np.ndarray, r: np.ndarray, relative: np.ndarray
+) -> AngleTrend | None:
+    """One-way ANOVA of residuals r (m,) over N_BINS quantile bins of angles_deg (m,).
+
+    None when there are fewer than 10 pixels per bin.
+    """
+    m = r.size
+    if m < 10 * N_BINS:
+        return None
+    edges = np.quantile(angles_deg, np.linspace(0.0, 1.0, N_BINS + 1))
+    edges = np.unique(edges)
+    k = edges.size - 1
+    if k < 2:
+        return None
+    idx = np.clip(np.searchsorted(edges, angles_deg, side="right") - 1, 0, k - 1)
+    count = np.bincount(idx, minlength=k).astype(np.float64)
+    sums = np.bincount(idx, weights=r, minlength=k)
+    means = sums / np.maximum(count, 1.0)
+    rel = np.bincount(idx, weights=relative, minlength=k) / np.maximum(count, 1.0)
+    grand = float(r.mean())
+    between = float(np.sum(count * (means - grand) ** 2))
+    within = float(np.sum((r - means[idx]) ** 2))
+    df_b, df_w = k - 1, m - k
+    if within <= 0.0:
+        f_stat = math.inf if between > 0 else 0.0
+    else:
+        f_stat = (between / df_b) / (within / df_w)
+    p = float(stats.f.sf(f_stat, df_b, df_w)) if math.isfinite(f_stat) else 0.0
+    sd = math.sqrt(within / df_w) if within > 0 else 1.0
+    effect = float(np.sqrt(np.sum(count * (means - grand) ** 2) / m)) / sd
+    return AngleTrend(angle, edges, means, rel, count.astype(np.int64), f_stat, p, effect)
+
+
+def diagnose(
+    r: np.ndarray,
+    relative: np.ndarray,
+    mirror_deg: np.ndarray,
+    incidence_deg: np.ndarray,
+    *,
+    n_params: int,
+    noise_source: str,
+    wall_model: str,
+) -> FitDiagnosis:
+    """Test whether residuals are explained by the noise.
+
+    Args:
+        r: (m,) weighted residuals (m_obs - m_render) / sigma.
+        relative: (m,) relative residuals (m_obs - m_render) / m_render.
+        mirror_deg: (m,) angle between the wall normal and the half vector, degrees.
+        incidence_deg: (m,) angle of incidence of the light, degrees.
+        n_params: parameters fitted.
+        noise_source: "model", "image" or "none" (see `FitDiagnosis`).
+        wall_model: the wall model the fit used (for the advice).
+    """
+    m = int(r.size)
+    dof = m - n_params
+    chi2 = float(r @ r)
+    per_dof = chi2 / dof if dof > 0 else math.nan
+    p = float(stats.chi2.sf(chi2, dof)) if dof > 0 and noise_source != "none" else math.nan
+    mirror = angle_trend("mirror", mirror_deg, r, relative)
+    incidence = angle_trend("incidence", incidence_deg, r, relative)
+    diag = FitDiagnosis(noise_source, chi2, dof, per_dof, p, mirror, incidence, True)
+    findings = _findings(diag, wall_model)
+    adequate = not (
+        diag.level_fails
+        or (mirror is not None and mirror.significant)
+        or (incidence is not None and incidence.significant)
+    )
+    return FitDiagnosis(noise_source, chi2, dof, per_dof, p, mirror, incidence, adequate, findings)
+
+
+def _findings(d: FitDiagnosis, wall_model: str) -> list[str]:
+    """One sentence per failed test: what the residuals show and what to try.
+
+    Gloss makes the wall brighter than the model toward the mirror direction; a rough
+    matte wall (Oren-Nayar) is darker there and brighter at grazing incidence. With the
+    light beside the camera the two angles are nearly the same, so the sign of the
+    residual near the mirror direction tells them apart.
+    """
+    out = []
+    mirror, incidence = d.mirror, d.incidence
+    structured = [t for t in (mirror, incidence) if t is not None and t.significant]
+    if mirror is not None and mirror.significant and mirror.mean_relative[0] > 0:
+        advice = (
+            "try `wall: {model: plastic}` (or `auto`), or `selection.exclude_mirror_deg`"
+            if wall_model == "lambertian"
+            else "exclude pixels near the mirror direction (`selection.exclude_mirror_deg`)"
+        )
+        out.append(
+            f"residuals grow toward the mirror direction ({100 * mirror.mean_relative[0]:+.1f} % "
+            f"within {mirror.bin_edges_deg[1]:.0f} deg of it, F = {mirror.f_statistic:.1f}): "
+            f"the wall looks glossy; {advice}"
+        )
+    elif structured:
+        t = incidence if incidence is not None else structured[0]
+        advice = (
+            "try `wall: {model: oren_nayar}` or `wall: {model: auto}`"
+            if wall_model == "lambertian"
+            else "check the RID and the sensor fall-off model"
+        )
+        out.append(
+            "residuals change with the angle of incidence "
+            f"({100 * t.mean_relative[0]:+.1f} % at "
+            f"{t.bin_edges_deg[0]:.0f}-{t.bin_edges_deg[1]:.0f} deg, "
+            f"{100 * t.mean_relative[-1]:+.1f} % at "
+            f"{t.bin_edges_deg[-2]:.0f}-{t.bin_edges_deg[-1]:.0f} deg): "
+            f"the wall does not reflect like the {wall_model} model; {advice}"
+        )
+    if d.level_fails:
+        source = "the sensor's noise model" if d.noise_source == "model" else "the images"
+        out.append(
+            f"residuals are {math.sqrt(d.chi2_per_dof):.2f}x the noise estimated from "
+            f"{source} (chi2/dof = {d.chi2_per_dof:.2f} over {d.dof} degrees of freedom): "
+            "the model does not explain the data"
+            + (
+                ""
+                if structured
+                else "; check the camera poses, masks (markers, stray light), the RID and "
+                "the sensor model"
+            )
+        )
+    return out
+
+
+def pixel_angles(
+    points_world: np.ndarray, light_world: np.ndarray, camera_world: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mirror and incidence angles (degrees, (N,) each) at wall points (N, 3).
+
+    mirror: angle between the wall normal +z and the half vector of the unit directions
+    to the light and to the camera; incidence: angle between the normal and the light.
+    """
+    l = light_world - points_world
+    v = camera_world - points_world
+    l /= np.linalg.norm(l, axis=1, keepdims=True)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    h = l + v
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    mirror = np.degrees(np.arccos(np.clip(h[:, 2], -1.0, 1.0)))
+    incidence = np.degrees(np.arccos(np.clip(l[:, 2], -1.0, 1.0)))
+    return mirror, incidence
+
+
+def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] | None:
+    """A Poisson-Gaussian noise model (gain, read_variance) estimated from one image.
+
+    The wall's shading is smooth, so the difference between a pixel and the mean of its
+    four neighbours, n = v - (left + right + up + down) / 4, is noise with variance
+    (1 + 4/16) sigma^2 = 1.25 sigma^2 (independent pixels). Its robust variance
+    (1.4826 MAD)^2 in 12 quantile bins of the level is fitted by a line
+    variance = gain * level + read_variance (weighted least squares, both >= 0).
+
+    Args:
+        values: (H, W) linear values (offset removed).
+        usable: (H, W) pixels to use (lit, unsaturated, unmasked).
+
+    Returns:
+        (gain, read_variance), or None with fewer than 2,000 usable interior pixels.
+        Demosaiced or compressed images have correlated noise: the estimate is then low.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] < 3:
+        return None
+    c = v[1:-1, 1:-1]
+    lap = c - 0.25 * (v[:-2, 1:-1] + v[2:, 1:-1] + v[1:-1, :-2] + v[1:-1, 2:])
+    ok = (
+        usable[1:-1, 1:-1]
+        & usable[:-2, 1:-1]
+        & usable[2:, 1:-1]
+        & usable[1:-1, :-2]
+        & usable[1:-1, 2:]
+        & np.isfinite(lap)
+    )
+    level = c[ok]
+    n = lap[ok]
+    if level.size < 2000:
+        return None
+    edges = np.quantile(level, np.linspace(0, 1, 13))
+    idx = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, 11)
+    xs, ys, ws = [], [], []
+    for b in range(12):
+        sel = idx == b
+        if sel.sum() < 100:
+            continue
+        nb = n[sel]
+        mad = float(np.median(np.abs(nb - np.median(nb))))
+        xs.append(float(np.median(level[sel])))
+        ys.append((1.4826 * mad) ** 2 / 1.25)
+        ws.append(float(sel.sum()))
+    if len(xs) < 2:
+        return None
+    x, y, w = np.array(xs), np.array(ys), np.sqrt(np.array(ws))
+    A = np.stack([x, np.ones_like(x)], axis=1) * w[:, None]
+    from scipy.optimize import nnls
+
+    (gain, read_variance), _ = nnls(A, y * w)
+    if read_variance <= 0.0:
+        read_variance = max(float(np.min(y)) * 1e-3, 1e-12)
+    return float(gain), float(read_variance)

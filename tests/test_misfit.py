@@ -1,0 +1,99 @@
+"""The misfit tests: level (chi^2), structure (residuals against angles), image noise."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lightcal.core.misfit import angle_trend, diagnose, image_noise, pixel_angles
+
+
+def _angles(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
+    mirror = rng.uniform(0.0, 40.0, m)
+    return mirror, mirror + rng.uniform(0.0, 5.0, m)
+
+
+def test_pixel_angles_hand_case() -> None:
+    """Light and camera symmetric about the normal: mirror angle 0, incidence 45 deg."""
+    p = np.array([[0.0, 0.0, 0.0]])
+    mirror, incidence = pixel_angles(p, np.array([1.0, 0.0, 1.0]), np.array([-2.0, 0.0, 2.0]))
+    assert mirror[0] == pytest.approx(0.0, abs=1e-6)
+    assert incidence[0] == pytest.approx(45.0, abs=1e-12)
+    mirror, _ = pixel_angles(p, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 1.0]))
+    assert mirror[0] == pytest.approx(22.5, abs=1e-12)
+
+
+def test_noise_only_is_adequate_in_most_seeds() -> None:
+    alarms = 0
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        m = 1200
+        r = rng.normal(size=m)
+        mirror, incidence = _angles(rng, m)
+        d = diagnose(
+            r,
+            0.01 * r,
+            mirror,
+            incidence,
+            n_params=7,
+            noise_source="model",
+            wall_model="lambertian",
+        )
+        alarms += not d.adequate
+        if d.adequate:
+            assert d.findings == []
+    assert alarms <= 1
+
+
+def test_gloss_signature_is_named() -> None:
+    rng = np.random.default_rng(0)
+    m = 1200
+    mirror, incidence = _angles(rng, m)
+    bump = 3.0 * np.exp(-((mirror / 8.0) ** 2))
+    r = rng.normal(size=m) + bump
+    d = diagnose(
+        r, 0.01 * r, mirror, incidence, n_params=7, noise_source="model", wall_model="lambertian"
+    )
+    assert not d.adequate
+    assert d.mirror is not None and d.mirror.significant
+    assert d.findings[0].startswith("residuals grow toward the mirror direction (")
+    assert "the wall looks glossy; try `wall: {model: plastic}`" in d.findings[0]
+    assert d.to_dict()["adequate"] is False
+
+
+def test_level_without_structure() -> None:
+    rng = np.random.default_rng(1)
+    m = 1200
+    mirror, incidence = _angles(rng, m)
+    r = 2.0 * rng.normal(size=m)
+    d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="image", wall_model="lambertian")
+    assert not d.adequate
+    assert d.chi2_per_dof == pytest.approx(4.0, rel=0.1)
+    assert "noise estimated from the images" in d.findings[-1]
+    assert d.findings[-1].endswith("the RID and the sensor model")
+    # Without a noise estimate the level is not tested.
+    d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="none", wall_model="lambertian")
+    assert d.adequate
+    assert math.isnan(d.p_value)
+
+
+def test_angle_trend_needs_pixels() -> None:
+    assert angle_trend("mirror", np.arange(50.0), np.zeros(50), np.zeros(50)) is None
+
+
+def test_image_noise_recovers_poisson_gaussian() -> None:
+    rng = np.random.default_rng(2)
+    h, w = 300, 400
+    yy, xx = np.mgrid[0:h, 0:w]
+    signal = 3000.0 * np.exp(-((xx - 200.0) ** 2 + (yy - 150.0) ** 2) / (2 * 150.0**2)) + 50.0
+    gain, read_variance = 0.8, 25.0
+    img = signal + rng.normal(size=signal.shape) * np.sqrt(gain * signal + read_variance)
+    est = image_noise(img, np.ones((h, w), dtype=bool))
+    assert est is not None
+    assert est[0] == pytest.approx(gain, rel=0.1)
+    # The variance where the pixels are (the intercept alone is poorly determined).
+    for level in (300.0, 1500.0, 3000.0):
+        assert est[0] * level + est[1] == pytest.approx(gain * level + read_variance, rel=0.1)
+    assert image_noise(img[:20, :20], np.ones((20, 20), dtype=bool)) is None
