@@ -274,7 +274,9 @@ def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] |
     four neighbours, n = v - (left + right + up + down) / 4, is noise with variance
     (1 + 4/16) sigma^2 = 1.25 sigma^2 (independent pixels). Its robust variance
     (1.4826 MAD)^2 in 12 quantile bins of the level is fitted by a line
-    variance = gain * level + read_variance (weighted least squares, both >= 0).
+    variance = gain * level + read_variance (weighted least squares, both >= 0). The
+    level is the mean of the four diagonal neighbours, whose noise is independent of n
+    (binning by the pixel's own value would select on its noise and bias the variance).
 
     Args:
         values: (H, W) linear values (offset removed).
@@ -289,15 +291,13 @@ def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] |
         return None
     c = v[1:-1, 1:-1]
     lap = c - 0.25 * (v[:-2, 1:-1] + v[2:, 1:-1] + v[1:-1, :-2] + v[1:-1, 2:])
-    ok = (
-        usable[1:-1, 1:-1]
-        & usable[:-2, 1:-1]
-        & usable[2:, 1:-1]
-        & usable[1:-1, :-2]
-        & usable[1:-1, 2:]
-        & np.isfinite(lap)
-    )
-    level = c[ok]
+    diag = 0.25 * (v[:-2, :-2] + v[2:, 2:] + v[:-2, 2:] + v[2:, :-2])
+    ok = np.ones(c.shape, dtype=bool)
+    for dy in range(3):
+        for dx in range(3):
+            ok &= usable[dy : dy + c.shape[0], dx : dx + c.shape[1]]
+    ok &= np.isfinite(lap) & np.isfinite(diag)
+    level = diag[ok]
     n = lap[ok]
     if level.size < 2000:
         return None
