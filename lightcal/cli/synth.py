@@ -9,12 +9,16 @@ truth.json (see `lightcal.io.synth_writer`). One progress line per image goes to
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from lightcal.core.synth import LIGHT_MODELS
 from lightcal.errors import InputError
+
+if TYPE_CHECKING:
+    from lightcal.core.wall import WallReflectance
 
 T = TypeVar("T")
 
@@ -137,6 +141,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="C",
         help=f"radial fall-off c1 c2 ... for --sensor map (default {DEFAULT_VIGNETTING})",
     )
+    g = p.add_argument_group("wall")
+    g.add_argument(
+        "--wall",
+        choices=("lambertian", "plastic", "oren_nayar"),
+        default="lambertian",
+        help="the wall's true reflectance (lambertian); the project still says lambertian",
+    )
+    g.add_argument("--roughness", type=float, default=0.3, help="plastic: GGX alpha (0.3)")
+    g.add_argument("--ior", type=float, default=1.5, help="plastic: coat index of refraction (1.5)")
+    g.add_argument(
+        "--albedo", type=float, default=0.8, help="plastic: diffuse albedo of the base (0.8)"
+    )
+    g.add_argument("--sigma-deg", type=float, default=20.0, help="oren_nayar: roughness (20)")
     g = p.add_argument_group("measurement error")
     g.add_argument(
         "--pose-noise-mm", type=float, default=0.5, help="camera centre error sigma (0.5)"
@@ -158,6 +175,20 @@ def _build(make: Callable[[], T]) -> T:
         return make()
     except InputError as exc:
         raise InputError(_OPTIONS.get(exc.source, exc.source), exc.detail) from exc
+
+
+def _wall(args: argparse.Namespace) -> WallReflectance:
+    """The true wall of --wall and its options."""
+    from lightcal.core.wall import LAMBERTIAN, OrenNayarWall, PlasticWall
+
+    try:
+        if args.wall == "plastic":
+            return PlasticWall.from_albedo(args.roughness, args.ior, args.albedo)
+        if args.wall == "oren_nayar":
+            return OrenNayarWall(math.radians(args.sigma_deg))
+    except ValueError as exc:
+        raise InputError("--wall", str(exc)) from exc
+    return LAMBERTIAN
 
 
 def run(args: argparse.Namespace) -> int:
@@ -231,6 +262,7 @@ def run(args: argparse.Namespace) -> int:
             init_offset_deg=args.init_offset_deg,
             seed=args.seed,
             image_format=args.format,
+            wall=_wall(args),
         )
     )
 

@@ -90,6 +90,8 @@ class WallReflectance(ABC):
     parameter_names: ClassVar[tuple[str, ...]]
     #: Box bounds of each parameter, same order.
     parameter_bounds: ClassVar[tuple[tuple[float, float], ...]]
+    #: The parameters estimated unless the user says otherwise.
+    default_estimate: ClassVar[tuple[str, ...]] = ()
 
     @property
     def is_lambertian(self) -> bool:
@@ -192,6 +194,8 @@ class PlasticWall(WallReflectance):
         (1.05, 3.0),
         (0.0, 100.0),
     )
+    # The index of refraction changes the Fresnel curve only slightly: fixed by default.
+    default_estimate: ClassVar[tuple[str, ...]] = ("roughness", "specular_weight")
 
     def __post_init__(self) -> None:
         for nm, (lo, hi) in zip(self.parameter_names, self.parameter_bounds, strict=True):
@@ -237,6 +241,7 @@ class OrenNayarWall(WallReflectance):
     name: ClassVar[str] = "oren_nayar"
     parameter_names: ClassVar[tuple[str, ...]] = ("sigma",)
     parameter_bounds: ClassVar[tuple[tuple[float, float], ...]] = ((0.0, math.radians(60.0)),)
+    default_estimate: ClassVar[tuple[str, ...]] = ("sigma",)
 
     def __post_init__(self) -> None:
         lo, hi = self.parameter_bounds[0]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -22,12 +22,13 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from lightcal.core.camera import Camera
 from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
-from lightcal.core.problem import LightUnknown
+from lightcal.core.problem import LightUnknown, WallUnknown
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
+from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
@@ -68,18 +69,46 @@ class CameraSpec(_Model):
         return self
 
 
+Mat6 = Annotated[
+    list[Annotated[list[float], Field(min_length=6, max_length=6)]],
+    Field(min_length=6, max_length=6),
+]
+
+
 class PoseSpec(_Model):
-    """World -> camera extrinsics: `R` (3x3) or `rvec` (Rodrigues, radians), and `t` (m)."""
+    """World -> camera extrinsics: `R` (3x3) or `rvec` (Rodrigues, radians), and `t` (m).
+
+    `covariance` (optional, 6x6): the pose's uncertainty as the covariance of
+    (delta, c): delta (rad) a rotation perturbation R -> exp(delta) R in the camera frame,
+    c the camera centre in the world frame (m). `lightcal init` writes it from the marker
+    fit; the calibration propagates it into the light's uncertainty.
+    """
 
     R: Mat3 | None = None
     rvec: Vec3 | None = None
     t: Vec3
+    covariance: Mat6 | None = None
 
     @model_validator(mode="after")
     def _one_rotation(self) -> PoseSpec:
         if (self.R is None) == (self.rvec is None):
             raise ValueError("give exactly one of R or rvec")
+        if self.covariance is not None:
+            c = np.array(self.covariance, dtype=np.float64)
+            if not np.all(np.isfinite(c)):
+                raise ValueError("covariance: expected finite values")
+            if not np.allclose(c, c.T, rtol=1e-6, atol=1e-300):
+                raise ValueError("covariance: expected a symmetric matrix")
+            if np.linalg.eigvalsh(0.5 * (c + c.T)).min() < -1e-12 * max(np.abs(c).max(), 1e-300):
+                raise ValueError("covariance: expected a positive semi-definite matrix")
         return self
+
+    def covariance_matrix(self) -> np.ndarray | None:
+        """(6, 6) covariance of (delta (rad), camera centre (m)), or None."""
+        if self.covariance is None:
+            return None
+        c = np.array(self.covariance, dtype=np.float64)
+        return 0.5 * (c + c.T)
 
     def rotation(self) -> np.ndarray:
         if self.R is not None:
@@ -227,6 +256,37 @@ class SelectionSpec(_Model):
         default=None, description="values at or below are dropped; null: 5 read-noise sigmas"
     )
     regions: list[RegionSpec] = Field(default_factory=list)
+    exclude_mirror_deg: float | None = Field(
+        default=None,
+        ge=0,
+        lt=90,
+        description="drop pixels whose half vector lies within this angle of the wall "
+        "normal (re-derived from the estimate after the first convergence); null: keep all",
+    )
+
+
+WallModelName = Literal["lambertian", "plastic", "oren_nayar", "auto"]
+
+
+class WallSpec(_Model):
+    """The wall's reflectance (docs/model.md, "The wall").
+
+    `parameters` by name: plastic `roughness` (GGX alpha), `ior`, `specular_weight`;
+    oren_nayar `sigma_deg`. `estimate`: the parameters to estimate with the light(s);
+    null: plastic roughness and specular_weight, oren_nayar sigma_deg. `auto`: fit
+    Lambertian, test the fit, and where it fails also plastic and oren_nayar, keeping
+    the model the Bayesian information criterion prefers.
+    """
+
+    model: WallModelName = "lambertian"
+    parameters: dict[str, float] = Field(default_factory=dict)
+    estimate: list[str] | None = None
+
+    @model_validator(mode="after")
+    def _auto_alone(self) -> WallSpec:
+        if self.model in ("auto", "lambertian") and (self.parameters or self.estimate):
+            raise ValueError(f"the {self.model} wall takes no parameters and estimates none")
+        return self
 
 
 class SolverSpec(_Model):
@@ -252,6 +312,7 @@ class ProjectFile(_Model):
     lights: list[LightSpec] = Field(min_length=1)
     selection: SelectionSpec = Field(default_factory=SelectionSpec)
     solver: SolverSpec = Field(default_factory=SolverSpec)
+    wall: WallSpec = Field(default_factory=WallSpec)
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,6 +329,10 @@ class Project:
         lights: the lights to calibrate.
         selection: pixel selection options; solver: solver options.
         vignetting_path: resolved fall-off map file or None.
+        wall: the wall model and what to estimate of it (Lambertian for `auto`, whose
+            candidates the pipeline fits in turn: `spec.wall.model`).
+        pose_covariances: per image, the (6, 6) covariance of its pose (see `PoseSpec`)
+            or None.
     """
 
     spec: ProjectFile
@@ -281,6 +346,8 @@ class Project:
     selection: SelectionOptions
     solver: SolverOptions
     vignetting_path: Path | None
+    wall: WallUnknown = field(default_factory=WallUnknown)
+    pose_covariances: list[np.ndarray | None] = field(default_factory=list)
 
     @property
     def folder(self) -> Path:
@@ -513,7 +580,43 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         selection,
         solver,
         vignetting_path,
+        build_wall(spec.wall, source),
+        [im.T_camera_world.covariance_matrix() for im in spec.images],
     )
+
+
+def build_wall(spec: WallSpec, source: Path) -> WallUnknown:
+    """The `WallUnknown` of a wall spec (file names and degrees there, radians here)."""
+    if spec.model in ("lambertian", "auto"):
+        return WallUnknown()
+    cls = WALL_MODELS[spec.model]
+    internal = {_FILE_PARAMETER.get(n, n): n for n in cls.parameter_names}
+    expected = ", ".join(internal)
+    for where, names in (("parameters", list(spec.parameters)), ("estimate", spec.estimate)):
+        unknown = [n for n in names or [] if n not in internal]
+        if unknown:
+            raise InputError(
+                source,
+                f"wall.{where}: the {spec.model} wall has no parameter "
+                f"{', '.join(map(repr, unknown))}; expected {expected}",
+            )
+    params = {
+        internal[n]: math.radians(v) if n.endswith("_deg") else v
+        for n, v in spec.parameters.items()
+    }
+    try:
+        wall = make_wall(spec.model, params)
+    except ValueError as exc:
+        raise InputError(source, f"wall.parameters: {exc}") from exc
+    if spec.estimate is None:
+        return WallUnknown(wall, cls.default_estimate)
+    if len(set(spec.estimate)) != len(spec.estimate):
+        raise InputError(source, "wall.estimate: expected each parameter once")
+    return WallUnknown(wall, tuple(internal[n] for n in spec.estimate))
+
+
+#: Wall parameters whose file name differs from the model's (degrees in files).
+_FILE_PARAMETER = {"sigma": "sigma_deg"}
 
 
 def _settings_value(e: Any) -> float:

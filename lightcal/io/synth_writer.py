@@ -79,6 +79,7 @@ from lightcal.core.synth import (
     white_level,
 )
 from lightcal.core.vignetting import RadialVignetting
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
 from lightcal.io.camera_file import read_camera, write_camera
@@ -142,6 +143,8 @@ class SynthConfig:
         init_offset_deg: Angle between the initial guess's and each true light axis, degrees.
         seed: The seed of every random choice.
         image_format: "png" (16-bit) or "tiff" (16-bit, uncompressed).
+        wall: The wall's true reflectance (the project written says Lambertian, as a
+            user's first project would; truth.json records the true model).
     """
 
     camera: Camera
@@ -154,6 +157,7 @@ class SynthConfig:
     init_offset_deg: float = 10.0
     seed: int = 0
     image_format: ImageFormat = "png"
+    wall: WallReflectance = LAMBERTIAN
 
     def __post_init__(self) -> None:
         for name in ("pose_noise_m", "pose_noise_deg", "init_offset_m", "init_offset_deg"):
@@ -293,8 +297,12 @@ def _rid_file(config: RigConfig, folder: Path) -> RIDSpec:
     return RIDSpec(type="ies", path="light.ies")
 
 
-def _pose_spec(view: View) -> PoseSpec:
-    return PoseSpec(R=view.R_camera_world.tolist(), t=view.t_camera_world.tolist())
+def _pose_spec(view: View, covariance: np.ndarray | None = None) -> PoseSpec:
+    return PoseSpec(
+        R=view.R_camera_world.tolist(),
+        t=view.t_camera_world.tolist(),
+        covariance=None if covariance is None else covariance.tolist(),
+    )
 
 
 def _initial_spec(light: Light) -> InitialSpec:
@@ -471,7 +479,9 @@ def _write_into(
     for i, view in enumerate(views):
         started = time.perf_counter()
         name = f"view_{i:0{digits}d}"
-        signal = render_image(camera, view, rig, sensor=sensor.model, vignetting=vignetting)
+        signal = render_image(
+            camera, view, rig, sensor=sensor.model, vignetting=vignetting, wall=config.wall
+        )
         dn, saturated = apply_sensor(signal, sensor, rng_sensor)
         path = folder / IMAGES_DIR / f"{name}{suffix}"
         atomic_write_bytes(path, _encode_image(dn, config.image_format))
@@ -502,7 +512,12 @@ def _write_into(
                 f"({time.perf_counter() - started:.1f} s)"
             )
 
-    # The project.
+    # The project: the measured poses with the covariance of their error.
+    pose_covariance = None
+    if config.pose_noise_m > 0.0 or config.pose_noise_deg > 0.0:
+        pose_covariance = np.diag(
+            [math.radians(config.pose_noise_deg) ** 2] * 3 + [config.pose_noise_m**2] * 3
+        )
     gain, read_variance = noise_model(sensor)
     spec = ProjectFile(
         camera=CameraSpec(path=CAMERA_NAME),
@@ -517,7 +532,7 @@ def _write_into(
             ImageSpec(
                 path=truth["path"],
                 name=truth["name"],
-                T_camera_world=_pose_spec(measured[i]),
+                T_camera_world=_pose_spec(measured[i], pose_covariance),
                 exposure=exposure_specs[i],
             )
             for i, truth in enumerate(view_truth)
@@ -562,6 +577,7 @@ def _write_into(
             "vignetting_path": vignetting_rel,
         },
         "views": view_truth,
+        "wall": config.wall.describe(),
         "lights": [
             {
                 "name": light.name,
