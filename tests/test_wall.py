@@ -16,6 +16,7 @@ from lightcal.core.wall import (
     LambertianWall,
     OrenNayarWall,
     PlasticWall,
+    footprint_spread,
     internal_reflectance,
     make_wall,
     rough_transmittance,
@@ -195,3 +196,43 @@ def test_shade_gradients_match_differences(name: str) -> None:
         hi = shade(fp, view, rig, wall=wall.with_parameters(hi_p)).values
         lo = shade(fp, view, rig, wall=wall.with_parameters(lo_p)).values
         np.testing.assert_allclose(sh.grad_wall[:, k], (hi - lo) / (2 * h), rtol=1e-5, atol=1e-9)
+
+
+@pytest.mark.parametrize("roughness", [0.1, 0.3])
+def test_footprint_spread_bounds_the_centre_error(roughness: float) -> None:
+    """B averaged over each footprint (20 x 20 points per quad) differs from B(centre) by
+    what `footprint_spread` estimates."""
+    camera, view, rig = _scene()
+    wall = PlasticWall.from_albedo(roughness, 1.5, 0.8)
+    px = all_pixels(camera.width // 2, camera.height // 2)[::13]
+    fp = pixel_footprints(camera, view, px, binning=2)
+    L = rig.lights[0].position_world(view)
+    bound = footprint_spread(fp.corners_world, fp.centres_world, L, view.center_world, wall)
+    assert np.all(bound > 0)
+    s = (np.arange(20) + 0.5) / 20
+    ss, tt = (a.ravel() for a in np.meshgrid(s, s))
+    errors = []
+    for i in range(len(fp)):
+        means = []
+        for q in fp.corners_world[i]:  # bilinear points of each quad
+            pts = (
+                np.outer((1 - ss) * (1 - tt), q[0])
+                + np.outer(ss * (1 - tt), q[1])
+                + np.outer(ss * tt, q[2])
+                + np.outer((1 - ss) * tt, q[3])
+            )
+            l = L - pts
+            v = view.center_world - pts
+            l /= np.linalg.norm(l, axis=1, keepdims=True)
+            v /= np.linalg.norm(v, axis=1, keepdims=True)
+            means.append(wall.factor(l, v)[0].mean())
+        c = fp.centres_world[i]
+        lc = (L - c) / np.linalg.norm(L - c)
+        vc = (view.center_world - c) / np.linalg.norm(view.center_world - c)
+        centre = wall.factor(lc[None], vc[None])[0][0]
+        errors.append(abs(np.mean(means) - centre) / centre)
+    np.testing.assert_allclose(np.array(errors), bound, rtol=0.05, atol=5e-6)
+    np.testing.assert_array_equal(
+        footprint_spread(fp.corners_world, fp.centres_world, L, view.center_world, LAMBERTIAN),
+        0.0,
+    )

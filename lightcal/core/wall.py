@@ -413,3 +413,55 @@ def internal_reflectance(alpha: float, eta: float) -> float:
     """
     r = _interface_energy(float(alpha), 1.0 / float(eta), transmitted=False)
     return float(2.0 * np.mean(r * _mu_nodes()))
+
+
+def footprint_spread(
+    corners_world: np.ndarray,
+    centres_world: np.ndarray,
+    light_world: np.ndarray,
+    camera_world: np.ndarray,
+    wall: WallReflectance,
+) -> np.ndarray:
+    """(N,) the relative error of evaluating B once at each footprint's centre.
+
+    The renderer uses B(centre); the exact factor is B's mean over the footprint. For
+    each quad k of a footprint (a parallelogram to first order), the mean of a quadratic
+    B is (mean of B at its 4 corners + 2 B(quad centre)) / 3; the footprint's mean is the
+    mean over its quads. Returns |that mean - B(centre)| / B(centre): exact for B
+    quadratic over each quad, the curvature term that the centre value leaves (its linear
+    variation averages out).
+
+    Args:
+        corners_world: (N, K, 4, 3) footprint quads; centres_world: (N, 3) their centres.
+        light_world, camera_world: (3,) positions, world frame, m.
+        wall: the wall model.
+    """
+    n = corners_world.shape[0]
+    if wall.is_lambertian or n == 0:
+        return np.zeros(n)
+    k = corners_world.shape[1]
+    quad_centres = corners_world.mean(axis=2).reshape(-1, 3)
+    pts = np.ascontiguousarray(
+        np.concatenate([centres_world, quad_centres, corners_world.reshape(-1, 3)]),
+        dtype=np.float64,
+    )
+    d = wall.data()
+    b = np.empty(len(pts))
+    wk.wall_factor(
+        pts,
+        np.ascontiguousarray(light_world, dtype=np.float64),
+        np.ascontiguousarray(camera_world, dtype=np.float64),
+        d.kind,
+        d.params,
+        d.tables,
+        want_grad=False,
+        out=b,
+        out_d_light=np.empty((1, 3)),
+        out_d_params=np.empty((1, wk.MAX_PARAMS)),
+    )
+    centre = b[:n]
+    at_quads = b[n : n + n * k].reshape(n, k)
+    at_corners = b[n + n * k :].reshape(n, k, 4).mean(axis=2)
+    mean = ((at_corners + 2.0 * at_quads) / 3.0).mean(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.abs(mean - centre) / centre

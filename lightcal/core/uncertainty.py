@@ -1,0 +1,141 @@
+"""The light's uncertainty: pixel noise, camera-pose error and misfit, propagated.
+
+A calibration's estimate x minimises |r(x, p)|^2, r the weighted residuals and p the
+camera poses, which are themselves measured (markers, SfM) with covariances Sigma_i.
+To first order, an error dp_i in image i's pose moves the estimate by
+
+    dx = -(J^T J)^-1 J_i^T S_i dp_i,    S_i = d r_i / d p_i  (N_i, 6),
+
+so the covariance of x is
+
+    Cov(x) = s^2 (J^T J)^-1  +  sum_i G_i Sigma_i G_i^T,   G_i = (J^T J)^-1 J_i^T S_i.
+
+The first term is the pixel noise; s^2 inflates it by the misfit (below). The pose
+parameterisation is that of `PoseSpec.covariance`: (delta, c), delta a rotation
+perturbation R -> exp(delta) R in the camera frame and c the camera centre (world, m).
+S_i is computed by central differences of the renderer (new footprints for each
+perturbed pose), 12 renders per image.
+
+Pose errors also leave residuals the light cannot absorb; their expected contribution
+to chi^2 is sum_i tr(Sigma_i (S_i^T S_i - T_i^T (J^T J)^-1 T_i)), T_i = J_i^T S_i, so the
+expected chi^2 is E = (m - n) + that, and s^2 = max(1, chi^2 / E) when sigma is the real
+noise (only residuals beyond what the noise and the pose errors explain inflate the
+covariance), chi^2 / (m - n) otherwise (sigma = 1: the residual variance is the noise).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from lightcal.core.footprint import Footprints
+from lightcal.core.rotations import matrix_from_rotvec
+from lightcal.core.scene import View
+
+#: Finite-difference steps of the pose sensitivity: rotation (rad) and centre (m).
+ROTATION_STEP_RAD = 1e-6
+CENTRE_STEP_M = 1e-6
+
+
+def perturbed_view(view: View, dp: np.ndarray) -> View:
+    """`view` with its rotation turned by exp(dp[:3]) and its centre moved by dp[3:] (m)."""
+    R = matrix_from_rotvec(np.asarray(dp[:3], dtype=np.float64)) @ view.R_camera_world
+    centre = view.center_world + np.asarray(dp[3:], dtype=np.float64)
+    return View(R, -R @ centre, view.exposure)
+
+
+def pose_sensitivity(
+    view: View,
+    render: Callable[[View, Footprints], np.ndarray],
+    footprints_at: Callable[[View], Footprints],
+    sigma: np.ndarray,
+) -> np.ndarray:
+    """d r / d (delta, c) (N, 6) of one image's weighted residuals r = (m_obs - m) / sigma.
+
+    Args:
+        view: the image's measured pose.
+        render: rendered values (N,) of the image's pixels for a view and their footprints.
+        footprints_at: the image's pixels' footprints for a (perturbed) view.
+        sigma: (N,) the residuals' weights.
+    """
+    out = np.empty((sigma.size, 6))
+    steps = [ROTATION_STEP_RAD] * 3 + [CENTRE_STEP_M] * 3
+    for k, h in enumerate(steps):
+        values = []
+        for sign in (1.0, -1.0):
+            dp = np.zeros(6)
+            dp[k] = sign * h
+            v = perturbed_view(view, dp)
+            values.append(render(v, footprints_at(v)))
+        # r = (obs - m) / sigma  =>  dr/dp = -(dm/dp) / sigma.
+        out[:, k] = -(values[0] - values[1]) / (2.0 * h) / sigma
+    return out
+
+
+@dataclass(frozen=True)
+class PoseBlock:
+    """One image's share of the pose terms, on a subset of its pixels.
+
+    Attributes:
+        J: (k, n) rows of the weighted Jacobian d r / d x.
+        S: (k, 6) the same rows of d r / d (delta, c).
+        covariance: (6, 6) the image's pose covariance.
+        noise_ratio: (k,) solver sigma / noise sigma of those rows (1 when the solver
+            weights by the noise).
+        row_scale: N_i / k, the image's pixels per subset row (sums over the subset are
+            scaled by it: an unbiased estimate of the sums over all pixels).
+    """
+
+    J: np.ndarray
+    S: np.ndarray
+    covariance: np.ndarray
+    noise_ratio: np.ndarray
+    row_scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class PoseTerms:
+    """What the camera poses' uncertainty adds.
+
+    Attributes:
+        covariance: (n, n) sum_i G_i Sigma_i G_i^T.
+        expected_chi2_extra: sum_i tr(Sigma_i (S_i^T S_i - T_i^T (J^T J)^-1 T_i)) in noise
+            units: the residuals the poses' errors leave on average.
+        images: how many images carried a pose covariance.
+    """
+
+    covariance: np.ndarray
+    expected_chi2_extra: float
+    images: int
+
+
+def pose_terms(normal_inverse: np.ndarray, blocks: list[PoseBlock]) -> PoseTerms:
+    """Combine per-image sensitivities into the covariance and chi^2 terms.
+
+    Args:
+        normal_inverse: (n, n) (J^T J)^-1 of the solver's weighted Jacobian.
+        blocks: one per image with a pose covariance.
+    """
+    n = normal_inverse.shape[0]
+    cov = np.zeros((n, n))
+    extra = 0.0
+    for b in blocks:
+        T = b.row_scale * (b.J.T @ b.S)  # (n, 6)
+        G = normal_inverse @ T
+        cov += G @ b.covariance @ G.T
+        Sn = b.S * b.noise_ratio[:, None]
+        Tn = b.row_scale * ((b.J * b.noise_ratio[:, None] ** 2).T @ b.S)
+        left = b.row_scale * (Sn.T @ Sn) - Tn.T @ normal_inverse @ T
+        extra += float(np.trace(b.covariance @ left))
+    return PoseTerms(0.5 * (cov + cov.T), extra, len(blocks))
+
+
+def noise_inflation(chi2: float, dof: int, extra: float, *, sigma_is_noise: bool) -> float:
+    """s^2 of the pixel-noise term (see the module docstring)."""
+    if dof <= 0:
+        return 1.0
+    if not sigma_is_noise:
+        return chi2 / dof
+    return max(1.0, chi2 / (dof + max(extra, 0.0)))
