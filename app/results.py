@@ -1,6 +1,6 @@
 """The result as the page shows it, and the files it can download.
 
-The numbers come from `lightcal.calibration.summarise` (uncertainties, pose-variety
+The numbers come from `lightcal.pipeline.summarise` (uncertainties, pose-variety
 warnings); the files from `lightcal.io.result_file` (result JSON) and
 `lightcal.report.write_report` (the report folder, zipped here).
 """
@@ -13,10 +13,10 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from lightcal.calibration import CalibrationResult, LoadedImages
 from lightcal.core.solver import CalibrationModel
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
+from lightcal.pipeline import CalibrationResult, LoadedImages
 
 
 def result_markdown(result: CalibrationResult | None, *, state: str) -> str:

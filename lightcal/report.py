@@ -9,12 +9,10 @@ convergence plot and a short Markdown summary.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from lightcal.calibration import CalibrationResult, LoadedImages, _vignetting
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
@@ -27,8 +25,7 @@ from lightcal.io.figures import (
     write_png,
 )
 from lightcal.io.project import Project
-
-ProgressFn = Callable[[str, int, int], None]
+from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
 
 
 def render_views(
@@ -53,7 +50,7 @@ def render_views(
                 with_view(view, exposure=view.exposure * g),
                 rig,
                 sensor=project.spec.sensor.model,
-                vignetting=_vignetting(project, loaded.camera),
+                vignetting=vignetting_for(project, loaded.camera),
                 offset=offset,
                 rid_subsamples=project.solver.rid_subsamples,
             )

@@ -518,9 +518,9 @@ def run_pipeline(folder: Path) -> None:
 
 def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
     """Run the calibration on the project and print every estimate's error against truth."""
-    from lightcal.calibration import calibrate_project
     from lightcal.io.camera_file import read_camera
     from lightcal.io.project import load_project
+    from lightcal.pipeline import calibrate_project
 
     camera = read_camera(folder / "camera.yaml")
     true = truth["camera"]

@@ -38,7 +38,6 @@ from app.session_file import (
     session_json,
 )
 from app.state import Display
-from lightcal.calibration import image_data
 from lightcal.core.pose import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
@@ -46,6 +45,7 @@ from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable
+from lightcal.pipeline import image_data
 from tests.app_fixtures import TRUE_POSITION_M, SyntheticProject, make_project
 
 
@@ -170,8 +170,8 @@ def test_display_geometry_and_pixel_mapping() -> None:
 def test_rendered_overlay_matches_the_real_image_at_the_true_light(
     synthetic: SyntheticProject,
 ) -> None:
-    from lightcal.calibration import load_images
     from lightcal.io.project import load_project
+    from lightcal.pipeline import load_images
 
     project = load_project(synthetic.path)
     loaded = load_images(project)

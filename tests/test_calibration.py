@@ -8,7 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from lightcal.calibration import (
+from lightcal.core.pose import describe_pose, rotation_from_axis
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.rid import CosPowerRID
+from lightcal.core.scene import Rig
+from lightcal.core.solver import IterationReport, run_least_squares
+from lightcal.errors import InputError
+from lightcal.io.project import load_project
+from lightcal.pipeline import (
     CalibrationResult,
     build_model,
     calibrate_project,
@@ -20,13 +27,6 @@ from lightcal.calibration import (
     solve,
     summarise,
 )
-from lightcal.core.pose import describe_pose, rotation_from_axis
-from lightcal.core.problem import ImageData, LightUnknown
-from lightcal.core.rid import CosPowerRID
-from lightcal.core.scene import Rig
-from lightcal.core.solver import IterationReport, run_least_squares
-from lightcal.errors import InputError
-from lightcal.io.project import load_project
 from tests import calib_scenes as cs
 
 CAMERA = cs.small_camera()

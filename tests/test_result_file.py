@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from lightcal import __version__
-from lightcal.calibration import summarise
 from lightcal.core.problem import LightUnknown
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import run_least_squares
@@ -21,6 +20,7 @@ from lightcal.io.result_file import (
     result_to_file,
     write_result,
 )
+from lightcal.pipeline import summarise
 from tests import calib_scenes as cs
 from tests.test_project import _check_refs
 

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightcal.calibration import image_data, load_images, noise_floor
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.problem import ImageData
@@ -23,6 +22,7 @@ from lightcal.core.selection import (
     select_pixels,
 )
 from lightcal.io.project import load_project
+from lightcal.pipeline import image_data, load_images, noise_floor
 
 
 def _pixels(mask: np.ndarray) -> set[tuple[int, int]]:

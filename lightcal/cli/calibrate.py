@@ -19,9 +19,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.calibration import build_model, load_images, solve_project, summarise
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
+    from lightcal.pipeline import build_model, load_images, solve_project, summarise
 
     project = load_project(args.project)
     with stage_progress(enabled=not args.quiet) as progress:

@@ -96,7 +96,7 @@ class ResultFile(_Model):
 
 
 def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
-    """Convert a `lightcal.calibration.CalibrationResult` to the file model."""
+    """Convert a `lightcal.pipeline.CalibrationResult` to the file model."""
     lights = [
         LightResultModel(
             name=lr.name,
