@@ -33,8 +33,8 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         "",
     ]
     for lr in result.lights:
-        p, sp = lr.pose["position_m"], lr.sigma["position_m"]
-        ax, sax = lr.pose["axis_camera"], lr.sigma["axis_camera"]
+        p, sp = lr.pose.position_m, lr.sigma.position_m
+        ax, sax = lr.pose.axis_camera, lr.sigma.axis_camera
         lines += [
             f"#### {lr.name} ({lr.pose_kind})",
             "| quantity | value | ± 1 sigma |",
@@ -47,15 +47,11 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
                 lines.append(f"| axis {axis_name} | {ax[k]:+.5f} | {sax[k]:.2g} |")
             lines.append(
                 "| axis from optical axis (deg) | "
-                f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} "
-                f"| {lr.sigma['axis_angle_from_optical_axis_deg']:.2g} |"
+                f"{lr.pose.axis_angle_from_optical_axis_deg:.3f} "
+                f"| {lr.sigma.axis_angle_from_optical_axis_deg:.2g} |"
             )
-            lines.append(
-                f"| roll (deg) | {lr.pose['roll_deg']:+.3f} | {lr.sigma['roll_deg']:.2g} |"
-            )
-            lines.append(
-                f"| pitch (deg) | {lr.pose['pitch_deg']:+.3f} | {lr.sigma['pitch_deg']:.2g} |"
-            )
+            lines.append(f"| roll (deg) | {lr.pose.roll_deg:+.3f} | {lr.sigma.roll_deg:.2g} |")
+            lines.append(f"| pitch (deg) | {lr.pose.pitch_deg:+.3f} | {lr.sigma.pitch_deg:.2g} |")
         lines.append(f"| scale | {lr.scale:.5g} | {lr.scale_sigma:.2g} |")
         lines.append("")
     if result.warnings:

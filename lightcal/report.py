@@ -113,22 +113,22 @@ def _summary_markdown(
     )
     lines.append("")
     for lr in result.lights:
-        pos = lr.pose["position_m"]
-        sp = lr.sigma["position_m"]
+        pos = lr.pose.position_m
+        sp = lr.sigma.position_m
         lines.append(f"## {lr.name} ({lr.pose_kind})")
         lines.append("")
         lines.append(
             "- position (camera frame): "
             + ", ".join(f"{v * 1000:.2f} ± {s * 1000:.2f} mm" for v, s in zip(pos, sp, strict=True))
         )
-        ax = lr.pose["axis_camera"]
+        ax = lr.pose.axis_camera
         lines.append(
             f"- axis (camera frame): ({ax[0]:.5f}, {ax[1]:.5f}, {ax[2]:.5f}), "
-            f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} deg from the optical axis"
+            f"{lr.pose.axis_angle_from_optical_axis_deg:.3f} deg from the optical axis"
         )
         lines.append(
-            f"- roll {lr.pose['roll_deg']:.3f} ± {lr.sigma['roll_deg']:.3f} deg, "
-            f"pitch {lr.pose['pitch_deg']:.3f} ± {lr.sigma['pitch_deg']:.3f} deg"
+            f"- roll {lr.pose.roll_deg:.3f} ± {lr.sigma.roll_deg:.3f} deg, "
+            f"pitch {lr.pose.pitch_deg:.3f} ± {lr.sigma.pitch_deg:.3f} deg"
         )
         lines.append(f"- scale {lr.scale:.6g} ± {lr.scale_sigma:.2g}")
         lines.append("")

@@ -542,8 +542,8 @@ def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
     _, _, result = calibrate_project(project)
     light = result.lights[0]
     true_light = truth["light"]
-    position = np.array(light.pose["position_m"])
-    axis = np.array(light.pose["axis_camera"])
+    position = np.array(light.pose.position_m)
+    axis = np.array(light.pose.axis_camera)
     true_position = np.array(true_light["position_m"])
     true_axis = np.array(true_light["axis_camera"])
     log(

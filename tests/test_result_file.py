@@ -64,8 +64,8 @@ def test_every_field_is_written(result):
             "pitch_deg",
             "axis_angle_from_optical_axis_deg",
         ):
-            assert getattr(lm, key) == lr.pose[key], key
-            assert getattr(lm.sigma, key) == lr.sigma[key], key
+            assert getattr(lm, key) == lr.pose.to_dict()[key], key
+            assert getattr(lm.sigma, key) == lr.sigma.to_dict()[key], key
         assert lm.scale == lr.scale and lm.scale_sigma == lr.scale_sigma
         assert lm.rid == lr.rid
     assert rf.lights[0].rid is not None and rf.lights[0].rid["model"] == "cos_power"

@@ -101,10 +101,10 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
         LightResultModel(
             name=lr.name,
             pose_kind=lr.pose_kind,
-            **lr.pose,
+            **lr.pose.to_dict(),
             scale=lr.scale,
             scale_sigma=lr.scale_sigma,
-            sigma=PoseSigma(**lr.sigma),
+            sigma=PoseSigma(**lr.sigma.to_dict()),
             rid=lr.rid,
         )
         for lr in result.lights

@@ -15,7 +15,7 @@ It knows files (through `lightcal.io`) but nothing of terminals or browsers.
 from lightcal.pipeline.diagnose import covariance, dark_light_warnings, variety_warnings
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images, vignetting_for
 from lightcal.pipeline.model import build_model, fit_scales
-from lightcal.pipeline.results import CalibrationResult, LightResult, summarise
+from lightcal.pipeline.results import CalibrationResult, LightResult, PoseSummary, summarise
 from lightcal.pipeline.select import image_data, noise_floor, regions_for
 from lightcal.pipeline.solve import calibrate_project, perturbed_start, solve, solve_project
 
@@ -23,6 +23,7 @@ __all__ = [
     "CalibrationResult",
     "LightResult",
     "LoadedImages",
+    "PoseSummary",
     "ProgressFn",
     "build_model",
     "calibrate_project",

@@ -7,6 +7,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -16,23 +17,107 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.pipeline.diagnose import covariance, dark_light_warnings, variety_warnings
 
 
+@dataclass(frozen=True, eq=False)
+class PoseSummary:
+    """A light pose described in the camera frame (see `lightcal.core.pose.describe_pose`),
+    or the 1-sigma uncertainties of those quantities, component by component.
+
+    Attributes:
+        position_m: (3,) emitter position, metres.
+        R_camera_light: (3, 3) rotation, light frame -> camera frame.
+        quaternion_wxyz: (4,) quaternion of `R_camera_light`, w >= 0.
+        axis_camera: (3,) unit light axis.
+        roll_deg, pitch_deg: the paper's angles of the axis.
+        axis_angle_from_optical_axis_deg: angle between the light axis and camera +z.
+
+    The arrays are read-only float64. `to_vector` / `from_vector` lay the quantities out
+    as one flat (22,) vector (for propagating the covariance); `to_dict` is the
+    JSON-ready form, keyed by the field names.
+    """
+
+    position_m: np.ndarray
+    R_camera_light: np.ndarray
+    quaternion_wxyz: np.ndarray
+    axis_camera: np.ndarray
+    roll_deg: float
+    pitch_deg: float
+    axis_angle_from_optical_axis_deg: float
+
+    SHAPES: ClassVar[dict[str, tuple[int, ...]]] = {
+        "position_m": (3,),
+        "R_camera_light": (3, 3),
+        "quaternion_wxyz": (4,),
+        "axis_camera": (3,),
+        "roll_deg": (),
+        "pitch_deg": (),
+        "axis_angle_from_optical_axis_deg": (),
+    }
+    SIZE: ClassVar[int] = sum(math.prod(shape) for shape in SHAPES.values())  # 22
+
+    def __post_init__(self) -> None:
+        for name, shape in self.SHAPES.items():
+            if shape:
+                a = np.array(getattr(self, name), dtype=np.float64)
+                if a.shape != shape:
+                    raise ValueError(f"{name} has shape {a.shape}, expected {shape}")
+                a.setflags(write=False)
+                object.__setattr__(self, name, a)
+            else:
+                object.__setattr__(self, name, float(getattr(self, name)))
+
+    @classmethod
+    def of_pose(cls, R_camera_light: np.ndarray, t_camera_light: np.ndarray) -> PoseSummary:
+        """The description of the pose (R_camera_light, t_camera_light)."""
+        return cls(**describe_pose(R_camera_light, t_camera_light))
+
+    def to_vector(self) -> np.ndarray:
+        """(22,) the fields in declaration order, arrays flattened row by row."""
+        return np.concatenate([np.ravel(getattr(self, name)) for name in self.SHAPES])
+
+    @classmethod
+    def from_vector(cls, v: np.ndarray) -> PoseSummary:
+        """The inverse of `to_vector`."""
+        v = np.asarray(v, dtype=np.float64)
+        if v.shape != (cls.SIZE,):
+            raise ValueError(f"pose vector has shape {v.shape}, expected ({cls.SIZE},)")
+        values: dict[str, Any] = {}
+        start = 0
+        for name, shape in cls.SHAPES.items():
+            n = math.prod(shape)
+            values[name] = v[start : start + n].reshape(shape) if shape else v[start]
+            start += n
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: nested lists of floats and floats, as `describe_pose` gives."""
+        out: dict[str, Any] = {}
+        for name, shape in self.SHAPES.items():
+            value = getattr(self, name)
+            out[name] = value.tolist() if shape else value
+        return out
+
+    def __eq__(self, other: object) -> bool:  # unhashable, as it defines __eq__
+        if not isinstance(other, PoseSummary):
+            return NotImplemented
+        return bool(np.array_equal(self.to_vector(), other.to_vector()))
+
+
 @dataclass(frozen=True)
 class LightResult:
     """One calibrated light.
 
     Attributes:
         name: the light's name.
-        pose: `describe_pose` output (position_m, R_camera_light, quaternion_wxyz,
-            axis_camera, roll_deg, pitch_deg, axis_angle_from_optical_axis_deg).
-        sigma: 1-sigma of the same quantities (same keys; position and vectors per component).
+        pose: the calibrated pose.
+        sigma: 1-sigma of the pose's quantities (position and vectors per component).
         scale, scale_sigma: the fitted scale.
         pose_kind: isotropic, symmetric or general.
         rid: estimated RID description (None when the RID was given).
     """
 
     name: str
-    pose: dict
-    sigma: dict
+    pose: PoseSummary
+    sigma: PoseSummary
     scale: float
     scale_sigma: float
     pose_kind: str
@@ -77,31 +162,15 @@ def _numeric_jacobian(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> 
     return J
 
 
-def _pose_vector(model: CalibrationModel, j: int, x: np.ndarray) -> np.ndarray:
+def _light_pose(model: CalibrationModel, j: int, x: np.ndarray) -> PoseSummary:
+    """The pose of light j at parameters x."""
     block = model.layout.blocks[j]
     R, t = block.param.to_pose(x[block.pose])
-    d = describe_pose(R, t)
-    return np.concatenate(
-        [
-            d["position_m"],
-            np.ravel(d["R_camera_light"]),
-            d["quaternion_wxyz"],
-            d["axis_camera"],
-            [d["roll_deg"], d["pitch_deg"], d["axis_angle_from_optical_axis_deg"]],
-        ]
-    )
+    return PoseSummary.of_pose(R, t)
 
 
-def _split_pose_vector(v: np.ndarray) -> dict:
-    return {
-        "position_m": v[0:3].tolist(),
-        "R_camera_light": v[3:12].reshape(3, 3).tolist(),
-        "quaternion_wxyz": v[12:16].tolist(),
-        "axis_camera": v[16:19].tolist(),
-        "roll_deg": float(v[19]),
-        "pitch_deg": float(v[20]),
-        "axis_angle_from_optical_axis_deg": float(v[21]),
-    }
+def _light_pose_vector(model: CalibrationModel, j: int, x: np.ndarray) -> np.ndarray:
+    return _light_pose(model, j, x).to_vector()
 
 
 def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResult:
@@ -111,8 +180,8 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
     lay = model.layout
     lights = []
     for j, block in enumerate(lay.blocks):
-        v = _pose_vector(model, j, x)
-        G = _numeric_jacobian(functools.partial(_pose_vector, model, j), x)
+        pose = _light_pose(model, j, x)
+        G = _numeric_jacobian(functools.partial(_light_pose_vector, model, j), x)
         sig = np.sqrt(np.clip(np.diag(G @ cov @ G.T), 0, None))
         scale = lay.light_of(block, x).scale  # exp(log-scale), clipped as the model
         rid_desc = None
@@ -132,8 +201,8 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
         lights.append(
             LightResult(
                 block.unknown.initial.name,
-                _split_pose_vector(v),
-                _split_pose_vector(sig),
+                pose,
+                PoseSummary.from_vector(sig),
                 scale,
                 scale * math.sqrt(max(cov[block.log_scale, block.log_scale], 0.0)),
                 block.param.kind,
