@@ -22,9 +22,9 @@ from app.state import (
     SelectionSettings,
     UserRegion,
 )
-from lightcal.calibration import LoadedImages
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages
 
 log = logging.getLogger("lightcal.app")
 

@@ -44,13 +44,13 @@ from app.state import (
     LightGuess,
     take_frame,
 )
-from lightcal.calibration import LoadedImages, fit_scales, summarise
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.scene import Rig
 from lightcal.core.session import SolverSession
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages, fit_scales, summarise
 
 log = logging.getLogger("lightcal.app")
 

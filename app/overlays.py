@@ -18,13 +18,13 @@ import cv2
 import numpy as np
 
 from app.state import Display, OverlayKind, UserRegion
-from lightcal.calibration import LoadedImages
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.camera import Camera
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
 from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages
 
 INCLUDE_RGB = (40, 210, 60)
 EXCLUDE_RGB = (235, 40, 40)

@@ -1,7 +1,7 @@
 """The pixels the app's solve uses: the project's selection with the user's changes.
 
 The user may change the strategy (globally or for one image), draw include/exclude
-regions and click single pixels. All of it goes through `lightcal.calibration.image_data`
+regions and click single pixels. All of it goes through `lightcal.pipeline.image_data`
 on a copy of the project whose selection options and regions are the user's, so the
 app selects exactly as `lightcal calibrate` would with the same settings. Clicked pixels
 are added to the strategy's pixels when they are candidates (not saturated, masked,
@@ -15,10 +15,10 @@ from dataclasses import replace
 import numpy as np
 
 from app.state import SelectionSettings, UserRegion
-from lightcal.calibration import LoadedImages, image_data
 from lightcal.core.problem import ImageData
 from lightcal.core.selection import SelectionOptions
 from lightcal.io.project import Project, RegionSpec
+from lightcal.pipeline import LoadedImages, image_data
 
 
 def region_spec(region: UserRegion) -> RegionSpec:

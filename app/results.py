@@ -1,6 +1,6 @@
 """The result as the page shows it, and the files it can download.
 
-The numbers come from `lightcal.calibration.summarise` (uncertainties, pose-variety
+The numbers come from `lightcal.pipeline.summarise` (uncertainties, pose-variety
 warnings); the files from `lightcal.io.result_file` (result JSON) and
 `lightcal.report.write_report` (the report folder, zipped here).
 """
@@ -13,10 +13,10 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from lightcal.calibration import CalibrationResult, LoadedImages
 from lightcal.core.solver import CalibrationModel
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
+from lightcal.pipeline import CalibrationResult, LoadedImages
 
 
 def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
@@ -33,8 +33,8 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         "",
     ]
     for lr in result.lights:
-        p, sp = lr.pose["position_m"], lr.sigma["position_m"]
-        ax, sax = lr.pose["axis_camera"], lr.sigma["axis_camera"]
+        p, sp = lr.pose.position_m, lr.sigma.position_m
+        ax, sax = lr.pose.axis_camera, lr.sigma.axis_camera
         lines += [
             f"#### {lr.name} ({lr.pose_kind})",
             "| quantity | value | ± 1 sigma |",
@@ -47,15 +47,11 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
                 lines.append(f"| axis {axis_name} | {ax[k]:+.5f} | {sax[k]:.2g} |")
             lines.append(
                 "| axis from optical axis (deg) | "
-                f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} "
-                f"| {lr.sigma['axis_angle_from_optical_axis_deg']:.2g} |"
+                f"{lr.pose.axis_angle_from_optical_axis_deg:.3f} "
+                f"| {lr.sigma.axis_angle_from_optical_axis_deg:.2g} |"
             )
-            lines.append(
-                f"| roll (deg) | {lr.pose['roll_deg']:+.3f} | {lr.sigma['roll_deg']:.2g} |"
-            )
-            lines.append(
-                f"| pitch (deg) | {lr.pose['pitch_deg']:+.3f} | {lr.sigma['pitch_deg']:.2g} |"
-            )
+            lines.append(f"| roll (deg) | {lr.pose.roll_deg:+.3f} | {lr.sigma.roll_deg:.2g} |")
+            lines.append(f"| pitch (deg) | {lr.pose.pitch_deg:+.3f} | {lr.sigma.pitch_deg:.2g} |")
         lines.append(f"| scale | {lr.scale:.5g} | {lr.scale_sigma:.2g} |")
         lines.append("")
     if result.warnings:

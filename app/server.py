@@ -23,9 +23,9 @@ from app.panels import Panels
 from app.session_file import SessionFile, default_session_path, read_session
 from app.state import AppState
 from app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
-from lightcal.calibration import load_images
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.project import load_project
+from lightcal.pipeline import load_images
 
 REPO_DIR = Path(__file__).resolve().parents[1]
 

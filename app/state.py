@@ -15,11 +15,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from lightcal.calibration import CalibrationResult, LoadedImages
 from lightcal.core.scene import Rig
 from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.io.project import Project
+from lightcal.pipeline import CalibrationResult, LoadedImages
 
 OverlayKind = Literal["real", "rendered", "residual"]
 OVERLAY_KINDS: tuple[OverlayKind, ...] = ("real", "rendered", "residual")

@@ -22,9 +22,9 @@ from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
-from lightcal.calibration import LoadedImages, load_images
 from lightcal.errors import InputError
 from lightcal.io.project import Project, ProjectFile, load_project, project_from_spec, save_project
+from lightcal.pipeline import LoadedImages, load_images
 
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
 MAX_UNPACKED_BYTES = 500 * 1024 * 1024

@@ -216,7 +216,7 @@ def measure_dense(width: int, height: int, compress: bool = True) -> dict[str, A
 
     The observations are synthesised first (untimed: rendering the truth is not part of a
     calibration). Then `build`: the footprints of the selected pixels from the measured
-    poses and the model, what `lightcal.calibration.build_model` pays; then the solve.
+    poses and the model, what `lightcal.pipeline.build_model` pays; then the solve.
     `compress` False solves the full (m, n) problem (trf's exact SVD each iteration):
     the baseline the compressed solve is compared with.
     """
@@ -301,9 +301,9 @@ def _random_start(
 
 
 def measure_basin(n_starts: int, max_m: float, max_deg: float) -> dict[str, Any]:
-    from lightcal.calibration import fit_scales
     from lightcal.core.problem import LightUnknown
     from lightcal.core.solver import run_least_squares
+    from lightcal.pipeline import fit_scales
 
     camera = make_camera(320, 240)
     light = make_light()
@@ -352,9 +352,9 @@ def measure_basin(n_starts: int, max_m: float, max_deg: float) -> dict[str, Any]
 
 
 def measure_subsets(per_size: int) -> dict[str, Any]:
-    from lightcal.calibration import summarise
     from lightcal.core.solver import run_least_squares
     from lightcal.core.synth import perturb_view
+    from lightcal.pipeline import summarise
 
     camera = make_camera(320, 240)
     light = make_light()
@@ -380,8 +380,8 @@ def measure_subsets(per_size: int) -> dict[str, Any]:
             positions.append(est.t_camera_light)
             axes.append(est.axis_camera)
             errors.append(pose_errors(est, light))
-            sigmas.append(float(np.linalg.norm(lr.sigma["position_m"])))
-            sigma_deg.append(math.hypot(lr.sigma["roll_deg"], lr.sigma["pitch_deg"]))
+            sigmas.append(float(np.linalg.norm(lr.sigma.position_m)))
+            sigma_deg.append(math.hypot(lr.sigma.roll_deg, lr.sigma.pitch_deg))
         p = np.array(positions)
         a = np.array(axes)
         mean_axis = a.mean(axis=0) / np.linalg.norm(a.mean(axis=0))

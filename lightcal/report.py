@@ -9,12 +9,10 @@ convergence plot and a short Markdown summary.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from lightcal.calibration import CalibrationResult, LoadedImages, _vignetting
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
@@ -27,8 +25,7 @@ from lightcal.io.figures import (
     write_png,
 )
 from lightcal.io.project import Project
-
-ProgressFn = Callable[[str, int, int], None]
+from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
 
 
 def render_views(
@@ -53,7 +50,7 @@ def render_views(
                 with_view(view, exposure=view.exposure * g),
                 rig,
                 sensor=project.spec.sensor.model,
-                vignetting=_vignetting(project, loaded.camera),
+                vignetting=vignetting_for(project, loaded.camera),
                 offset=offset,
                 rid_subsamples=project.solver.rid_subsamples,
             )
@@ -116,22 +113,22 @@ def _summary_markdown(
     )
     lines.append("")
     for lr in result.lights:
-        pos = lr.pose["position_m"]
-        sp = lr.sigma["position_m"]
+        pos = lr.pose.position_m
+        sp = lr.sigma.position_m
         lines.append(f"## {lr.name} ({lr.pose_kind})")
         lines.append("")
         lines.append(
             "- position (camera frame): "
             + ", ".join(f"{v * 1000:.2f} ± {s * 1000:.2f} mm" for v, s in zip(pos, sp, strict=True))
         )
-        ax = lr.pose["axis_camera"]
+        ax = lr.pose.axis_camera
         lines.append(
             f"- axis (camera frame): ({ax[0]:.5f}, {ax[1]:.5f}, {ax[2]:.5f}), "
-            f"{lr.pose['axis_angle_from_optical_axis_deg']:.3f} deg from the optical axis"
+            f"{lr.pose.axis_angle_from_optical_axis_deg:.3f} deg from the optical axis"
         )
         lines.append(
-            f"- roll {lr.pose['roll_deg']:.3f} ± {lr.sigma['roll_deg']:.3f} deg, "
-            f"pitch {lr.pose['pitch_deg']:.3f} ± {lr.sigma['pitch_deg']:.3f} deg"
+            f"- roll {lr.pose.roll_deg:.3f} ± {lr.sigma.roll_deg:.3f} deg, "
+            f"pitch {lr.pose.pitch_deg:.3f} ± {lr.sigma.pitch_deg:.3f} deg"
         )
         lines.append(f"- scale {lr.scale:.6g} ± {lr.scale_sigma:.2g}")
         lines.append("")

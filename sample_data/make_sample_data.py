@@ -518,9 +518,9 @@ def run_pipeline(folder: Path) -> None:
 
 def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
     """Run the calibration on the project and print every estimate's error against truth."""
-    from lightcal.calibration import calibrate_project
     from lightcal.io.camera_file import read_camera
     from lightcal.io.project import load_project
+    from lightcal.pipeline import calibrate_project
 
     camera = read_camera(folder / "camera.yaml")
     true = truth["camera"]
@@ -542,8 +542,8 @@ def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
     _, _, result = calibrate_project(project)
     light = result.lights[0]
     true_light = truth["light"]
-    position = np.array(light.pose["position_m"])
-    axis = np.array(light.pose["axis_camera"])
+    position = np.array(light.pose.position_m)
+    axis = np.array(light.pose.axis_camera)
     true_position = np.array(true_light["position_m"])
     true_axis = np.array(true_light["axis_camera"])
     log(

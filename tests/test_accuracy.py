@@ -18,7 +18,6 @@ import math
 import numpy as np
 import pytest
 
-from lightcal.calibration import build_model, calibrate_project, load_images
 from lightcal.core.pose import PoseKind
 from lightcal.core.problem import LightUnknown, curve_rid
 from lightcal.core.rid import CosPowerRID, SymmetricTableRID
@@ -27,6 +26,7 @@ from lightcal.core.solver import run_least_squares
 from lightcal.core.synth import RigConfig, SceneConfig, symmetric_profile_table
 from lightcal.io.project import load_project
 from lightcal.io.synth_writer import SynthConfig, write_dataset
+from lightcal.pipeline import build_model, calibrate_project, load_images
 from tests import calib_scenes as cs
 
 DISTORTED = cs.small_camera()

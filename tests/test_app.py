@@ -38,7 +38,6 @@ from app.session_file import (
     session_json,
 )
 from app.state import Display
-from lightcal.calibration import image_data
 from lightcal.core.pose import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
@@ -46,6 +45,7 @@ from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable
+from lightcal.pipeline import image_data
 from tests.app_fixtures import TRUE_POSITION_M, SyntheticProject, make_project
 
 
@@ -170,8 +170,8 @@ def test_display_geometry_and_pixel_mapping() -> None:
 def test_rendered_overlay_matches_the_real_image_at_the_true_light(
     synthetic: SyntheticProject,
 ) -> None:
-    from lightcal.calibration import load_images
     from lightcal.io.project import load_project
+    from lightcal.pipeline import load_images
 
     project = load_project(synthetic.path)
     loaded = load_images(project)
@@ -286,17 +286,15 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
     assert st.solver_state == "finished"
     res = st.result
     assert res is not None and res.converged
-    np.testing.assert_allclose(res.lights[0].pose["position_m"], TRUE_POSITION_M, atol=2e-4)
+    np.testing.assert_allclose(res.lights[0].pose.position_m, TRUE_POSITION_M, atol=2e-4)
     md = app.panels.result_md.content
     assert md.startswith("**converged**")
     x_mm = re.search(r"\| position x \(mm\) \| ([-+0-9.]+) \| ([0-9.e-]+) \|", md)
     assert x_mm is not None and float(x_mm.group(1)) == pytest.approx(100.0, abs=0.05)
-    assert float(x_mm.group(2)) == pytest.approx(
-        res.lights[0].sigma["position_m"][0] * 1e3, rel=0.03
-    )
+    assert float(x_mm.group(2)) == pytest.approx(res.lights[0].sigma.position_m[0] * 1e3, rel=0.03)
     # The gizmo followed the estimate.
     np.testing.assert_allclose(
-        app.controller.scene.gizmos[0].position, res.lights[0].pose["position_m"], atol=1e-6
+        app.controller.scene.gizmos[0].position, res.lights[0].pose.position_m, atol=1e-6
     )
     # Step after the end asks for a reset instead of starting a second solve.
     _set(app.panels.step_button, True)

@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
 
-from lightcal.calibration import (
+from lightcal.core.pose import describe_pose, rotation_from_axis
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.rid import CosPowerRID
+from lightcal.core.scene import Rig
+from lightcal.core.solver import IterationReport, run_least_squares
+from lightcal.errors import InputError
+from lightcal.io.project import load_project
+from lightcal.pipeline import (
     CalibrationResult,
+    PoseSummary,
     build_model,
     calibrate_project,
     covariance,
@@ -20,13 +29,6 @@ from lightcal.calibration import (
     solve,
     summarise,
 )
-from lightcal.core.pose import describe_pose, rotation_from_axis
-from lightcal.core.problem import ImageData, LightUnknown
-from lightcal.core.rid import CosPowerRID
-from lightcal.core.scene import Rig
-from lightcal.core.solver import IterationReport, run_least_squares
-from lightcal.errors import InputError
-from lightcal.io.project import load_project
 from tests import calib_scenes as cs
 
 CAMERA = cs.small_camera()
@@ -79,8 +81,9 @@ def test_summary_fields(clean):
     (lr,) = res.lights
     est = model.layout.rig(np.array(res.x)).lights[0]
     assert lr.name == "light" and lr.pose_kind == "symmetric" and lr.rid is None
-    assert lr.pose == describe_pose(est.R_camera_light, est.t_camera_light)
-    assert set(lr.sigma) == set(lr.pose)
+    assert lr.pose.to_dict() == describe_pose(est.R_camera_light, est.t_camera_light)
+    assert lr.pose == PoseSummary.of_pose(est.R_camera_light, est.t_camera_light)
+    assert set(lr.sigma.to_dict()) == set(lr.pose.to_dict())
     assert lr.scale == pytest.approx(est.scale)
     cov = np.array(res.covariance)
     n = model.layout.n
@@ -88,11 +91,11 @@ def test_summary_fields(clean):
     np.testing.assert_allclose(cov, cov.T, rtol=1e-10, atol=0)
     assert np.all(np.linalg.eigvalsh(cov) > 0)
     # Position sigmas are the covariance's (the position parameters are x, y, z).
-    np.testing.assert_allclose(lr.sigma["position_m"], np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
+    np.testing.assert_allclose(lr.sigma.position_m, np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
     assert lr.scale_sigma == pytest.approx(est.scale * math.sqrt(cov[5, 5]), rel=1e-12)
     for key in ("roll_deg", "pitch_deg", "axis_angle_from_optical_axis_deg"):
-        assert 0.0 < lr.sigma[key] < 1.0
-    assert np.all(np.array(lr.sigma["axis_camera"]) >= 0)
+        assert 0.0 < getattr(lr.sigma, key) < 1.0
+    assert np.all(np.array(lr.sigma.axis_camera) >= 0)
     assert res.offset == pytest.approx(float(res.x[6]))
     assert res.offset_sigma == pytest.approx(math.sqrt(cov[6, 6]))
     assert res.gains == [1.0] * 12
@@ -109,6 +112,31 @@ def test_summary_fields(clean):
     s2 = float(r @ r) / (model.m - n)
     assert s2 == pytest.approx(1.0, abs=0.15)
     np.testing.assert_allclose(covariance(model, np.array(res.x)), cov, rtol=1e-12)
+
+
+def test_pose_summary_vector_and_dict_round_trip():
+    axis = np.array([0.2, -0.1, 1.0])
+    R = rotation_from_axis(axis / np.linalg.norm(axis))
+    t = np.array([0.1, -0.02, 0.03])
+    pose = PoseSummary.of_pose(R, t)
+    assert list(PoseSummary.SHAPES) == [f.name for f in dataclasses.fields(PoseSummary)]
+    v = pose.to_vector()
+    assert v.shape == (PoseSummary.SIZE,) == (22,)
+    np.testing.assert_array_equal(v[:3], t)
+    np.testing.assert_array_equal(v[3:12], np.ravel(R))
+    assert PoseSummary.from_vector(v) == pose
+    # to_dict is describe_pose's JSON-ready form, to the bit.
+    d = pose.to_dict()
+    assert d == describe_pose(R, t)
+    assert json.loads(json.dumps(d)) == d
+    assert PoseSummary(**d) == pose
+    assert isinstance(d["roll_deg"], float) and isinstance(d["R_camera_light"][0][0], float)
+    assert pose.R_camera_light.shape == (3, 3) and not pose.position_m.flags.writeable
+    assert pose != PoseSummary.from_vector(v + 1e-12)
+    with pytest.raises(ValueError, match="shape"):
+        PoseSummary.from_vector(v[:-1])
+    with pytest.raises(ValueError, match="position_m"):
+        PoseSummary(**{**d, "position_m": [0.0, 0.0]})
 
 
 def test_summary_of_an_estimated_rid(clean):
@@ -133,7 +161,7 @@ def test_summary_of_gains_and_two_lights():
     assert [lr.name for lr in res.lights] == ["left", "right"]
     np.testing.assert_allclose(res.gains, gains, rtol=1e-8)
     for lr, light in zip(res.lights, rig.lights, strict=True):
-        np.testing.assert_allclose(lr.pose["position_m"], light.t_camera_light, atol=1e-9)
+        np.testing.assert_allclose(lr.pose.position_m, light.t_camera_light, atol=1e-9)
         assert lr.scale == pytest.approx(light.scale, rel=1e-8)
 
 
@@ -158,7 +186,7 @@ def test_warning_for_a_light_that_lights_no_pixel():
 
 def _position_sigma(images, light) -> np.ndarray:
     _, res = _solve(images, [light])
-    return np.array(res.lights[0].sigma["position_m"])
+    return np.array(res.lights[0].sigma.position_m)
 
 
 def test_uncertainty_shrinks_with_more_pixels_and_less_noise():
@@ -184,10 +212,10 @@ def test_uncertainty_matches_the_monte_carlo_spread(clean):
         noisy = cs.add_noise(images, NOISE, np.random.default_rng(100 + seed))
         _, res = _solve(noisy, [light])
         lr = res.lights[0]
-        estimates.append(lr.pose["position_m"])
-        sigmas.append(lr.sigma["position_m"])
-        angles.append([lr.pose["roll_deg"], lr.pose["pitch_deg"]])
-        angle_sigmas.append([lr.sigma["roll_deg"], lr.sigma["pitch_deg"]])
+        estimates.append(lr.pose.position_m)
+        sigmas.append(lr.sigma.position_m)
+        angles.append([lr.pose.roll_deg, lr.pose.pitch_deg])
+        angle_sigmas.append([lr.sigma.roll_deg, lr.sigma.pitch_deg])
     spread = np.std(estimates, axis=0, ddof=1)
     ratio = np.mean(sigmas, axis=0) / spread
     assert np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio

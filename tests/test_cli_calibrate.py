@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import tifffile
 
-from lightcal.calibration import load_images
 from lightcal.cli.main import main
 from lightcal.core.render import render_image
 from lightcal.core.scene import Light, Rig
@@ -20,6 +19,7 @@ from lightcal.core.synth import SceneConfig
 from lightcal.io.project import load_project
 from lightcal.io.result_file import read_result
 from lightcal.io.synth_writer import SynthConfig, write_dataset
+from lightcal.pipeline import load_images
 from tests import calib_scenes as cs
 
 N_VIEWS = 6

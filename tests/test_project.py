@@ -13,7 +13,6 @@ import pytest
 import tifffile
 import yaml
 
-from lightcal.calibration import load_images
 from lightcal.core.pose import axis_from_paper_angles
 from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.rotations import matrix_from_rotvec
@@ -27,6 +26,7 @@ from lightcal.io.project import (
     project_schema,
     save_project,
 )
+from lightcal.pipeline import load_images
 from tests import calib_scenes as cs
 
 W, H = 40, 30

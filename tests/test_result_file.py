@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from lightcal import __version__
-from lightcal.calibration import summarise
 from lightcal.core.problem import LightUnknown
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import run_least_squares
@@ -21,6 +20,7 @@ from lightcal.io.result_file import (
     result_to_file,
     write_result,
 )
+from lightcal.pipeline import summarise
 from tests import calib_scenes as cs
 from tests.test_project import _check_refs
 
@@ -64,8 +64,8 @@ def test_every_field_is_written(result):
             "pitch_deg",
             "axis_angle_from_optical_axis_deg",
         ):
-            assert getattr(lm, key) == lr.pose[key], key
-            assert getattr(lm.sigma, key) == lr.sigma[key], key
+            assert getattr(lm, key) == lr.pose.to_dict()[key], key
+            assert getattr(lm.sigma, key) == lr.sigma.to_dict()[key], key
         assert lm.scale == lr.scale and lm.scale_sigma == lr.scale_sigma
         assert lm.rid == lr.rid
     assert rf.lights[0].rid is not None and rf.lights[0].rid["model"] == "cos_power"

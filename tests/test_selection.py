@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from lightcal.calibration import image_data, load_images, noise_floor
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.problem import ImageData
@@ -22,7 +22,11 @@ from lightcal.core.selection import (
     region_mask,
     select_pixels,
 )
+from lightcal.core.vignetting import RadialVignetting
 from lightcal.io.project import load_project
+from lightcal.io.vignetting_file import save_radial_vignetting
+from lightcal.pipeline import image_data, load_images, noise_floor, vignetting_for
+from lightcal.pipeline.load import _load_vignetting
 
 
 def _pixels(mask: np.ndarray) -> set[tuple[int, int]]:
@@ -377,3 +381,26 @@ def test_extra_pixels_join_the_selection_when_they_are_candidates(tmp_path):
     assert (4, 3) not in got
     assert len(got) == 5 + 2  # N random ones besides the clicks
     assert len(data.observed) == len(got)
+
+
+def test_vignetting_for_reads_a_map_once_and_keeps_few(tmp_path: Path):
+    model = RadialVignetting(np.array([19.5, 14.5]), np.array([-0.3]), 40, 30)
+    camera = SimpleNamespace(width=40, height=30)  # all vignetting_for looks at
+
+    def project(sensor: str, name: str = "falloff.json"):
+        path = tmp_path / name
+        if not path.exists():
+            save_radial_vignetting(path, model)
+        sensor_spec = SimpleNamespace(model=sensor)
+        return SimpleNamespace(spec=SimpleNamespace(sensor=sensor_spec), vignetting_path=path)
+
+    vmap = vignetting_for(project("map"), camera)
+    assert vmap is not None
+    np.testing.assert_array_equal(vmap, model.image(40, 30))
+    assert vignetting_for(project("map"), camera) is vmap  # read once
+    assert vignetting_for(project("cos4"), camera) is None
+    # The cache is bounded: many map files do not pile up in memory.
+    for k in range(6):
+        assert vignetting_for(project("map", f"falloff_{k}.json"), camera) is not None
+    info = _load_vignetting.cache_info()
+    assert info.maxsize == 4 and info.currsize <= 4

@@ -19,9 +19,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.calibration import build_model, load_images, solve_project, summarise
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
+    from lightcal.pipeline import build_model, load_images, solve_project, summarise
 
     project = load_project(args.project)
     with stage_progress(enabled=not args.quiet) as progress:
@@ -52,8 +52,8 @@ def run(args: argparse.Namespace) -> int:
     result = summarise(model, outcome)
     write_result(result_to_file(result, project=project.path), args.out)
     for lr in result.lights:
-        pos = ", ".join(f"{v:+.4f}" for v in lr.pose["position_m"])
-        ax = ", ".join(f"{v:+.4f}" for v in lr.pose["axis_camera"])
+        pos = ", ".join(f"{v:+.4f}" for v in lr.pose.position_m)
+        ax = ", ".join(f"{v:+.4f}" for v in lr.pose.axis_camera)
         console.print(f"{lr.name}: position [{pos}] m, axis [{ax}]", highlight=False)
     for w in result.warnings:
         console.print(f"warning: {w}", style="yellow", highlight=False)

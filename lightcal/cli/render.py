@@ -22,13 +22,13 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import tifffile
 
-    from lightcal.calibration import load_images
     from lightcal.core.scene import Light, Rig
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_write_bytes
     from lightcal.io.figures import image_pair_figure, write_png
     from lightcal.io.project import load_project
     from lightcal.io.result_file import read_result
+    from lightcal.pipeline import load_images
     from lightcal.report import render_views
 
     project = load_project(args.project)

@@ -96,15 +96,15 @@ class ResultFile(_Model):
 
 
 def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
-    """Convert a `lightcal.calibration.CalibrationResult` to the file model."""
+    """Convert a `lightcal.pipeline.CalibrationResult` to the file model."""
     lights = [
         LightResultModel(
             name=lr.name,
             pose_kind=lr.pose_kind,
-            **lr.pose,
+            **lr.pose.to_dict(),
             scale=lr.scale,
             scale_sigma=lr.scale_sigma,
-            sigma=PoseSigma(**lr.sigma),
+            sigma=PoseSigma(**lr.sigma.to_dict()),
             rid=lr.rid,
         )
         for lr in result.lights

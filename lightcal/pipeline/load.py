@@ -1,0 +1,101 @@
+"""Reading a project's images: linear values, user masks, the matching camera and the
+vignetting map."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lightcal.core.camera import Camera
+from lightcal.errors import InputError
+from lightcal.io.images import LinearImage, read_image
+from lightcal.io.project import Project
+
+ProgressFn = Callable[[str, int, int], None]
+"""progress(stage, done, total): what the pipeline reports while it works."""
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedImages:
+    """The project's images read as linear values.
+
+    Attributes:
+        images: one `LinearImage` per project image.
+        excluded: (H, W) bool per image: user mask pixels.
+        camera: the intrinsics matching the images as read (binned when the reader binned).
+    """
+
+    images: list[LinearImage]
+    excluded: list[np.ndarray | None]
+    camera: Camera
+
+
+def load_images(project: Project, *, progress: ProgressFn | None = None) -> LoadedImages:
+    """Read every image of a project (and its mask) and check sizes against the camera."""
+    sensor = project.spec.sensor
+    response = None
+    if sensor.response:
+        from lightcal.io.response import ResponseCurve
+
+        response = ResponseCurve.load(project.folder / sensor.response)
+    images: list[LinearImage] = []
+    excluded: list[np.ndarray | None] = []
+    camera = project.camera
+    for i, path in enumerate(project.image_paths):
+        if progress is not None:
+            progress("reading images", i, len(project.image_paths))
+        img = read_image(
+            path,
+            channel=sensor.channel,
+            black_level=sensor.black_level,
+            white_level=sensor.white_level,
+            response=response,
+            assume_linear=sensor.assume_linear,
+        )
+        h, w = img.values.shape
+        if (w, h) != (camera.width, camera.height):
+            b = img.binning
+            if b > 1 and (w, h) == (camera.width // b, camera.height // b):
+                camera = project.camera.binned(b)
+            else:
+                raise InputError(
+                    path,
+                    f"image is {w}x{h} pixels but the camera intrinsics are for "
+                    f"{camera.width}x{camera.height}; expected the same size",
+                )
+        images.append(img)
+        mask_path = project.mask_paths[i]
+        excluded.append(_read_mask(mask_path, (h, w)) if mask_path is not None else None)
+    if progress is not None:
+        progress("reading images", len(project.image_paths), len(project.image_paths))
+    return LoadedImages(images, excluded, camera)
+
+
+def _read_mask(path, shape: tuple[int, int]) -> np.ndarray:
+    img = read_image(path, assume_linear=True)
+    if img.values.shape != shape:
+        raise InputError(
+            path,
+            f"mask is {img.values.shape[1]}x{img.values.shape[0]} pixels, "
+            f"expected {shape[1]}x{shape[0]} like its image",
+        )
+    return np.asarray(img.values > 0)
+
+
+def vignetting_for(project: Project, camera: Camera) -> np.ndarray | None:
+    """The project's (H, W) vignetting map at `camera`'s size, or None (sensor model not
+    "map", or no map file). Shared and cached: do not write to it."""
+    if project.spec.sensor.model != "map" or project.vignetting_path is None:
+        return None
+    return _load_vignetting(project.vignetting_path, camera.width, camera.height)
+
+
+@functools.lru_cache(maxsize=4)
+def _load_vignetting(path: Path, width: int, height: int) -> np.ndarray:
+    from lightcal.io.vignetting_file import load_vignetting
+
+    return load_vignetting(path, width=width, height=height)

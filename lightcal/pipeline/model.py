@@ -1,0 +1,81 @@
+"""The calibration model of a project: selected pixels of every image, the lights to
+solve for (with fitted starting scales) and the solver options."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.optimize import nnls
+
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.render import shade
+from lightcal.core.scene import Rig
+from lightcal.core.solver import CalibrationModel
+from lightcal.errors import InputError
+from lightcal.io.project import Project
+from lightcal.pipeline.load import LoadedImages, ProgressFn
+from lightcal.pipeline.select import image_data
+
+
+def fit_scales(images: list[ImageData], unknowns: list[LightUnknown], offset: float) -> list[float]:
+    """Linear least-squares scales of the lights at their initial poses (positive)."""
+    rig = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
+    cols = []
+    rhs = []
+    for im in images:
+        sh = shade(im.footprints, im.view, rig)
+        cols.append((sh.flux / im.sigma).T)
+        rhs.append((im.observed - offset) / im.sigma)
+    A = np.concatenate(cols)
+    y = np.concatenate(rhs)
+    s, _ = nnls(A, y)
+    largest = float(s.max())
+    if not largest > 0.0:
+        # The start explains none of the light (aimed away, or data below the offset):
+        # the ratio of mean magnitudes gives the solver a scale to start from.
+        largest = float(np.abs(y).mean() / max(float(A.sum(axis=1).mean()), 1e-300)) or 1.0
+        s = np.full(A.shape[1], largest)
+    # A light the start leaves dark keeps a scale it can grow from.
+    return [float(max(v, 1e-3 * largest)) for v in s]
+
+
+def build_model(
+    project: Project,
+    loaded: LoadedImages,
+    *,
+    pixels: list[np.ndarray | None] | None = None,
+    lights: list[LightUnknown] | None = None,
+    progress: ProgressFn | None = None,
+) -> CalibrationModel:
+    """The calibration model of a project: selected pixels, lights, options.
+
+    Args:
+        project: the project.
+        loaded: its images.
+        pixels: per image an explicit (N, 2) pixel choice or None (strategy).
+        lights: lights to use instead of the project's (e.g. a dragged initial guess).
+        progress: progress callback.
+    """
+    data = []
+    n = len(project.views)
+    for i in range(n):
+        if progress is not None:
+            progress("selecting pixels", i, n)
+        d = image_data(project, loaded, i, pixels=None if pixels is None else pixels[i])
+        if len(d.observed) > 0:
+            data.append(d)
+    if not data:
+        raise InputError(
+            project.path,
+            "no usable pixels in any image (all saturated, masked, below the noise floor "
+            "or off the wall); check the selection and sensor settings",
+        )
+    unknowns = list(lights) if lights is not None else list(project.lights)
+    auto = [j for j, ls in enumerate(project.spec.lights) if ls.initial.scale is None]
+    if auto and lights is None:
+        scales = fit_scales(data, unknowns, project.solver.offset)
+        for j in auto:
+            u = unknowns[j]
+            unknowns[j] = replace(u, initial=u.initial.replace(scale=scales[j]))
+    return CalibrationModel(data, unknowns, project.solver)

@@ -1,0 +1,235 @@
+"""The outcome of a calibration: per-light poses with 1-sigma uncertainties, the
+fitted scales, gains and offset, the warnings, and `summarise`, which builds it."""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from lightcal.core.pose import describe_pose
+from lightcal.core.rid import CosPowerRID
+from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
+from lightcal.pipeline.diagnose import covariance, dark_light_warnings, variety_warnings
+
+
+@dataclass(frozen=True, eq=False)
+class PoseSummary:
+    """A light pose described in the camera frame (see `lightcal.core.pose.describe_pose`),
+    or the 1-sigma uncertainties of those quantities, component by component.
+
+    Attributes:
+        position_m: (3,) emitter position, metres.
+        R_camera_light: (3, 3) rotation, light frame -> camera frame.
+        quaternion_wxyz: (4,) quaternion of `R_camera_light`, w >= 0.
+        axis_camera: (3,) unit light axis.
+        roll_deg, pitch_deg: the paper's angles of the axis.
+        axis_angle_from_optical_axis_deg: angle between the light axis and camera +z.
+
+    The arrays are read-only float64. `to_vector` / `from_vector` lay the quantities out
+    as one flat (22,) vector (for propagating the covariance); `to_dict` is the
+    JSON-ready form, keyed by the field names.
+    """
+
+    position_m: np.ndarray
+    R_camera_light: np.ndarray
+    quaternion_wxyz: np.ndarray
+    axis_camera: np.ndarray
+    roll_deg: float
+    pitch_deg: float
+    axis_angle_from_optical_axis_deg: float
+
+    SHAPES: ClassVar[dict[str, tuple[int, ...]]] = {
+        "position_m": (3,),
+        "R_camera_light": (3, 3),
+        "quaternion_wxyz": (4,),
+        "axis_camera": (3,),
+        "roll_deg": (),
+        "pitch_deg": (),
+        "axis_angle_from_optical_axis_deg": (),
+    }
+    SIZE: ClassVar[int] = sum(math.prod(shape) for shape in SHAPES.values())  # 22
+
+    def __post_init__(self) -> None:
+        for name, shape in self.SHAPES.items():
+            if shape:
+                a = np.array(getattr(self, name), dtype=np.float64)
+                if a.shape != shape:
+                    raise ValueError(f"{name} has shape {a.shape}, expected {shape}")
+                a.setflags(write=False)
+                object.__setattr__(self, name, a)
+            else:
+                object.__setattr__(self, name, float(getattr(self, name)))
+
+    @classmethod
+    def of_pose(cls, R_camera_light: np.ndarray, t_camera_light: np.ndarray) -> PoseSummary:
+        """The description of the pose (R_camera_light, t_camera_light)."""
+        return cls(**describe_pose(R_camera_light, t_camera_light))
+
+    def to_vector(self) -> np.ndarray:
+        """(22,) the fields in declaration order, arrays flattened row by row."""
+        return np.concatenate([np.ravel(getattr(self, name)) for name in self.SHAPES])
+
+    @classmethod
+    def from_vector(cls, v: np.ndarray) -> PoseSummary:
+        """The inverse of `to_vector`."""
+        v = np.asarray(v, dtype=np.float64)
+        if v.shape != (cls.SIZE,):
+            raise ValueError(f"pose vector has shape {v.shape}, expected ({cls.SIZE},)")
+        values: dict[str, Any] = {}
+        start = 0
+        for name, shape in cls.SHAPES.items():
+            n = math.prod(shape)
+            values[name] = v[start : start + n].reshape(shape) if shape else v[start]
+            start += n
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: nested lists of floats and floats, as `describe_pose` gives."""
+        out: dict[str, Any] = {}
+        for name, shape in self.SHAPES.items():
+            value = getattr(self, name)
+            out[name] = value.tolist() if shape else value
+        return out
+
+    def __eq__(self, other: object) -> bool:  # unhashable, as it defines __eq__
+        if not isinstance(other, PoseSummary):
+            return NotImplemented
+        return bool(np.array_equal(self.to_vector(), other.to_vector()))
+
+
+@dataclass(frozen=True)
+class LightResult:
+    """One calibrated light.
+
+    Attributes:
+        name: the light's name.
+        pose: the calibrated pose.
+        sigma: 1-sigma of the pose's quantities (position and vectors per component).
+        scale, scale_sigma: the fitted scale.
+        pose_kind: isotropic, symmetric or general.
+        rid: estimated RID description (None when the RID was given).
+    """
+
+    name: str
+    pose: PoseSummary
+    sigma: PoseSummary
+    scale: float
+    scale_sigma: float
+    pose_kind: str
+    rid: dict | None
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Everything a calibration produced (written as result JSON)."""
+
+    lights: list[LightResult]
+    offset: float
+    offset_sigma: float | None
+    gains: list[float]
+    image_names: list[str]
+    per_image_rms: list[float]
+    pixels_used: list[int]
+    iterations: int
+    nfev: int
+    status: int
+    message: str
+    converged: bool
+    cost: float
+    time_s: float
+    warnings: list[str]
+    parameter_names: list[str]
+    x: list[float]
+    covariance: list[list[float]]
+    history: list[IterationReport] = field(default_factory=list, repr=False)
+
+
+def _numeric_jacobian(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+    y0 = np.asarray(fn(x), dtype=np.float64)
+    J = np.zeros((y0.size, x.size))
+    for k in range(x.size):
+        h = 1e-7 * max(1.0, abs(x[k]))
+        xp = x.copy()
+        xm = x.copy()
+        xp[k] += h
+        xm[k] -= h
+        J[:, k] = (np.asarray(fn(xp)) - np.asarray(fn(xm))).ravel() / (2 * h)
+    return J
+
+
+def _light_pose(model: CalibrationModel, j: int, x: np.ndarray) -> PoseSummary:
+    """The pose of light j at parameters x."""
+    block = model.layout.blocks[j]
+    R, t = block.param.to_pose(x[block.pose])
+    return PoseSummary.of_pose(R, t)
+
+
+def _light_pose_vector(model: CalibrationModel, j: int, x: np.ndarray) -> np.ndarray:
+    return _light_pose(model, j, x).to_vector()
+
+
+def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResult:
+    """Turn a solve into a `CalibrationResult` with uncertainties and warnings."""
+    x = outcome.x
+    cov = covariance(model, x)
+    lay = model.layout
+    lights = []
+    for j, block in enumerate(lay.blocks):
+        pose = _light_pose(model, j, x)
+        G = _numeric_jacobian(functools.partial(_light_pose_vector, model, j), x)
+        sig = np.sqrt(np.clip(np.diag(G @ cov @ G.T), 0, None))
+        scale = lay.light_of(block, x).scale  # exp(log-scale), clipped as the model
+        rid_desc = None
+        if block.unknown.estimate_rid != "none":
+            rid = lay.rid_of(block, x)
+            theta = np.linspace(0, math.radians(89), 90)
+            rid_desc = {
+                "model": block.unknown.estimate_rid,
+                "parameters": x[block.rid].tolist(),
+                "half_angle_deg": math.degrees(rid.half_angle_rad),
+                "theta_deg": np.degrees(theta).tolist(),
+                "values": np.asarray(rid(theta)).tolist(),
+            }
+            if block.unknown.estimate_rid == "cos_power":
+                assert isinstance(rid, CosPowerRID)
+                rid_desc["m"] = rid.m
+        lights.append(
+            LightResult(
+                block.unknown.initial.name,
+                pose,
+                PoseSummary.from_vector(sig),
+                scale,
+                scale * math.sqrt(max(cov[block.log_scale, block.log_scale], 0.0)),
+                block.param.kind,
+                rid_desc,
+            )
+        )
+    offset_sigma = None
+    if lay.offset_index is not None:
+        offset_sigma = math.sqrt(max(cov[lay.offset_index, lay.offset_index], 0.0))
+    return CalibrationResult(
+        lights=lights,
+        offset=lay.offset(x),
+        offset_sigma=offset_sigma,
+        gains=lay.gain_factors(x).tolist(),
+        image_names=[im.name for im in model.images],
+        per_image_rms=model.per_image_rms(x).tolist(),
+        pixels_used=[len(im.observed) for im in model.images],
+        iterations=outcome.iterations,
+        nfev=outcome.nfev,
+        status=outcome.status,
+        message=outcome.message,
+        converged=outcome.success,
+        cost=outcome.cost,
+        time_s=outcome.time_s,
+        warnings=dark_light_warnings(model, x) + variety_warnings(model, cov),
+        parameter_names=list(lay.names),
+        x=x.tolist(),
+        covariance=cov.tolist(),
+        history=outcome.history,
+    )

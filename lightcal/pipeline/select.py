@@ -1,0 +1,150 @@
+"""Pixel selection: which pixels of an image the solver sees, with their values and
+noise sigmas, as `ImageData`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from lightcal.core.footprint import pixel_footprints
+from lightcal.core.problem import ImageData, poisson_gaussian_sigma
+from lightcal.core.selection import (
+    Region,
+    bin_values,
+    binned_candidates,
+    candidate_mask,
+    select_pixels,
+)
+from lightcal.io.images import LinearImage
+from lightcal.io.project import Project
+from lightcal.pipeline.load import LoadedImages, vignetting_for
+
+
+def regions_for(project: Project, image_index: int) -> list[Region]:
+    """The project's selection regions that apply to one image."""
+    name = project.names[image_index]
+    out = []
+    for r in project.spec.selection.regions:
+        if r.images is None or name in r.images:
+            out.append(Region(r.kind, np.array(r.points, dtype=np.float64), r.include))
+    return out
+
+
+def noise_floor(project: Project, image: LinearImage) -> float:
+    """Values at or below are too dark to use: the project's min_signal, else the offset
+    plus 5 read-noise sigmas, else 1 % of the image's 99th percentile."""
+    sel = project.selection
+    if sel.min_signal is not None:
+        return sel.min_signal
+    sensor = project.spec.sensor
+    if sensor.noise is not None:
+        return sensor.offset + 5.0 * math.sqrt(sensor.noise.read_variance)
+    finite = image.values[np.isfinite(image.values)]
+    return sensor.offset + 0.01 * float(np.percentile(finite, 99)) if finite.size else 0.0
+
+
+def image_data(
+    project: Project,
+    loaded: LoadedImages,
+    index: int,
+    *,
+    pixels: np.ndarray | None = None,
+    extra_pixels: np.ndarray | None = None,
+) -> ImageData:
+    """The selected pixels of one image as solver input.
+
+    Args:
+        project: the project.
+        loaded: its images.
+        index: which image.
+        pixels: (N, 2) explicit pixel choice (in the binned grid); default: the project's
+            selection strategy.
+        extra_pixels: (K, 2) pixels (in the binned grid, e.g. clicked by a user) added to
+            the selection when they are candidates (valid, unsaturated, above the noise
+            floor, inside the regions and masks); the random strategy's cut to N never
+            drops them. Others are ignored.
+    """
+    img = loaded.images[index]
+    view = project.views[index]
+    sel = project.selection
+    b = sel.binning if sel.strategy == "all" else 1
+    cand = candidate_mask(
+        img.values,
+        saturated=img.saturated,
+        excluded=loaded.excluded[index],
+        regions=regions_for(project, index),
+        min_signal=noise_floor(project, img),
+    )
+    values = img.values
+    if b > 1:
+        cand = binned_candidates(cand, b)
+        values = bin_values(values, b)
+    if pixels is None:
+        pixels = select_pixels(cand, sel, image_index=index, oversample=1.5)
+    extra = _candidates_among(cand, extra_pixels)
+    if extra.size:
+        pixels = np.unique(np.concatenate([np.asarray(pixels, np.int64), extra]), axis=0)
+    vignetting = vignetting_for(project, loaded.camera)
+    fp = pixel_footprints(
+        loaded.camera,
+        view,
+        pixels,
+        sensor=project.spec.sensor.model,
+        vignetting=vignetting,
+        binning=b,
+    )
+    keep = np.nonzero(fp.valid)[0]
+    if sel.strategy == "random" and keep.size > sel.n_per_image:
+        # A random N of the valid ones (not the first N: pixels are sorted by row),
+        # plus the extra pixels.
+        is_extra = _rows_in(fp.pixels[keep], extra)
+        rng = np.random.default_rng([sel.seed, index, 1])
+        chosen = rng.permutation(keep[~is_extra])[: sel.n_per_image]
+        keep = np.sort(np.concatenate([chosen, keep[is_extra]]))
+    fp = _subset(fp, keep)
+    px = fp.pixels
+    observed = values[px[:, 1], px[:, 0]]
+    noise = project.spec.sensor.noise
+    if noise is None:
+        return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
+    # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
+    per_value = (noise.gain / (b * b), noise.read_variance / (b * b))
+    sigma = poisson_gaussian_sigma(observed - project.spec.sensor.offset, per_value)
+    return ImageData(project.names[index], view, fp, observed, sigma, per_value)
+
+
+def _candidates_among(cand: np.ndarray, pixels: np.ndarray | None) -> np.ndarray:
+    """(M, 2) unique int64 rows of `pixels` (K, 2) inside the (H, W) mask `cand` and True."""
+    if pixels is None:
+        return np.zeros((0, 2), np.int64)
+    p = np.asarray(pixels, dtype=np.int64).reshape(-1, 2)
+    h, w = cand.shape
+    p = p[(p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)]
+    p = p[cand[p[:, 1], p[:, 0]]]
+    return np.unique(p, axis=0) if p.size else np.zeros((0, 2), np.int64)
+
+
+def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(N,) which rows of `rows` (N, 2) appear in `table` (M, 2) (int64 pixel indices)."""
+    if table.size == 0:
+        return np.zeros(len(rows), dtype=bool)
+    return np.isin(_pixel_keys(rows), _pixel_keys(table))
+
+
+def _pixel_keys(pixels: np.ndarray) -> np.ndarray:
+    """(N,) one int64 per (u, v) row of `pixels` (N, 2), u, v < 2^31."""
+    p = np.asarray(pixels, dtype=np.int64)
+    return (p[:, 1] << 32) + p[:, 0]
+
+
+def _subset(fp, keep: np.ndarray):
+    return replace(
+        fp,
+        pixels=fp.pixels[keep],
+        corners_world=fp.corners_world[keep],
+        weights=fp.weights[keep],
+        valid=fp.valid[keep],
+        area_m2=fp.area_m2[keep],
+    )

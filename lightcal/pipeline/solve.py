@@ -1,0 +1,105 @@
+"""Solving: the multi-start least-squares solve of a model, and `calibrate_project`, the
+whole pipeline from a project to a `CalibrationResult`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from lightcal.core.rotations import matrix_from_rotvec
+from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
+from lightcal.io.project import Project
+from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
+from lightcal.pipeline.model import build_model
+from lightcal.pipeline.results import CalibrationResult, summarise
+
+
+def perturbed_start(
+    model: CalibrationModel, rng: np.random.Generator, *, position_m: float, angle_deg: float
+) -> np.ndarray:
+    """A random start near the initial guess: positions moved by up to `position_m`,
+    light axes/orientations rotated by up to `angle_deg`."""
+    x = model.layout.x0.copy()
+    for block in model.layout.blocks:
+        p = x[block.pose].copy()
+        d = rng.normal(size=3)
+        p[:3] += d / np.linalg.norm(d) * rng.uniform(0, position_m)
+        R, t = block.param.to_pose(p)
+        if block.param.n_rot:
+            w = rng.normal(size=3)
+            w *= math.radians(rng.uniform(0, angle_deg)) / np.linalg.norm(w)
+            R = matrix_from_rotvec(w) @ R
+        x[block.pose] = block.param.from_pose(R, t)
+    return x
+
+
+def solve(
+    model: CalibrationModel,
+    *,
+    multistart: int = 0,
+    multistart_position_m: float = 0.3,
+    multistart_angle_deg: float = 30.0,
+    seed: int = 0,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+) -> SolveOutcome:
+    """Solve from the initial guess and `multistart` random starts; keep the best.
+
+    `on_iteration` sees every start's iterations (each numbered from 0); `on_start(k, n)`
+    is called before start k of n (0: the initial guess).
+    """
+    n_starts = 1 + multistart
+    if on_start is not None:
+        on_start(0, n_starts)
+    best = run_least_squares(model, on_iteration=on_iteration)
+    rng = np.random.default_rng(seed)
+    for k in range(1, n_starts):
+        x0 = perturbed_start(
+            model, rng, position_m=multistart_position_m, angle_deg=multistart_angle_deg
+        )
+        if on_start is not None:
+            on_start(k, n_starts)
+        try:
+            out = run_least_squares(model, x0, on_iteration=on_iteration)
+        except ValueError:
+            continue
+        if out.cost < best.cost:
+            best = out
+    if multistart:
+        model.set_weights_at(best.weights_at)  # the weights the best solve ended with
+    return best
+
+
+def solve_project(
+    project: Project,
+    model: CalibrationModel,
+    *,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+) -> SolveOutcome:
+    """`solve` with the project's multi-start settings."""
+    so = project.spec.solver
+    return solve(
+        model,
+        multistart=so.multistart,
+        multistart_position_m=so.multistart_position_m,
+        multistart_angle_deg=so.multistart_angle_deg,
+        seed=project.selection.seed,
+        on_iteration=on_iteration,
+        on_start=on_start,
+    )
+
+
+def calibrate_project(
+    project: Project,
+    *,
+    progress: ProgressFn | None = None,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+) -> tuple[LoadedImages, CalibrationModel, CalibrationResult]:
+    """Load, select, solve and summarise a project."""
+    loaded = load_images(project, progress=progress)
+    model = build_model(project, loaded, progress=progress)
+    outcome = solve_project(project, model, on_iteration=on_iteration)
+    return loaded, model, summarise(model, outcome)
