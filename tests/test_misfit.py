@@ -71,7 +71,7 @@ def test_level_without_structure() -> None:
     d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="image", wall_model="lambertian")
     assert not d.adequate
     assert d.chi2_per_dof == pytest.approx(4.0, rel=0.1)
-    assert "noise estimated from the images" in d.findings[-1]
+    assert "what the noise from the images explain" in d.findings[-1]
     assert d.findings[-1].endswith("the RID and the sensor model")
     # Without a noise estimate the level is not tested.
     d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="none", wall_model="lambertian")

@@ -15,13 +15,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="result JSON to write")
     p.add_argument("--report", type=Path, help="folder for residual maps, renders, plots")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary")
+    p.add_argument(
+        "--allow-misfit",
+        action="store_true",
+        help="exit 0 even when the fit test fails (default: exit 3, see docs/model.md)",
+    )
     p.set_defaults(func=run)
+
+
+#: Exit code when the solve converged but the residuals are not explained by the noise.
+EXIT_MISFIT = 3
 
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
-    from lightcal.pipeline import build_model, load_images, solve_project, summarise
+    from lightcal.pipeline import build_model, calibrate, load_images
 
     project = load_project(args.project)
     with stage_progress(enabled=not args.quiet) as progress:
@@ -48,13 +57,22 @@ def run(args: argparse.Namespace) -> int:
             what = "the initial guess" if k == 0 else "a random start near it"
             console.print(f"start {k + 1} of {n}: {what}", highlight=False)
 
-    outcome = solve_project(project, model, on_iteration=on_iteration, on_start=on_start)
-    result = summarise(model, outcome)
+    def on_stage(text: str) -> None:
+        if not args.quiet:
+            console.print(text, highlight=False)
+
+    cal = calibrate(
+        project, loaded, model, on_iteration=on_iteration, on_start=on_start, on_stage=on_stage
+    )
+    model, result = cal.model, cal.result
     write_result(result_to_file(result, project=project.path), args.out)
     for lr in result.lights:
         pos = ", ".join(f"{v:+.4f}" for v in lr.pose.position_m)
         ax = ", ".join(f"{v:+.4f}" for v in lr.pose.axis_camera)
         console.print(f"{lr.name}: position [{pos}] m, axis [{ax}]", highlight=False)
+    if result.wall.get("model") != "lambertian":
+        params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
+        console.print(f"wall: {result.wall['model']} ({params})", highlight=False)
     for w in result.warnings:
         console.print(f"warning: {w}", style="yellow", highlight=False)
     if args.report is not None:
@@ -65,4 +83,16 @@ def run(args: argparse.Namespace) -> int:
         console.print(f"report written to {args.report}", highlight=False)
     status = "converged" if result.converged else "did not converge"
     console.print(f"{status}: {result.message}; result written to {args.out}", highlight=False)
-    return 0 if result.converged else 1
+    if not result.converged:
+        return 1
+    if not result.fit_adequate:
+        console.print(
+            "the fit is not explained by the noise (see the misfit warnings): the pose may "
+            "be wrong by more than its sigma"
+            + ("" if args.allow_misfit else f"; exit code {EXIT_MISFIT} (--allow-misfit: 0)"),
+            style="yellow",
+            highlight=False,
+        )
+        if not args.allow_misfit:
+            return EXIT_MISFIT
+    return 0

@@ -81,6 +81,16 @@ class Footprints:
     def __len__(self) -> int:
         return int(self.pixels.shape[0])
 
+    def subset(self, rows: np.ndarray) -> Footprints:
+        """The footprints of rows (k,) (indices or a boolean mask) of these pixels."""
+        return Footprints(
+            self.pixels[rows],
+            self.corners_world[rows],
+            self.weights[rows],
+            self.valid[rows],
+            self.area_m2[rows],
+        )
+
     @functools.cached_property
     def centres_world(self) -> np.ndarray:
         """(N, 3) footprint centres (the mean of all quad corners), world frame, m.

@@ -86,6 +86,8 @@ class FitDiagnosis:
         noise_source: "model" (the sensor's noise model), "image" (estimated from each
             image) or "none" (sigma = 1: the level test is skipped).
         chi2, dof, chi2_per_dof, p_value: the level test (NaN p-value without noise).
+        expected_chi2: what chi^2 should be if the model is right: dof plus what the
+            camera poses' errors leave (`lightcal.core.uncertainty`).
         mirror, incidence: the structure tests (None with too few pixels).
         adequate: the residuals are explained by the noise.
         findings: what the tests saw and what to try, one sentence each.
@@ -96,17 +98,23 @@ class FitDiagnosis:
     dof: int
     chi2_per_dof: float
     p_value: float
+    expected_chi2: float
     mirror: AngleTrend | None
     incidence: AngleTrend | None
     adequate: bool
     findings: list[str] = field(default_factory=list)
 
     @property
+    def chi2_ratio(self) -> float:
+        """chi^2 / its expected value (1 when the model explains the data)."""
+        return self.chi2 / self.expected_chi2 if self.expected_chi2 > 0 else math.nan
+
+    @property
     def level_fails(self) -> bool:
         if self.noise_source == "none" or self.dof <= 0:
             return False
-        return self.chi2_per_dof > MAX_CHI2_PER_DOF or (
-            self.p_value < P_ALARM and self.chi2_per_dof > 1.0 + MIN_EFFECT**2
+        return self.chi2_ratio > MAX_CHI2_PER_DOF or (
+            self.p_value < P_ALARM and self.chi2_ratio > 1.0 + MIN_EFFECT**2
         )
 
     def to_dict(self) -> dict:
@@ -116,6 +124,7 @@ class FitDiagnosis:
             "chi2": self.chi2,
             "dof": self.dof,
             "chi2_per_dof": self.chi2_per_dof,
+            "expected_chi2": self.expected_chi2,
             "p_value": self.p_value,
             "mirror": None if self.mirror is None else self.mirror.to_dict(),
             "incidence": None if self.incidence is None else self.incidence.to_dict(),
@@ -166,6 +175,7 @@ def diagnose(
     n_params: int,
     noise_source: str,
     wall_model: str,
+    expected_extra: float = 0.0,
 ) -> FitDiagnosis:
     """Test whether residuals are explained by the noise.
 
@@ -177,22 +187,28 @@ def diagnose(
         n_params: parameters fitted.
         noise_source: "model", "image" or "none" (see `FitDiagnosis`).
         wall_model: the wall model the fit used (for the advice).
+        expected_extra: chi^2 the camera poses' errors leave on average (0: none known).
     """
     m = int(r.size)
     dof = m - n_params
     chi2 = float(r @ r)
     per_dof = chi2 / dof if dof > 0 else math.nan
-    p = float(stats.chi2.sf(chi2, dof)) if dof > 0 and noise_source != "none" else math.nan
+    expected = dof + max(expected_extra, 0.0)
+    p = math.nan
+    if dof > 0 and noise_source != "none":
+        # chi^2 scaled to dof degrees of freedom (exact without pose errors).
+        p = float(stats.chi2.sf(chi2 * dof / expected, dof))
     mirror = angle_trend("mirror", mirror_deg, r, relative)
     incidence = angle_trend("incidence", incidence_deg, r, relative)
-    diag = FitDiagnosis(noise_source, chi2, dof, per_dof, p, mirror, incidence, True)
+    parts = (noise_source, chi2, dof, per_dof, p, expected, mirror, incidence)
+    diag = FitDiagnosis(*parts, True)
     findings = _findings(diag, wall_model)
     adequate = not (
         diag.level_fails
         or (mirror is not None and mirror.significant)
         or (incidence is not None and incidence.significant)
     )
-    return FitDiagnosis(noise_source, chi2, dof, per_dof, p, mirror, incidence, adequate, findings)
+    return FitDiagnosis(*parts, adequate, findings)
 
 
 def _findings(d: FitDiagnosis, wall_model: str) -> list[str]:
@@ -234,10 +250,11 @@ def _findings(d: FitDiagnosis, wall_model: str) -> list[str]:
         )
     if d.level_fails:
         source = "the sensor's noise model" if d.noise_source == "model" else "the images"
+        poses = " and the camera poses' errors" if d.expected_chi2 > d.dof else ""
         out.append(
-            f"residuals are {math.sqrt(d.chi2_per_dof):.2f}x the noise estimated from "
-            f"{source} (chi2/dof = {d.chi2_per_dof:.2f} over {d.dof} degrees of freedom): "
-            "the model does not explain the data"
+            f"residuals are {math.sqrt(d.chi2_ratio):.2f}x what the noise from "
+            f"{source}{poses} explain (chi2 = {d.chi2:.4g}, expected {d.expected_chi2:.4g} "
+            f"over {d.dof} degrees of freedom): the model does not explain the data"
             + (
                 ""
                 if structured

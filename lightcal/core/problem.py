@@ -85,6 +85,17 @@ class ImageData:
                 )
             object.__setattr__(self, "noise", (gain, read_variance))
 
+    def subset(self, rows: np.ndarray) -> ImageData:
+        """The same image with only rows (k,) (indices or a boolean mask) of its pixels."""
+        return ImageData(
+            self.name,
+            self.view,
+            self.footprints.subset(rows),
+            self.observed[rows],
+            self.sigma[rows],
+            self.noise,
+        )
+
 
 @dataclass(frozen=True, eq=False)
 class LightUnknown:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -437,6 +437,21 @@ class CalibrationModel:
             self.nfev,
             self.weights_at is not None,
         )
+
+    def image_jacobians(self, x: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
+        """(i, J_i (N_i, n)) per image: rows of the weighted Jacobian d r / d x at x.
+
+        One image at a time (a copy each), so no (m, n) matrix is held: what the
+        uncertainty terms need for dense problems too.
+        """
+        lay = self.layout
+        at_x = _StateAtX(
+            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
+        )
+        for i in range(len(self.images)):
+            with self._evaluating, single_threaded_blas():  # shared buffers
+                J_i = self._image_system(x, i, at_x)[:, : lay.n].copy()
+            yield i, J_i
 
     # -- bounds -------------------------------------------------------------------------
 

@@ -14,6 +14,12 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``iterations``, ``nfev``, ``status`` (scipy's, -2 stopped by the user, 0 iteration
   limit), ``message``, ``converged``, ``cost``, ``time_s``, ``warnings``.
 - ``parameters``: ``names``, ``x`` and ``covariance`` of the solver's parameter vector.
+- ``fit``: is the fit explained by the noise? ``adequate``, ``noise_source`` (model, image or
+  none), ``chi2``, ``dof``, ``expected_chi2``, ``chi2_per_dof``, ``p_value``, the residuals
+  against the ``mirror`` and ``incidence`` angles (bins, means, F test) and ``findings``
+  (what the tests saw and what to try). docs/model.md, "Is the fit explained by the noise?".
+- ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
+- ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, misfit).
 """
 
 from __future__ import annotations
@@ -93,6 +99,16 @@ class ResultFile(_Model):
     time_s: float
     warnings: list[str]
     parameters: Parameters
+    fit: dict[str, Any] | None = Field(
+        default=None, description="the fit test: adequate, chi2, angle structure, findings"
+    )
+    wall: dict[str, Any] = Field(
+        default_factory=lambda: {"model": "lambertian"},
+        description="wall model, parameters, estimated names and their sigma",
+    )
+    uncertainty: list[str] = Field(
+        default_factory=list, description="the terms the covariance and sigmas include"
+    )
 
 
 def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
@@ -132,6 +148,9 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
         parameters=Parameters(
             names=result.parameter_names, x=result.x, covariance=result.covariance
         ),
+        fit=result.fit or None,
+        wall=result.wall,
+        uncertainty=result.uncertainty_terms,
     )
 
 

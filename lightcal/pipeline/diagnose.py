@@ -81,7 +81,13 @@ def dark_light_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
     gains = model.layout.gain_factors(x)
     share = np.zeros(len(rig.lights))
     for i, im in enumerate(model.images):
-        sh = shade(im.footprints, im.view, rig, rid_subsamples=model.options.rid_subsamples)
+        sh = shade(
+            im.footprints,
+            im.view,
+            rig,
+            rid_subsamples=model.options.rid_subsamples,
+            wall=model.layout.wall_of(x),
+        )
         share += gains[i] * np.array([light.scale for light in rig.lights]) * sh.flux.sum(axis=1)
     total = float(share.sum())
     out = []

@@ -12,19 +12,25 @@ from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, ProgressFn
 from lightcal.pipeline.select import image_data
 
 
-def fit_scales(images: list[ImageData], unknowns: list[LightUnknown], offset: float) -> list[float]:
+def fit_scales(
+    images: list[ImageData],
+    unknowns: list[LightUnknown],
+    offset: float,
+    wall: WallReflectance = LAMBERTIAN,
+) -> list[float]:
     """Linear least-squares scales of the lights at their initial poses (positive)."""
     rig = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
     cols = []
     rhs = []
     for im in images:
-        sh = shade(im.footprints, im.view, rig)
+        sh = shade(im.footprints, im.view, rig, wall=wall)
         cols.append((sh.flux / im.sigma).T)
         rhs.append((im.observed - offset) / im.sigma)
     A = np.concatenate(cols)
@@ -74,8 +80,8 @@ def build_model(
     unknowns = list(lights) if lights is not None else list(project.lights)
     auto = [j for j, ls in enumerate(project.spec.lights) if ls.initial.scale is None]
     if auto and lights is None:
-        scales = fit_scales(data, unknowns, project.solver.offset)
+        scales = fit_scales(data, unknowns, project.solver.offset, project.wall.initial)
         for j in auto:
             u = unknowns[j]
             unknowns[j] = replace(u, initial=u.initial.replace(scale=scales[j]))
-    return CalibrationModel(data, unknowns, project.solver)
+    return CalibrationModel(data, unknowns, project.solver, project.wall)

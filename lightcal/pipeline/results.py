@@ -14,7 +14,9 @@ import numpy as np
 from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
-from lightcal.pipeline.diagnose import covariance, dark_light_warnings, variety_warnings
+from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
+from lightcal.pipeline.fit_check import check_fit
+from lightcal.pipeline.measurements import Measurements, model_only
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,6 +149,14 @@ class CalibrationResult:
     x: list[float]
     covariance: list[list[float]]
     history: list[IterationReport] = field(default_factory=list, repr=False)
+    fit: dict = field(default_factory=dict)
+    wall: dict = field(default_factory=lambda: {"model": "lambertian"})
+    uncertainty_terms: list[str] = field(default_factory=list)
+
+    @property
+    def fit_adequate(self) -> bool:
+        """The residuals are explained by the noise (true when the fit was not tested)."""
+        return bool(self.fit.get("adequate", True))
 
 
 def _numeric_jacobian(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
@@ -173,10 +183,25 @@ def _light_pose_vector(model: CalibrationModel, j: int, x: np.ndarray) -> np.nda
     return _light_pose(model, j, x).to_vector()
 
 
-def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResult:
-    """Turn a solve into a `CalibrationResult` with uncertainties and warnings."""
+def summarise(
+    model: CalibrationModel,
+    outcome: SolveOutcome,
+    measurements: Measurements | None = None,
+    *,
+    notes: list[str] | None = None,
+) -> CalibrationResult:
+    """Turn a solve into a `CalibrationResult` with uncertainties, the fit test and warnings.
+
+    Args:
+        model: the solved model.
+        outcome: the solve.
+        measurements: each image's noise and pose covariance (`measurements_for`);
+            default: what the model carries (its noise model if any, no pose terms).
+        notes: extra lines for the result's warnings (e.g. what `auto` chose).
+    """
     x = outcome.x
-    cov = covariance(model, x)
+    diagnosis, unc = check_fit(model, x, measurements or model_only(model))
+    cov = unc.covariance
     lay = model.layout
     lights = []
     for j, block in enumerate(lay.blocks):
@@ -227,9 +252,34 @@ def summarise(model: CalibrationModel, outcome: SolveOutcome) -> CalibrationResu
         converged=outcome.success,
         cost=outcome.cost,
         time_s=outcome.time_s,
-        warnings=dark_light_warnings(model, x) + variety_warnings(model, cov),
+        warnings=(
+            dark_light_warnings(model, x)
+            + variety_warnings(model, cov)
+            + [f"misfit: {f}" for f in diagnosis.findings]
+            + list(notes or [])
+        ),
         parameter_names=list(lay.names),
         x=x.tolist(),
         covariance=cov.tolist(),
         history=outcome.history,
+        fit=diagnosis.to_dict(),
+        wall=_wall_summary(model, x, cov),
+        uncertainty_terms=unc.terms,
     )
+
+
+def _wall_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict:
+    """The wall model, its parameters and the 1-sigma of the estimated ones."""
+    lay = model.layout
+    wall = lay.wall_of(x)
+    out = wall.describe()
+    sig: dict[str, float] = {}
+    for k, name in enumerate(lay.wall_unknown.estimate):
+        s = math.sqrt(max(cov[lay.wall.start + k, lay.wall.start + k], 0.0))
+        if name == "sigma":
+            sig["sigma_deg"] = math.degrees(s)
+        else:
+            sig[name] = s
+    out["estimated"] = ["sigma_deg" if n == "sigma" else n for n in lay.wall_unknown.estimate]
+    out["sigma"] = sig
+    return out

@@ -4,7 +4,6 @@ noise sigmas, as `ImageData`."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 
@@ -69,14 +68,8 @@ def image_data(
     img = loaded.images[index]
     view = project.views[index]
     sel = project.selection
-    b = sel.binning if sel.strategy == "all" else 1
-    cand = candidate_mask(
-        img.values,
-        saturated=img.saturated,
-        excluded=loaded.excluded[index],
-        regions=regions_for(project, index),
-        min_signal=noise_floor(project, img),
-    )
+    b = selection_binning(project)
+    cand = candidates(project, loaded, index)
     values = img.values
     if b > 1:
         cand = binned_candidates(cand, b)
@@ -103,7 +96,7 @@ def image_data(
         rng = np.random.default_rng([sel.seed, index, 1])
         chosen = rng.permutation(keep[~is_extra])[: sel.n_per_image]
         keep = np.sort(np.concatenate([chosen, keep[is_extra]]))
-    fp = _subset(fp, keep)
+    fp = fp.subset(keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
     noise = project.spec.sensor.noise
@@ -113,6 +106,25 @@ def image_data(
     per_value = (noise.gain / (b * b), noise.read_variance / (b * b))
     sigma = poisson_gaussian_sigma(observed - project.spec.sensor.offset, per_value)
     return ImageData(project.names[index], view, fp, observed, sigma, per_value)
+
+
+def selection_binning(project: Project) -> int:
+    """The super-pixel side the selection works in (binning applies to `all` only)."""
+    sel = project.selection
+    return sel.binning if sel.strategy == "all" else 1
+
+
+def candidates(project: Project, loaded: LoadedImages, index: int) -> np.ndarray:
+    """(H, W) pixels of image `index` the solver may use: valid, unsaturated, above the
+    noise floor, outside the masks and inside the regions (full-resolution grid)."""
+    img = loaded.images[index]
+    return candidate_mask(
+        img.values,
+        saturated=img.saturated,
+        excluded=loaded.excluded[index],
+        regions=regions_for(project, index),
+        min_signal=noise_floor(project, img),
+    )
 
 
 def _candidates_among(cand: np.ndarray, pixels: np.ndarray | None) -> np.ndarray:
@@ -137,14 +149,3 @@ def _pixel_keys(pixels: np.ndarray) -> np.ndarray:
     """(N,) one int64 per (u, v) row of `pixels` (N, 2), u, v < 2^31."""
     p = np.asarray(pixels, dtype=np.int64)
     return (p[:, 1] << 32) + p[:, 0]
-
-
-def _subset(fp, keep: np.ndarray):
-    return replace(
-        fp,
-        pixels=fp.pixels[keep],
-        corners_world=fp.corners_world[keep],
-        weights=fp.weights[keep],
-        valid=fp.valid[keep],
-        area_m2=fp.area_m2[keep],
-    )

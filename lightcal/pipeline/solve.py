@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -12,8 +13,18 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
 from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
+from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
 from lightcal.pipeline.results import CalibrationResult, summarise
+from lightcal.pipeline.wall_choice import (
+    AUTO_CANDIDATES,
+    Candidate,
+    bic,
+    choice_note,
+    start_from,
+    wall_candidate,
+    without_mirror,
+)
 
 
 def perturbed_start(
@@ -92,14 +103,81 @@ def solve_project(
     )
 
 
+@dataclass(frozen=True)
+class Calibration:
+    """The solved model, its solve and its result."""
+
+    model: CalibrationModel
+    outcome: SolveOutcome
+    result: CalibrationResult
+
+
+def calibrate(
+    project: Project,
+    loaded: LoadedImages,
+    model: CalibrationModel,
+    *,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+    on_stage: Callable[[str], None] | None = None,
+) -> Calibration:
+    """Solve a project's model the way the project says, test the fit and summarise.
+
+    Beyond `solve_project`: `selection.exclude_mirror_deg` (drop pixels near the mirror
+    direction of the first estimate, solve again from it) and `wall: {model: auto}`
+    (where the Lambertian fit fails its test, also fit plastic and oren_nayar and keep the
+    lowest BIC; docs/model.md). `on_stage` hears each extra stage in words.
+    """
+
+    def stage(text: str) -> None:
+        if on_stage is not None:
+            on_stage(text)
+
+    def run(m: CalibrationModel, x0: np.ndarray | None = None) -> SolveOutcome:
+        if x0 is None:
+            return solve_project(project, m, on_iteration=on_iteration, on_start=on_start)
+        return run_least_squares(m, x0, on_iteration=on_iteration)
+
+    notes: list[str] = []
+    outcome = run(model)
+    limit = project.spec.selection.exclude_mirror_deg
+    if limit:
+        stage(f"dropping pixels within {limit:g} deg of the mirror direction")
+        trimmed, dropped = without_mirror(model, outcome.x, limit, project.path)
+        notes.append(
+            f"selection: {dropped} pixels within {limit:g} deg of the mirror direction "
+            "of the first estimate were dropped"
+        )
+        outcome = run(trimmed, start_from(trimmed, model, outcome.x))
+        model = trimmed
+    result = summarise(model, outcome, measurements_for(project, loaded, model), notes=notes)
+    if project.spec.wall.model != "auto":
+        return Calibration(model, outcome, result)
+    tried = [Candidate("lambertian", model, outcome, result, bic(result, model))]
+    if result.fit_adequate:
+        note = "wall: auto kept lambertian: its fit is explained by the noise"
+        return Calibration(model, outcome, replace(result, warnings=[*result.warnings, note]))
+    for name in AUTO_CANDIDATES:
+        stage(f"the Lambertian fit fails its test: trying the {name} wall")
+        candidate = wall_candidate(model, outcome.x, name)
+        out = run(candidate, start_from(candidate, model, outcome.x))
+        res = summarise(candidate, out, measurements_for(project, loaded, candidate), notes=notes)
+        tried.append(Candidate(name, candidate, out, res, bic(res, candidate)))
+    best = min(tried, key=lambda c: c.bic)
+    note = choice_note(best, tried)
+    return Calibration(
+        best.model, best.outcome, replace(best.result, warnings=[*best.result.warnings, note])
+    )
+
+
 def calibrate_project(
     project: Project,
     *,
     progress: ProgressFn | None = None,
     on_iteration: Callable[[IterationReport], None] | None = None,
 ) -> tuple[LoadedImages, CalibrationModel, CalibrationResult]:
-    """Load, select, solve and summarise a project."""
+    """Load, select, solve (`calibrate`) and summarise a project."""
     loaded = load_images(project, progress=progress)
     model = build_model(project, loaded, progress=progress)
-    outcome = solve_project(project, model, on_iteration=on_iteration)
-    return loaded, model, summarise(model, outcome)
+    cal = calibrate(project, loaded, model, on_iteration=on_iteration)
+    return loaded, cal.model, cal.result

@@ -1,0 +1,96 @@
+"""What is known about each image beyond its selected pixels: its noise and its pose's
+uncertainty, and how to rebuild its pixels' footprints for another pose.
+
+The fit diagnosis needs each value's noise: from the sensor's noise model when the project
+has one, else estimated from the image itself (`lightcal.core.misfit.image_noise`). The
+uncertainty needs each camera pose's covariance (`T_camera_world.covariance`, written by
+`lightcal init` from the marker fit) and the pixels' footprints under perturbed poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from lightcal.core.footprint import Footprints, pixel_footprints
+from lightcal.core.misfit import image_noise
+from lightcal.core.scene import View
+from lightcal.core.solver import CalibrationModel
+from lightcal.io.project import Project
+from lightcal.pipeline.load import LoadedImages, vignetting_for
+from lightcal.pipeline.select import candidates, selection_binning
+
+NoiseSource = str  # "model" | "image" | "none"
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Per image of a model (model order).
+
+    Attributes:
+        noise: (gain, read_variance) of each value (super-pixel means included) or None.
+        noise_source: "model" (the project's sensor noise model), "image" (estimated from
+            the images) or "none".
+        pose_covariances: (6, 6) covariance of the image's pose (see `PoseSpec`) or None.
+        footprints_at: (i, view, rows) -> `Footprints` of rows (k,) of image i's selected
+            pixels seen from `view` (None: unknown).
+    """
+
+    noise: list[tuple[float, float] | None]
+    noise_source: NoiseSource
+    pose_covariances: list[np.ndarray | None]
+    footprints_at: Callable[[int, View, np.ndarray], Footprints] | None
+
+
+def model_only(model: CalibrationModel) -> Measurements:
+    """What the model alone tells: the noise models its images carry, no pose terms."""
+    noise = [im.noise for im in model.images]
+    source = "model" if noise and all(n is not None for n in noise) else "none"
+    return Measurements(
+        noise if source == "model" else [None] * len(noise),
+        source,
+        [None] * len(noise),
+        None,
+    )
+
+
+def measurements_for(
+    project: Project, loaded: LoadedImages, model: CalibrationModel
+) -> Measurements:
+    """The noise, pose covariances and footprint rebuilder of a project's model."""
+    index = {name: i for i, name in enumerate(project.names)}
+    rows = [index[im.name] for im in model.images]
+    b = selection_binning(project)
+    if project.spec.sensor.noise is not None:
+        noise: list[tuple[float, float] | None] = [im.noise for im in model.images]
+        source = "model"
+    else:
+        noise = []
+        for k in rows:
+            est = image_noise(
+                loaded.images[k].values - project.spec.sensor.offset,
+                candidates(project, loaded, k),
+            )
+            # A super-pixel value is the mean of b^2 pixels: 1 / b^2 of their variance.
+            noise.append(None if est is None else (est[0] / (b * b), est[1] / (b * b)))
+        source = "image" if all(n is not None for n in noise) else "none"
+        if source == "none":
+            noise = [None] * len(rows)
+    covariances = [
+        project.pose_covariances[k] if k < len(project.pose_covariances) else None for k in rows
+    ]
+    vignetting = vignetting_for(project, loaded.camera)
+
+    def footprints_at(i: int, view: View, rows: np.ndarray) -> Footprints:
+        return pixel_footprints(
+            loaded.camera,
+            view,
+            model.images[i].footprints.pixels[rows],
+            sensor=project.spec.sensor.model,
+            vignetting=vignetting,
+            binning=b,
+        )
+
+    return Measurements(noise, source, covariances, footprints_at)
