@@ -37,6 +37,11 @@ MIN_EFFECT = 0.1
 MAX_CHI2_PER_DOF = 1.5
 
 
+def _finite(v: float) -> float | None:
+    """v, or None where it is NaN or infinite (JSON has neither)."""
+    return float(v) if math.isfinite(v) else None
+
+
 @dataclass(frozen=True)
 class AngleTrend:
     """Weighted residuals against one angle.
@@ -71,9 +76,9 @@ class AngleTrend:
             "mean_residual_sigma": self.mean_residual.tolist(),
             "mean_relative_residual": self.mean_relative.tolist(),
             "count": self.count.tolist(),
-            "f_statistic": self.f_statistic,
-            "p_value": self.p_value,
-            "effect_sigma": self.effect,
+            "f_statistic": _finite(self.f_statistic),
+            "p_value": _finite(self.p_value),
+            "effect_sigma": _finite(self.effect),
             "significant": self.significant,
         }
 
@@ -121,11 +126,11 @@ class FitDiagnosis:
         return {
             "adequate": self.adequate,
             "noise_source": self.noise_source,
-            "chi2": self.chi2,
+            "chi2": _finite(self.chi2),
             "dof": self.dof,
-            "chi2_per_dof": self.chi2_per_dof,
-            "expected_chi2": self.expected_chi2,
-            "p_value": self.p_value,
+            "chi2_per_dof": _finite(self.chi2_per_dof),
+            "expected_chi2": _finite(self.expected_chi2),
+            "p_value": _finite(self.p_value),
             "mirror": None if self.mirror is None else self.mirror.to_dict(),
             "incidence": None if self.incidence is None else self.incidence.to_dict(),
             "findings": list(self.findings),

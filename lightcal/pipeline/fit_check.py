@@ -199,6 +199,6 @@ def check_fit(
     if pose is not None:
         cov = cov + pose.covariance
         terms.append(f"camera poses ({pose.images} images' marker-fit covariances)")
-    if known and s2 > 1.0:
+    if known and math.sqrt(s2) >= 1.005:
         terms.append(f"misfit: the noise term inflated x{math.sqrt(s2):.2f} in sigma")
     return diagnosis, Uncertainty(0.5 * (cov + cov.T), terms, s2, pose)
