@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
 # Install everything lightcal needs into ./.venv (idempotent; re-runs only when
-# pyproject.toml changed). Usage: bash scripts/setup.sh [--dev] [--browser]
+# pyproject.toml changed). Usage: bash scripts/setup.sh [--dev] [--browser] [--reference]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 extras=""
 browser=0
+reference=0
 for arg in "$@"; do
   case "$arg" in
     --dev) extras="dev" ;;
     --browser) browser=1 ;;
-    *) echo "setup.sh: unknown option $arg (expected --dev or --browser)" >&2; exit 2 ;;
+    --reference) reference=1 ;;
+    *) echo "setup.sh: unknown option $arg (expected --dev, --browser or --reference)" >&2; exit 2 ;;
   esac
 done
 
@@ -23,6 +25,9 @@ if [ "$browser" = 1 ]; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
   fi
 fi
+
+# Mitsuba 3, the independent renderer the wall models are checked against.
+if [ "$reference" = 1 ]; then extras="${extras:+$extras,}reference"; fi
 
 PY="${PYTHON:-python3}"
 if [ ! -x .venv/bin/python ]; then
