@@ -17,8 +17,10 @@ from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.figures import (
+    angle_residual_figure,
     convergence_figure,
     image_pair_figure,
     residual_figure,
@@ -36,8 +38,9 @@ def render_views(
     gains: list[float] | None = None,
     offset: float = 0.0,
     progress: ProgressFn | None = None,
+    wall: WallReflectance = LAMBERTIAN,
 ) -> list[np.ma.MaskedArray]:
-    """Render every project image with `rig`: (H, W) masked arrays."""
+    """Render every project image with `rig` on `wall`: (H, W) masked arrays."""
     out = []
     n = len(project.views)
     for i, view in enumerate(project.views):
@@ -53,6 +56,7 @@ def render_views(
                 vignetting=vignetting_for(project, loaded.camera),
                 offset=offset,
                 rid_subsamples=project.solver.rid_subsamples,
+                wall=wall,
             )
         )
     if progress is not None:
@@ -78,7 +82,13 @@ def write_report(
     gains_by_name = dict(zip(result.image_names, result.gains, strict=True))
     gains = [gains_by_name.get(n, 1.0) for n in names]
     renders = render_views(
-        project, loaded, rig, gains=gains, offset=result.offset, progress=progress
+        project,
+        loaded,
+        rig,
+        gains=gains,
+        offset=result.offset,
+        progress=progress,
+        wall=model.layout.wall_of(x),
     )
     written: list[Path] = []
     rms_rows = []
@@ -96,6 +106,10 @@ def write_report(
     p = out / "convergence.png"
     write_png(p, convergence_figure([h.cost for h in result.history]))
     written.append(p)
+    if result.fit:
+        p = out / "residual_vs_angle.png"
+        write_png(p, angle_residual_figure(result.fit))
+        written.append(p)
     p = out / "summary.md"
     atomic_write_text(p, _summary_markdown(project, result, rms_rows))
     written.append(p)
@@ -132,6 +146,7 @@ def _summary_markdown(
         )
         lines.append(f"- scale {lr.scale:.6g} ± {lr.scale_sigma:.2g}")
         lines.append("")
+    lines.extend(_fit_lines(result))
     if result.warnings:
         lines.append("## Warnings")
         lines.append("")
@@ -151,3 +166,31 @@ def _summary_markdown(
     lines.append("![convergence](convergence.png)")
     lines.append("")
     return "\n".join(lines)
+
+
+def _fit_lines(result: CalibrationResult) -> list[str]:
+    """The wall model and the fit test, for the summary."""
+    lines = ["## Wall and fit", ""]
+    wall = result.wall
+    params = ", ".join(
+        f"{k} {v:.4g}" + (f" ± {wall['sigma'][k]:.2g}" if k in wall.get("sigma", {}) else "")
+        for k, v in wall.items()
+        if isinstance(v, float)
+    )
+    lines.append(f"- wall: {wall.get('model', 'lambertian')}" + (f" ({params})" if params else ""))
+    fit = result.fit
+    if fit:
+        verdict = "explained by the noise" if fit["adequate"] else "NOT explained by the noise"
+        ratio = fit["chi2"] / fit["expected_chi2"] if fit.get("expected_chi2") else math.nan
+        lines.append(
+            f"- fit: {verdict} (noise from {fit['noise_source']}; chi2 {fit['chi2']:.4g}, "
+            f"expected {fit['expected_chi2']:.4g}, ratio {ratio:.3f})"
+        )
+        lines.extend(f"  - {f}" for f in fit["findings"])
+    if result.uncertainty_terms:
+        lines.append("- sigmas include: " + "; ".join(result.uncertainty_terms))
+    lines.append("")
+    if fit:
+        lines.append("![residuals against angle](residual_vs_angle.png)")
+        lines.append("")
+    return lines

@@ -129,3 +129,69 @@ def convergence_figure(
         x, _ = xy(i, c[0])
         _text(fig, str(i), (x - 4, h - bottom + 16), 0.4)
     return fig
+
+
+def angle_residual_figure(fit: dict, *, size: tuple[int, int] = (900, 340)) -> np.ndarray:
+    """Mean relative residual (%) against the mirror and the incidence angle.
+
+    Two panels from a result's ``fit`` (`lightcal.core.misfit.FitDiagnosis.to_dict`): the
+    bins' mean (m_obs - m_render) / m_render, with the F-test's verdict in each title. A
+    glossy wall shows a peak at small mirror angles; a wall fitted with the right model
+    stays flat at 0.
+    """
+    w, h = size
+    fig = _canvas(h, w)
+    panels = [fit.get("mirror"), fit.get("incidence")]
+    labels = ["angle to the mirror direction (deg)", "angle of incidence (deg)"]
+    values = [
+        100.0 * np.asarray(p["mean_relative_residual"], dtype=np.float64)
+        for p in panels
+        if p is not None
+    ]
+    vmax = _nice_ceiling(max([float(np.max(np.abs(v))) for v in values if v.size] + [0.1]))
+    pw = w // 2
+    top, bottom = 40, 44
+    for k, (panel, label) in enumerate(zip(panels, labels, strict=True)):
+        x0 = k * pw
+        left, right = x0 + 62, x0 + pw - 16
+        cv2.rectangle(fig, (left, top), (right, h - bottom), _INK, 1)
+        if panel is None:
+            _text(fig, "too few pixels to test", (left + 10, h // 2), 0.45)
+            continue
+        verdict = "structure" if panel["significant"] else "no structure"
+        p_value = panel["p_value"]
+        p_text = "p < 1e-300" if p_value is None or p_value == 0 else f"p = {p_value:.2g}"
+        _text(fig, f"{verdict} ({p_text})", (left, 24), 0.5)
+        edges = np.asarray(panel["bin_edges_deg"], dtype=np.float64)
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        rel = 100.0 * np.asarray(panel["mean_relative_residual"], dtype=np.float64)
+        a_lo, a_hi = float(edges[0]), float(max(edges[-1], edges[0] + 1e-9))
+
+        def xy(a: float, v: float, lo=a_lo, hi=a_hi, left=left, right=right) -> tuple[int, int]:
+            x = left + (right - left) * (a - lo) / (hi - lo)
+            y = top + (h - bottom - top) * (0.5 - 0.5 * v / vmax)
+            return round(x), round(y)
+
+        _, y0 = xy(a_lo, 0.0)
+        cv2.line(fig, (left, y0), (right, y0), (200, 200, 200), 1)
+        for v in (-vmax, vmax):
+            _, y = xy(a_lo, v)
+            _text(fig, f"{v:+.2g}%", (x0 + 6, y + 4), 0.4)
+        pts = np.array([xy(a, v) for a, v in zip(centres, rel, strict=True)], dtype=np.int32)
+        cv2.polylines(fig, [pts], False, (33, 102, 172), 2, cv2.LINE_AA)
+        for p in pts:
+            cv2.circle(fig, (int(p[0]), int(p[1])), 4, (178, 24, 43), -1, cv2.LINE_AA)
+        for a in (a_lo, a_hi):
+            x, _ = xy(a, 0.0)
+            _text(fig, f"{a:.0f}", (x - 6, h - bottom + 16), 0.4)
+        _text(fig, label, (left + 10, h - 10), 0.45)
+    return fig
+
+
+def _nice_ceiling(v: float) -> float:
+    """The smallest of 1, 2, 5 x 10^k that is >= v > 0."""
+    e = math.floor(math.log10(v))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * 10.0**e >= v:
+            return m * 10.0**e
+    return 10.0 ** (e + 1)
