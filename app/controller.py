@@ -50,7 +50,7 @@ from lightcal.core.session import SolverSession
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
-from lightcal.pipeline import LoadedImages, fit_scales, summarise
+from lightcal.pipeline import LoadedImages, fit_scales, measurements_for, summarise
 
 log = logging.getLogger("lightcal.app")
 
@@ -280,7 +280,7 @@ class Controller(Actions):
             units.append(replace(u, initial=light))
         auto = [j for j, ls in enumerate(project.spec.lights) if ls.initial.scale is None]
         if auto and datas:
-            scales = fit_scales(datas, units, project.solver.offset)
+            scales = fit_scales(datas, units, project.solver.offset, project.wall.initial)
             for j in auto:
                 units[j] = replace(units[j], initial=units[j].initial.replace(scale=scales[j]))
         return units
@@ -327,7 +327,7 @@ class Controller(Actions):
             )
             return False
         units = self._unknowns(project, guess, datas)
-        model = CalibrationModel(datas, units, project.solver)
+        model = CalibrationModel(datas, units, project.solver, project.wall)
         session = SolverSession(
             model,
             on_iteration=lambda rep: self._on_iteration(gen, model, rep),
@@ -429,10 +429,12 @@ class Controller(Actions):
             if st.session_gen != gen or self.model is None:
                 return
             model = self.model
+            project, loaded = st.project, st.loaded
         result = None
         message = outcome.message
         try:
-            result = summarise(model, outcome)
+            # The fit test and the uncertainty with the images' noise and pose covariances.
+            result = summarise(model, outcome, measurements_for(project, loaded, model))
         except Exception as exc:
             message = f"{outcome.message} (uncertainties failed: {exc})"
         with st.lock:

@@ -134,6 +134,10 @@ class Panels:
             self._build_solve()
         with self._result_tab:
             self.result_md = gui.add_markdown("")
+            # Residuals against the mirror / incidence angle (the fit test's picture).
+            self.fit_plot = gui.add_image(
+                np.full((8, 8, 3), 255, dtype=np.uint8), label="residuals vs angle", visible=False
+            )
             self.download_result = gui.add_button(
                 "Download result (JSON)", icon=viser.Icon.DOWNLOAD
             )
@@ -599,6 +603,12 @@ class Panels:
                 from app.results import result_markdown
 
                 self.result_md.content = result_markdown(frame.result, state=frame.solver_state)
+                fit = frame.result.fit if frame.result is not None else None
+                if fit:
+                    from lightcal.io.figures import angle_residual_figure
+
+                    self.fit_plot.image = angle_residual_figure(fit, size=(720, 300))
+                self.fit_plot.visible = bool(fit)
             if (
                 legend_vmax is not None
                 and d & {"overlays", "scene"}

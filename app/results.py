@@ -54,6 +54,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
             lines.append(f"| pitch (deg) | {lr.pose.pitch_deg:+.3f} | {lr.sigma.pitch_deg:.2g} |")
         lines.append(f"| scale | {lr.scale:.5g} | {lr.scale_sigma:.2g} |")
         lines.append("")
+    lines += _wall_and_fit(result)
     if result.warnings:
         lines.append("#### ⚠ Warnings")
         lines += [f"- {w}" for w in result.warnings]
@@ -65,6 +66,32 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         rms_text = f"{rms:.4g}" if math.isfinite(rms) else "-"
         lines.append(f"| {name} | {n} | {rms_text} |")
     return "\n".join(lines)
+
+
+def _wall_and_fit(result: CalibrationResult) -> list[str]:
+    """The wall model with its parameters, and the fit test's verdict."""
+    wall = result.wall
+    sig = wall.get("sigma", {})
+    lines = [f"#### Wall: {wall.get('model', 'lambertian')}"]
+    params = [(k, v) for k, v in wall.items() if isinstance(v, float)]
+    if params:
+        lines += ["| parameter | value | ± 1 sigma |", "|---|---|---|"]
+        for k, v in params:
+            s = f"{sig[k]:.2g}" if k in sig else "fixed"
+            lines.append(f"| {k} | {v:.4g} | {s} |")
+    fit = result.fit
+    if fit:
+        if fit["adequate"]:
+            lines.append("Fit: **explained by the noise** (no structure against the angles).")
+        else:
+            lines.append(
+                "Fit: **⚠ not explained by the noise**: the pose may be wrong by more than "
+                "its sigma. " + " ".join(fit["findings"])
+            )
+    if result.uncertainty_terms:
+        lines.append("Sigmas include: " + "; ".join(result.uncertainty_terms) + ".")
+    lines.append("")
+    return lines
 
 
 def result_json_bytes(result: CalibrationResult, project: Project) -> bytes:

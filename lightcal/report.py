@@ -107,7 +107,7 @@ def write_report(
     write_png(p, convergence_figure([h.cost for h in result.history]))
     written.append(p)
     if result.fit:
-        p = out / "residual_vs_angle.png"
+        p = out / "fit_vs_angle.png"
         write_png(p, angle_residual_figure(result.fit))
         written.append(p)
     p = out / "summary.md"
@@ -191,6 +191,6 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         lines.append("- sigmas include: " + "; ".join(result.uncertainty_terms))
     lines.append("")
     if fit:
-        lines.append("![residuals against angle](residual_vs_angle.png)")
+        lines.append("![residuals against angle](fit_vs_angle.png)")
         lines.append("")
     return lines

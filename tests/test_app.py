@@ -778,3 +778,49 @@ def test_cli_warns_when_exposed(
     out = capsys.readouterr()
     assert "warning: --host 0.0.0.0 exposes the app" in out.err
     assert f"open {served[0]} in your browser" in out.out
+
+
+@pytest.fixture(scope="module")
+def satin(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A glossy (plastic, roughness 0.2) wall from `lightcal synth`, its project Lambertian."""
+    from lightcal.cli.main import main as cli_main
+
+    folder = tmp_path_factory.mktemp("satin") / "data"
+    argv = ["synth", str(folder), "--wall", "plastic", "--roughness", "0.2", "--quiet"]
+    assert cli_main([*argv, "--views", "8", "--width", "320", "--height", "240"]) == 0
+    return folder
+
+
+def test_app_shows_the_misfit_and_the_wall_model(satin: Path, tmp_path: Path) -> None:
+    a = build_app(
+        satin / "project.json", port=0, state_dir=tmp_path / "s", session_path=tmp_path / "a.json"
+    )
+    try:
+        _idle(a)
+        _set(a.panels.run_button, True)
+        _idle(a, 120)
+        md = a.panels.result_md.content
+        assert "#### Wall: lambertian" in md
+        assert "Fit: **⚠ not explained by the noise**" in md
+        assert "the wall looks glossy; try `wall: {model: plastic}`" in md
+        assert a.panels.fit_plot.visible
+    finally:
+        a.close()
+    doc = json.loads((satin / "project.json").read_text())
+    doc["wall"] = {"model": "plastic"}
+    (satin / "plastic.json").write_text(json.dumps(doc))
+    a = build_app(
+        satin / "plastic.json", port=0, state_dir=tmp_path / "t", session_path=tmp_path / "b.json"
+    )
+    try:
+        _idle(a)
+        _set(a.panels.run_button, True)
+        _idle(a, 120)
+        md = a.panels.result_md.content
+        assert "#### Wall: plastic" in md
+        rough = re.search(r"\| roughness \| ([0-9.]+) \| [0-9.e-]+ \|", md)
+        assert rough is not None and float(rough.group(1)) == pytest.approx(0.2, abs=0.02)
+        assert "| ior | 1.5 | fixed |" in md
+        assert "Fit: **explained by the noise**" in md
+    finally:
+        a.close()

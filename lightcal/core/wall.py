@@ -280,7 +280,7 @@ def make_wall(model: str, parameters: dict[str, float] | None = None) -> WallRef
         raise ValueError(
             f"{model} wall: unknown parameter(s) {', '.join(unknown)}; expected {expected}"
         )
-    return cls(**params)  # type: ignore[arg-type]
+    return cls(**params)
 
 
 # -- the coat's rough transmittance ------------------------------------------------------

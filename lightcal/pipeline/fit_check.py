@@ -14,9 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lightcal.core.footprint import Footprints
 from lightcal.core.misfit import FitDiagnosis, diagnose, pixel_angles
 from lightcal.core.problem import poisson_gaussian_sigma
 from lightcal.core.render import shade
+from lightcal.core.scene import View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.uncertainty import (
     PoseBlock,
@@ -117,16 +119,14 @@ def pose_uncertainty(
             rows = np.sort(np.random.default_rng([seed, i]).choice(n_i, POSE_ROWS, replace=False))
         gain = float(gains[i])
 
-        def render(view, fp, gain=gain):
+        def render(view: View, fp: Footprints, gain: float = gain) -> np.ndarray:
             sh = shade(fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall)
             return offset + gain * sh.values.filled(np.nan)
 
-        S = pose_sensitivity(
-            im.view,
-            render,
-            lambda view, i=i, rows=rows: footprints_at(i, view, rows),
-            model.sigmas[i][rows],
-        )
+        def footprints(view: View, i: int = i, rows: np.ndarray = rows) -> Footprints:
+            return footprints_at(i, view, rows)
+
+        S = pose_sensitivity(im.view, render, footprints, model.sigmas[i][rows])
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels a perturbed pose pushes off the wall
         blocks.append(PoseBlock(J_i[rows], S, cov, ratios[i][rows], n_i / rows.size))
     return pose_terms(normal_inverse, blocks)

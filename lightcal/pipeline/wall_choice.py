@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -71,7 +72,7 @@ def mirror_angles(model: CalibrationModel, x: np.ndarray) -> list[np.ndarray]:
 
 
 def without_mirror(
-    model: CalibrationModel, x: np.ndarray, limit_deg: float, source: object
+    model: CalibrationModel, x: np.ndarray, limit_deg: float, source: str | Path
 ) -> tuple[CalibrationModel, int]:
     """The model without the pixels within `limit_deg` of the mirror direction at x, and
     how many pixels it dropped."""
