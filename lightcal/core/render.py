@@ -33,7 +33,7 @@ from lightcal.core.footprint import (
 )
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
-from lightcal.core.wall_kernels import MAX_PARAMS, wall_factor
+from lightcal.core.wall_kernels import accumulate_image, apply_wall
 
 _SENSOR_CODES = {
     "radiance": rk.SENSOR_RADIANCE,
@@ -163,32 +163,25 @@ def _apply_wall(
     d(flux B)/dL = B d flux/dL + flux dB/dL; d(flux B)/d delta = B d flux/d delta;
     d(flux B)/d p = flux dB/dp (written to wall_grad_out (N, P)).
     """
-    n = len(footprints)
-    want_grad = grad is not None
     d = wall.data()
-    b = np.empty(n)
-    db_light = np.empty((n, 3)) if want_grad else np.empty((1, 3))
-    db_params = np.empty((n, MAX_PARAMS)) if want_grad else np.empty((1, MAX_PARAMS))
-    wall_factor(
+    want_grad = grad is not None
+    apply_wall(
         footprints.centres_world,
         L_world,
         np.ascontiguousarray(view.center_world),
         d.kind,
         d.params,
         d.tables,
+        flux,
+        grad if grad is not None else _NO_GRAD,
         want_grad=want_grad,
-        out=b,
-        out_d_light=db_light,
-        out_d_params=db_params,
+        out_d_params=wall_grad_out if want_grad and wall_grad_out is not None else _NO_PARAMS,
     )
-    if grad is not None:
-        grad[:, :3] *= b[:, None]
-        grad[:, :3] += flux[:, None] * db_light
-        grad[:, 3:] *= b[:, None]
-        if wall_grad_out is not None:
-            p = len(wall.parameter_names)
-            wall_grad_out[:] = flux[:, None] * db_params[:, :p]
-    flux *= b
+
+
+#: Placeholders for `apply_wall`'s unused outputs.
+_NO_GRAD = np.zeros((1, 6))
+_NO_PARAMS = np.zeros((1, 0))
 
 
 def shade(
@@ -320,49 +313,27 @@ def render_image(
         out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset)
         return np.ma.masked_array(out, mask=invalid, copy=False)
     # Each light's flux meets the wall's B for its own direction: one pass per light.
-    centres = _superpixel_centres(camera, view, b)
     out = np.full((hb, wb), float(offset))
     invalid = np.zeros((hb, wb), dtype=np.bool_)
     d = wall.data()
-    camera_world = np.ascontiguousarray(view.center_world)
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
     for entry in lit:
         one, invalid = _render_fused(camera, view, [entry], sensor, vmap, b, n_sub, 0.0)
-        factor = np.empty(hb * wb)
-        wall_factor(
-            centres,
-            np.ascontiguousarray(entry[1]),
-            camera_world,
-            d.kind,
-            d.params,
-            d.tables,
-            want_grad=False,
-            out=factor,
-            out_d_light=np.empty((1, 3)),
-            out_d_params=np.empty((1, MAX_PARAMS)),
-        )
-        out += one * factor.reshape(hb, wb)
+        with numba.parallel_chunksize(1):
+            accumulate_image(
+                grid_xy,
+                grid_ok,
+                np.ascontiguousarray(view.R_camera_world),
+                np.ascontiguousarray(view.center_world),
+                b,
+                np.ascontiguousarray(entry[1]),
+                d.kind,
+                d.params,
+                d.tables,
+                one,
+                out,
+            )
     return np.ma.masked_array(out, mask=invalid, copy=False)
-
-
-def _superpixel_centres(camera: Camera, view: View, b: int) -> np.ndarray:
-    """(H//b * W//b, 3) footprint centres of the b x b super-pixels, world frame, m.
-
-    The mean of all corners of the super-pixel's pixel quads (`Footprints.centres_world` of
-    the same footprints); NaN where a corner misses the wall.
-    """
-    grid_xy, grid_ok = GRID_CACHE.get(camera)
-    rays = np.concatenate([grid_xy, np.ones((*grid_xy.shape[:2], 1))], axis=2)
-    d_world = rays @ view.R_camera_world  # rows R^T d
-    c = view.center_world
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = -c[2] / d_world[..., 2]
-    ok = grid_ok & (lam > 0.0)
-    pts = c + lam[..., None] * d_world
-    pts[~ok] = np.nan
-    quad = 0.25 * (pts[:-1, :-1] + pts[1:, :-1] + pts[:-1, 1:] + pts[1:, 1:])
-    hb, wb = camera.height // b, camera.width // b
-    quad = quad[: hb * b, : wb * b].reshape(hb, b, wb, b, 3).mean(axis=(1, 3))
-    return np.ascontiguousarray(quad.reshape(-1, 3))
 
 
 def _render_fused(

@@ -454,10 +454,7 @@ def footprint_spread(
         d.kind,
         d.params,
         d.tables,
-        want_grad=False,
-        out=b,
-        out_d_light=np.empty((1, 3)),
-        out_d_params=np.empty((1, wk.MAX_PARAMS)),
+        b,
     )
     centre = b[:n]
     at_quads = b[n : n + n * k].reshape(n, k)

@@ -108,25 +108,24 @@ def smith_g1(mu: float, alpha: float) -> tuple[float, float, float]:
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _plastic(
-    mu_l: float, q: float, mu_v: float, params: np.ndarray, tables: np.ndarray, dp: np.ndarray
+    mu_l: float,
+    q: float,
+    mu_v: float,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_params: bool,
+    dp: np.ndarray,
 ) -> tuple[float, float, float]:
-    """Rough plastic B, dB/dmu_l, dB/dq; dp[:3] receives dB/d(alpha, eta, w)."""
+    """Rough plastic B, dB/dmu_l, dB/dq; with want_params dp[:3] = dB/d(alpha, eta, w)."""
     alpha = params[0]
     eta = params[1]
     w = params[2]
     # Diffuse base seen through the coat, normalised to 1 at normal incidence.
     t_l, t_l_mu = _lerp_table(tables[0], mu_l)
     t_v, _ = _lerp_table(tables[0], mu_v)
-    ta_l, _ = _lerp_table(tables[1], mu_l)
-    ta_v, _ = _lerp_table(tables[1], mu_v)
-    te_l, _ = _lerp_table(tables[2], mu_l)
-    te_v, _ = _lerp_table(tables[2], mu_v)
     t1 = tables[0, TABLE_SIZE - 1]
     inv_t1_2 = 1.0 / (t1 * t1)
     diffuse = t_l * t_v * inv_t1_2
-    last = TABLE_SIZE - 1
-    diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, last] / t1
-    diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, last] / t1
     # Specular coat: pi F D G1(l) G1(v) / (4 mu_l mu_v), half vector h = (l + v) / |l + v|.
     n = math.sqrt(2.0 + 2.0 * q)
     c = 0.5 * n  # l . h
@@ -139,12 +138,81 @@ def _plastic(
     spec = k * f * d * g_l * g_v
     spec_mu = k * f * g_v * (d_h * g_l / n + d * g_l_mu) - spec / mu_l
     spec_q = k * g_l * g_v * (f_c * d / (4.0 * c) - f * d_h * (mu_l + mu_v) / (n * n * n))
-    spec_a = k * f * (d_a * g_l * g_v + d * g_l_a * g_v + d * g_l * g_v_a)
-    spec_e = k * f_e * d * g_l * g_v
-    dp[0] = diffuse_a + w * spec_a
-    dp[1] = diffuse_e + w * spec_e
-    dp[2] = spec
+    if want_params:
+        last = TABLE_SIZE - 1
+        ta_l, _ = _lerp_table(tables[1], mu_l)
+        ta_v, _ = _lerp_table(tables[1], mu_v)
+        te_l, _ = _lerp_table(tables[2], mu_l)
+        te_v, _ = _lerp_table(tables[2], mu_v)
+        diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, last] / t1
+        diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, last] / t1
+        spec_a = k * f * (d_a * g_l * g_v + d * g_l_a * g_v + d * g_l * g_v_a)
+        spec_e = k * f_e * d * g_l * g_v
+        dp[0] = diffuse_a + w * spec_a
+        dp[1] = diffuse_e + w * spec_e
+        dp[2] = spec
     return diffuse + w * spec, t_l_mu * t_v * inv_t1_2 + w * spec_mu, w * spec_q
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _plastic_value(
+    mu_l: float, q: float, mu_v: float, params: np.ndarray, tables: np.ndarray
+) -> float:
+    """Rough plastic B alone (no derivatives): what whole images need.
+
+    The specular term rearranged to one division (the same value as `_plastic`):
+    with n2 = |l + v|^2, s = mu_l + mu_v and S_x = sqrt(mu_x^2 (1 - a^2) + a^2),
+    D = a^2 n2^2 / (pi (n2 + (a^2 - 1) s^2)^2), G1(x) / mu_x = 2 / (mu_x + S_x), so
+    pi F D G1(l) G1(v) / (4 mu_l mu_v) = F a^2 n2^2 / ((n2 + (a^2 - 1) s^2)^2 (mu_l + S_l)
+    (mu_v + S_v)), and F = (r_s^2 + r_p^2) / 2 over one common denominator.
+    """
+    alpha = params[0]
+    eta = params[1]
+    a2 = alpha * alpha
+    x = mu_l * (TABLE_SIZE - 1)
+    k = min(max(int(x), 0), TABLE_SIZE - 2)
+    w = x - k
+    t_l = (1.0 - w) * tables[0, k] + w * tables[0, k + 1]
+    x = mu_v * (TABLE_SIZE - 1)
+    k = min(max(int(x), 0), TABLE_SIZE - 2)
+    w = x - k
+    t_v = (1.0 - w) * tables[0, k] + w * tables[0, k + 1]
+    t1 = tables[0, TABLE_SIZE - 1]
+    n2 = 2.0 + 2.0 * q
+    c2 = 0.25 * n2
+    c = math.sqrt(c2)
+    e2 = eta * eta
+    g = math.sqrt(e2 - 1.0 + c2)
+    # r_s = A / B, r_p = C / E.
+    sa = c - g
+    sb = c + g
+    pc = e2 * c - g
+    pe = e2 * c + g
+    sum_lv = mu_l + mu_v
+    kd = n2 + (a2 - 1.0) * sum_lv * sum_lv
+    s_l = math.sqrt(mu_l * mu_l * (1.0 - a2) + a2)
+    s_v = math.sqrt(mu_v * mu_v * (1.0 - a2) + a2)
+    den_f = sb * sb * pe * pe
+    num = 0.5 * (sa * sa * pe * pe + pc * pc * sb * sb) * a2 * n2 * n2
+    spec = num / (den_f * kd * kd * (mu_l + s_l) * (mu_v + s_v))
+    return t_l * t_v / (t1 * t1) + params[2] * spec
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def brdf_value(
+    kind: int, mu_l: float, q: float, mu_v: float, params: np.ndarray, tables: np.ndarray
+) -> float:
+    """B of model `kind` without derivatives."""
+    if kind == KIND_PLASTIC:
+        return _plastic_value(mu_l, q, mu_v, params, tables)
+    if kind == KIND_OREN_NAYAR:
+        s2 = params[0] * params[0]
+        u = q - mu_l * mu_v
+        a = 1.0 - 0.5 * s2 / (s2 + 0.33)
+        if u <= 0.0:
+            return a
+        return a + 0.45 * s2 / (s2 + 0.09) * u / max(mu_l, mu_v)
+    return 1.0
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -183,13 +251,31 @@ def brdf_terms(
     params: np.ndarray,
     tables: np.ndarray,
     dp: np.ndarray,
+    want_params: bool = True,
 ) -> tuple[float, float, float]:
-    """B, dB/dmu_l, dB/dq of model `kind`; dp (MAX_PARAMS,) receives dB/d(parameters)."""
+    """B, dB/dmu_l, dB/dq of model `kind`; dp (MAX_PARAMS,) receives dB/d(parameters)
+    (plastic: only with want_params)."""
     if kind == KIND_PLASTIC:
-        return _plastic(mu_l, q, mu_v, params, tables, dp)
+        return _plastic(mu_l, q, mu_v, params, tables, want_params, dp)
     if kind == KIND_OREN_NAYAR:
         return _oren_nayar(mu_l, q, mu_v, params, dp)
     return 1.0, 0.0, 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _directions(
+    i: int, points: np.ndarray, light: np.ndarray, camera: np.ndarray
+) -> tuple[float, float, float, float, float, float, float]:
+    """Unit directions from wall point i to the light (l) and the camera (v), and |L - P|."""
+    lx = light[0] - points[i, 0]
+    ly = light[1] - points[i, 1]
+    lz = light[2] - points[i, 2]
+    vx = camera[0] - points[i, 0]
+    vy = camera[1] - points[i, 1]
+    vz = camera[2] - points[i, 2]
+    r_l = math.sqrt(lx * lx + ly * ly + lz * lz)
+    inv_v = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
+    return lx / r_l, ly / r_l, lz / r_l, vx * inv_v, vy * inv_v, vz * inv_v, r_l
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -202,50 +288,67 @@ def _factor_range(
     kind: int,
     params: np.ndarray,
     tables: np.ndarray,
-    want_grad: bool,
     out: np.ndarray,
-    out_d_light: np.ndarray,
+) -> None:
+    for i in range(i0, i1):
+        lx, ly, lz, vx, vy, vz, _ = _directions(i, points, light, camera)
+        if lz > 0.0 and vz > 0.0:
+            q = lx * vx + ly * vy + lz * vz
+            out[i] = brdf_value(kind, lz, q, vz, params, tables)
+        else:  # light or camera not in front of the wall (or an invalid footprint)
+            out[i] = 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _apply_range(
+    i0: int,
+    i1: int,
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    flux: np.ndarray,
+    grad: np.ndarray,
+    want_grad: bool,
     out_d_params: np.ndarray,
 ) -> None:
+    """flux *= B in place and, with want_grad, the chain rule on grad (N, 6) in place:
+    d(flux B)/dL = B dflux/dL + flux dB/dL, d(flux B)/d delta = B dflux/d delta, and
+    out_d_params (N, P) = flux dB/dp (P = 0: no parameters wanted)."""
     dp = np.zeros(MAX_PARAMS)
     n_p = out_d_params.shape[1]
+    want_params = want_grad and n_p > 0
     for i in range(i0, i1):
-        lx = light[0] - points[i, 0]
-        ly = light[1] - points[i, 1]
-        lz = light[2] - points[i, 2]
-        vx = camera[0] - points[i, 0]
-        vy = camera[1] - points[i, 1]
-        vz = camera[2] - points[i, 2]
-        r_l = math.sqrt(lx * lx + ly * ly + lz * lz)
-        r_v = math.sqrt(vx * vx + vy * vy + vz * vz)
-        lx /= r_l
-        ly /= r_l
-        lz /= r_l
-        vx /= r_v
-        vy /= r_v
-        vz /= r_v
-        if not (lz > 0.0 and vz > 0.0):  # light or camera not in front of the wall
-            out[i] = 0.0
-            if want_grad:
-                for d in range(3):
-                    out_d_light[i, d] = 0.0
-                for d in range(n_p):
-                    out_d_params[i, d] = 0.0
-            continue
-        q = lx * vx + ly * vy + lz * vz
-        b, b_mu, b_q = brdf_terms(kind, lz, q, vz, params, tables, dp)
-        out[i] = b
+        lx, ly, lz, vx, vy, vz, r_l = _directions(i, points, light, camera)
+        if not (lz > 0.0 and vz > 0.0):
+            f0 = 0.0
+            b = 0.0
+            b_mu = 0.0
+            b_q = 0.0
+            for d in range(n_p):
+                dp[d] = 0.0
+        else:
+            f0 = flux[i]
+            q = lx * vx + ly * vy + lz * vz
+            b, b_mu, b_q = brdf_terms(kind, lz, q, vz, params, tables, dp, want_params)
+        flux[i] = f0 * b
         if want_grad:
-            # g = dB/dmu e_z + dB/dq v, then (I - l l^T) g / r_l.
+            # dB/dL = (I - l l^T) (dB/dmu e_z + dB/dq v) / |L - P|.
             gx = b_q * vx
             gy = b_q * vy
             gz = b_mu + b_q * vz
             lg = lx * gx + ly * gy + lz * gz
-            out_d_light[i, 0] = (gx - lx * lg) / r_l
-            out_d_light[i, 1] = (gy - ly * lg) / r_l
-            out_d_light[i, 2] = (gz - lz * lg) / r_l
+            s = f0 / r_l if b != 0.0 else 0.0
+            grad[i, 0] = b * grad[i, 0] + s * (gx - lx * lg)
+            grad[i, 1] = b * grad[i, 1] + s * (gy - ly * lg)
+            grad[i, 2] = b * grad[i, 2] + s * (gz - lz * lg)
+            grad[i, 3] *= b
+            grad[i, 4] *= b
+            grad[i, 5] *= b
             for d in range(n_p):
-                out_d_params[i, d] = dp[d]
+                out_d_params[i, d] = f0 * dp[d]
 
 
 @numba.njit(cache=True, parallel=True)
@@ -256,10 +359,7 @@ def _wall_factor_parallel(
     kind: int,
     params: np.ndarray,
     tables: np.ndarray,
-    want_grad: bool,
     out: np.ndarray,
-    out_d_light: np.ndarray,
-    out_d_params: np.ndarray,
 ) -> None:
     n = points.shape[0]
     n_chunks = min(n, 64)
@@ -273,10 +373,7 @@ def _wall_factor_parallel(
             kind,
             params,
             tables,
-            want_grad,
             out,
-            out_d_light,
-            out_d_params,
         )
 
 
@@ -288,12 +385,57 @@ def _wall_factor_serial(
     kind: int,
     params: np.ndarray,
     tables: np.ndarray,
-    want_grad: bool,
     out: np.ndarray,
-    out_d_light: np.ndarray,
+) -> None:
+    _factor_range(0, points.shape[0], points, light, camera, kind, params, tables, out)
+
+
+@numba.njit(cache=True, parallel=True)
+def _apply_wall_parallel(
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    flux: np.ndarray,
+    grad: np.ndarray,
+    want_grad: bool,
     out_d_params: np.ndarray,
 ) -> None:
-    _factor_range(
+    n = points.shape[0]
+    n_chunks = min(n, 64)
+    for ch in numba.prange(n_chunks):
+        _apply_range(
+            ch * n // n_chunks,
+            (ch + 1) * n // n_chunks,
+            points,
+            light,
+            camera,
+            kind,
+            params,
+            tables,
+            flux,
+            grad,
+            want_grad,
+            out_d_params,
+        )
+
+
+@numba.njit(cache=True)
+def _apply_wall_serial(
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    flux: np.ndarray,
+    grad: np.ndarray,
+    want_grad: bool,
+    out_d_params: np.ndarray,
+) -> None:
+    _apply_range(
         0,
         points.shape[0],
         points,
@@ -302,14 +444,113 @@ def _wall_factor_serial(
         kind,
         params,
         tables,
+        flux,
+        grad,
         want_grad,
-        out,
-        out_d_light,
         out_d_params,
     )
 
 
-#: Below this many points `wall_factor` runs on the calling thread.
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _corner_row(
+    j: int,
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    R: np.ndarray,
+    center: np.ndarray,
+    out_xy: np.ndarray,
+    out_ok: np.ndarray,
+) -> None:
+    """Wall points (x, y) of corner row j: ray d = R^T (x, y, 1), point C + lambda d."""
+    cz = center[2]
+    for i in range(grid_xy.shape[1]):
+        x = grid_xy[j, i, 0]
+        y = grid_xy[j, i, 1]
+        dx = R[0, 0] * x + R[1, 0] * y + R[2, 0]
+        dy = R[0, 1] * x + R[1, 1] * y + R[2, 1]
+        dz = R[0, 2] * x + R[1, 2] * y + R[2, 2]
+        lam = -cz / dz
+        out_ok[i] = grid_ok[j, i] and lam > 0.0
+        out_xy[i, 0] = center[0] + lam * dx
+        out_xy[i, 1] = center[1] + lam * dy
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def accumulate_image(
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    R_camera_world: np.ndarray,
+    center: np.ndarray,
+    b: int,
+    light: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    image: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """out += image * B, B at each (super-)pixel's footprint centre (full-image path).
+
+    The centre is the mean of the wall points of all corners of the b x b pixel quads of a
+    super-pixel (`Footprints.centres_world` of the same footprints), from the camera's
+    undistorted corner grid; each corner row is intersected with the wall once per chunk
+    of rows.
+
+    Args:
+        grid_xy: (H + 1, W + 1, 2) undistorted normalised corner coordinates; grid_ok
+            (H + 1, W + 1) where they are valid.
+        R_camera_world: (3, 3); center: (3,) camera centre, world frame, m.
+        b: binning; light: (3,) light position, world frame, m.
+        kind, params, tables: the wall model.
+        image: (H // b, W // b) one light's rendered values (no offset).
+        out: (H // b, W // b) accumulated.
+    """
+    hb, wb = image.shape
+    n_corners = grid_xy.shape[1]
+    n_chunks = min(hb, 64)
+    inv = 1.0 / (4.0 * b * b)
+    for ch in numba.prange(n_chunks):
+        r0 = ch * hb // n_chunks
+        r1 = (ch + 1) * hb // n_chunks
+        prev = np.empty((n_corners, 2))
+        prev_ok = np.empty(n_corners, dtype=np.bool_)
+        nxt = np.empty((n_corners, 2))
+        nxt_ok = np.empty(n_corners, dtype=np.bool_)
+        sums = np.empty((wb, 2))
+        ok = np.empty(wb, dtype=np.bool_)
+        _corner_row(r0 * b, grid_xy, grid_ok, R_camera_world, center, prev, prev_ok)
+        for r in range(r0, r1):
+            sums[:] = 0.0
+            ok[:] = True
+            for j in range(r * b, r * b + b):
+                _corner_row(j + 1, grid_xy, grid_ok, R_camera_world, center, nxt, nxt_ok)
+                for c in range(wb):
+                    for i in range(c * b, c * b + b):
+                        sums[c, 0] += prev[i, 0] + prev[i + 1, 0] + nxt[i, 0] + nxt[i + 1, 0]
+                        sums[c, 1] += prev[i, 1] + prev[i + 1, 1] + nxt[i, 1] + nxt[i + 1, 1]
+                        if not (prev_ok[i] and prev_ok[i + 1] and nxt_ok[i] and nxt_ok[i + 1]):
+                            ok[c] = False
+                prev, nxt = nxt, prev
+                prev_ok, nxt_ok = nxt_ok, prev_ok
+            for c in range(wb):
+                if not ok[c]:
+                    continue  # the pixel is invalid (masked) anyway
+                px = sums[c, 0] * inv
+                py = sums[c, 1] * inv
+                lx = light[0] - px
+                ly = light[1] - py
+                vx = center[0] - px
+                vy = center[1] - py
+                rl = 1.0 / math.sqrt(lx * lx + ly * ly + light[2] * light[2])
+                rv = 1.0 / math.sqrt(vx * vx + vy * vy + center[2] * center[2])
+                lz = light[2] * rl
+                vz = center[2] * rv
+                if lz > 0.0 and vz > 0.0:
+                    q = (lx * vx + ly * vy) * rl * rv + lz * vz
+                    out[r, c] += image[r, c] * brdf_value(kind, lz, q, vz, params, tables)
+
+
+#: Below this many points the kernels run on the calling thread.
 SERIAL_POINTS = 20_000
 
 
@@ -320,25 +561,45 @@ def wall_factor(
     kind: int,
     params: np.ndarray,
     tables: np.ndarray,
-    *,
-    want_grad: bool,
     out: np.ndarray,
-    out_d_light: np.ndarray,
-    out_d_params: np.ndarray,
 ) -> None:
-    """Relative reflectance B at wall points, and its gradients; writes the outputs.
+    """Relative reflectance B (N,) at wall points (N, 3), written to `out`.
 
     Args:
         points_world: (N, 3) points on the wall (z = 0), world frame, m.
         light_world: (3,) light position, world frame, m.
         camera_world: (3,) camera centre, world frame, m.
         kind, params, tables: the model (`WallReflectance.data()`).
-        want_grad: also write the gradients.
-        out: (N,) B (0 where the light or camera is not in front of the wall).
-        out_d_light: (N, 3) dB / dL_world (written when want_grad).
-        out_d_params: (N, P) dB / d(parameters), P <= MAX_PARAMS (written when want_grad).
+        out: (N,) B; 0 where the light or camera is not in front of the wall or the
+            point is NaN.
     """
     kernel = _wall_factor_serial if len(points_world) < SERIAL_POINTS else _wall_factor_parallel
+    kernel(points_world, light_world, camera_world, int(kind), params, tables, out)
+
+
+def apply_wall(
+    points_world: np.ndarray,
+    light_world: np.ndarray,
+    camera_world: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    flux: np.ndarray,
+    grad: np.ndarray,
+    *,
+    want_grad: bool,
+    out_d_params: np.ndarray,
+) -> None:
+    """Multiply one light's flux by B at the footprint centres, gradients chained, in place.
+
+    Args:
+        points_world: (N, 3) footprint centres; light_world, camera_world: (3,), m.
+        kind, params, tables: the model (`WallReflectance.data()`).
+        flux: (N,) the light's flux, multiplied in place.
+        grad: (N, 6) d flux / d (L_world, delta_world), chained in place (want_grad).
+        out_d_params: (N, P) receives flux dB/d(parameters) (P = 0: none wanted).
+    """
+    kernel = _apply_wall_serial if len(points_world) < SERIAL_POINTS else _apply_wall_parallel
     kernel(
         points_world,
         light_world,
@@ -346,9 +607,9 @@ def wall_factor(
         int(kind),
         params,
         tables,
+        flux,
+        grad,
         bool(want_grad),
-        out,
-        out_d_light,
         out_d_params,
     )
 
