@@ -791,36 +791,31 @@ def satin(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder
 
 
-def test_app_shows_the_misfit_and_the_wall_model(satin: Path, tmp_path: Path) -> None:
-    a = build_app(
-        satin / "project.json", port=0, state_dir=tmp_path / "s", session_path=tmp_path / "a.json"
-    )
+def _result_text_after_run(project: Path, state: Path) -> tuple[str, bool]:
+    """Open `project` in the app, Run to the end: the Result tab's text and whether the
+    residual-vs-angle plot shows."""
+    a = build_app(project, port=0, state_dir=state, session_path=state / "autosave.json")
     try:
         _idle(a)
         _set(a.panels.run_button, True)
         _idle(a, 120)
-        md = a.panels.result_md.content
-        assert "#### Wall: lambertian" in md
-        assert "Fit: **⚠ not explained by the noise**" in md
-        assert "the wall looks glossy; try `wall: {model: plastic}`" in md
-        assert a.panels.fit_plot.visible
+        return a.panels.result_md.content, bool(a.panels.fit_plot.visible)
     finally:
         a.close()
+
+
+def test_app_shows_the_misfit_and_the_wall_model(satin: Path, tmp_path: Path) -> None:
+    md, plot = _result_text_after_run(satin / "project.json", tmp_path / "s")
+    assert "#### Wall: lambertian" in md
+    assert "Fit: **⚠ not explained by the noise**" in md
+    assert "the wall looks glossy; try `wall: {model: plastic}`" in md
+    assert plot
     doc = json.loads((satin / "project.json").read_text())
     doc["wall"] = {"model": "plastic"}
     (satin / "plastic.json").write_text(json.dumps(doc))
-    a = build_app(
-        satin / "plastic.json", port=0, state_dir=tmp_path / "t", session_path=tmp_path / "b.json"
-    )
-    try:
-        _idle(a)
-        _set(a.panels.run_button, True)
-        _idle(a, 120)
-        md = a.panels.result_md.content
-        assert "#### Wall: plastic" in md
-        rough = re.search(r"\| roughness \| ([0-9.]+) \| [0-9.e-]+ \|", md)
-        assert rough is not None and float(rough.group(1)) == pytest.approx(0.2, abs=0.02)
-        assert "| ior | 1.5 | fixed |" in md
-        assert "Fit: **explained by the noise**" in md
-    finally:
-        a.close()
+    md, _ = _result_text_after_run(satin / "plastic.json", tmp_path / "t")
+    assert "#### Wall: plastic" in md
+    rough = re.search(r"\| roughness \| ([0-9.]+) \| [0-9.e-]+ \|", md)
+    assert rough is not None and float(rough.group(1)) == pytest.approx(0.2, abs=0.02)
+    assert "| ior | 1.5 | fixed |" in md
+    assert "Fit: **explained by the noise**" in md
