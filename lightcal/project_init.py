@@ -37,7 +37,8 @@ from lightcal.io.board_file import read_board
 from lightcal.io.boards import ArucoGridBoard, CharucoBoard
 from lightcal.io.camera_file import read_camera
 from lightcal.io.exif import Exposure
-from lightcal.io.images import SUPPORTED_EXTENSIONS, LinearImage, read_image
+from lightcal.io.images import SUPPORTED_EXTENSIONS, read_image
+from lightcal.io.linear_image import LinearImage
 from lightcal.io.marker_pose import MarkerPose, estimate_pose, pose_report
 from lightcal.io.project import (
     CameraSpec,
