@@ -1,4 +1,5 @@
-"""Tests of `lightcal init` (and `lightcal.project_init`) on synthetic images of a marker wall."""
+"""Tests of `lightcal init` (`lightcal.capture.project_init`) on synthetic images of a marker
+wall."""
 
 from __future__ import annotations
 
@@ -14,14 +15,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from lightcal.capture.boards import ArucoGridBoard, Chessboard
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+from lightcal.capture.project_init import init_project
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
-from lightcal.io.boards import ArucoGridBoard, Chessboard
 from lightcal.io.camera_file import write_camera
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
 from lightcal.io.project import ExposureSpec, load_project
-from lightcal.project_init import init_project
 
 WIDTH, HEIGHT = 640, 480
 CAMERA = Camera.from_params(

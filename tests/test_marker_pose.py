@@ -1,4 +1,4 @@
-"""Tests of lightcal.io.marker_pose on synthetic, distorted images of boards on the wall."""
+"""Tests of lightcal.capture.marker_pose on synthetic, distorted images of boards on the wall."""
 
 from __future__ import annotations
 
@@ -9,17 +9,17 @@ import cv2
 import numpy as np
 import pytest
 
-from lightcal.core.camera import Camera
-from lightcal.errors import InputError
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, Chessboard
-from lightcal.io.marker_pose import (
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
+from lightcal.capture.marker_pose import (
     MarkerPose,
     estimate_pose,
     estimate_poses,
     pose_report,
     stretch_to_uint8,
 )
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+from lightcal.core.camera import Camera
+from lightcal.errors import InputError
 
 CAMERA = Camera.from_params(
     fx=1400.0,

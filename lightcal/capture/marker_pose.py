@@ -1,7 +1,7 @@
 """Camera poses from calibration markers on the wall (ArUco grid or ChArUco board).
 
 `estimate_pose` detects the board in one image and returns `T_camera_world` in the world
-frame of `lightcal.io.boards` (the wall is z = 0, the camera at z > 0; MODEL.md):
+frame of `lightcal.capture.boards` (the wall is z = 0, the camera at z > 0; docs/conventions.md):
 
 1. Detection runs on an 8-bit copy of the image. Linear float (or 16-bit) images are
    stretched between their 0.5th and 99.5th percentiles (`stretch_to_uint8`); the corner
@@ -38,9 +38,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import map_coordinates
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, aruco_dictionary
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, aruco_dictionary
 
 MarkerBoard = ArucoGridBoard | CharucoBoard
 """Boards that carry ArUco markers, hence give a camera pose from one image."""
