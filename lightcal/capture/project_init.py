@@ -372,7 +372,9 @@ def init_project(
                 path=_relative(o.path, folder),
                 name=o.name,
                 T_camera_world=PoseSpec(
-                    R=o.pose.R_camera_world.tolist(), t=o.pose.t_camera_world.tolist()
+                    R=o.pose.R_camera_world.tolist(),
+                    t=o.pose.t_camera_world.tolist(),
+                    covariance=o.pose.covariance.tolist(),
                 ),
                 exposure=exposure,
                 mask=_relative(o.mask_path, folder),
