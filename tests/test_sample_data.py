@@ -115,6 +115,11 @@ def test_marker_poses_of_the_committed_images():
                 np.testing.assert_allclose(
                     pose.t_camera_world, project.views[i].t_camera_world, atol=1e-9
                 )
+                written = project.pose_covariances[i]
+                assert written is not None
+                np.testing.assert_allclose(
+                    pose.covariance, written, rtol=0, atol=1e-6 * np.abs(written).max()
+                )
 
 
 @pytest.mark.slow
