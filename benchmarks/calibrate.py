@@ -86,7 +86,7 @@ def make_light() -> Any:
 
 
 def make_views(n: int, distance_range_m: tuple[float, float], seed: int) -> list[Any]:
-    from lightcal.core.synth import SceneConfig, sample_views
+    from lightcal.synthetic.scenes import SceneConfig, sample_views
 
     config = SceneConfig(n_views=n, distance_range_m=distance_range_m)
     return sample_views(config, np.random.default_rng(seed))
@@ -144,7 +144,7 @@ def observe(
 
 def start_near(light: Any, position_m: float, angle_deg: float, rng: np.random.Generator) -> Any:
     """`light` moved by exactly `position_m` and its axis turned by exactly `angle_deg`."""
-    from lightcal.core.synth import initial_guess
+    from lightcal.synthetic.scenes import initial_guess
 
     return initial_guess(light, rng, offset_m=position_m, offset_rad=math.radians(angle_deg))
 
@@ -353,8 +353,8 @@ def measure_basin(n_starts: int, max_m: float, max_deg: float) -> dict[str, Any]
 
 def measure_subsets(per_size: int) -> dict[str, Any]:
     from lightcal.core.solver import run_least_squares
-    from lightcal.core.synth import perturb_view
     from lightcal.pipeline import summarise
+    from lightcal.synthetic.scenes import perturb_view
 
     camera = make_camera(320, 240)
     light = make_light()

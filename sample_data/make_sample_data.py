@@ -15,7 +15,8 @@ What it builds (README.md in this folder says the same for users):
 3. 12 views of the wall (`images/`) at 0.8 - 2.5 m, tilted up to 30 degrees, lit by the
    LED only: the irradiance is rendered with lightcal's energy-preserving renderer
    (`render_image`, sensor model `radiance`), multiplied by the albedo averaged over each
-   pixel (the print sampled on 3 x 3 sub-pixels, `lightcal.io.plane_texture.render_plane_image`),
+   pixel (the print sampled on 3 x 3 sub-pixels,
+   `lightcal.capture.plane_texture.render_plane_image`),
    blurred by the lens (Gaussian PSF, sigma 0.5 px), exposed with a shutter time chosen
    per view (EXIF in the PNG), then through the sensor model (`apply_sensor`: shot and
    read noise, 14 bits, black level 512) and written as 16-bit PNG.
@@ -54,13 +55,19 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from lightcal import __version__  # noqa: E402
+from lightcal.capture.boards import ArucoGridBoard, Chessboard  # noqa: E402
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image  # noqa: E402
 from lightcal.cli.main import main as lightcal_main  # noqa: E402
 from lightcal.core.camera import Camera  # noqa: E402
 from lightcal.core.pose import describe_pose, rotation_from_axis  # noqa: E402
 from lightcal.core.render import render_image  # noqa: E402
 from lightcal.core.rid import RID  # noqa: E402
 from lightcal.core.scene import Light, Rig, View  # noqa: E402
-from lightcal.core.synth import (  # noqa: E402
+from lightcal.io.atomic import atomic_write_bytes, atomic_write_text  # noqa: E402
+from lightcal.io.board_file import write_board  # noqa: E402
+from lightcal.io.ies import read_ies, write_ies  # noqa: E402
+from lightcal.io.photometric_table import PhotometricTable, table_to_rid  # noqa: E402
+from lightcal.synthetic.scenes import (  # noqa: E402
     SceneConfig,
     SensorConfig,
     apply_sensor,
@@ -70,12 +77,6 @@ from lightcal.core.synth import (  # noqa: E402
     sample_views,
     white_level,
 )
-from lightcal.io.atomic import atomic_write_bytes, atomic_write_text  # noqa: E402
-from lightcal.io.board_file import write_board  # noqa: E402
-from lightcal.io.boards import ArucoGridBoard, Chessboard  # noqa: E402
-from lightcal.io.ies import read_ies, write_ies  # noqa: E402
-from lightcal.io.photometric_table import PhotometricTable, table_to_rid  # noqa: E402
-from lightcal.io.plane_texture import look_at_pose, render_plane_image  # noqa: E402
 
 SEED = 2020
 """Seed of every random choice (the year of Song et al.)."""

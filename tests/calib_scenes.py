@@ -6,7 +6,7 @@ small (320 x 240) and the solver sees ~100 pixels per image, as in the paper, so
 takes a few tens of milliseconds.
 
 Randomness comes in as seeds or `numpy.random.Generator`s; the views come from
-`lightcal.core.synth.sample_views` (stratified distances and tilts).
+`lightcal.synthetic.scenes.sample_views` (stratified distances and tilts).
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from lightcal.core.rid import CosPowerRID, IsotropicRID, Table2DRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.solver import CalibrationModel, SolverOptions
-from lightcal.core.synth import SceneConfig, elliptical_beam_table, sample_views
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
+from lightcal.synthetic.scenes import SceneConfig, elliptical_beam_table, sample_views
 
 WIDTH = 320
 HEIGHT = 240

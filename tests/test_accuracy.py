@@ -23,10 +23,10 @@ from lightcal.core.problem import LightUnknown, curve_rid
 from lightcal.core.rid import CosPowerRID, SymmetricTableRID
 from lightcal.core.scene import Rig
 from lightcal.core.solver import run_least_squares
-from lightcal.core.synth import RigConfig, SceneConfig, symmetric_profile_table
 from lightcal.io.project import load_project
-from lightcal.io.synth_writer import SynthConfig, write_dataset
 from lightcal.pipeline import build_model, calibrate_project, load_images
+from lightcal.synthetic.dataset import SynthConfig, write_dataset
+from lightcal.synthetic.scenes import RigConfig, SceneConfig, symmetric_profile_table
 from tests import calib_scenes as cs
 
 DISTORTED = cs.small_camera()

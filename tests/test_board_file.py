@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
 from lightcal.errors import InputError
 from lightcal.io.board_file import (
     ArucoGridSpec,
@@ -16,7 +17,6 @@ from lightcal.io.board_file import (
     read_board,
     write_board,
 )
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, Chessboard
 
 BOARDS: list[ArucoGridBoard | CharucoBoard | Chessboard] = [
     ArucoGridBoard("DICT_4X4_50", 8, 6, 0.12, 0.18, first_id=1, origin_world_m=(-1.11, 0.81)),

@@ -1,4 +1,4 @@
-"""Tests of lightcal.io.boards: geometry in the world frame, rendering, validation."""
+"""Tests of lightcal.capture.boards: geometry in the world frame, rendering, validation."""
 
 from __future__ import annotations
 
@@ -7,9 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from lightcal.core.camera import Camera
-from lightcal.errors import InputError
-from lightcal.io.boards import (
+from lightcal.capture.boards import (
     R_WORLD_BOARD,
     ArucoGridBoard,
     CharucoBoard,
@@ -17,7 +15,9 @@ from lightcal.io.boards import (
     aruco_dictionary,
     aruco_dictionary_names,
 )
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+from lightcal.core.camera import Camera
+from lightcal.errors import InputError
 
 
 def _opencv_points_in_world(points_board, origin):

@@ -15,11 +15,11 @@ import tifffile
 from lightcal.cli.main import main
 from lightcal.core.render import render_image
 from lightcal.core.scene import Light, Rig
-from lightcal.core.synth import SceneConfig
 from lightcal.io.project import load_project
 from lightcal.io.result_file import read_result
-from lightcal.io.synth_writer import SynthConfig, write_dataset
 from lightcal.pipeline import load_images
+from lightcal.synthetic.dataset import SynthConfig, write_dataset
+from lightcal.synthetic.scenes import SceneConfig
 from tests import calib_scenes as cs
 
 N_VIEWS = 6

@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
+from lightcal.capture.boards import ArucoGridBoard, Chessboard
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
-from lightcal.io.boards import ArucoGridBoard, Chessboard
 from lightcal.io.camera_file import read_camera, write_camera
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 WIDTH, HEIGHT = 640, 480
 CAMERA = Camera.from_params(

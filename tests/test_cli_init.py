@@ -1,4 +1,5 @@
-"""Tests of `lightcal init` (and `lightcal.project_init`) on synthetic images of a marker wall."""
+"""Tests of `lightcal init` (`lightcal.capture.project_init`) on synthetic images of a marker
+wall."""
 
 from __future__ import annotations
 
@@ -14,14 +15,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from lightcal.capture.boards import ArucoGridBoard, Chessboard
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+from lightcal.capture.project_init import init_project
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
-from lightcal.io.boards import ArucoGridBoard, Chessboard
 from lightcal.io.camera_file import write_camera
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
 from lightcal.io.project import ExposureSpec, load_project
-from lightcal.project_init import init_project
 
 WIDTH, HEIGHT = 640, 480
 CAMERA = Camera.from_params(
@@ -144,6 +145,13 @@ def test_init_writes_a_project_with_poses_masks_and_exposures(scene, capsys):
         R, t = _pose(k)
         assert _angle_deg(view.R_camera_world, R) < 0.05
         assert np.linalg.norm(view.center_world - (-R.T @ t)) < 1e-3
+        # The marker fit's covariance of (delta, c), as the project file stores it.
+        covariance = np.array(data["images"][k]["T_camera_world"]["covariance"])
+        assert covariance.shape == (6, 6)
+        np.testing.assert_array_equal(project.pose_covariances[k], covariance)
+        assert np.linalg.eigvalsh(covariance).min() > 0.0
+        sigma = np.sqrt(np.diag(covariance))
+        assert np.all(sigma[:3] < np.radians(0.05)) and np.all(sigma[3:] < 1e-3)
         # Exposure from EXIF, relative to the first image.
         assert view.exposure == pytest.approx(VIEWS[k][3] / VIEWS[0][3])
         spec = project.spec.images[k].exposure

@@ -1,4 +1,4 @@
-"""Tests of lightcal.io.colmap: COLMAP text model -> poses in the wall's world frame."""
+"""Tests of lightcal.io.colmap (reading) and lightcal.capture.colmap_align (the wall frame)."""
 
 from __future__ import annotations
 
@@ -8,16 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
-from lightcal.errors import InputError
-from lightcal.io.colmap import (
+from lightcal.capture.colmap_align import (
     SfmModel,
     camera_baseline,
     known_distance,
     read_colmap_model,
-    read_images_txt,
-    read_points3d_txt,
 )
+from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
+from lightcal.errors import InputError
+from lightcal.io.colmap import read_colmap_text, read_images_txt, read_points3d_txt
 
 DATA = Path(__file__).parent / "data" / "colmap" / "wall"
 
@@ -101,6 +100,12 @@ def test_readers_keep_colmap_values() -> None:
     ids, points = read_points3d_txt(DATA / "points3D.txt")
     np.testing.assert_array_equal(ids, [1, 2, 3, 4, 5])
     np.testing.assert_array_equal(points[4], [1.0, 1.0, 3.0])
+    text = read_colmap_text(DATA)
+    assert [r.name for r in text.images] == ["left.jpg", "right.jpg"]
+    assert sorted(text.cameras) == [1]
+    assert (text.images_path, text.points_path) == (DATA / "images.txt", DATA / "points3D.txt")
+    np.testing.assert_array_equal(text.point_ids, ids)
+    np.testing.assert_array_equal(text.points_colmap, points)
 
 
 # --------------------------------------------------------------------------- synthetic model

@@ -12,7 +12,8 @@ import pytest
 import tifffile
 
 from lightcal.errors import InputError
-from lightcal.io.images import LinearImage, read_image
+from lightcal.io.images import read_image
+from lightcal.io.linear_image import LinearImage
 from lightcal.io.response import ResponseCurve
 
 LUMA = (0.2126, 0.7152, 0.0722)

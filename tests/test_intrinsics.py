@@ -1,4 +1,4 @@
-"""Tests of lightcal.io.intrinsics on synthetic, distorted views of boards."""
+"""Tests of lightcal.capture.intrinsics on synthetic, distorted views of boards."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import re
 import numpy as np
 import pytest
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
+from lightcal.capture.intrinsics import calibrate_intrinsics
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, Chessboard
-from lightcal.io.intrinsics import calibrate_intrinsics
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
 
 WIDTH, HEIGHT = 800, 600
 CAMERA = Camera.from_params(

@@ -1,4 +1,4 @@
-"""Tests of lightcal.io.marker_pose on synthetic, distorted images of boards on the wall."""
+"""Tests of lightcal.capture.marker_pose on synthetic, distorted images of boards on the wall."""
 
 from __future__ import annotations
 
@@ -9,17 +9,21 @@ import cv2
 import numpy as np
 import pytest
 
-from lightcal.core.camera import Camera
-from lightcal.errors import InputError
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, Chessboard
-from lightcal.io.marker_pose import (
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
+from lightcal.capture.marker_pose import (
     MarkerPose,
     estimate_pose,
     estimate_poses,
+    pose_covariance,
+    pose_jacobian,
     pose_report,
+    solve_pose,
     stretch_to_uint8,
 )
-from lightcal.io.plane_texture import look_at_pose, render_plane_image
+from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+from lightcal.core.camera import Camera
+from lightcal.core.rotations import matrix_from_rotvec, rotvec_from_matrix
+from lightcal.errors import InputError
 
 CAMERA = Camera.from_params(
     fx=1400.0,
@@ -44,6 +48,10 @@ SCENES: dict[str, tuple[ArucoGridBoard | CharucoBoard, float, float, float, floa
     "charuco_1.6m_tilt30": (CHARUCO, 1.6, 30.0, 120.0, 180.0),
     "charuco_2.5m_frontal": (CHARUCO, 2.5, 0.0, 0.0, 0.0),
 }
+
+# The (delta, c) error of a chi^2 test with 6 degrees of freedom is rejected above this
+# (the 0.999 quantile).
+CHI2_6_999 = 22.46
 
 # Tolerances of the task: 1 mm and 0.05 degrees.
 MAX_POSITION_ERROR_M = 1e-3
@@ -81,6 +89,12 @@ def _angle_deg(R_a, R_b):
     return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
 
 
+def _pose_error(R_estimate, t_estimate, R, t):
+    """(6,) the estimate's (delta, c) error: R_estimate = exp(delta) R, c_estimate - c."""
+    delta = rotvec_from_matrix(R_estimate @ R.T)
+    return np.r_[delta, -R_estimate.T @ t_estimate + R.T @ t]
+
+
 def _errors(pose, R, t):
     """(rotation error deg, |t error| m, |camera centre error| m)."""
     centre = -R.T @ t
@@ -112,6 +126,20 @@ def test_pose_recovered_from_synthetic_image(name):
     np.testing.assert_allclose(
         np.sqrt(np.mean(np.sum(pose.residuals_px() ** 2, axis=1))), pose.reprojection_rms_px
     )
+    # The covariance of the fit: symmetric, positive definite, and the true error is
+    # within it (chi^2 of 6 degrees of freedom).
+    covariance = pose.covariance
+    assert covariance.shape == (6, 6)
+    np.testing.assert_array_equal(covariance, covariance.T)
+    assert np.linalg.eigvalsh(covariance).min() > 0.0
+    np.testing.assert_array_equal(pose.sigma, np.sqrt(np.diag(covariance)))
+    error = _pose_error(pose.R_camera_world, pose.t_camera_world, R, t)
+    chi2 = float(error @ np.linalg.solve(covariance, error))
+    print(
+        f"  sigma rotation {np.degrees(pose.sigma[:3]).round(5)} deg, "
+        f"centre {(pose.sigma[3:] * 1e3).round(4)} mm, chi2 of the error {chi2:.2f}"
+    )
+    assert chi2 < CHI2_6_999
 
 
 @pytest.mark.parametrize("name", ["grid_2.5m_tilt15", "charuco_2.5m_frontal"])
@@ -277,3 +305,94 @@ def test_stretch_to_uint8():
     assert stretch_to_uint8(with_nan)[0, 50] == 0
     assert not np.any(stretch_to_uint8(np.full((3, 3), 2.5)))
     assert stretch_to_uint8(ramp.astype(np.uint16))[0, 100] == 128
+
+
+# --------------------------------------------------------------------------- covariance
+
+
+def _detections(name):
+    """(board points (N, 3), their true pixels (N, 2), R, t) of a named scene, no image."""
+    board, distance_m, tilt_deg, azimuth_deg, roll_deg = SCENES[name]
+    tilt, azimuth = np.radians(tilt_deg), np.radians(azimuth_deg)
+    direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
+    target = _board_centre_world(board)
+    centre = target + distance_m * np.array(direction)
+    R, t = look_at_pose(centre, target, roll_rad=np.radians(roll_deg))
+    ids = board.ids if isinstance(board, ArucoGridBoard) else board.corner_ids
+    points_world = board.corners_world(ids).reshape(-1, 3)
+    pixels, valid = CAMERA.project(points_world @ R.T + t)
+    assert np.all(valid)
+    return points_world, pixels, R, t
+
+
+@pytest.mark.parametrize("name", ["grid_1.5m_tilt30", "charuco_2.5m_frontal"])
+def test_pose_jacobian_matches_central_differences(name):
+    points_world, _, R, t = _detections(name)
+    jacobian = pose_jacobian(CAMERA, R, t, points_world)
+    assert jacobian.shape == (2 * len(points_world), 6)
+    centre = -R.T @ t
+    numeric = np.empty_like(jacobian)
+    for k, step in enumerate([1e-7] * 3 + [1e-7] * 3):
+        projected = []
+        for sign in (1.0, -1.0):
+            dp = np.zeros(6)
+            dp[k] = sign * step
+            R_k = matrix_from_rotvec(dp[:3]) @ R
+            pixels, _ = CAMERA.project(points_world @ R_k.T - R_k @ (centre + dp[3:]))
+            projected.append(pixels.reshape(-1))
+        numeric[:, k] = (projected[0] - projected[1]) / (2.0 * step)
+    np.testing.assert_allclose(jacobian, numeric, rtol=0, atol=1e-6 * np.abs(jacobian).max())
+
+
+@pytest.mark.parametrize("name", ["grid_1.5m_tilt30", "charuco_2.5m_frontal"])
+def test_predicted_covariance_matches_the_spread_of_estimates(name):
+    """Many fits of noisy detections: their (delta, c) errors spread as predicted."""
+    points_world, pixels, R, t = _detections(name)
+    sigma_px = 0.2
+    errors, predicted = [], []
+    for seed in range(1000):
+        noisy = pixels + np.random.default_rng(seed).normal(0.0, sigma_px, pixels.shape)
+        R_fit, t_fit = solve_pose(points_world, noisy, CAMERA)
+        errors.append(_pose_error(R_fit, t_fit, R, t))
+        predicted.append(pose_covariance(CAMERA, R_fit, t_fit, points_world, noisy))
+    empirical = np.cov(np.array(errors).T)
+    mean_predicted = np.mean(predicted, axis=0)
+    ratio = np.diag(empirical) / np.diag(mean_predicted)
+    print(
+        f"{name}: predicted sigma {np.sqrt(np.diag(mean_predicted))}, "
+        f"empirical {np.sqrt(np.diag(empirical))}, variance ratio {ratio.round(3)}"
+    )
+    np.testing.assert_array_less(np.abs(ratio - 1.0), 0.2)
+    # The correlations agree too (the frontal view's rotation and centre are tied).
+    d_emp, d_pred = np.sqrt(np.diag(empirical)), np.sqrt(np.diag(mean_predicted))
+    correlation_emp = empirical / np.outer(d_emp, d_emp)
+    correlation_pred = mean_predicted / np.outer(d_pred, d_pred)
+    np.testing.assert_allclose(correlation_emp, correlation_pred, rtol=0, atol=0.15)
+    # The prediction at the truth with the known noise, sigma^2 (J^T J)^-1, agrees as well.
+    jacobian = pose_jacobian(CAMERA, R, t, points_world)
+    at_truth = sigma_px**2 * np.linalg.inv(jacobian.T @ jacobian)
+    np.testing.assert_allclose(np.diag(mean_predicted), np.diag(at_truth), rtol=0.05)
+
+
+def test_predicted_sigma_scales_with_the_pixel_noise():
+    points_world, pixels, _, _ = _detections("grid_1.5m_tilt30")
+    sigmas = {}
+    for sigma_px in (0.1, 0.4):
+        covariances = []
+        for seed in range(50):
+            noise = np.random.default_rng(seed).normal(0.0, 1.0, pixels.shape)
+            noisy = pixels + sigma_px * noise
+            R_fit, t_fit = solve_pose(points_world, noisy, CAMERA)
+            covariances.append(pose_covariance(CAMERA, R_fit, t_fit, points_world, noisy))
+        sigmas[sigma_px] = np.sqrt(np.diag(np.mean(covariances, axis=0)))
+    np.testing.assert_allclose(sigmas[0.4] / sigmas[0.1], 4.0, rtol=0.02)
+    # Without noise beyond the rounding of the fit, the covariance all but vanishes.
+    R_fit, t_fit = solve_pose(points_world, pixels, CAMERA)
+    exact = pose_covariance(CAMERA, R_fit, t_fit, points_world, pixels)
+    assert np.all(np.sqrt(np.diag(exact)) < 1e-3 * sigmas[0.1])
+
+
+def test_pose_covariance_needs_four_points():
+    points_world, pixels, R, t = _detections("grid_1.5m_tilt30")
+    with pytest.raises(InputError, match=re.escape("points_world: expected at least 4 points")):
+        pose_covariance(CAMERA, R, t, points_world[:3], pixels[:3])

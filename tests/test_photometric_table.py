@@ -1,4 +1,5 @@
-"""Tests of lightcal.io.photometric_table: the table, its unfolding, RIDs and CSV profiles."""
+"""Tests of lightcal.io.photometric_table (the table, its unfolding, RIDs and CSV profiles)
+and lightcal.io.photometric_file (the reader by suffix)."""
 
 from __future__ import annotations
 
@@ -10,12 +11,11 @@ import pytest
 
 from lightcal.core.rid import SymmetricTableRID, Table2DRID
 from lightcal.errors import InputError
+from lightcal.io.photometric_file import read_photometric_table, read_rid_file
 from lightcal.io.photometric_table import (
     PhotometricTable,
     expand_full,
-    read_photometric_table,
     read_rid_csv,
-    read_rid_file,
     table_to_rid,
     write_rid_csv,
 )

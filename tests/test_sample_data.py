@@ -13,13 +13,13 @@ from types import ModuleType
 import numpy as np
 import pytest
 
+from lightcal.capture.boards import ArucoGridBoard
+from lightcal.capture.marker_pose import estimate_pose
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.io.board_file import read_board
-from lightcal.io.boards import ArucoGridBoard
 from lightcal.io.camera_file import read_camera
 from lightcal.io.images import read_image
-from lightcal.io.marker_pose import estimate_pose
 from lightcal.io.project import load_project
 from lightcal.io.result_file import read_result
 
@@ -114,6 +114,11 @@ def test_marker_poses_of_the_committed_images():
                 )
                 np.testing.assert_allclose(
                     pose.t_camera_world, project.views[i].t_camera_world, atol=1e-9
+                )
+                written = project.pose_covariances[i]
+                assert written is not None
+                np.testing.assert_allclose(
+                    pose.covariance, written, rtol=0, atol=1e-6 * np.abs(written).max()
                 )
 
 

@@ -1,4 +1,4 @@
-"""Tests of lightcal.core.synth (views, rigs, sensor) and lightcal.io.synth_writer (datasets)."""
+"""Tests of lightcal.synthetic: scenes (views, rigs, sensor) and dataset (dataset folders)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,12 @@ from lightcal.core.pose import rotation_from_axis
 from lightcal.core.render import render_image
 from lightcal.core.rid import CosPowerRID, IsotropicRID, SymmetricTableRID, Table2DRID
 from lightcal.core.scene import Light, Rig, View
-from lightcal.core.synth import (
+from lightcal.errors import InputError
+from lightcal.io.images import read_image
+from lightcal.io.project import load_project
+from lightcal.synthetic import dataset as synth_dataset
+from lightcal.synthetic.dataset import SynthConfig, read_truth, write_dataset
+from lightcal.synthetic.scenes import (
     RigConfig,
     SceneConfig,
     SensorConfig,
@@ -33,11 +38,6 @@ from lightcal.core.synth import (
     symmetric_profile_table,
     white_level,
 )
-from lightcal.errors import InputError
-from lightcal.io import synth_writer
-from lightcal.io.images import read_image
-from lightcal.io.project import load_project
-from lightcal.io.synth_writer import SynthConfig, read_truth, write_dataset
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -483,7 +483,7 @@ def test_failure_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.Monke
     def broken(*args, **kwargs):
         raise RuntimeError("sensor broke")
 
-    monkeypatch.setattr(synth_writer, "apply_sensor", broken)
+    monkeypatch.setattr(synth_dataset, "apply_sensor", broken)
     with pytest.raises(RuntimeError, match="sensor broke"):
         write_dataset(tmp_path / "d", small_config())
     assert list(tmp_path.iterdir()) == []

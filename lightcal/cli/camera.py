@@ -2,7 +2,7 @@
 
 - `lightcal camera calibrate IMAGES... --board BOARD --out camera.yaml [--n-dist 5]`:
   intrinsics from views of a chessboard or ChArUco board
-  (`lightcal.io.intrinsics.calibrate_intrinsics`); prints the reprojection RMS of every
+  (`lightcal.capture.intrinsics.calibrate_intrinsics`); prints the reprojection RMS of every
   view used and the reason for every view rejected, and writes an OpenCV-compatible YAML
   (or XML, or JSON, by the suffix of `--out`).
 - `lightcal camera import FILE --out camera.yaml`: converts an OpenCV YAML/XML/JSON file or
@@ -73,8 +73,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _expand(inputs: list[Path]) -> list[Path]:
     """Files as given; folders replaced by their image files (sorted)."""
+    from lightcal.capture.project_init import list_images
     from lightcal.errors import InputError
-    from lightcal.project_init import list_images
 
     paths: list[Path] = []
     for item in inputs:
@@ -102,12 +102,12 @@ def _describe(camera: Camera) -> str:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
+    from lightcal.capture.boards import CharucoBoard, Chessboard
+    from lightcal.capture.intrinsics import calibrate_intrinsics
     from lightcal.errors import InputError
     from lightcal.io.board_file import read_board
-    from lightcal.io.boards import CharucoBoard, Chessboard
     from lightcal.io.camera_file import write_camera
     from lightcal.io.images import read_image
-    from lightcal.io.intrinsics import calibrate_intrinsics
 
     board = read_board(args.board)
     if not isinstance(board, Chessboard | CharucoBoard):

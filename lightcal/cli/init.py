@@ -2,7 +2,7 @@
 
 Detects the board in every image, prints one line per image (markers, reprojection RMS
 and camera position, or why it was rejected), writes the marker masks and the project
-file (see `lightcal.project_init`).
+file (see `lightcal.capture.project_init`).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.project_init import ImageOutcome, init_project
+    from lightcal.capture.project_init import ImageOutcome, init_project
 
     def on_image(outcome: ImageOutcome) -> None:
         print(outcome.report_line(), flush=True)

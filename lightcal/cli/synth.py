@@ -3,7 +3,7 @@
 Renders images of a flat wall lit by a rig of lights from a seeded random set of camera
 poses, adds sensor noise, and writes the images, the camera file, the light's profile file,
 a ready-to-run project (measured poses with pose noise, an initial guess that is off) and
-truth.json (see `lightcal.io.synth_writer`). One progress line per image goes to stderr.
+truth.json (see `lightcal.synthetic.dataset`). One progress line per image goes to stderr.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
-from lightcal.core.synth import LIGHT_MODELS
 from lightcal.errors import InputError
+from lightcal.synthetic.scenes import LIGHT_MODELS
 
 if TYPE_CHECKING:
     from lightcal.core.wall import WallReflectance
@@ -193,8 +193,8 @@ def _wall(args: argparse.Namespace) -> WallReflectance:
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.core.camera import Camera
-    from lightcal.core.synth import RigConfig, SceneConfig, SensorConfig
-    from lightcal.io.synth_writer import SynthConfig, write_dataset
+    from lightcal.synthetic.dataset import SynthConfig, write_dataset
+    from lightcal.synthetic.scenes import RigConfig, SceneConfig, SensorConfig
 
     sensor_model = args.sensor
     if sensor_model is None:

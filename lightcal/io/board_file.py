@@ -2,7 +2,7 @@
 
 `lightcal init --board` (marker poses) and `lightcal camera calibrate --board`
 (intrinsics) read it. One mapping with a `type` and the fields of the matching
-`lightcal.io.boards` class (lengths in metres, the world placement of the board as that
+`lightcal.capture.boards` class (lengths in metres, the world placement of the board as that
 module defines it):
 
 ```yaml
@@ -32,9 +32,9 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
+from lightcal.capture.boards import ArucoGridBoard, Board, CharucoBoard, Chessboard
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
-from lightcal.io.boards import ArucoGridBoard, Board, CharucoBoard, Chessboard
 from lightcal.io.document import read_document
 
 __all__ = [
@@ -73,7 +73,7 @@ class _Model(BaseModel):
 
 
 class ArucoGridSpec(_Model):
-    """A grid of ArUco markers (`lightcal.io.boards.ArucoGridBoard`)."""
+    """A grid of ArUco markers (`lightcal.capture.boards.ArucoGridBoard`)."""
 
     version: Literal[1] = BOARD_FILE_VERSION
     type: Literal["aruco_grid"]
@@ -87,7 +87,7 @@ class ArucoGridSpec(_Model):
 
 
 class CharucoSpec(_Model):
-    """A ChArUco board (`lightcal.io.boards.CharucoBoard`)."""
+    """A ChArUco board (`lightcal.capture.boards.CharucoBoard`)."""
 
     version: Literal[1] = BOARD_FILE_VERSION
     type: Literal["charuco"]
@@ -100,7 +100,7 @@ class CharucoSpec(_Model):
 
 
 class ChessboardSpec(_Model):
-    """A plain chessboard (`lightcal.io.boards.Chessboard`), for intrinsics only."""
+    """A plain chessboard (`lightcal.capture.boards.Chessboard`), for intrinsics only."""
 
     version: Literal[1] = BOARD_FILE_VERSION
     type: Literal["chessboard"]

@@ -33,9 +33,8 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import Any, Literal, cast
 
 # OpenCV reads OpenEXR only when this is set (before cv2 is imported, to be safe).
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
@@ -46,31 +45,18 @@ from numpy.typing import NDArray
 
 from lightcal.errors import InputError
 from lightcal.io.exif import Exposure, read_exposure
+from lightcal.io.linear_image import (
+    LUMINANCE_WEIGHTS_RGB,
+    LinearImage,
+    saturation_threshold,
+)
+from lightcal.io.raw import RawChannel, read_raw
 from lightcal.io.response import ResponseCurve
 
-if TYPE_CHECKING:
-    from lightcal.io.raw import RawChannel
-
-__all__ = [
-    "LUMINANCE_WEIGHTS_RGB",
-    "RAW_EXTENSIONS",
-    "SATURATION_MARGIN",
-    "SUPPORTED_EXTENSIONS",
-    "Channel",
-    "LinearImage",
-    "read_image",
-    "saturation_threshold",
-]
+__all__ = ["RAW_EXTENSIONS", "SUPPORTED_EXTENSIONS", "Channel", "read_image"]
 
 Channel = Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"]
 """Which light to read: see `read_image`."""
-
-LUMINANCE_WEIGHTS_RGB = (0.2126, 0.7152, 0.0722)
-"""Rec. 709 luminance weights of linear R, G, B."""
-
-SATURATION_MARGIN = 0.005
-"""Fraction of the range (white - black) below the white level from which a pixel counts
-as saturated: sensors often clip a little below their nominal white level."""
 
 RAW_EXTENSIONS = frozenset(
     {
@@ -87,62 +73,6 @@ SUPPORTED_EXTENSIONS = _CV2_EXTENSIONS | _TIFF_EXTENSIONS | {".npy", ".exr"} | R
 """Every extension `read_image` accepts (compared lower-case)."""
 
 _DEVELOPED_CHANNELS = ("auto", "luminance", "R", "G", "B")
-
-
-@dataclass(frozen=True)
-class LinearImage:
-    """One image as linear single-channel values, ready for fitting.
-
-    Attributes:
-        values: (H, W) float64, proportional to the light on each pixel, black level
-            already subtracted (may be slightly negative from noise). Read-only.
-        saturated: (H, W) bool, True where the value is clipped (at or near the white
-            level, or any source pixel of a binned pixel was). Read-only.
-        white_level: Clipping level in the units of `values` (after black subtraction);
-            `math.inf` when unknown (float images without a given white level).
-        black_level: What was subtracted, in the units of the source data.
-        exposure: Exposure settings from EXIF, or None when the file has none.
-        source: The file read.
-        bit_depth: Bits per sample of integer source data, None for float data.
-        channel: Which channel was read (`Channel`, "auto" resolved).
-        binning: Source pixels per output pixel along each axis: 2 for the half-size
-            raw channels (use the binned camera, `Camera.binned(2)`), else 1.
-    """
-
-    values: NDArray[np.float64]
-    saturated: NDArray[np.bool_]
-    white_level: float
-    black_level: float
-    exposure: Exposure | None
-    source: str
-    bit_depth: int | None
-    channel: str = "luminance"
-    binning: int = 1
-
-    def __post_init__(self) -> None:
-        # Read-only views (no copy when the dtype already fits).
-        values = np.asarray(self.values, dtype=np.float64).view()
-        saturated = np.asarray(self.saturated, dtype=np.bool_).view()
-        if values.ndim != 2:
-            raise InputError(
-                self.source, f"expected (H, W) linear values, got shape {values.shape}"
-            )
-        if saturated.shape != values.shape:
-            raise InputError(
-                self.source,
-                f"saturation mask shape {saturated.shape} differs from values {values.shape}",
-            )
-        values.setflags(write=False)
-        saturated.setflags(write=False)
-        object.__setattr__(self, "values", values)
-        object.__setattr__(self, "saturated", saturated)
-        object.__setattr__(self, "white_level", float(self.white_level))
-        object.__setattr__(self, "black_level", float(self.black_level))
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(H, W)."""
-        return (int(self.values.shape[0]), int(self.values.shape[1]))
 
 
 def read_image(
@@ -198,8 +128,6 @@ def read_image(
                 path,
                 "camera raw data is already linear; a response curve applies only to 8-bit images",
             )
-        from lightcal.io.raw import read_raw
-
         return read_raw(
             path,
             channel=cast("RawChannel", "green_binned" if channel == "auto" else channel),
@@ -241,11 +169,6 @@ def read_image(
     return _from_integer(
         path, data, resolved, bit_depth, black_level, white_level, response, exposure
     )
-
-
-def saturation_threshold(white_level: float, black_level: float) -> float:
-    """Source value from which a pixel counts as saturated: white - margin * (white - black)."""
-    return white_level - SATURATION_MARGIN * (white_level - black_level)
 
 
 def _resolve_developed_channel(path: Path, channel: str, colour: bool) -> str:

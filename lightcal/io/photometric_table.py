@@ -7,7 +7,7 @@ horizontal angles C (degrees, 0..360), stored only over the part the file's symm
 needs. `expand_full` unfolds the symmetry; `table_to_rid` turns the table into the
 relative radiant intensity distribution (RID) the calibration uses. The module also
 reads and writes the simplest measured profile, a two-column CSV (`read_rid_csv`,
-`write_rid_csv`), and `read_rid_file` picks the reader by the file's suffix.
+`write_rid_csv`). `lightcal.io.photometric_file` picks the reader by the file's suffix.
 
 How a type C table maps onto the light frame
 --------------------------------------------
@@ -46,7 +46,6 @@ are not numbers. Angles start at 0, increase strictly and stay <= 180.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, get_args
@@ -63,9 +62,7 @@ __all__ = [
     "Symmetry",
     "expand_full",
     "format_number",
-    "read_photometric_table",
     "read_rid_csv",
-    "read_rid_file",
     "read_text_file",
     "table_to_rid",
     "write_rid_csv",
@@ -486,39 +483,3 @@ def write_rid_csv(
         for t, v in zip(theta, vals, strict=True)
     ]
     write_text_file_atomic(path, "\n".join(rows) + "\n")
-
-
-# --------------------------------------------------------------------------- dispatch
-
-
-def read_photometric_table(path: str | Path) -> PhotometricTable:
-    """Read an IES LM-63 (`.ies`) or EULUMDAT (`.ldt`) file, chosen by its suffix.
-
-    Raises:
-        InputError: Unknown suffix, or the reader's errors.
-    """
-    from lightcal.io.eulumdat import read_ldt
-    from lightcal.io.ies import read_ies
-
-    path = Path(path)
-    readers: dict[str, Callable[[Path], PhotometricTable]] = {".ies": read_ies, ".ldt": read_ldt}
-    reader = readers.get(path.suffix.lower())
-    if reader is None:
-        raise InputError(path, f"unsupported file suffix {path.suffix!r}: expected .ies or .ldt")
-    return reader(path)
-
-
-def read_rid_file(path: str | Path) -> SymmetricTableRID | Table2DRID:
-    """Read a light's RID from an `.ies`, `.ldt` or `.csv` file, chosen by its suffix.
-
-    Raises:
-        InputError: Unknown suffix, or the reader's or `table_to_rid`'s errors.
-    """
-    path = Path(path)
-    if path.suffix.lower() == ".csv":
-        return read_rid_csv(path)
-    if path.suffix.lower() not in (".ies", ".ldt"):
-        raise InputError(
-            path, f"unsupported file suffix {path.suffix!r}: expected .ies, .ldt or .csv"
-        )
-    return table_to_rid(read_photometric_table(path))

@@ -16,7 +16,7 @@ Channels (`RawChannel`):
   "binned camera": pixel (u, v) covers source pixels 2u..2u+1, 2v..2v+1, and the
   intrinsics must be those of the binned camera, `Camera.binned(2)`
   (`lightcal.core.camera`): fx' = fx / 2, fy' = fy / 2, cx' = (cx + 0.5) / 2 - 0.5,
-  cy' = (cy + 0.5) / 2 - 0.5 (pixel centres at integers, see MODEL.md).
+  cy' = (cy + 0.5) / 2 - 0.5 (pixel centres at integers, see docs/conventions.md).
 - "R", "G1", "G2", "B": one site of each cell, also half size and of the binned camera.
   G1 is the green on the red site's row, G2 the one on the blue site's row. A single
   site is half a source pixel off the cell centre: it is treated as sampling the cell.
@@ -47,7 +47,7 @@ from scipy import ndimage
 
 from lightcal.errors import InputError
 from lightcal.io.exif import read_exposure
-from lightcal.io.images import (
+from lightcal.io.linear_image import (
     LUMINANCE_WEIGHTS_RGB,
     SATURATION_MARGIN,
     LinearImage,

@@ -12,7 +12,8 @@ import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.images import LinearImage, read_image
+from lightcal.io.images import read_image
+from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
 
 ProgressFn = Callable[[str, int, int], None]

@@ -16,7 +16,7 @@ from lightcal.core.selection import (
     candidate_mask,
     select_pixels,
 )
-from lightcal.io.images import LinearImage
+from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, vignetting_for
 

@@ -1,8 +1,8 @@
 """Synthetic images of a flat texture (a printed board) on the wall, for tests and sample data.
 
 `render_plane_image` ray-casts every pixel of a distorted camera onto the wall z = 0 of the
-world frame (MODEL.md) and samples a texture placed there, so that a board drawn by
-`lightcal.io.boards` appears exactly where its world coordinates say. `look_at_pose`
+world frame (docs/conventions.md) and samples a texture placed there, so that a board drawn by
+`lightcal.capture.boards` appears exactly where its world coordinates say. `look_at_pose`
 builds camera poses that look at a point of the wall.
 """
 
@@ -82,8 +82,8 @@ def render_plane_image(
     Texture placement: texture pixel (col, row) covers the wall square
     x in x0 + [col, col + 1] / px_per_m, y in y0 - [row + 1, row] / px_per_m, with
     (x0, y0) = `texture_origin_world_m` its top-left corner and rows running towards
-    world -y (as `lightcal.io.boards.BoardRendering` places a board). Image pixels follow
-    MODEL.md (OpenCV): pixel (u, v) has its centre at integer (u, v), so no half-pixel
+    world -y (as `lightcal.capture.boards.BoardRendering` places a board). Image pixels follow
+    docs/conventions.md (OpenCV): pixel (u, v) has its centre at integer (u, v), so no half-pixel
     shift is needed when these images are fed to OpenCV or to lightcal.
 
     Args:

@@ -1,7 +1,7 @@
 """Camera poses from calibration markers on the wall (ArUco grid or ChArUco board).
 
 `estimate_pose` detects the board in one image and returns `T_camera_world` in the world
-frame of `lightcal.io.boards` (the wall is z = 0, the camera at z > 0; MODEL.md):
+frame of `lightcal.capture.boards` (the wall is z = 0, the camera at z > 0; docs/conventions.md):
 
 1. Detection runs on an 8-bit copy of the image. Linear float (or 16-bit) images are
    stretched between their 0.5th and 99.5th percentiles (`stretch_to_uint8`); the corner
@@ -15,12 +15,25 @@ frame of `lightcal.io.boards` (the wall is z = 0, the camera at z > 0; MODEL.md)
    by a first pose) are intersected. This removes the 0.1 - 0.2 px bias of `cornerSubPix`,
    which would tilt the pose of a board 2.5 m away by about 0.1 degree.
 4. `cv2.solvePnP` (IPPE, for planar points) then `cv2.solvePnPRefineLM` on the camera's
-   distortion model.
+   distortion model (`solve_pose`).
+5. The pose's covariance from the reprojection fit (`pose_covariance`), in the
+   parameterisation of the project file's `T_camera_world.covariance`: (delta, c), delta
+   (rad) a rotation perturbation R_camera_world -> exp(delta) R_camera_world (left, in the
+   camera frame) and c the camera centre in the world frame (m). Sigma = s^2 (J^T J)^-1,
+   J (2N, 6) the Jacobian of the N projected points' (u, v) with respect to (delta, c)
+   (`pose_jacobian`) and s^2 = sum of squared residuals / (2N - 6) the residual variance
+   per image coordinate. J comes from `cv2.projectPoints`' Jacobian by the chain rule:
+   with the points in the camera frame, X_c = R (X_w - c), projected at rvec = tvec = 0,
+   d/d rvec is exactly d/d delta (exp(delta) X_c: the camera's rotation about its own
+   centre) and d/d c = (d/d tvec) (-R). It is the first-order covariance of a least-squares
+   fit with independent, equal pixel noise; detection biases are not in it. Like
+   `cv2.solvePnP`, it ignores the camera's skew.
 
 On synthetic 1600 x 1200 images (fx = 1400, distortion, 8 cm markers or 7 cm squares on
 boards of 0.8 x 0.6 m) the poses are within 0.4 mm and 0.01 degrees of the truth from 0.8
 to 2.5 m, and within 0.8 mm and 0.02 degrees under a Gaussian blur of 1 px and a light spot
-that dims the image corners sevenfold (tests/test_marker_pose.py).
+that dims the image corners sevenfold (tests/test_marker_pose.py). On noisy detections the
+predicted covariance matches the spread of the estimates (same file).
 
 Too few markers raise `InputError`; `estimate_poses` collects those per image so that the
 caller can reject the images and report why (`pose_report`).
@@ -38,9 +51,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import map_coordinates
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, aruco_dictionary
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard, aruco_dictionary
 
 MarkerBoard = ArucoGridBoard | CharucoBoard
 """Boards that carry ArUco markers, hence give a camera pose from one image."""
@@ -194,6 +207,10 @@ class MarkerPose:
         t_camera_world: (3,) world -> camera translation, metres.
         reprojection_rms_px: RMS distance between the detected 2-D points and the
             projection of their world points, pixels.
+        covariance: (6, 6) covariance of the pose as (delta, c): delta (rad, 3) a rotation
+            perturbation R_camera_world -> exp(delta) R_camera_world in the camera frame,
+            c (m, 3) the camera centre in the world frame; rows and columns in that order
+            (`pose_covariance`; what the project file's `T_camera_world.covariance` holds).
         n_markers: Number of detected markers of the board.
         ids: (n_markers,) their ids.
         points_world: (N, 3) the world points used for the pose, metres.
@@ -208,6 +225,7 @@ class MarkerPose:
     R_camera_world: NDArray[np.float64]
     t_camera_world: NDArray[np.float64]
     reprojection_rms_px: float
+    covariance: NDArray[np.float64] = field(repr=False)
     n_markers: int
     ids: NDArray[np.int64]
     points_world: NDArray[np.float64] = field(repr=False)
@@ -219,6 +237,11 @@ class MarkerPose:
     def camera_centre_world(self) -> NDArray[np.float64]:
         """(3,) camera centre C = -R^T t in the world frame, metres (C_z > 0)."""
         return -self.R_camera_world.T @ self.t_camera_world
+
+    @property
+    def sigma(self) -> NDArray[np.float64]:
+        """(6,) 1-sigma of (delta (rad), c (m)): the square roots of `covariance`'s diagonal."""
+        return np.sqrt(np.diag(self.covariance))
 
     def residuals_px(self) -> NDArray[np.float64]:
         """(N, 2) detected minus projected pixel positions of `points_world`."""
@@ -515,7 +538,7 @@ def _detect_charuco(
     corner_flat, corners_px = corner_flat[order], corners_px[order]
     corners_world = board.corners_world(corner_flat)
     if corner_flat.size >= _MIN_CHARUCO_CORNERS and _not_collinear(corners_world):
-        R, t = _solve_pose(corners_world, corners_px, camera, refine=True, source=source)
+        R, t = solve_pose(corners_world, corners_px, camera, refine=True, source=source)
         corners_px = _refine_charuco_corners(image_f, board, camera, corner_flat, corners_px, R, t)
     return marker_flat, corner_flat, corners_world, corners_px
 
@@ -529,15 +552,30 @@ def _not_collinear(points_world: NDArray[np.float64]) -> bool:
     return bool(singular[1] > 1e-6 * max(singular[0], 1e-12))
 
 
-def _solve_pose(
+def solve_pose(
     points_world: NDArray[np.float64],
     points_image: NDArray[np.float64],
     camera: Camera,
     *,
-    refine: bool,
-    source: str,
+    refine: bool = True,
+    source: str = "points",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """`T_camera_world` (R (3, 3), t (3,)) by IPPE, then Levenberg-Marquardt if `refine`."""
+    """`T_camera_world` from planar world points and their pixels (IPPE, then LM).
+
+    Args:
+        points_world: (N, 3) points on the wall (z = 0), metres, N >= 4, not all on a line.
+        points_image: (N, 2) their detected pixels (u, v).
+        camera: Intrinsics and distortion of the image.
+        refine: Refine the IPPE pose with `cv2.solvePnPRefineLM`.
+        source: Name of the image for error messages.
+
+    Returns:
+        R_camera_world: (3, 3).
+        t_camera_world: (3,), metres.
+
+    Raises:
+        InputError: `cv2.solvePnP` found no pose.
+    """
     K = np.array(camera.K)
     dist = np.array(camera.dist)
     ok, rvec, tvec = cv2.solvePnP(points_world, points_image, K, dist, flags=cv2.SOLVEPNP_IPPE)
@@ -555,6 +593,73 @@ def _solve_pose(
         )
     R, _ = cv2.Rodrigues(rvec)
     return np.asarray(R, dtype=np.float64), np.asarray(tvec, dtype=np.float64).reshape(3)
+
+
+def pose_jacobian(
+    camera: Camera,
+    R_camera_world: NDArray[np.float64],
+    t_camera_world: NDArray[np.float64],
+    points_world: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """d (u, v) / d (delta, c) of the projections of world points (see the module docstring).
+
+    Args:
+        camera: The camera (its skew is ignored, as by `cv2.projectPoints`).
+        R_camera_world: (3, 3).
+        t_camera_world: (3,), metres.
+        points_world: (N, 3) world points, metres.
+
+    Returns:
+        J: (2N, 6): rows 2k and 2k + 1 are u and v of point k; columns delta (px/rad) and
+        the camera centre c (px/m).
+    """
+    R = np.asarray(R_camera_world, dtype=np.float64)
+    points_camera = np.asarray(points_world, dtype=np.float64) @ R.T + t_camera_world
+    zero = np.zeros(3)
+    K, dist = np.array(camera.K), np.array(camera.dist)
+    _, jacobian = cv2.projectPoints(points_camera.reshape(-1, 1, 3), zero, zero, K, dist)
+    jacobian = np.asarray(jacobian, dtype=np.float64)  # columns rvec, tvec, f, c, dist
+    # X_c = exp(delta) R (X_w - c): rvec at 0 is delta, and d X_c / d c = -R.
+    return np.hstack([jacobian[:, 0:3], -jacobian[:, 3:6] @ R])
+
+
+def pose_covariance(
+    camera: Camera,
+    R_camera_world: NDArray[np.float64],
+    t_camera_world: NDArray[np.float64],
+    points_world: NDArray[np.float64],
+    points_image: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Covariance of a fitted pose from its reprojection residuals (see the module docstring).
+
+    Sigma = s^2 (J^T J)^-1, J = `pose_jacobian` (2N, 6), s^2 = sum of squared residuals
+    (detected minus projected, both coordinates) / (2N - 6).
+
+    Args:
+        camera: The camera of the image.
+        R_camera_world: (3, 3) the fitted pose (a least-squares minimum of the residuals).
+        t_camera_world: (3,), metres.
+        points_world: (N, 3) the world points of the fit, metres, N >= 4.
+        points_image: (N, 2) their detected pixels (u, v).
+
+    Returns:
+        covariance: (6, 6) of (delta (rad), c (m)), symmetric.
+
+    Raises:
+        InputError: Fewer than 4 points.
+    """
+    n_points = len(points_world)
+    if n_points < 4:
+        raise InputError("points_world", f"expected at least 4 points, got {n_points}")
+    residuals = _residuals_px(camera, R_camera_world, t_camera_world, points_world, points_image)
+    s2 = float(np.sum(residuals**2)) / (2 * n_points - 6)
+    jacobian = pose_jacobian(camera, R_camera_world, t_camera_world, points_world)
+    # Columns scaled to unit norm before inverting (px/rad and px/m differ in size).
+    scale = np.linalg.norm(jacobian, axis=0)
+    scale[scale == 0.0] = 1.0
+    scaled = jacobian / scale
+    covariance = s2 * np.linalg.inv(scaled.T @ scaled) / np.outer(scale, scale)
+    return np.asarray(0.5 * (covariance + covariance.T), dtype=np.float64)
 
 
 def estimate_pose(
@@ -578,7 +683,7 @@ def estimate_pose(
         source: Name of the image for the result and error messages.
 
     Returns:
-        The pose, its reprojection RMS and what was detected.
+        The pose, its covariance, its reprojection RMS and what was detected.
 
     Raises:
         InputError: The image has the wrong shape, fewer than `min_markers` markers were
@@ -617,7 +722,7 @@ def estimate_pose(
             [board.outline_world(corner_ids), board.marker_corners_world(ids)], axis=0
         )
 
-    R, t = _solve_pose(points_world, points_image, camera, refine=refine, source=source)
+    R, t = solve_pose(points_world, points_image, camera, refine=refine, source=source)
     centre = -R.T @ t
     if not centre[2] > 0.0:
         raise InputError(
@@ -631,6 +736,7 @@ def estimate_pose(
         R_camera_world=R,
         t_camera_world=t,
         reprojection_rms_px=float(np.sqrt(np.mean(np.sum(residuals**2, axis=1)))),
+        covariance=pose_covariance(camera, R, t, points_world, points_image),
         n_markers=int(ids.size),
         ids=ids,
         points_world=points_world,

@@ -21,7 +21,7 @@ the sensor, the seed, the configuration and the lightcal version.
 The pixel value model: an image's expected value above the black level is the renderer's
 value (`lightcal.core.render.render_image`) of the true rig, whose light scales are in DN
 at the exposure of the first image (the project's exposures are relative to it); the
-sensor (`lightcal.core.synth.apply_sensor`) adds noise, the black level, rounds and clips.
+sensor (`lightcal.synthetic.scenes.apply_sensor`) adds noise, the black level, rounds and clips.
 Everything the truth renders with (camera, RIDs, fall-off map, exposures) is read back from
 the files just written, so it is exactly what `load_project` gives a calibration.
 
@@ -58,26 +58,6 @@ from lightcal.core.pose import describe_pose
 from lightcal.core.render import render_image
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, Rig, View
-from lightcal.core.synth import (
-    AZIMUTH_STEP_DEG,
-    RigConfig,
-    SceneConfig,
-    SensorConfig,
-    apply_sensor,
-    conversion_gain,
-    describe_rid,
-    elliptical_beam_table,
-    initial_guess,
-    noise_model,
-    peak_signal,
-    perturb_view,
-    sample_exposure_times,
-    sample_rig,
-    sample_views,
-    signal_scale,
-    symmetric_profile_table,
-    white_level,
-)
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
@@ -103,6 +83,26 @@ from lightcal.io.project import (
     save_project,
 )
 from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
+from lightcal.synthetic.scenes import (
+    AZIMUTH_STEP_DEG,
+    RigConfig,
+    SceneConfig,
+    SensorConfig,
+    apply_sensor,
+    conversion_gain,
+    describe_rid,
+    elliptical_beam_table,
+    initial_guess,
+    noise_model,
+    peak_signal,
+    perturb_view,
+    sample_exposure_times,
+    sample_rig,
+    sample_views,
+    signal_scale,
+    symmetric_profile_table,
+    white_level,
+)
 
 __all__ = ["ImageFormat", "SynthConfig", "SynthDataset", "read_truth", "write_dataset"]
 

@@ -10,7 +10,7 @@ focal length to better than 0.1 % (12 synthetic 800 x 600 views: 0.013 %, princi
 within 0.2 px; tests/test_intrinsics.py). (`CALIB_CB_ACCURACY` was left out: on such views
 it was four times slower and no more accurate.)
 
-Object points are the board's world coordinates (`lightcal.io.boards`), so the per-view
+Object points are the board's world coordinates (`lightcal.capture.boards`), so the per-view
 extrinsics are `T_camera_world`; only the intrinsics are returned.
 """
 
@@ -24,10 +24,10 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lightcal.capture.boards import CharucoBoard, Chessboard
+from lightcal.capture.marker_pose import stretch_to_uint8
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.boards import CharucoBoard, Chessboard
-from lightcal.io.marker_pose import stretch_to_uint8
 
 MIN_VIEWS = 3
 """Fewest usable views `calibrate_intrinsics` accepts."""

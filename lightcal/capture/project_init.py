@@ -2,7 +2,7 @@
 
 `init_project` reads every image of a folder (any format `lightcal.io.images.read_image`
 takes), finds the board's markers and the camera pose of each image
-(`lightcal.io.marker_pose.estimate_pose`), rejects the images with too few markers or a
+(`lightcal.capture.marker_pose.estimate_pose`), rejects the images with too few markers or a
 poor fit (each with its reason), writes one marker mask per accepted image, reads the
 EXIF exposure, and writes the project (`lightcal.io.project`) with the light's RID and
 its initial guess. Paths in the project are relative to the project file's folder.
@@ -30,15 +30,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
+from lightcal.capture.marker_pose import MarkerPose, estimate_pose, pose_report
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes
 from lightcal.io.board_file import read_board
-from lightcal.io.boards import ArucoGridBoard, CharucoBoard
 from lightcal.io.camera_file import read_camera
 from lightcal.io.exif import Exposure
-from lightcal.io.images import SUPPORTED_EXTENSIONS, LinearImage, read_image
-from lightcal.io.marker_pose import MarkerPose, estimate_pose, pose_report
+from lightcal.io.images import SUPPORTED_EXTENSIONS, read_image
+from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import (
     CameraSpec,
     ExposureSpec,
@@ -371,7 +372,9 @@ def init_project(
                 path=_relative(o.path, folder),
                 name=o.name,
                 T_camera_world=PoseSpec(
-                    R=o.pose.R_camera_world.tolist(), t=o.pose.t_camera_world.tolist()
+                    R=o.pose.R_camera_world.tolist(),
+                    t=o.pose.t_camera_world.tolist(),
+                    covariance=o.pose.covariance.tolist(),
                 ),
                 exposure=exposure,
                 mask=_relative(o.mask_path, folder),

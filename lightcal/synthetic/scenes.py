@@ -1,7 +1,7 @@
 """Synthetic calibration scenes with known ground truth: views, rigs and the sensor.
 
-Everything here is numbers in memory (no files; `lightcal.io.synth_writer` writes a
-dataset). Frames and units follow docs/MODEL.md: the wall is the world plane z = 0, cameras
+Everything here is numbers in memory (no files; `lightcal.synthetic.dataset` writes a
+dataset). Frames and units follow docs/conventions.md: the wall is the world plane z = 0, cameras
 sit at z > 0 looking at it (OpenCV camera frame), a light's +z is its axis; metres and
 radians inside, degrees only in the `_deg` fields of the configurations.
 
@@ -17,7 +17,7 @@ radians inside, degrees only in the `_deg` fields of the configurations.
   and Gaussian read noise, goes back to DN, gets the black level, is rounded and clipped
   at the white level 2^bits - 1 (saturation).
 
-The light scale k of MODEL.md (`Light.scale`) is expressed in DN: rendering with the true
+The light scale k of docs/model.md (`Light.scale`) is expressed in DN: rendering with the true
 rig gives the expected pixel value above the black level, at the exposure of the first
 image. `signal_scale` picks k so that the brightest expected pixel of a dataset sits at
 `SensorConfig.exposure_target` of the usable range (white - black).
@@ -499,7 +499,7 @@ class SensorConfig:
         exposure_target: The brightest expected pixel sits at this fraction of the usable
             range (values > 1 saturate on purpose).
         noise: False: no shot or read noise (values are only rounded).
-        model: Fall-off model of MODEL.md the images follow ("radiance", "cos4", "paper",
+        model: Fall-off model of docs/model.md the images follow ("radiance", "cos4", "paper",
             "map").
         vignetting_coeffs: c_1, c_2, ... of a centred `RadialVignetting`; required for
             (and only for) model "map".

@@ -13,8 +13,8 @@ World frame and board frame (the one convention of this module):
 - OpenCV's board frame B has its origin at the board's top-left corner as printed, x to
   the right, y DOWN the printed page and z = x cross y pointing INTO the wall. A camera that
   sees the board therefore sits at negative board z.
-- Our world frame W (MODEL.md) has the wall as the plane z = 0 and the cameras at z > 0.
-  W is B rotated by diag(1, -1, -1) and shifted by the board origin:
+- Our world frame W (docs/conventions.md, "Frames") has the wall as the plane z = 0 and
+  the cameras at z > 0. W is B rotated by diag(1, -1, -1) and shifted by the board origin:
   x_w = x_b + origin_x, y_w = origin_y - y_b, z_w = -z_b = 0. On a board hung upright,
   world x points right, world y up and world z out of the wall towards the camera.
 - `origin_world_m` = (origin_x, origin_y) is where the board's top-left corner lies on the
@@ -27,7 +27,7 @@ float64, computed from the layout (not from OpenCV's float32 object points), so 
 `cv2.solvePnP(points_world, ...)` returns `T_camera_world` directly.
 
 `render(px_per_m)` draws a board (white = 255, black = 0) at an exact scale, for printing
-and for synthetic images. Pixels follow MODEL.md: pixel (u, v) = (column, row) covers
+and for synthetic images. Pixels follow docs/conventions.md: pixel (u, v) = (column, row) covers
 [u - 1/2, u + 1/2] x [v - 1/2, v + 1/2]; `BoardRendering.A_pixel_world` maps world (x, y)
 to (u, v). Markers come from `cv2.aruco.Dictionary.generateImageMarker`, placed at whole
 pixels; the layout equals `cv2.aruco.Board.generateImage` wherever the latter is exact.
