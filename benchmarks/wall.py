@@ -41,8 +41,8 @@ from lightcal.core.render import render_image, shade  # noqa: E402
 from lightcal.core.rid import CosPowerRID  # noqa: E402
 from lightcal.core.scene import Light, Rig, View  # noqa: E402
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares  # noqa: E402
-from lightcal.core.synth import SceneConfig, sample_views  # noqa: E402
 from lightcal.core.wall import LAMBERTIAN, OrenNayarWall, PlasticWall  # noqa: E402
+from lightcal.synthetic.scenes import SceneConfig, sample_views  # noqa: E402
 
 WALLS = {
     "lambertian": LAMBERTIAN,

@@ -12,7 +12,7 @@ import pytest
 
 from lightcal.cli.main import main
 from lightcal.io.result_file import read_result
-from lightcal.io.synth_writer import read_truth
+from lightcal.synthetic.dataset import read_truth
 
 
 @pytest.fixture(scope="module")

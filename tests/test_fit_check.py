@@ -11,10 +11,10 @@ from lightcal.core.footprint import pixel_footprints
 from lightcal.core.problem import LightUnknown, WallUnknown
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares
-from lightcal.core.synth import perturb_view
 from lightcal.core.wall import LAMBERTIAN, OrenNayarWall, PlasticWall
 from lightcal.pipeline.measurements import Measurements
 from lightcal.pipeline.results import summarise
+from lightcal.synthetic.scenes import perturb_view
 from tests import calib_scenes as cs
 
 NOISE = (0.5, 4.0)  # SNR about 40 at the brightest pixels
