@@ -60,6 +60,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--black-level", type=float, default=None, help="black level of the images")
     p.add_argument("--white-level", type=float, default=None, help="white level of the images")
+    p.add_argument(
+        "--pose-floor-mm",
+        type=float,
+        default=0.5,
+        help="systematic error of marker poses added to each pose's covariance, per camera "
+        "centre coordinate (0.5 mm)",
+    )
+    p.add_argument(
+        "--pose-floor-deg",
+        type=float,
+        default=0.05,
+        help="the same for each rotation component (0.05 deg)",
+    )
     p.set_defaults(func=run)
 
 
@@ -83,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
         max_rms_px=args.max_rms_px,
         black_level=args.black_level,
         white_level=args.white_level,
+        pose_floor_m=args.pose_floor_mm / 1000.0,
+        pose_floor_deg=args.pose_floor_deg,
         on_image=on_image,
     )
     for warning in result.warnings:
