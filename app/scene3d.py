@@ -1,6 +1,6 @@
 """The 3D view: the wall, one frustum per image carrying its picture, the light(s).
 
-World frame (MODEL.md): the wall is z = 0, cameras at z > 0; the browser's "up" is -y
+World frame (docs/model.md): the wall is z = 0, cameras at z > 0; the browser's "up" is -y
 (image up for cameras looking at the wall the usual way). Each camera is a frustum node
 `/cameras/<i>` posed by `T_world_camera`; everything in the camera (rig) frame hangs
 below it, so a node's local pose there is exactly `T_camera_light`:

@@ -1,6 +1,6 @@
 """Draw the pictures of the app's explanation panel (run: python static/make_figures.py).
 
-Every figure is drawn with NumPy and OpenCV from the model's own definitions (MODEL.md):
+Every figure is drawn with NumPy and OpenCV from the model's own definitions (docs/model.md):
 the frames, a pixel's footprint on the wall, the solid angle the footprint subtends at
 the light, a RID curve with its half-intensity and cut-off angles, and a small rendered
 example of real / rendered / residual images. The PNGs land beside this script.

@@ -3,7 +3,7 @@
 `make_project` renders 16-bit PNG images of a wall lit by one cos-power light from a
 few camera poses (different distances and tilts, as the calibration needs), writes the
 camera file, a `project.json` whose initial guess is off the truth, and a `truth.json`
-(what `lightcal app --demo` shows as the ghost light). Frames and units follow MODEL.md.
+(what `lightcal app --demo` shows as the ghost light). Frames and units follow docs/model.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Synthetic calibration problems in memory (and tiny project folders) for the solver tests.
 
-Frames and units follow MODEL.md: the wall is z = 0 of the world frame, cameras sit at
+Frames and units follow docs/model.md: the wall is z = 0 of the world frame, cameras sit at
 z > 0 (OpenCV camera frame), a light's +z is its axis; metres and radians. Cameras are
 small (320 x 240) and the solver sees ~100 pixels per image, as in the paper, so a solve
 takes a few tens of milliseconds.

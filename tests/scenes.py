@@ -1,6 +1,6 @@
 """Canonical cameras, views, RIDs and rigs for the renderer tests (importable by any test).
 
-Frames and units follow MODEL.md: the wall is z = 0 of the world frame, cameras sit at
+Frames and units follow docs/model.md: the wall is z = 0 of the world frame, cameras sit at
 z > 0 (OpenCV camera frame), a light's +z is its axis, metres and radians. Images are
 small (64 x 48 by default) so that the NumPy reference renders them in milliseconds.
 """

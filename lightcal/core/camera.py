@@ -1,6 +1,6 @@
 """The pinhole camera with OpenCV distortion.
 
-Conventions (see docs/MODEL.md): OpenCV camera frame (x right, y down, z forward);
+Conventions (see docs/conventions.md): OpenCV camera frame (x right, y down, z forward);
 pixel (u, v) = (column, row) has its centre at integer coordinates; intrinsics
 K = [[fx, s, cx], [0, fy, cy], [0, 0, 1]]; distortion acts on normalised
 coordinates (x/z, y/z) before K:

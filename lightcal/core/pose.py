@@ -1,6 +1,6 @@
 """Parameterisations of the light pose `T_camera_light` for the solver.
 
-Frames (see docs MODEL.md): the light frame L has its origin at the emitter, +z along the
+Frames (see docs/conventions.md): the light frame L has its origin at the emitter, +z along the
 light's central axis and +x as the azimuth reference. The unknown mount is
 `R_camera_light` (3, 3), mapping light-frame vectors to camera-frame vectors, and
 `t_camera_light` (3,), the emitter position in the (OpenCV) camera frame, metres.

@@ -82,7 +82,7 @@ class Light:
         rid: its relative radiant intensity distribution.
         t_camera_light: (3,) emitter position in the camera frame, m.
         R_camera_light: (3, 3) rotation light -> camera (light +z is its axis).
-        scale: the global scale k of MODEL.md (I0 x albedo / pi x sensor gain), > 0.
+        scale: the global scale k of docs/model.md (I0 x albedo / pi x sensor gain), > 0.
         name: a label for results and the viewer.
     """
 

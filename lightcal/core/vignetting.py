@@ -1,7 +1,7 @@
 """Sensor fall-off (vignetting): a radial polynomial model, its fit from flat fields,
 and the validation of a measured per-pixel map.
 
-Radial model (the `map` fall-off of docs/MODEL.md, in its parametric form):
+Radial model (the `map` fall-off of docs/model.md, in its parametric form):
 
     V(u, v) = 1 + c1 r^2 + c2 r^4 + c3 r^6 (+ ...),
     r = |(u, v) - centre_px| / R,  R = hypot(width, height) / 2,
