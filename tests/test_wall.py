@@ -20,6 +20,7 @@ from lightcal.core.wall import (
     internal_reflectance,
     make_wall,
     rough_transmittance,
+    wall_from_description,
 )
 from tests.scenes import all_pixels, oblique_view, pinhole_camera, rotation_with_z, two_light_rig
 
@@ -236,3 +237,12 @@ def test_footprint_spread_bounds_the_centre_error(roughness: float) -> None:
         footprint_spread(fp.corners_world, fp.centres_world, L, view.center_world, LAMBERTIAN),
         0.0,
     )
+
+
+@pytest.mark.parametrize("name", sorted(WALLS))
+def test_description_round_trip(name: str) -> None:
+    wall = WALLS[name]
+    back = wall_from_description(wall.describe())
+    assert type(back) is type(wall)
+    np.testing.assert_allclose(back.parameters(), wall.parameters(), rtol=1e-15)
+    assert wall_from_description({"model": "lambertian"}).is_lambertian

@@ -23,6 +23,7 @@ def run(args: argparse.Namespace) -> int:
     import tifffile
 
     from lightcal.core.scene import Light, Rig
+    from lightcal.core.wall import wall_from_description
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_write_bytes
     from lightcal.io.figures import image_pair_figure, write_png
@@ -49,6 +50,10 @@ def run(args: argparse.Namespace) -> int:
             )
         )
     gains = {im.name: im.gain for im in result.images}
+    try:
+        wall = wall_from_description(result.wall)
+    except ValueError as exc:
+        raise InputError(args.result, f"wall: {exc}") from exc
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
@@ -59,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
             gains=[gains.get(n, 1.0) for n in project.names],
             offset=result.offset,
             progress=progress,
+            wall=wall,
         )
     for name, img, rendered in zip(project.names, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)

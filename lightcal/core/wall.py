@@ -60,6 +60,7 @@ __all__ = [
     "internal_reflectance",
     "make_wall",
     "rough_transmittance",
+    "wall_from_description",
 ]
 
 
@@ -280,6 +281,21 @@ def make_wall(model: str, parameters: dict[str, float] | None = None) -> WallRef
         raise ValueError(
             f"{model} wall: unknown parameter(s) {', '.join(unknown)}; expected {expected}"
         )
+    return cls(**params)
+
+
+def wall_from_description(description: dict) -> WallReflectance:
+    """The wall a `WallReflectance.describe()` dictionary (e.g. a result's `wall`) names."""
+    model = str(description.get("model", "lambertian"))
+    if model not in WALL_MODELS:
+        raise ValueError(f"wall model: expected one of {', '.join(WALL_MODELS)}, got {model!r}")
+    cls = WALL_MODELS[model]
+    params = {}
+    for name in cls.parameter_names:
+        if name == "sigma" and "sigma_deg" in description:
+            params[name] = math.radians(float(description["sigma_deg"]))
+        elif name in description:
+            params[name] = float(description[name])
     return cls(**params)
 
 
