@@ -17,7 +17,7 @@ from PIL import Image
 
 from lightcal.capture.boards import ArucoGridBoard, Chessboard
 from lightcal.capture.plane_texture import look_at_pose, render_plane_image
-from lightcal.capture.project_init import init_project
+from lightcal.capture.project_init import POSE_FLOOR_DEG, POSE_FLOOR_M, init_project
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.io.board_file import write_board
@@ -145,13 +145,14 @@ def test_init_writes_a_project_with_poses_masks_and_exposures(scene, capsys):
         R, t = _pose(k)
         assert _angle_deg(view.R_camera_world, R) < 0.05
         assert np.linalg.norm(view.center_world - (-R.T @ t)) < 1e-3
-        # The marker fit's covariance of (delta, c), as the project file stores it.
+        # The marker fit's covariance of (delta, c) plus the systematic floor, as stored.
         covariance = np.array(data["images"][k]["T_camera_world"]["covariance"])
         assert covariance.shape == (6, 6)
         np.testing.assert_array_equal(project.pose_covariances[k], covariance)
         assert np.linalg.eigvalsh(covariance).min() > 0.0
-        sigma = np.sqrt(np.diag(covariance))
-        assert np.all(sigma[:3] < np.radians(0.05)) and np.all(sigma[3:] < 1e-3)
+        floor = np.array([np.radians(POSE_FLOOR_DEG)] * 3 + [POSE_FLOOR_M] * 3)
+        fit_sigma = np.sqrt(np.diag(covariance) - floor**2)
+        assert np.all(fit_sigma[:3] < np.radians(0.05)) and np.all(fit_sigma[3:] < 1e-3)
         # Exposure from EXIF, relative to the first image.
         assert view.exposure == pytest.approx(VIEWS[k][3] / VIEWS[0][3])
         spec = project.spec.images[k].exposure
