@@ -142,6 +142,7 @@ def observe(
     min_fraction: float = 0.02,
     noise_model: bool = False,
     wall: WallReflectance = LAMBERTIAN,
+    measured_camera: Camera | None = None,
 ) -> list[ImageData]:
     """Random lit pixels of each view, as the solver sees them.
 
@@ -159,11 +160,15 @@ def observe(
         min_fraction: pixels darker than this fraction of the image's brightest are skipped.
         noise_model: hand the solver the noise model (`ImageData.noise`: it re-weights).
         wall: the true wall's reflectance.
+        measured_camera: the intrinsics the solver is told (intrinsics error); default
+            `camera`.
 
     Returns:
-        One `ImageData` per view with all-valid footprints built from `measured_views`.
+        One `ImageData` per view with all-valid footprints built from `measured_views`
+        and `measured_camera`.
     """
     told = true_views if measured_views is None else measured_views
+    told_camera = camera if measured_camera is None else measured_camera
     out = []
     for i, (view, told_view) in enumerate(zip(true_views, told, strict=True)):
         n_draw = 6 * n_per_image
@@ -173,7 +178,7 @@ def observe(
         pix = np.unique(pix, axis=0)
         pix = pix[rng.permutation(len(pix))]
         fp_true = pixel_footprints(camera, view, pix)
-        fp_told = pixel_footprints(camera, told_view, pix)
+        fp_told = pixel_footprints(told_camera, told_view, pix)
         values = shade(fp_true, view, rig, wall=wall).values.filled(np.nan)
         ok = fp_true.valid & fp_told.valid & np.isfinite(values)
         peak = float(np.nanmax(np.where(ok, values, np.nan))) if ok.any() else 0.0
@@ -181,7 +186,7 @@ def observe(
         keep = np.nonzero(ok)[0][:n_per_image]
         keep.sort()
         pix = pix[keep]
-        fp = pixel_footprints(camera, told_view, pix)
+        fp = pixel_footprints(told_camera, told_view, pix)
         signal = values[keep] * (1.0 if gains is None else float(gains[i]))
         if noise is None:
             observed = signal + offset

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -301,3 +302,32 @@ def test_shape_errors(method: str, array: np.ndarray, message: str) -> None:
     camera = _camera([])
     with pytest.raises(InputError, match=message):
         getattr(camera, method)(array)
+
+
+def test_intrinsic_params_and_their_covariance_under_binning():
+    cov = np.diag([4.0, 4.0, 9.0, 1.0, 1e-4, 1e-5, 1e-8, 1e-8, 1e-6])
+    camera = Camera.from_params(
+        fx=4000.0,
+        fy=4001.0,
+        cx=3000.0,
+        cy=2000.0,
+        width=6000,
+        height=4000,
+        dist=(-0.08, 0.02, 2e-4, -1e-4, 0.0),
+    )
+    camera = dataclasses.replace(camera, intrinsics_covariance=cov)
+    np.testing.assert_array_equal(
+        camera.intrinsic_params, [4000, 4001, 3000, 2000, -0.08, 0.02, 2e-4, -1e-4, 0]
+    )
+    moved = camera.with_intrinsic_params(camera.intrinsic_params + np.arange(9) * 1e-3)
+    assert moved.fx == 4000.0 and moved.fy == 4001.001 and moved.dist[0] == -0.08 + 0.004
+    np.testing.assert_array_equal(moved.intrinsics_covariance, cov)
+    binned = camera.binned(5)
+    # fx / 5 and cx / 5 (+ a constant): their variances / 25; the distortion's unchanged.
+    np.testing.assert_allclose(
+        np.diag(binned.intrinsics_covariance), np.r_[cov.diagonal()[:4] / 25, cov.diagonal()[4:]]
+    )
+    with pytest.raises(InputError, match="intrinsics_covariance: expected a 9x9 matrix"):
+        dataclasses.replace(camera, intrinsics_covariance=np.eye(8))
+    with pytest.raises(InputError, match="expected 9 intrinsic parameters, got 8"):
+        camera.with_intrinsic_params(np.ones(8))

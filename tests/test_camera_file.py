@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -508,4 +509,68 @@ def test_empty_file(tmp_path: Path, name: str) -> None:
     path = tmp_path / name
     path.write_text("\n")
     with pytest.raises(InputError, match=_match(path, "empty file: expected a mapping of keys")):
+        read_camera(path)
+
+
+def _with_covariance(camera: Camera, seed: int = 0) -> Camera:
+    p = 4 + camera.n_dist
+    a = (
+        np.random.default_rng(seed).normal(size=(p, p))
+        * np.r_[0.3, 0.3, 0.5, 0.5, [1e-3] * (p - 4)]
+    )
+    return dataclasses.replace(camera, intrinsics_covariance=a.T @ a / 7.0)
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".xml", ".json"])
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_intrinsics_covariance_round_trip(tmp_path: Path, suffix: str, name: str) -> None:
+    camera = _with_covariance(CAMERAS[name])
+    path = tmp_path / f"camera{suffix}"
+    write_camera(camera, path)
+    back = read_camera(path)
+    assert back == camera
+    assert back.intrinsics_covariance is not None
+    np.testing.assert_array_equal(back.intrinsics_covariance, camera.intrinsics_covariance)
+    assert (
+        back.intrinsic_names
+        == ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")[
+            : 4 + camera.n_dist
+        ]
+    )
+    if suffix == ".yaml":  # an OpenCV matrix node that OpenCV reads
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        np.testing.assert_array_equal(
+            storage.getNode("intrinsics_covariance").mat(), camera.intrinsics_covariance
+        )
+        storage.release()
+
+
+def test_files_without_covariance_load_without_it(tmp_path: Path) -> None:
+    path = tmp_path / "camera.yaml"
+    write_camera(CAMERAS["4 coefficients"], path)
+    assert "intrinsics_covariance" not in path.read_text()
+    assert read_camera(path).intrinsics_covariance is None
+
+
+def test_intrinsics_covariance_errors(tmp_path: Path) -> None:
+    path = tmp_path / "camera.json"
+    content = {
+        "image_width": 640,
+        "image_height": 480,
+        "camera_matrix": [[800, 0, 320], [0, 800, 240], [0, 0, 1]],
+        "distortion_coefficients": [0.1, 0.0, 0.0, 0.0],
+        "intrinsics_covariance": np.eye(9).tolist(),
+    }
+    path.write_text(json.dumps(content))
+    with pytest.raises(InputError, match="intrinsics_covariance: expected a 8x8 matrix"):
+        read_camera(path)
+    content["intrinsics_covariance"] = (-np.eye(8)).tolist()
+    path.write_text(json.dumps(content))
+    with pytest.raises(InputError, match="intrinsics_covariance: expected a positive semi-def"):
+        read_camera(path)
+    asym = np.eye(8)
+    asym[0, 1] = 0.5
+    content["intrinsics_covariance"] = asym.tolist()
+    path.write_text(json.dumps(content))
+    with pytest.raises(InputError, match="intrinsics_covariance: expected a symmetric matrix"):
         read_camera(path)

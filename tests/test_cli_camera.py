@@ -88,9 +88,14 @@ def test_calibrate_writes_the_camera_and_reports_every_view(
         r"640x480, distortion \[([-+]\d\.\d{5}, ){4}[-+]\d\.\d{5}\]",
         lines[12],
     ), lines[12]
-    assert lines[13].startswith("10 views used, 2 rejected, reprojection RMS 0.")
-    assert lines[13].endswith(f"camera written to {out}")
-    assert len(lines) == 14
+    assert re.fullmatch(
+        r"1-sigma: fx 0\.\d{3} px, fy 0\.\d{3} px, cx 0\.\d{3} px, cy 0\.\d{3} px, "
+        r"distortion \[(\d\.\d{5}, ){4}\d\.\d{5}\] \(the full covariance is in the file\)",
+        lines[13],
+    ), lines[13]
+    assert lines[14].startswith("10 views used, 2 rejected, reprojection RMS 0.")
+    assert lines[14].endswith(f"camera written to {out}")
+    assert len(lines) == 15
 
     camera = read_camera(out)
     assert out.read_text().startswith("%YAML")  # OpenCV FileStorage
@@ -99,6 +104,9 @@ def test_calibrate_writes_the_camera_and_reports_every_view(
     assert abs(camera.cx - CAMERA.cx) < 1.0 and abs(camera.cy - CAMERA.cy) < 1.0
     assert (camera.width, camera.height, camera.n_dist) == (WIDTH, HEIGHT, 5)
     np.testing.assert_allclose(camera.dist[:2], CAMERA.dist[:2], atol=0.03)
+    assert camera.intrinsics_covariance is not None
+    assert camera.intrinsics_covariance.shape == (9, 9)
+    assert abs(camera.fx - CAMERA.fx) < 5 * np.sqrt(camera.intrinsics_covariance[0, 0])
 
 
 def test_calibrate_json_and_four_coefficients(tmp_path: Path, chessboard_folder: Path, capsys):
@@ -123,6 +131,8 @@ def test_calibrate_json_and_four_coefficients(tmp_path: Path, chessboard_folder:
     assert out.read_text().startswith("{")
     assert camera.n_dist == 4
     assert abs(camera.fx / CAMERA.fx - 1.0) < 5e-3
+    assert camera.intrinsics_covariance is not None
+    assert camera.intrinsics_covariance.shape == (8, 8)
 
 
 def test_calibrate_errors(tmp_path: Path, chessboard_folder: Path, capsys):

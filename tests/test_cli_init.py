@@ -3,6 +3,7 @@ wall."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import io
 import json
@@ -16,10 +17,12 @@ import pytest
 from PIL import Image
 
 from lightcal.capture.boards import ArucoGridBoard, Chessboard
+from lightcal.capture.marker_pose import solve_pose
 from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.capture.project_init import POSE_FLOOR_DEG, POSE_FLOOR_M, init_project
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
+from lightcal.core.rotations import rotvec_from_matrix
 from lightcal.io.board_file import write_board
 from lightcal.io.camera_file import write_camera
 from lightcal.io.project import ExposureSpec, load_project
@@ -318,3 +321,49 @@ def test_errors_are_one_line_naming_the_input(scene, capsys):
         "initial_axis_camera: expected a non-zero direction, got (0, 0, 0)"
     )
     assert not (root / "project.json").exists()
+
+
+def test_init_writes_how_each_pose_moves_with_the_intrinsics(scene):
+    root = scene["dir"]
+    cov = np.diag([0.5, 0.5, 0.4, 0.4, 1e-4, 1e-4, 1e-6, 1e-6]) ** 2
+    camera = dataclasses.replace(CAMERA, intrinsics_covariance=cov)
+    write_camera(camera, root / "camera_cov.yaml")
+    result = init_project(
+        scene["images"],
+        camera_path=root / "camera_cov.yaml",
+        board_path=root / "board.yaml",
+        out_path=root / "project.json",
+    )
+    project = load_project(root / "project.json")
+    assert project.camera.intrinsics_covariance is not None
+    for k, outcome in enumerate(result.accepted):
+        D = project.pose_intrinsics_jacobians[k]
+        assert D is not None and D.shape == (6, 8)
+        assert outcome.pose is not None
+        np.testing.assert_array_equal(D, outcome.d_pose_d_intrinsics)
+        # Against re-solves with fx 1 px (2 sigma) larger and smaller.
+        pose = outcome.pose
+        moved = []
+        for sign in (1.0, -1.0):
+            params = camera.intrinsic_params + sign * np.eye(8)[0]
+            R, t = solve_pose(
+                pose.points_world, pose.points_image, camera.with_intrinsic_params(params)
+            )
+            moved.append(np.r_[rotvec_from_matrix(R @ pose.R_camera_world.T), -R.T @ t])
+        np.testing.assert_allclose(
+            (moved[0] - moved[1]) / 2.0, D[:, 0], rtol=1e-3, atol=1e-3 * np.abs(D[:, 0]).max()
+        )
+        # A longer focal length (fx and fy) puts the camera further back along its axis:
+        # about distance / f per pixel.
+        axis = pose.R_camera_world[2]
+        distance = float(pose.camera_centre_world[2] / -axis[2])
+        assert (D[3:, 0] + D[3:, 1]) @ axis == pytest.approx(-distance / camera.fx, rel=0.2)
+    # Without a covariance in the camera file there is nothing to propagate.
+    plain = init_project(
+        scene["images"],
+        camera_path=root / "camera.yaml",
+        board_path=root / "board.yaml",
+        out_path=root / "plain.json",
+    )
+    assert all(o.d_pose_d_intrinsics is None for o in plain.accepted)
+    assert load_project(root / "plain.json").pose_intrinsics_jacobians == [None] * 3

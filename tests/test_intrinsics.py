@@ -5,11 +5,12 @@ from __future__ import annotations
 import functools
 import re
 
+import cv2
 import numpy as np
 import pytest
 
 from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
-from lightcal.capture.intrinsics import calibrate_intrinsics
+from lightcal.capture.intrinsics import _calibrate, calibrate_intrinsics
 from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
@@ -36,23 +37,28 @@ def _centre(board):
     return np.array([board.origin_world_m[0] + width / 2, board.origin_world_m[1] - height / 2, 0])
 
 
+def _pose(board, k, n_views, rng):
+    """(R, t) of view k of `n_views` from all around `board`, tilted 20 - 40 degrees."""
+    centre = _centre(board)
+    azimuth = 2 * np.pi * k / n_views + rng.uniform(-0.2, 0.2)
+    tilt = np.radians(rng.uniform(20.0, 40.0))
+    distance = rng.uniform(0.35, 0.5)
+    direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
+    target = centre + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
+    return look_at_pose(
+        centre + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
+    )
+
+
 @functools.cache
 def views(board, n_views, seed):
     """`n_views` uint8 views of `board` from all around, tilted 20 - 40 degrees."""
     rng = np.random.default_rng(seed)
     rendering = board.render(2000)
     texture = 0.05 + 0.85 * rendering.image / 255.0
-    centre = _centre(board)
     images = []
     for k in range(n_views):
-        azimuth = 2 * np.pi * k / n_views + rng.uniform(-0.2, 0.2)
-        tilt = np.radians(rng.uniform(20.0, 40.0))
-        distance = rng.uniform(0.35, 0.5)
-        direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
-        target = centre + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
-        R, t = look_at_pose(
-            centre + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
-        )
+        R, t = _pose(board, k, n_views, rng)
         image = render_plane_image(
             CAMERA, R, t, texture, rendering.px_per_m, rendering.top_left_world_m
         )
@@ -166,3 +172,55 @@ def test_input_errors():
         calibrate_intrinsics(
             [image, np.zeros((30, 40), dtype=np.uint8)], CHESSBOARD, sources=["a.png", "b.png"]
         )
+
+
+def _corner_views(n_views, noise_px, seed):
+    """Chessboard corners of `n_views` poses (as `views`), projected and noised."""
+    pose_rng = np.random.default_rng(1234)  # the same poses for every seed
+    rng = np.random.default_rng(seed)
+    world = CHESSBOARD.corners_world()
+    out = []
+    for k in range(n_views):
+        R, t = _pose(CHESSBOARD, k, n_views, pose_rng)
+        pixels, _ = CAMERA.project(world @ R.T + t)
+        out.append((world, pixels + rng.normal(0.0, noise_px, pixels.shape)))
+    return out
+
+
+def test_calibration_covariance_matches_opencv_and_the_spread_over_noise_draws():
+    noise = 0.3
+    estimates = []
+    for seed in range(40):
+        K, dist, _, cov = _calibrate(_corner_views(12, noise, seed), (WIDTH, HEIGHT), 5)
+        estimates.append(np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist])
+        if seed == 0:
+            first = cov
+            views0 = _corner_views(12, noise, seed)
+            *_, std_opencv, _, _ = cv2.calibrateCameraExtended(
+                [w.astype(np.float32) for w, _ in views0],
+                [p.astype(np.float32).reshape(-1, 1, 2) for _, p in views0],
+                (WIDTH, HEIGHT),
+                None,
+                None,
+            )
+            # The diagonal is OpenCV's (which divides by a slightly different dof).
+            np.testing.assert_allclose(
+                np.sqrt(np.diag(cov)), np.asarray(std_opencv).ravel()[:9], rtol=0.05
+            )
+            assert cov.shape == (9, 9)
+            assert np.linalg.eigvalsh(cov).min() > 0.0
+    spread = np.std(np.array(estimates), axis=0, ddof=1)
+    predicted = np.sqrt(np.diag(first))
+    # 40 draws: the sample standard deviation is good to about 11 %.
+    np.testing.assert_allclose(spread[:4], predicted[:4], rtol=0.3)
+    np.testing.assert_allclose(spread[4:], predicted[4:], rtol=0.3)
+
+
+def test_calibrated_camera_carries_its_covariance():
+    result = calibrate_intrinsics(views(CHESSBOARD, 6, 0)[:6], CHESSBOARD)
+    cov = result.camera.intrinsics_covariance
+    assert cov is not None and cov.shape == (9, 9)
+    sigma = np.sqrt(np.diag(cov))
+    # Sub-pixel corners on 6 views: fx to a fraction of a pixel, and the truth within 5 sigma.
+    assert 0.0 < sigma[0] < 2.0
+    assert abs(result.camera.fx - CAMERA.fx) < 5 * sigma[0] + 1e-3

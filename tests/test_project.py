@@ -229,12 +229,38 @@ def test_a_rotation_that_is_not_one(folder):
             lambda d: d["lights"].append(copy.deepcopy(d["lights"][0])),
             "lights: light names must be unique",
         ),
+        (
+            lambda d: d["images"][0]["T_camera_world"].update(d_pose_d_intrinsics=[[0.0] * 9] * 5),
+            "images[0].T_camera_world.d_pose_d_intrinsics: List should have at least 6 items "
+            "after validation, not 5",
+        ),
+        (
+            lambda d: d["images"][0]["T_camera_world"].update(
+                d_pose_d_intrinsics=[[0.0] * 9] * 5 + [[0.0] * 8]
+            ),
+            "images[0].T_camera_world: d_pose_d_intrinsics: expected 6 rows of 4, 8, 9 or 12 "
+            "values (one per intrinsic parameter: fx, fy, cx, cy, distortion)",
+        ),
+        (
+            lambda d: d["images"][1]["T_camera_world"].update(d_pose_d_intrinsics=[[0.0] * 8] * 6),
+            "images[1].T_camera_world.d_pose_d_intrinsics: expected 6 x 9 (the camera's fx, "
+            "fy, cx, cy and 5 distortion coefficients), got 6 x 8",
+        ),
     ],
 )
 def test_field_errors(folder, change, message):
     doc = _doc()
     change(doc)
     assert _error(folder, doc) == f"{folder / 'project.json'}: {message}"
+
+
+def test_pose_intrinsics_jacobians(folder):
+    doc = _doc()
+    D = np.arange(54.0).reshape(6, 9) / 7
+    doc["images"][2]["T_camera_world"]["d_pose_d_intrinsics"] = D.tolist()
+    project = load_project(_write(folder, doc))
+    assert project.pose_intrinsics_jacobians[:2] == [None, None]
+    np.testing.assert_array_equal(project.pose_intrinsics_jacobians[2], D)
 
 
 def test_syntax_errors_name_the_line(folder):

@@ -162,6 +162,12 @@ def test_the_truth_lies_within_3_sigma(tmp_path: Path, selection: str):
     result = read_result(out)
     assert result.fit is not None and result.fit["adequate"]
     assert any(t.startswith("camera poses (12 images") for t in result.uncertainty)
+    # camera.yaml carries the intrinsics' covariance, project.json how each pose moves with
+    # them: the intrinsics term is in.
+    assert any(
+        t.startswith("camera intrinsics (9 parameters' calibration covariance, 12 of 12")
+        for t in result.uncertainty
+    )
     light, truth = result.lights[0], _truth()["light"]
     z = (np.array(light.position_m) - truth["position_m"]) / np.array(light.sigma.position_m)
     assert np.all(np.abs(z) < 3.0), z

@@ -11,11 +11,17 @@ within 0.2 px; tests/test_intrinsics.py). (`CALIB_CB_ACCURACY` was left out: on 
 it was four times slower and no more accurate.)
 
 Object points are the board's world coordinates (`lightcal.capture.boards`), so the per-view
-extrinsics are `T_camera_world`; only the intrinsics are returned.
+extrinsics are `T_camera_world`; only the intrinsics are returned, with their covariance
+(`calibration_covariance`): the full s^2 (J^T J)^-1 of the calibration's least squares,
+J the Jacobian of every corner's (u, v) over the intrinsics and every view's pose, s^2 =
+sum r^2 / (2 N - p - 6 V), restricted to the intrinsics (fx, fy, cx, cy, distortion).
+Its diagonal agrees with `cv2.calibrateCameraExtended`'s `stdDeviationsIntrinsics`;
+unlike that it keeps the correlations (e.g. fx with fy, cx with the poses' tilt).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -50,7 +56,8 @@ class IntrinsicsResult:
     """The outcome of `calibrate_intrinsics`.
 
     Attributes:
-        camera: The calibrated camera (skew 0, `n_dist` distortion coefficients).
+        camera: The calibrated camera (skew 0, `n_dist` distortion coefficients), with
+            its `intrinsics_covariance` (`calibration_covariance`).
         rms_px: Reprojection RMS over all corners of the used views, pixels.
         per_image_rms_px: (n_used,) reprojection RMS of each used view, in `used` order.
         used: Names of the views used in the final calibration.
@@ -98,12 +105,68 @@ def _spans_area(points_world: NDArray[np.float64]) -> bool:
     return bool(singular[1] > 1e-6 * singular[0])
 
 
+def calibration_covariance(
+    views: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    K: NDArray[np.float64],
+    dist: NDArray[np.float64],
+    rvecs: Sequence[ArrayLike],
+    tvecs: Sequence[ArrayLike],
+) -> NDArray[np.float64]:
+    """Covariance (p, p) of (fx, fy, cx, cy, dist) of a calibration, p = 4 + len(dist).
+
+    s^2 (J^T J)^-1 over the intrinsics and the V views' poses (rvec, tvec), restricted
+    to the intrinsics; J stacks `cv2.projectPoints`' Jacobians of every corner,
+    s^2 = sum of squared residuals / (2 N - p - 6 V) (the module docstring).
+
+    Args:
+        views: (world points (N_v, 3), detected pixels (N_v, 2)) per view.
+        K: (3, 3) the calibrated intrinsics (skew 0).
+        dist: (n,) the calibrated distortion, n in (0, 4, 5, 8).
+        rvecs, tvecs: (3,) each view's fitted pose.
+    """
+    dist = np.asarray(dist, dtype=np.float64).reshape(-1)
+    p = 4 + dist.size
+    V = len(views)
+    blocks = []
+    residuals = []
+    for v, ((points_world, points_image), rvec, tvec) in enumerate(
+        zip(views, rvecs, tvecs, strict=True)
+    ):
+        projected, jac = cv2.projectPoints(
+            np.asarray(points_world, dtype=np.float64).reshape(-1, 1, 3),
+            np.asarray(rvec, dtype=np.float64).reshape(3),
+            np.asarray(tvec, dtype=np.float64).reshape(3),
+            K,
+            dist,
+        )
+        jac = np.asarray(jac, dtype=np.float64)  # columns rvec, tvec, (fx, fy), (cx, cy), dist
+        rows = np.zeros((jac.shape[0], p + 6 * V))
+        rows[:, :p] = jac[:, 6 : 6 + p]
+        rows[:, p + 6 * v : p + 6 * v + 6] = jac[:, :6]
+        blocks.append(rows)
+        residuals.append(projected.reshape(-1) - np.asarray(points_image).reshape(-1))
+    J = np.vstack(blocks)
+    r = np.concatenate(residuals)
+    dof = J.shape[0] - J.shape[1]
+    if dof <= 0:
+        raise InputError("views", f"{J.shape[0]} corner coordinates for {J.shape[1]} unknowns")
+    s2 = float(r @ r) / dof
+    # Columns scaled to unit norm before inverting (pixels per px, per rad and per m).
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0.0] = 1.0
+    Js = J / scale
+    inverse = np.linalg.pinv(Js.T @ Js) / np.outer(scale, scale)
+    cov = s2 * inverse[:p, :p]
+    return np.asarray(0.5 * (cov + cov.T), dtype=np.float64)
+
+
 def _calibrate(
     views: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
     image_size: tuple[int, int],
     n_dist: int,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], list[float]]:
-    """K (3, 3), dist (n_dist,) and the per-view reprojection RMS, pixels."""
+) -> tuple[NDArray[np.float64], NDArray[np.float64], list[float], NDArray[np.float64]]:
+    """K (3, 3), dist (n_dist,), the per-view reprojection RMS (pixels) and the
+    intrinsics' covariance (`calibration_covariance`)."""
     object_points = [w.astype(np.float32) for w, _ in views]
     image_points = [p.astype(np.float32).reshape(-1, 1, 2) for _, p in views]
     _, K, dist, rvecs, tvecs = cv2.calibrateCamera(
@@ -121,7 +184,8 @@ def _calibrate(
         projected, _ = cv2.projectPoints(points_world, rvec, tvec, K, dist)
         residual = projected.reshape(-1, 2) - points_image
         per_view.append(float(np.sqrt(np.mean(np.sum(residual**2, axis=1)))))
-    return np.asarray(K, dtype=np.float64), dist, per_view
+    K_out: NDArray[np.float64] = np.asarray(K, dtype=np.float64)
+    return K_out, dist, per_view, calibration_covariance(views, K_out, dist, rvecs, tvecs)
 
 
 def calibrate_intrinsics(
@@ -209,7 +273,7 @@ def calibrate_intrinsics(
     if len(views) < MIN_VIEWS or image_size is None:
         raise too_few()
     while True:
-        K, dist, per_view = _calibrate(views, image_size, n_dist)
+        K, dist, per_view, covariance = _calibrate(views, image_size, n_dist)
         limit = max(3.0 * float(np.median(per_view)), float(max_rms_px))
         bad = [i for i, rms in enumerate(per_view) if rms > limit]
         if not bad:
@@ -239,6 +303,7 @@ def calibrate_intrinsics(
         dist=dist,
         skew=float(K[0, 1]),
     )
+    camera = dataclasses.replace(camera, intrinsics_covariance=covariance)
     return IntrinsicsResult(
         camera=camera,
         rms_px=rms,

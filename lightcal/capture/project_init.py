@@ -31,7 +31,12 @@ import cv2
 import numpy as np
 
 from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
-from lightcal.capture.marker_pose import MarkerPose, estimate_pose, pose_report
+from lightcal.capture.marker_pose import (
+    MarkerPose,
+    estimate_pose,
+    pose_intrinsics_jacobian,
+    pose_report,
+)
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes
@@ -74,6 +79,9 @@ class ImageOutcome:
         reason: Why the image was rejected, None when it was accepted.
         exposure: EXIF exposure settings, None when absent (or the image was rejected).
         mask_path: The mask written for an accepted image, else None.
+        d_pose_d_intrinsics: (6, p) how the pose moves with the camera's intrinsics
+            (`marker_pose.pose_intrinsics_jacobian`), when the camera file has an
+            intrinsics covariance, else None.
     """
 
     name: str
@@ -82,6 +90,7 @@ class ImageOutcome:
     reason: str | None
     exposure: Exposure | None = None
     mask_path: Path | None = None
+    d_pose_d_intrinsics: np.ndarray | None = None
 
     @property
     def accepted(self) -> bool:
@@ -400,6 +409,9 @@ def init_project(
                     covariance=with_pose_floor(
                         o.pose.covariance, pose_floor_m, pose_floor_deg
                     ).tolist(),
+                    d_pose_d_intrinsics=(
+                        None if o.d_pose_d_intrinsics is None else o.d_pose_d_intrinsics.tolist()
+                    ),
                 ),
                 exposure=exposure,
                 mask=_relative(o.mask_path, folder),
@@ -460,4 +472,13 @@ def _process_image(
     masks_dir.mkdir(exist_ok=True)
     mask_path = masks_dir / f"{name}.png"
     atomic_write_bytes(mask_path, _encode_mask(mask))
-    return ImageOutcome(name, path, pose, None, image.exposure, mask_path)
+    d_pose = None
+    if camera.intrinsics_covariance is not None:
+        d_pose = pose_intrinsics_jacobian(
+            pose.points_world,
+            pose.points_image,
+            camera,
+            binning=1 if image_camera is camera else image.binning,
+            source=name,
+        )
+    return ImageOutcome(name, path, pose, None, image.exposure, mask_path, d_pose)

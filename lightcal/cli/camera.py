@@ -17,6 +17,7 @@ images need no response curve here, only the corners matter.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -101,6 +102,18 @@ def _describe(camera: Camera) -> str:
     )
 
 
+def _describe_sigma(camera: Camera) -> str:
+    cov = camera.intrinsics_covariance
+    if cov is None:
+        return "1-sigma: unknown"
+    sigma = [math.sqrt(max(float(cov[k, k]), 0.0)) for k in range(cov.shape[0])]
+    dist = ", ".join(f"{v:.5f}" for v in sigma[4:])
+    return (
+        f"1-sigma: fx {sigma[0]:.3f} px, fy {sigma[1]:.3f} px, cx {sigma[2]:.3f} px, "
+        f"cy {sigma[3]:.3f} px, distortion [{dist}] (the full covariance is in the file)"
+    )
+
+
 def run_calibrate(args: argparse.Namespace) -> int:
     from lightcal.capture.boards import CharucoBoard, Chessboard
     from lightcal.capture.intrinsics import calibrate_intrinsics
@@ -146,6 +159,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
             print(f"{name}: rejected: {reasons[name]}")
     write_camera(result.camera, args.out)
     print(_describe(result.camera))
+    print(_describe_sigma(result.camera))
     print(
         f"{len(result.used)} views used, {len(all_names) - len(result.used)} rejected, "
         f"reprojection RMS {result.rms_px:.3f} px; camera written to {args.out}"

@@ -36,6 +36,29 @@ def _check_points(name: str, points: ArrayLike, n_cols: int) -> NDArray[np.float
     return np.ascontiguousarray(array)
 
 
+INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+"""Names of a camera's intrinsic parameters in `Camera.intrinsic_params` order."""
+
+
+def _check_covariance(value: ArrayLike, p: int) -> NDArray[np.float64]:
+    """`value` as a (p, p) symmetric, finite, positive semi-definite float64 copy."""
+    name = "intrinsics_covariance"
+    c = np.array(value, dtype=np.float64)
+    if c.shape != (p, p):
+        raise InputError(
+            name, f"expected a {p}x{p} matrix (fx, fy, cx, cy, distortion), got shape {c.shape}"
+        )
+    if not np.all(np.isfinite(c)):
+        raise InputError(name, "expected finite values, got NaN or infinity")
+    scale = max(float(np.abs(c).max()), 1e-300)
+    if not np.allclose(c, c.T, rtol=1e-6, atol=1e-12 * scale):
+        raise InputError(name, "expected a symmetric matrix")
+    d = np.sqrt(np.maximum(np.diag(c), 1e-300))
+    if np.linalg.eigvalsh(0.5 * (c + c.T) / np.outer(d, d)).min() < -1e-9:
+        raise InputError(name, "expected a positive semi-definite matrix")
+    return 0.5 * (c + c.T)
+
+
 @dataclass(frozen=True, eq=False)
 class Camera:
     """A pinhole camera with OpenCV distortion and a sensor size.
@@ -50,8 +73,11 @@ class Camera:
             or 8), kept so that camera files round trip with the same vector
             length; the coefficients beyond it are zero. Defaults to the length
             of `dist` as passed to the constructor.
+        intrinsics_covariance: (p, p) covariance of `intrinsic_params` (fx, fy, cx, cy
+            and the `n_dist` coefficients, p = 4 + n_dist) from the calibration, or None
+            (unknown). Symmetric, finite, positive semi-definite.
 
-    Both arrays are stored as read-only copies. Two cameras are equal when all
+    The arrays are stored as read-only copies. Two cameras are equal when all
     fields are exactly equal.
     """
 
@@ -60,6 +86,7 @@ class Camera:
     width: int
     height: int
     n_dist_coeffs: int | None = None
+    intrinsics_covariance: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         K = np.array(self.K, dtype=np.float64)
@@ -111,6 +138,10 @@ class Camera:
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "dist", dist)
         object.__setattr__(self, "n_dist_coeffs", int(n_dist))
+        if self.intrinsics_covariance is not None:
+            cov = _check_covariance(self.intrinsics_covariance, 4 + int(n_dist))
+            cov.flags.writeable = False
+            object.__setattr__(self, "intrinsics_covariance", cov)
 
     @classmethod
     def from_params(
@@ -149,6 +180,14 @@ class Camera:
             and self.width == other.width
             and self.height == other.height
             and self.n_dist_coeffs == other.n_dist_coeffs
+            and (
+                (self.intrinsics_covariance is None and other.intrinsics_covariance is None)
+                or (
+                    self.intrinsics_covariance is not None
+                    and other.intrinsics_covariance is not None
+                    and np.array_equal(self.intrinsics_covariance, other.intrinsics_covariance)
+                )
+            )
         )
 
     __hash__: Any = None
@@ -195,6 +234,40 @@ class Camera:
     def dist_opencv(self) -> NDArray[np.float64]:
         """(n_dist,) the distortion vector as OpenCV functions take it."""
         return self.dist[: self.n_dist].copy()
+
+    @property
+    def intrinsic_names(self) -> tuple[str, ...]:
+        """Names of `intrinsic_params`: fx, fy, cx, cy, then k1, k2, p1, p2, k3, k4, k5, k6
+        up to `n_dist` coefficients."""
+        return INTRINSIC_NAMES[: 4 + self.n_dist]
+
+    @property
+    def intrinsic_params(self) -> NDArray[np.float64]:
+        """(4 + n_dist,) (fx, fy, cx, cy, the distortion coefficients): what
+        `intrinsics_covariance` is the covariance of."""
+        return np.concatenate([[self.fx, self.fy, self.cx, self.cy], self.dist[: self.n_dist]])
+
+    def with_intrinsic_params(self, params: ArrayLike) -> Camera:
+        """The camera with `intrinsic_params` replaced (skew, size and covariance kept).
+
+        Args:
+            params: (4 + n_dist,) fx, fy, cx, cy and the distortion coefficients.
+        """
+        p = np.asarray(params, dtype=np.float64).reshape(-1)
+        if p.size != 4 + self.n_dist:
+            raise InputError(
+                "params", f"expected {4 + self.n_dist} intrinsic parameters, got {p.size}"
+            )
+        K = self.K.copy()
+        K[0, 0], K[1, 1], K[0, 2], K[1, 2] = p[:4]
+        return Camera(
+            K=K,
+            dist=p[4:].copy(),
+            width=self.width,
+            height=self.height,
+            n_dist_coeffs=self.n_dist,
+            intrinsics_covariance=self.intrinsics_covariance,
+        )
 
     @property
     def fov_y_rad(self) -> float:
@@ -307,10 +380,16 @@ class Camera:
         K[1, 1] /= b
         K[0, 2] = (K[0, 2] + 0.5) / b - 0.5
         K[1, 2] = (K[1, 2] + 0.5) / b - 0.5
+        cov = self.intrinsics_covariance
+        if cov is not None:
+            # fx, fy, cx, cy scale by 1 / b (cx, cy up to a constant); distortion does not.
+            scale = np.concatenate([np.full(4, 1.0 / b), np.ones(self.n_dist)])
+            cov = cov * np.outer(scale, scale)
         return Camera(
             K=K,
             dist=self.dist.copy(),
             width=self.width // b,
             height=self.height // b,
             n_dist_coeffs=self.n_dist,
+            intrinsics_covariance=cov,
         )

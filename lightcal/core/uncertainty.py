@@ -1,4 +1,4 @@
-"""The light's uncertainty: pixel noise, camera-pose error and misfit, propagated.
+"""The light's uncertainty: pixel noise, camera-pose and intrinsics error and misfit, propagated.
 
 A calibration's estimate x minimises |r(x, p)|^2, r the weighted residuals and p the
 camera poses, which are themselves measured (markers, SfM) with covariances Sigma_i.
@@ -16,9 +16,22 @@ perturbation R -> exp(delta) R in the camera frame and c the camera centre (worl
 S_i is computed by central differences of the renderer (new footprints for each
 perturbed pose), 12 renders per image.
 
-Pose errors also leave residuals the light cannot absorb; their expected contribution
-to chi^2 is sum_i tr(Sigma_i (S_i^T S_i - T_i^T (J^T J)^-1 T_i)), T_i = J_i^T S_i, so the
-expected chi^2 is E = (m - n) + that, and s^2 = max(1, chi^2 / E) when sigma is the real
+The camera's intrinsics K (fx, fy, cx, cy, distortion: `Camera.intrinsic_params`, p of
+them) have a covariance Sigma_K from their calibration. Their error is one for every
+image, and each marker pose was estimated with them: an error dK moves image i's pose by
+D_i dK (D_i = `PoseSpec.d_pose_d_intrinsics`, 6 x p; 0 for a pose that does not depend
+on K) as well as its pixels' rays. With S_K = d r / d K (m, p) over all images (central
+differences: camera AND poses moved, footprints rebuilt), dx = -(J^T J)^-1 J^T S_K dK:
+
+    Cov_K(x) = G_K Sigma_K G_K^T,   G_K = (J^T J)^-1 T_K,   T_K = J^T S_K = sum_i J_i^T S_K,i,
+
+one shared parameter vector (the images' T_K,i add before the quadratic form: the error
+does not average down over images).
+
+Pose and intrinsics errors also leave residuals the light cannot absorb; their expected
+contribution to chi^2 is sum_i tr(Sigma_i (S_i^T S_i - T_i^T (J^T J)^-1 T_i)),
+T_i = J_i^T S_i, plus tr(Sigma_K (S_K^T S_K - T_K^T (J^T J)^-1 T_K)), so the expected
+chi^2 is E = (m - n) + those, and s^2 = max(1, chi^2 / E) when sigma is the real
 noise (only residuals beyond what the noise and the pose errors explain inflate the
 covariance), chi^2 / (m - n) otherwise (sigma = 1: the residual variance is the noise).
 """
@@ -46,6 +59,25 @@ def perturbed_view(view: View, dp: np.ndarray) -> View:
     return View(R, -R @ centre, view.exposure)
 
 
+def _central_differences(
+    render_at: Callable[[np.ndarray], np.ndarray], steps: np.ndarray, sigma: np.ndarray
+) -> np.ndarray:
+    """d r / d q (N, len(steps)) of r = (m_obs - m) / sigma, m = render_at(dq), by central
+    differences; a step of 0 gives a zero column."""
+    out = np.zeros((sigma.size, steps.size))
+    for k, h in enumerate(steps):
+        if not h > 0.0:
+            continue
+        values = []
+        for sign in (1.0, -1.0):
+            dq = np.zeros(steps.size)
+            dq[k] = sign * h
+            values.append(render_at(dq))
+        # r = (obs - m) / sigma  =>  dr/dq = -(dm/dq) / sigma.
+        out[:, k] = -(values[0] - values[1]) / (2.0 * h) / sigma
+    return out
+
+
 def pose_sensitivity(
     view: View,
     render: Callable[[View, Footprints], np.ndarray],
@@ -60,18 +92,13 @@ def pose_sensitivity(
         footprints_at: the image's pixels' footprints for a (perturbed) view.
         sigma: (N,) the residuals' weights.
     """
-    out = np.empty((sigma.size, 6))
-    steps = [ROTATION_STEP_RAD] * 3 + [CENTRE_STEP_M] * 3
-    for k, h in enumerate(steps):
-        values = []
-        for sign in (1.0, -1.0):
-            dp = np.zeros(6)
-            dp[k] = sign * h
-            v = perturbed_view(view, dp)
-            values.append(render(v, footprints_at(v)))
-        # r = (obs - m) / sigma  =>  dr/dp = -(dm/dp) / sigma.
-        out[:, k] = -(values[0] - values[1]) / (2.0 * h) / sigma
-    return out
+
+    def render_at(dp: np.ndarray) -> np.ndarray:
+        v = perturbed_view(view, dp)
+        return render(v, footprints_at(v))
+
+    steps = np.array([ROTATION_STEP_RAD] * 3 + [CENTRE_STEP_M] * 3)
+    return _central_differences(render_at, steps, sigma)
 
 
 @dataclass(frozen=True)
@@ -130,6 +157,87 @@ def pose_terms(normal_inverse: np.ndarray, blocks: list[PoseBlock]) -> PoseTerms
         left = b.row_scale * (Sn.T @ Sn) - Tn.T @ normal_inverse @ T
         extra += float(np.trace(b.covariance @ left))
     return PoseTerms(0.5 * (cov + cov.T), extra, len(blocks))
+
+
+def intrinsics_sensitivity(
+    render_at: Callable[[np.ndarray], np.ndarray], steps: np.ndarray, sigma: np.ndarray
+) -> np.ndarray:
+    """d r / d K (N, p) of one image's weighted residuals r = (m_obs - m) / sigma.
+
+    Args:
+        render_at: rendered values (N,) of the image's pixels with the camera's intrinsics
+            moved by dK (p,) and the image's pose by D_i dK, footprints rebuilt.
+        steps: (p,) central-difference steps; a step of 0 gives a zero column (a
+            parameter without variance).
+        sigma: (N,) the residuals' weights.
+    """
+    return _central_differences(render_at, steps, sigma)
+
+
+@dataclass(frozen=True)
+class IntrinsicsBlock:
+    """One image's share of the intrinsics term, on a subset of its pixels.
+
+    Attributes:
+        J: (k, n) rows of the weighted Jacobian d r / d x.
+        S: (k, p) the same rows of d r / d K (camera and pose moved).
+        noise_ratio: (k,) solver sigma / noise sigma of those rows.
+        row_scale: N_i / k (as `PoseBlock`).
+    """
+
+    J: np.ndarray
+    S: np.ndarray
+    noise_ratio: np.ndarray
+    row_scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class IntrinsicsTerms:
+    """What the camera intrinsics' uncertainty adds.
+
+    Attributes:
+        covariance: (n, n) G_K Sigma_K G_K^T.
+        expected_chi2_extra: tr(Sigma_K (S_K^T S_K - T_K^T (J^T J)^-1 T_K)) in noise units.
+        parameters: p, the number of intrinsic parameters.
+        images: how many images entered S_K.
+        poses_moved: how many of them had a pose that moves with the intrinsics (D_i).
+    """
+
+    covariance: np.ndarray
+    expected_chi2_extra: float
+    parameters: int
+    images: int
+    poses_moved: int
+
+
+def intrinsics_terms(
+    normal_inverse: np.ndarray,
+    covariance: np.ndarray,
+    blocks: list[IntrinsicsBlock],
+    *,
+    poses_moved: int = 0,
+) -> IntrinsicsTerms:
+    """The intrinsics' covariance and chi^2 terms (see the module docstring).
+
+    Args:
+        normal_inverse: (n, n) (J^T J)^-1 of the solver's weighted Jacobian.
+        covariance: (p, p) Sigma_K.
+        blocks: one per image.
+        poses_moved: how many images' poses moved with the intrinsics (for the report).
+    """
+    n, p = normal_inverse.shape[0], covariance.shape[0]
+    T = np.zeros((n, p))
+    Tn = np.zeros((n, p))
+    StS = np.zeros((p, p))
+    for b in blocks:
+        T += b.row_scale * (b.J.T @ b.S)
+        Tn += b.row_scale * ((b.J * b.noise_ratio[:, None] ** 2).T @ b.S)
+        Sn = b.S * b.noise_ratio[:, None]
+        StS += b.row_scale * (Sn.T @ Sn)
+    G = normal_inverse @ T
+    cov = G @ covariance @ G.T
+    extra = float(np.trace(covariance @ (StS - Tn.T @ normal_inverse @ T)))
+    return IntrinsicsTerms(0.5 * (cov + cov.T), extra, p, len(blocks), poses_moved)
 
 
 def noise_inflation(chi2: float, dof: int, extra: float, *, sigma_is_noise: bool) -> float:

@@ -17,10 +17,16 @@ In YAML and JSON files the keys may be spelt (the first one is what we write):
 | distortion | `distortion_coefficients`, `dist_coeffs`, `D`, `distCoeffs` |
 | width | `image_width`, `width` (or `image_size: [w, h]`) |
 | height | `image_height`, `height` (or `image_size: [w, h]`) |
+| intrinsics covariance (optional) | `intrinsics_covariance` |
 
 A matrix is an OpenCV matrix (`rows`, `cols`, `data`), a nested list, or a flat
 row-major list (9 values for K). Distortion has 0, 4, 5 or 8 coefficients
 (12 or 14 are accepted when the thin-prism and tilt terms are all zero).
+
+`intrinsics_covariance` (optional, written by `lightcal camera calibrate`) is the
+(p, p) covariance of (fx, fy, cx, cy, k1, k2, p1, p2[, k3[, k4, k5, k6]]), p = 4 + the
+number of distortion coefficients (`Camera.intrinsics_covariance`); files without it
+give a camera whose intrinsics' uncertainty is unknown.
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ KEYS_DISTORTION = ("distortion_coefficients", "dist_coeffs", "D", "distCoeffs")
 KEYS_WIDTH = ("image_width", "width")
 KEYS_HEIGHT = ("image_height", "height")
 KEY_IMAGE_SIZE = "image_size"
+KEY_COVARIANCE = "intrinsics_covariance"
 
 OPENCV_SUFFIXES = (".yaml", ".yml", ".xml")
 """Suffixes written with `cv2.FileStorage` by `write_camera`."""
@@ -148,7 +155,8 @@ def write_camera(camera: Camera, path: str | Path) -> None:
     `.yaml`, `.yml` and `.xml` are written with `cv2.FileStorage` (so OpenCV
     programs read them) and `.json` as plain JSON, each with the keys
     `image_width`, `image_height`, `camera_matrix` (3x3) and
-    `distortion_coefficients` (n x 1, n = `camera.n_dist`). The text goes to a
+    `distortion_coefficients` (n x 1, n = `camera.n_dist`), plus
+    `intrinsics_covariance` ((4 + n) x (4 + n)) when the camera has one. The text goes to a
     temporary file next to the destination, which then replaces it
     (`lightcal.io.atomic`): readers see the old file or the new one, never half.
 
@@ -177,12 +185,14 @@ def write_camera(camera: Camera, path: str | Path) -> None:
 
 
 def _json_text(camera: Camera) -> str:
-    content = {
+    content: dict[str, Any] = {
         "image_width": camera.width,
         "image_height": camera.height,
         "camera_matrix": [[float(v) for v in row] for row in camera.K],
         "distortion_coefficients": [float(v) for v in camera.dist_opencv],
     }
+    if camera.intrinsics_covariance is not None:
+        content[KEY_COVARIANCE] = [[float(v) for v in row] for row in camera.intrinsics_covariance]
     return json.dumps(content, indent=2) + "\n"
 
 
@@ -193,6 +203,8 @@ def _filestorage_text(camera: Camera, suffix: str) -> str:
     storage.write("image_height", camera.height)
     storage.write("camera_matrix", np.ascontiguousarray(camera.K))
     storage.write("distortion_coefficients", camera.dist_opencv.reshape(-1, 1))
+    if camera.intrinsics_covariance is not None:
+        storage.write(KEY_COVARIANCE, np.ascontiguousarray(camera.intrinsics_covariance))
     text: str = storage.releaseAndGetString()
     return text
 
@@ -426,6 +438,7 @@ _CAMERA_FIELD_KEYS = {
     "dist": KEYS_DISTORTION[0],
     "width": KEYS_WIDTH[0],
     "height": KEYS_HEIGHT[0],
+    "intrinsics_covariance": KEY_COVARIANCE,
 }
 
 
@@ -447,7 +460,24 @@ def _camera_from_mapping(path: Path, content: dict[str, Any]) -> Camera:
     K = _camera_matrix(path, content)
     dist = _distortion(path, content)
     width, height = _image_size(path, content)
-    return _build(path, lambda: Camera(K=K, dist=dist, width=width, height=height))
+    covariance = None
+    if content.get(KEY_COVARIANCE) is not None:
+        covariance = _matrix(path, KEY_COVARIANCE, content[KEY_COVARIANCE])
+        _check_finite(path, KEY_COVARIANCE, covariance)
+        p = 4 + dist.size
+        if covariance.shape != (p, p):
+            raise InputError(
+                path,
+                f"{KEY_COVARIANCE}: expected a {p}x{p} matrix over (fx, fy, cx, cy and the "
+                f"{dist.size} distortion coefficients), got "
+                f"{covariance.shape[0]}x{covariance.shape[1]}",
+            )
+    return _build(
+        path,
+        lambda: Camera(
+            K=K, dist=dist, width=width, height=height, intrinsics_covariance=covariance
+        ),
+    )
 
 
 # --------------------------------------------------------------------------- COLMAP

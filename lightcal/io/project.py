@@ -69,6 +69,9 @@ class CameraSpec(_Model):
         return self
 
 
+INTRINSIC_COUNTS = (4, 8, 9, 12)
+"""Intrinsic parameters of a camera with 0, 4, 5 or 8 distortion coefficients."""
+
 Mat6 = Annotated[
     list[Annotated[list[float], Field(min_length=6, max_length=6)]],
     Field(min_length=6, max_length=6),
@@ -82,12 +85,22 @@ class PoseSpec(_Model):
     (delta, c): delta (rad) a rotation perturbation R -> exp(delta) R in the camera frame,
     c the camera centre in the world frame (m). `lightcal init` writes it from the marker
     fit; the calibration propagates it into the light's uncertainty.
+
+    `d_pose_d_intrinsics` (optional, 6 x p): how the pose (delta, c) moves per unit
+    change of each of the camera's intrinsic parameters (fx, fy, cx, cy, distortion,
+    p = 4 + the number of distortion coefficients; `Camera.intrinsic_params`): a pose
+    estimated with the camera's intrinsics shares their error. `lightcal init` writes it
+    when the camera file has an intrinsics covariance; the calibration uses it to
+    propagate that covariance (docs/model.md, "Uncertainty").
     """
 
     R: Mat3 | None = None
     rvec: Vec3 | None = None
     t: Vec3
     covariance: Mat6 | None = None
+    d_pose_d_intrinsics: Annotated[list[list[float]], Field(min_length=6, max_length=6)] | None = (
+        None
+    )
 
     @model_validator(mode="after")
     def _one_rotation(self) -> PoseSpec:
@@ -101,6 +114,15 @@ class PoseSpec(_Model):
                 raise ValueError("covariance: expected a symmetric matrix")
             if np.linalg.eigvalsh(0.5 * (c + c.T)).min() < -1e-12 * max(np.abs(c).max(), 1e-300):
                 raise ValueError("covariance: expected a positive semi-definite matrix")
+        if self.d_pose_d_intrinsics is not None:
+            widths = {len(row) for row in self.d_pose_d_intrinsics}
+            if len(widths) != 1 or widths.pop() not in INTRINSIC_COUNTS:
+                raise ValueError(
+                    "d_pose_d_intrinsics: expected 6 rows of 4, 8, 9 or 12 values (one per "
+                    "intrinsic parameter: fx, fy, cx, cy, distortion)"
+                )
+            if not np.all(np.isfinite(np.array(self.d_pose_d_intrinsics, dtype=np.float64))):
+                raise ValueError("d_pose_d_intrinsics: expected finite values")
         return self
 
     def covariance_matrix(self) -> np.ndarray | None:
@@ -109,6 +131,12 @@ class PoseSpec(_Model):
             return None
         c = np.array(self.covariance, dtype=np.float64)
         return 0.5 * (c + c.T)
+
+    def intrinsics_jacobian(self) -> np.ndarray | None:
+        """(6, p) d (delta, c) / d (fx, fy, cx, cy, distortion), or None."""
+        if self.d_pose_d_intrinsics is None:
+            return None
+        return np.array(self.d_pose_d_intrinsics, dtype=np.float64)
 
     def rotation(self) -> np.ndarray:
         if self.R is not None:
@@ -333,6 +361,8 @@ class Project:
             candidates the pipeline fits in turn: `spec.wall.model`).
         pose_covariances: per image, the (6, 6) covariance of its pose (see `PoseSpec`)
             or None.
+        pose_intrinsics_jacobians: per image, the (6, p) d (delta, c) / d intrinsics of
+            its pose (`PoseSpec.d_pose_d_intrinsics`, p = 4 + camera.n_dist) or None.
     """
 
     spec: ProjectFile
@@ -348,6 +378,7 @@ class Project:
     vignetting_path: Path | None
     wall: WallUnknown = field(default_factory=WallUnknown)
     pose_covariances: list[np.ndarray | None] = field(default_factory=list)
+    pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
 
     @property
     def folder(self) -> Path:
@@ -582,7 +613,27 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         vignetting_path,
         build_wall(spec.wall, source),
         [im.T_camera_world.covariance_matrix() for im in spec.images],
+        _intrinsics_jacobians(spec, camera, source),
     )
+
+
+def _intrinsics_jacobians(
+    spec: ProjectFile, camera: Camera, source: Path
+) -> list[np.ndarray | None]:
+    """Each image's `d_pose_d_intrinsics`, checked against the camera's parameter count."""
+    p = 4 + camera.n_dist
+    out = []
+    for k, im in enumerate(spec.images):
+        D = im.T_camera_world.intrinsics_jacobian()
+        if D is not None and D.shape != (6, p):
+            raise InputError(
+                source,
+                f"images[{k}].T_camera_world.d_pose_d_intrinsics: expected 6 x {p} (the "
+                f"camera's fx, fy, cx, cy and {camera.n_dist} distortion coefficients), got "
+                f"6 x {D.shape[1]}",
+            )
+        out.append(D)
+    return out
 
 
 def build_wall(spec: WallSpec, source: Path) -> WallUnknown:

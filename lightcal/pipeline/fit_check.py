@@ -3,13 +3,14 @@
 `check_fit` gathers, per selected pixel, the residual in noise units, the relative
 residual and the mirror and incidence angles at the solution, and hands them to
 `lightcal.core.misfit.diagnose`; `estimate_uncertainty` combines the pixel noise, the
-camera poses' covariances and the misfit into the parameter covariance
+camera poses' and intrinsics' covariances and the misfit into the parameter covariance
 (`lightcal.core.uncertainty`; docs/model.md, "Uncertainty").
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,16 +22,21 @@ from lightcal.core.render import shade
 from lightcal.core.scene import View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.uncertainty import (
+    IntrinsicsBlock,
+    IntrinsicsTerms,
     PoseBlock,
     PoseTerms,
+    intrinsics_sensitivity,
+    intrinsics_terms,
     noise_inflation,
+    perturbed_view,
     pose_sensitivity,
     pose_terms,
 )
 from lightcal.pipeline.measurements import Measurements
 
-#: Pixels per image used for the camera-pose sensitivity (a seeded random subset; the
-#: sums it enters are scaled to the image's pixel count).
+#: Pixels per image used for the camera-pose and intrinsics sensitivities (a seeded random
+#: subset; the sums it enters are scaled to the image's pixel count).
 POSE_ROWS = 3000
 
 
@@ -91,6 +97,34 @@ def pixel_evidence(model: CalibrationModel, x: np.ndarray, meas: Measurements) -
     return PixelEvidence(cat[0], cat[1], cat[2], cat[3], ratios)
 
 
+def _image_subsets(
+    model: CalibrationModel, x: np.ndarray, seed: int
+) -> Iterator[tuple[int, np.ndarray, np.ndarray, float]]:
+    """Per image: (i, J_i, rows, row_scale), rows the seeded subset (at most `POSE_ROWS`)
+    the sensitivities use and row_scale = N_i / len(rows)."""
+    for i, J_i in model.image_jacobians(x):
+        n_i = len(model.images[i].observed)
+        rows = np.arange(n_i)
+        if n_i > POSE_ROWS:
+            rows = np.sort(np.random.default_rng([seed, i]).choice(n_i, POSE_ROWS, replace=False))
+        yield i, J_i, rows, n_i / rows.size
+
+
+def _renderer(
+    model: CalibrationModel, x: np.ndarray
+) -> Callable[[int, View, Footprints], np.ndarray]:
+    """(i, view, footprints) -> image i's rendered values at the solution x."""
+    lay = model.layout
+    rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
+    rid_subsamples = model.options.rid_subsamples
+
+    def render(i: int, view: View, fp: Footprints) -> np.ndarray:
+        sh = shade(fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall)
+        return offset + float(gains[i]) * sh.values.filled(np.nan)
+
+    return render
+
+
 def pose_uncertainty(
     model: CalibrationModel,
     x: np.ndarray,
@@ -103,33 +137,63 @@ def pose_uncertainty(
     """The camera poses' share of the covariance and of chi^2 (None without covariances)."""
     if meas.footprints_at is None or all(c is None for c in meas.pose_covariances):
         return None
-    lay = model.layout
-    rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
-    rid_subsamples = model.options.rid_subsamples
+    render = _renderer(model, x)
     footprints_at = meas.footprints_at
     blocks = []
-    for i, J_i in model.image_jacobians(x):
+    for i, J_i, rows, row_scale in _image_subsets(model, x, seed):
         cov = meas.pose_covariances[i]
         if cov is None:
             continue
-        im = model.images[i]
-        n_i = len(im.observed)
-        rows = np.arange(n_i)
-        if n_i > POSE_ROWS:
-            rows = np.sort(np.random.default_rng([seed, i]).choice(n_i, POSE_ROWS, replace=False))
-        gain = float(gains[i])
 
-        def render(view: View, fp: Footprints, gain: float = gain) -> np.ndarray:
-            sh = shade(fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall)
-            return offset + gain * sh.values.filled(np.nan)
+        def render_i(view: View, fp: Footprints, i: int = i) -> np.ndarray:
+            return render(i, view, fp)
 
         def footprints(view: View, i: int = i, rows: np.ndarray = rows) -> Footprints:
             return footprints_at(i, view, rows)
 
-        S = pose_sensitivity(im.view, render, footprints, model.sigmas[i][rows])
+        S = pose_sensitivity(model.images[i].view, render_i, footprints, model.sigmas[i][rows])
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels a perturbed pose pushes off the wall
-        blocks.append(PoseBlock(J_i[rows], S, cov, ratios[i][rows], n_i / rows.size))
+        blocks.append(PoseBlock(J_i[rows], S, cov, ratios[i][rows], row_scale))
     return pose_terms(normal_inverse, blocks)
+
+
+def intrinsics_uncertainty(
+    model: CalibrationModel,
+    x: np.ndarray,
+    meas: Measurements,
+    ratios: list[np.ndarray],
+    normal_inverse: np.ndarray,
+    *,
+    seed: int = 0,
+) -> IntrinsicsTerms | None:
+    """The camera intrinsics' share of the covariance and of chi^2 (None without their
+    covariance): S_K by central differences, one sigma of each parameter, with the camera
+    and every pose (by its d_pose_d_intrinsics) moved and the footprints rebuilt."""
+    cov_K = meas.intrinsics_covariance
+    footprints_with = meas.footprints_with
+    if cov_K is None or footprints_with is None:
+        return None
+    p = cov_K.shape[0]
+    steps = np.sqrt(np.maximum(np.diag(cov_K), 0.0))
+    jacobians = meas.pose_intrinsics_jacobians or [None] * len(model.images)
+    render = _renderer(model, x)
+    blocks = []
+    moved = 0
+    for i, J_i, rows, row_scale in _image_subsets(model, x, seed):
+        D = jacobians[i]
+        moved += D is not None
+        D_i = np.zeros((6, p)) if D is None else D
+
+        def render_at(
+            dK: np.ndarray, i: int = i, D_i: np.ndarray = D_i, rows: np.ndarray = rows
+        ) -> np.ndarray:
+            view = perturbed_view(model.images[i].view, D_i @ dK)
+            return render(i, view, footprints_with(i, dK, view, rows))
+
+        S = intrinsics_sensitivity(render_at, steps, model.sigmas[i][rows])
+        S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels pushed off the wall
+        blocks.append(IntrinsicsBlock(J_i[rows], S, ratios[i][rows], row_scale))
+    return intrinsics_terms(normal_inverse, cov_K, blocks, poses_moved=moved)
 
 
 @dataclass(frozen=True)
@@ -142,12 +206,14 @@ class Uncertainty:
         inflation: s^2, the factor on the pixel-noise term (misfit beyond the noise and
             the pose errors).
         pose: the camera poses' terms, or None.
+        intrinsics: the camera intrinsics' terms, or None.
     """
 
     covariance: np.ndarray
     terms: list[str]
     inflation: float
     pose: PoseTerms | None
+    intrinsics: IntrinsicsTerms | None = None
 
 
 def _inverse(A: np.ndarray) -> np.ndarray:
@@ -166,7 +232,9 @@ def check_fit(
     dof = model.m - n
     N = _inverse(model.normal_matrix(x))
     pose = pose_uncertainty(model, x, meas, ev.noise_ratio, N)
+    intrinsics = intrinsics_uncertainty(model, x, meas, ev.noise_ratio, N)
     extra = pose.expected_chi2_extra if pose is not None else 0.0
+    extra += intrinsics.expected_chi2_extra if intrinsics is not None else 0.0
     chi2 = float(ev.r_noise @ ev.r_noise)
     known = meas.noise_source != "none"
     diagnosis = diagnose(
@@ -199,6 +267,12 @@ def check_fit(
     if pose is not None:
         cov = cov + pose.covariance
         terms.append(f"camera poses ({pose.images} images' marker-fit covariances)")
+    if intrinsics is not None:
+        cov = cov + intrinsics.covariance
+        terms.append(
+            f"camera intrinsics ({intrinsics.parameters} parameters' calibration covariance, "
+            f"{intrinsics.poses_moved} of {intrinsics.images} images' poses moved with them)"
+        )
     if known and math.sqrt(s2) >= 1.005:
         terms.append(f"misfit: the noise term inflated x{math.sqrt(s2):.2f} in sigma")
-    return diagnosis, Uncertainty(0.5 * (cov + cov.T), terms, s2, pose)
+    return diagnosis, Uncertainty(0.5 * (cov + cov.T), terms, s2, pose, intrinsics)

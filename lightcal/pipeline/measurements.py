@@ -1,10 +1,14 @@
-"""What is known about each image beyond its selected pixels: its noise and its pose's
-uncertainty, and how to rebuild its pixels' footprints for another pose.
+"""What is known about each image beyond its selected pixels: its noise, its pose's
+uncertainty and the camera intrinsics', and how to rebuild its pixels' footprints for
+another pose or other intrinsics.
 
 The fit diagnosis needs each value's noise: from the sensor's noise model when the project
 has one, else estimated from the image itself (`lightcal.core.misfit.image_noise`). The
 uncertainty needs each camera pose's covariance (`T_camera_world.covariance`, written by
-`lightcal init` from the marker fit) and the pixels' footprints under perturbed poses.
+`lightcal init` from the marker fit) and the pixels' footprints under perturbed poses;
+the intrinsics' term needs the camera file's `intrinsics_covariance`, how each pose moves
+with the intrinsics (`T_camera_world.d_pose_d_intrinsics`) and the footprints under
+perturbed intrinsics.
 """
 
 from __future__ import annotations
@@ -36,12 +40,22 @@ class Measurements:
         pose_covariances: (6, 6) covariance of the image's pose (see `PoseSpec`) or None.
         footprints_at: (i, view, rows) -> `Footprints` of rows (k,) of image i's selected
             pixels seen from `view` (None: unknown).
+        intrinsics_covariance: (p, p) covariance of the camera's intrinsic parameters
+            (`Camera.intrinsic_params` of the project's camera file) or None.
+        pose_intrinsics_jacobians: per image, (6, p) d (delta, c) / d intrinsics of its
+            pose or None (a pose that does not move with the intrinsics).
+        footprints_with: (i, dK, view, rows) -> `Footprints` of rows of image i's selected
+            pixels seen from `view` by the camera whose intrinsic parameters are moved by
+            dK (p,) (None: unknown).
     """
 
     noise: list[tuple[float, float] | None]
     noise_source: NoiseSource
     pose_covariances: list[np.ndarray | None]
     footprints_at: Callable[[int, View, np.ndarray], Footprints] | None
+    intrinsics_covariance: np.ndarray | None = None
+    pose_intrinsics_jacobians: list[np.ndarray | None] | None = None
+    footprints_with: Callable[[int, np.ndarray, View, np.ndarray], Footprints] | None = None
 
 
 def model_only(model: CalibrationModel) -> Measurements:
@@ -81,11 +95,23 @@ def measurements_for(
     covariances = [
         project.pose_covariances[k] if k < len(project.pose_covariances) else None for k in rows
     ]
+    jacobians = [
+        project.pose_intrinsics_jacobians[k] if k < len(project.pose_intrinsics_jacobians) else None
+        for k in rows
+    ]
     vignetting = vignetting_for(project, loaded.camera)
+    # The images as read may be binned relative to the camera file (a raw reader's binning).
+    read_binning = project.camera.width // loaded.camera.width
+    base = project.camera.intrinsic_params
 
-    def footprints_at(i: int, view: View, rows: np.ndarray) -> Footprints:
+    def footprints_with(i: int, dK: np.ndarray, view: View, rows: np.ndarray) -> Footprints:
+        camera = loaded.camera
+        if np.any(dK != 0.0):
+            camera = project.camera.with_intrinsic_params(base + dK)
+            if read_binning > 1:
+                camera = camera.binned(read_binning)
         return pixel_footprints(
-            loaded.camera,
+            camera,
             view,
             model.images[i].footprints.pixels[rows],
             sensor=project.spec.sensor.model,
@@ -93,4 +119,15 @@ def measurements_for(
             binning=b,
         )
 
-    return Measurements(noise, source, covariances, footprints_at)
+    def footprints_at(i: int, view: View, rows: np.ndarray) -> Footprints:
+        return footprints_with(i, np.zeros(base.size), view, rows)
+
+    return Measurements(
+        noise,
+        source,
+        covariances,
+        footprints_at,
+        project.camera.intrinsics_covariance,
+        jacobians,
+        footprints_with,
+    )
