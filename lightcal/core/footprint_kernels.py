@@ -32,7 +32,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from lightcal.core.distortion import undistort_normalized
-from lightcal.core.render_kernels import (
+from lightcal.core.kernels.sensor import (
     SENSOR_COS4,
     SENSOR_MAP,
     SENSOR_PAPER,
@@ -301,7 +301,7 @@ def pixel_footprints_parallel(
         dist: (8,) OpenCV distortion, zero padded.
         R_camera_world: (3, 3) the view's rotation.
         center_world: (3,) the camera centre, m (z > 0).
-        sensor: SENSOR_* code of `render_kernels`.
+        sensor: SENSOR_* code of `kernels.sensor`.
         vignetting: (H, W) fall-off map for SENSOR_MAP; any shape otherwise.
         chunk_pixels: pixels per parallel work item (>= 1).
         out_corners: (N, b^2, 4, 3) written: quads P1..P4 of each member, world frame, m;
