@@ -16,27 +16,36 @@ import numpy as np
 
 from lightcal.core.kernels.flux import flux_range
 from lightcal.core.kernels.quad_flux import quad_flux
-from lightcal.core.kernels.sensor import SENSOR_COS4, SENSOR_MAP, SENSOR_PAPER
+from lightcal.core.kernels.sensor import (
+    SENSOR_COS4,
+    SENSOR_MAP,
+    SENSOR_PAPER,
+    cos4,
+    paper_weight,
+    quad_area,
+    view_scalars,
+    wall_point,
+)
 from lightcal.core.rid_eval import RIDData
 
 
-@numba.njit(cache=True, inline="always")
-def _corner_world(
-    x: float, y: float, R_camera_world: np.ndarray, center: np.ndarray, out: np.ndarray
+@numba.njit(cache=True)
+def _pixel_quad(
+    grid_xy: np.ndarray, grid_ok: np.ndarray, v: int, u: int, view: tuple[float, ...], q: np.ndarray
 ) -> bool:
-    """Intersect the ray of normalised camera coordinates (x, y) with z = 0; False on a miss."""
-    dx = R_camera_world[0, 0] * x + R_camera_world[1, 0] * y + R_camera_world[2, 0]
-    dy = R_camera_world[0, 1] * x + R_camera_world[1, 1] * y + R_camera_world[2, 1]
-    dz = R_camera_world[0, 2] * x + R_camera_world[1, 2] * y + R_camera_world[2, 2]
-    if not (dz < 0.0):
-        return False
-    lam = -center[2] / dz
-    if not (lam > 0.0):
-        return False
-    out[0] = center[0] + lam * dx
-    out[1] = center[1] + lam * dy
-    out[2] = 0.0
-    return True
+    """Wall quad q (4, 3) of pixel (u, v), corners in the cyclic order; False on a miss."""
+    ok = True
+    for k in range(4):
+        j = v + (k >> 1)
+        i = u + (1 if k == 1 or k == 2 else 0)
+        x = grid_xy[j, i, 0]
+        y = grid_xy[j, i, 1]
+        px, py, hit = wall_point(x, y, grid_ok[j, i], view, False)  # as `kernels.image`
+        q[k, 0] = px
+        q[k, 1] = py
+        q[k, 2] = 0.0
+        ok &= hit
+    return ok
 
 
 @numba.njit(cache=True, parallel=True)
@@ -66,78 +75,44 @@ def geometry_image(
     hb = out_valid.shape[0]
     wb = out_valid.shape[1]
     b = binning
+    view = view_scalars(R_camera_world, center_world)
+    g = grid_xy
     for r in numba.prange(hb):
         q = np.empty((4, 3))
-        for cidx in range(wb):
+        for c in range(wb):
             ok = True
             area = 0.0
             vsum = 0.0
             for jj in range(b):
-                v = r * b + jj
                 for ii in range(b):
-                    u = cidx * b + ii
-                    xs = (
-                        grid_xy[v, u, 0],
-                        grid_xy[v, u + 1, 0],
-                        grid_xy[v + 1, u + 1, 0],
-                        grid_xy[v + 1, u, 0],
-                    )
-                    ys = (
-                        grid_xy[v, u, 1],
-                        grid_xy[v, u + 1, 1],
-                        grid_xy[v + 1, u + 1, 1],
-                        grid_xy[v + 1, u, 1],
-                    )
-                    oks = (
-                        grid_ok[v, u]
-                        and grid_ok[v, u + 1]
-                        and grid_ok[v + 1, u + 1]
-                        and grid_ok[v + 1, u]
-                    )
-                    if not oks:
-                        ok = False
-                        break
-                    for k in range(4):
-                        if not _corner_world(xs[k], ys[k], R_camera_world, center_world, q[k]):
-                            ok = False
-                    if not ok:
-                        break
-                    a = 0.5 * abs(
-                        (q[2, 0] - q[0, 0]) * (q[3, 1] - q[1, 1])
-                        - (q[2, 1] - q[0, 1]) * (q[3, 0] - q[1, 0])
-                    )
-                    k_idx = jj * b + ii
+                    v = r * b + jj
+                    u = c * b + ii
+                    ok &= _pixel_quad(grid_xy, grid_ok, v, u, view, q)
+                    x1, y1, x2, y2 = q[0, 0], q[0, 1], q[1, 0], q[1, 1]
+                    x3, y3, x4, y4 = q[2, 0], q[2, 1], q[3, 0], q[3, 1]
+                    area += quad_area(x1, y1, x2, y2, x3, y3, x4, y4)
                     if sensor == SENSOR_PAPER:
-                        mx = 0.25 * (q[0, 0] + q[1, 0] + q[2, 0] + q[3, 0]) - center_world[0]
-                        my = 0.25 * (q[0, 1] + q[1, 1] + q[2, 1] + q[3, 1]) - center_world[1]
-                        mz = -center_world[2]
-                        d2 = mx * mx + my * my + mz * mz
-                        out_weight[r, cidx, k_idx] = (
-                            (center_world[2] / math.sqrt(d2)) / d2 / (b * b)
-                        )
+                        wgt = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view)
+                        out_weight[r, c, jj * b + ii] = wgt / (b * b)
+                    elif sensor == SENSOR_COS4:
+                        vsum += cos4(
+                            g[v, u, 0], g[v, u, 1], g[v, u + 1, 0], g[v, u + 1, 1],
+                            g[v + 1, u + 1, 0], g[v + 1, u + 1, 1], g[v + 1, u, 0], g[v + 1, u, 1],
+                        )  # fmt: skip
+                    elif sensor == SENSOR_MAP:
+                        vsum += vignetting[v, u]
                     else:
-                        area += a
-                        if sensor == SENSOR_COS4:
-                            xm = 0.25 * (xs[0] + xs[1] + xs[2] + xs[3])
-                            ym = 0.25 * (ys[0] + ys[1] + ys[2] + ys[3])
-                            c2 = 1.0 / (1.0 + xm * xm + ym * ym)
-                            vsum += c2 * c2
-                        elif sensor == SENSOR_MAP:
-                            vsum += vignetting[v, u]
-                        else:
-                            vsum += 1.0
-                if not ok:
-                    break
-            out_valid[r, cidx] = ok
+                        vsum += 1.0
+            out_valid[r, c] = ok
             if ok and sensor != SENSOR_PAPER:
-                w = (vsum / (b * b)) / area
-                for k_idx in range(b * b):
-                    out_weight[r, cidx, k_idx] = w
+                for k in range(b * b):
+                    out_weight[r, c, k] = (vsum / (b * b)) / area
 
 
 @numba.njit(cache=True, parallel=True)
 def flux_image(
     grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
     R_camera_world: np.ndarray,
     center_world: np.ndarray,
     weight: np.ndarray,
@@ -152,57 +127,33 @@ def flux_image(
     """Add scale * sum_k weight_k Phi_k / I0 of one light to every valid (super-)pixel.
 
     Args:
-        grid_xy: (H+1, W+1, 2) undistorted normalised corner coordinates.
-        R_camera_world, center_world: the view; light_world (3,), R_world_light (3, 3): the light.
+        grid_xy, grid_ok, R_camera_world, center_world: as `geometry_image`.
         weight, valid: from `geometry_image`.
-        rid: the light's RID; n_sub: RID sub-sampling per side.
+        light_world (3,), R_world_light (3, 3), rid: the light.
+        n_sub: RID sub-sampling per side.
         scale: the light's scale.
         out: (H // b, W // b) accumulator.
     """
     hb = valid.shape[0]
     wb = valid.shape[1]
     b = round(math.sqrt(weight.shape[2]))
+    view = view_scalars(R_camera_world, center_world)
     lx = light_world[0]
     ly = light_world[1]
     lz = light_world[2]
     for r in numba.prange(hb):
         q = np.empty((4, 3))
         dummy = np.zeros(6)
-        for cidx in range(wb):
-            if not valid[r, cidx]:
+        for c in range(wb):
+            if not valid[r, c]:
                 continue
             acc = 0.0
             for jj in range(b):
-                v = r * b + jj
                 for ii in range(b):
-                    u = cidx * b + ii
-                    _corner_world(
-                        grid_xy[v, u, 0], grid_xy[v, u, 1], R_camera_world, center_world, q[0]
-                    )
-                    _corner_world(
-                        grid_xy[v, u + 1, 0],
-                        grid_xy[v, u + 1, 1],
-                        R_camera_world,
-                        center_world,
-                        q[1],
-                    )
-                    _corner_world(
-                        grid_xy[v + 1, u + 1, 0],
-                        grid_xy[v + 1, u + 1, 1],
-                        R_camera_world,
-                        center_world,
-                        q[2],
-                    )
-                    _corner_world(
-                        grid_xy[v + 1, u, 0],
-                        grid_xy[v + 1, u, 1],
-                        R_camera_world,
-                        center_world,
-                        q[3],
-                    )
+                    _pixel_quad(grid_xy, grid_ok, r * b + jj, c * b + ii, view, q)
                     phi = quad_flux(q, lx, ly, lz, R_world_light, rid, n_sub, False, dummy)
-                    acc += weight[r, cidx, jj * b + ii] * phi
-            out[r, cidx] += scale * acc
+                    acc += weight[r, c, jj * b + ii] * phi
+            out[r, c] += scale * acc
 
 
 @numba.njit(cache=True)

@@ -108,6 +108,7 @@ def _render_two_kernels(
             continue
         flux_image(
             grid_xy,
+            grid_ok,
             R,
             C,
             weight,

@@ -55,8 +55,21 @@ def _bits_float_typer(typingctx: Any, n: Any) -> Any:
     return sig, codegen
 
 
+def _fma_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
+    """a * b + c of float64s with one rounding (LLVM's fma: the FMA instruction, or libm's)."""
+    if not all(t == types.float64 for t in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
 float_bits: Any = intrinsic(_float_bits_typer)
 bits_float: Any = intrinsic(_bits_float_typer)
+fma: Any = intrinsic(_fma_typer)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")

@@ -33,7 +33,16 @@ import numpy as np
 
 from lightcal.core.kernels.fastmath import cos_power
 from lightcal.core.kernels.quad_flux import quad_flux
-from lightcal.core.kernels.sensor import SENSOR_COS4, SENSOR_MAP, SENSOR_PAPER
+from lightcal.core.kernels.sensor import (
+    SENSOR_COS4,
+    SENSOR_MAP,
+    SENSOR_PAPER,
+    cos4,
+    paper_weight,
+    quad_area,
+    view_scalars,
+    wall_point,
+)
 from lightcal.core.kernels.solid_angle import omega_series, quad_omega, quad_terms
 from lightcal.core.rid_eval import (
     KIND_COS_POWER,
@@ -51,40 +60,19 @@ def _corner_row(
     grid_ok: np.ndarray,
     j: int,
     n: int,
-    R_camera_world: np.ndarray,
-    center_world: np.ndarray,
+    view: tuple[float, ...],
     px: np.ndarray,
     py: np.ndarray,
     ok: np.ndarray,
 ) -> None:
-    """Wall points (px, py) and hit flags of corners (j, 0..n-1) (the corner ray meets the wall
-    where lambda = -C_z / d_z > 0, d = R^T (x, y, 1)).
+    """Wall points (px, py) and hit flags of corners (j, 0..n-1) (`wall_point`).
 
     Missed corners get (0, 0): finite, so that the vectorised pixel loops run through them.
     """
-    r00 = R_camera_world[0, 0]
-    r10 = R_camera_world[1, 0]
-    r20 = R_camera_world[2, 0]
-    r01 = R_camera_world[0, 1]
-    r11 = R_camera_world[1, 1]
-    r21 = R_camera_world[2, 1]
-    r02 = R_camera_world[0, 2]
-    r12 = R_camera_world[1, 2]
-    r22 = R_camera_world[2, 2]
-    c0 = center_world[0]
-    c1 = center_world[1]
-    c2 = center_world[2]
     for u in range(n):
         x = grid_xy[j, u, 0]
         y = grid_xy[j, u, 1]
-        dx = r00 * x + r10 * y + r20
-        dy = r01 * x + r11 * y + r21
-        dz = r02 * x + r12 * y + r22
-        lam = -c2 / dz
-        hit = grid_ok[j, u] & (dz < 0.0) & (lam > 0.0)
-        px[u] = c0 + lam * dx if hit else 0.0
-        py[u] = c1 + lam * dy if hit else 0.0
-        ok[u] = hit
+        px[u], py[u], ok[u] = wall_point(x, y, grid_ok[j, u], view, False)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -289,38 +277,25 @@ def _sensor_row(
     tpy: np.ndarray,
     bpx: np.ndarray,
     bpy: np.ndarray,
-    center_world: np.ndarray,
+    view: tuple[float, ...],
     bb: int,
     v_row: np.ndarray,
 ) -> None:
-    """Per-pixel sensor factor of row v: V (radiance, cos4, map) or the paper weight."""
+    """Per-pixel sensor factor of row v: V (radiance, cos4, map) or the paper weight / bb."""
     w = v_row.shape[0]
+    g = grid_xy
     if sensor == SENSOR_PAPER:
-        c0 = center_world[0]
-        c1 = center_world[1]
-        cz = center_world[2]
         for u in range(w):
-            mx = 0.25 * (tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]) - c0
-            my = 0.25 * (tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]) - c1
-            mz = -cz
-            d2 = mx * mx + my * my + mz * mz
-            v_row[u] = (cz / math.sqrt(d2)) / d2 / bb
+            wgt = paper_weight(
+                tpx[u], tpy[u], tpx[u + 1], tpy[u + 1], bpx[u + 1], bpy[u + 1], bpx[u], bpy[u], view
+            )
+            v_row[u] = wgt / bb
     elif sensor == SENSOR_COS4:
         for u in range(w):
-            xm = 0.25 * (
-                grid_xy[v, u, 0]
-                + grid_xy[v, u + 1, 0]
-                + grid_xy[v + 1, u + 1, 0]
-                + grid_xy[v + 1, u, 0]
-            )
-            ym = 0.25 * (
-                grid_xy[v, u, 1]
-                + grid_xy[v, u + 1, 1]
-                + grid_xy[v + 1, u + 1, 1]
-                + grid_xy[v + 1, u, 1]
-            )
-            c2 = 1.0 / (1.0 + xm * xm + ym * ym)
-            v_row[u] = c2 * c2
+            v_row[u] = cos4(
+                g[v, u, 0], g[v, u, 1], g[v, u + 1, 0], g[v, u + 1, 1],
+                g[v + 1, u + 1, 0], g[v + 1, u + 1, 1], g[v + 1, u, 0], g[v + 1, u, 1],
+            )  # fmt: skip
     elif sensor == SENSOR_MAP:
         for u in range(w):
             v_row[u] = vignetting[v, u]
@@ -376,6 +351,7 @@ def render_image_fused(
     n_l = lights_world.shape[0]
     n_chunks = min(hb, 64)
     per_pixel = b == 1 and sensor != SENSOR_PAPER
+    view = view_scalars(R_camera_world, center_world)
     for ch in numba.prange(n_chunks):
         r_begin = ch * hb // n_chunks
         r_end = (ch + 1) * hb // n_chunks
@@ -399,9 +375,7 @@ def render_image_fused(
         q = np.zeros((4, 3))
         gdummy = np.zeros(6)
         top = 0
-        _corner_row(
-            grid_xy, grid_ok, r_begin * b, w + 1, R_camera_world, center_world, px[0], py[0], cok[0]
-        )
+        _corner_row(grid_xy, grid_ok, r_begin * b, w + 1, view, px[0], py[0], cok[0])
         for li in range(n_l):
             _light_row(
                 px[0],
@@ -428,19 +402,21 @@ def render_image_fused(
                 bpy = py[bot]
                 tok = cok[top]
                 bok = cok[bot]
-                _corner_row(
-                    grid_xy, grid_ok, v + 1, w + 1, R_camera_world, center_world, bpx, bpy, bok
-                )
+                _corner_row(grid_xy, grid_ok, v + 1, w + 1, view, bpx, bpy, bok)
                 # Geometry: validity, area and sensor factor of each pixel of row v.
                 for u in range(w):
                     ok_row[u] = tok[u] & tok[u + 1] & bok[u + 1] & bok[u]
-                    area_row[u] = 0.5 * abs(
-                        (bpx[u + 1] - tpx[u]) * (bpy[u] - tpy[u + 1])
-                        - (bpy[u + 1] - tpy[u]) * (bpx[u] - tpx[u + 1])
+                    area_row[u] = quad_area(
+                        tpx[u],
+                        tpy[u],
+                        tpx[u + 1],
+                        tpy[u + 1],
+                        bpx[u + 1],
+                        bpy[u + 1],
+                        bpx[u],
+                        bpy[u],
                     )
-                _sensor_row(
-                    sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, center_world, bb, v_row
-                )
+                _sensor_row(sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, view, bb, v_row)
                 if per_pixel:
                     acc_row[:] = 0.0
                 for li in range(n_l):
