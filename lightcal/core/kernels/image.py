@@ -126,28 +126,10 @@ def _pixel_terms(
     x4 = bpx[u]
     y4 = bpy[u]
     n1, d1, n2, d2 = quad_terms(
-        x1,
-        y1,
-        x2,
-        y2,
-        x3,
-        y3,
-        x4,
-        y4,
-        tax[u],
-        tay[u],
-        tla[u],
-        tax[u + 1],
-        tay[u + 1],
-        tla[u + 1],
-        bax[u + 1],
-        bay[u + 1],
-        bla[u + 1],
-        bax[u],
-        bay[u],
-        bla[u],
-        az,
-    )
+        x1, y1, x2, y2, x3, y3, x4, y4,
+        tax[u], tay[u], tla[u], tax[u + 1], tay[u + 1], tla[u + 1],
+        bax[u + 1], bay[u + 1], bla[u + 1], bax[u], bay[u], bla[u], az,
+    )  # fmt: skip
     mx = 0.25 * (x1 + x2 + x3 + x4)
     my = 0.25 * (y1 + y2 + y3 + y4)
     return n1, d1, n2, d2, mx, my
