@@ -26,7 +26,7 @@ from lightcal.core.kernels.sensor import (
     view_scalars,
     wall_point,
 )
-from lightcal.core.rid_eval import RIDData
+from lightcal.core.rid_eval import RIDData, RIDTuple
 
 
 @numba.njit(cache=True)
@@ -163,13 +163,13 @@ def flux_pixels_plain(
     valid: np.ndarray,
     light_world: np.ndarray,
     R_world_light: np.ndarray,
-    rid: RIDData,
+    rid: RIDTuple,
     n_sub: int,
     want_grad: bool,
     out_flux: np.ndarray,
     out_grad: np.ndarray,
 ) -> None:
-    """`flux_pixels` without the fast paths: `quad_flux` for every quad."""
+    """`flux_pixels` without the fast paths: `quad_flux` for every quad (rid: `rid_tuple`)."""
     flux_range(
         0,
         corners_world.shape[0],
@@ -178,7 +178,7 @@ def flux_pixels_plain(
         valid,
         light_world,
         R_world_light,
-        rid,
+        RIDData(*rid),
         n_sub,
         want_grad,
         False,

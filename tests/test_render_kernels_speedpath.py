@@ -26,7 +26,7 @@ from lightcal.core.kernels.quad_flux import wall_quad_flux
 from lightcal.core.kernels.wall_gradients import GRAD_BLOCK
 from lightcal.core.render_reference import flux_reference, render_image_reference
 from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID, SymmetricTableRID, Table2DRID
-from lightcal.core.rid_eval import stack_rid_data
+from lightcal.core.rid_eval import rid_tuple, stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.solid_angle import quad_solid_angle
 from tests.kernel_reference import flux_image, flux_pixels_plain, geometry_image
@@ -146,8 +146,10 @@ def _run(
     n = quads.corners_world.shape[0]
     flux = np.full(n, np.nan)
     grad = np.full((n, 6), np.nan)
-    kernel(quads.corners_world, quads.weights, quads.valid, L_world, R_world_light, rid.data(),
-           n_sub, want_grad, flux, grad)  # fmt: skip
+    # The Python entry point takes the record, the kernels its plain tuple.
+    d = rid.data() if kernel is flux_pixels else rid_tuple(rid.data())
+    kernel(quads.corners_world, quads.weights, quads.valid, L_world, R_world_light, d, n_sub,
+           want_grad, flux, grad)  # fmt: skip
     return flux, grad
 
 

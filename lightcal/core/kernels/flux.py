@@ -16,7 +16,7 @@ import numpy as np
 
 from lightcal.core.kernels.quad_flux import pixel_flux
 from lightcal.core.kernels.wall_gradients import wall_grad_range
-from lightcal.core.rid_eval import RIDData
+from lightcal.core.rid_eval import RIDData, RIDTuple, rid_tuple
 
 #: Below this many quad evaluations (pixels x quads x sub-quads, x 4 with gradients by
 #: the quad loop: n > 1), `flux_pixels` runs on the calling thread: waking the thread pool
@@ -88,13 +88,16 @@ def flux_pixels_parallel(
     valid: np.ndarray,
     light_world: np.ndarray,
     R_world_light: np.ndarray,
-    rid: RIDData,
+    rid: RIDTuple,
     n_sub: int,
     want_grad: bool,
     out_flux: np.ndarray,
     out_grad: np.ndarray,
 ) -> None:
-    """`flux_pixels` on all threads, in chunks of pixels (scratch buffers per chunk)."""
+    """`flux_pixels` on all threads, in chunks of pixels (scratch buffers per chunk).
+
+    rid: `rid_tuple` of the RID (a plain tuple: faster to dispatch than the record).
+    """
     n = corners_world.shape[0]
     n_chunks = min(n, 256)
     for ch in numba.prange(n_chunks):
@@ -106,7 +109,7 @@ def flux_pixels_parallel(
             valid,
             light_world,
             R_world_light,
-            rid,
+            RIDData(*rid),
             n_sub,
             want_grad,
             True,
@@ -122,13 +125,14 @@ def flux_pixels_serial(
     valid: np.ndarray,
     light_world: np.ndarray,
     R_world_light: np.ndarray,
-    rid: RIDData,
+    rid: RIDTuple,
     n_sub: int,
     want_grad: bool,
     out_flux: np.ndarray,
     out_grad: np.ndarray,
 ) -> None:
-    """`flux_pixels` on the calling thread (small sets: no thread launch)."""
+    """`flux_pixels` on the calling thread (small sets: no thread launch); rid: as
+    `flux_pixels_parallel`'s."""
     flux_range(
         0,
         corners_world.shape[0],
@@ -137,7 +141,7 @@ def flux_pixels_serial(
         valid,
         light_world,
         R_world_light,
-        rid,
+        RIDData(*rid),
         n_sub,
         want_grad,
         True,
@@ -181,7 +185,7 @@ def flux_pixels(
         valid,
         light_world,
         R_world_light,
-        rid._replace(kind=int(rid.kind)),
+        rid_tuple(rid),
         int(n_sub),
         bool(want_grad),
         out_flux,
