@@ -1,7 +1,7 @@
 """Tests of the renderer (lightcal.core.render) against its NumPy twin and the physics.
 
 The compiled kernels are tested only through the public functions (`render_pixels`,
-`render_image`, `shade`), so any rewrite of `render_kernels` must keep every number here.
+`render_image`, `shade`), so any rewrite of `lightcal.core.kernels` must keep every number here.
 """
 
 from __future__ import annotations

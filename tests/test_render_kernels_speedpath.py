@@ -1,9 +1,9 @@
-"""Exactness of the renderer's fast paths (lightcal.core.render_kernels).
+"""Exactness of the renderer's fast paths (lightcal.core.kernels).
 
 The fast paths (the fused full-image kernel, the one-arctangent quad solid angle, the
 branch-free cos^m, the parallel corner grid, the n = 1 paths of `flux_pixels` with and
-without gradients) must give the numbers of the plain kernels (`_flux_pixels_plain`:
-`_quad_flux` for every quad) and of the NumPy reference to ~1e-12 relative, and their
+without gradients) must give the numbers of the plain kernels (`tests/kernel_reference.py`:
+`quad_flux` for every quad) and of the NumPy reference to ~1e-12 relative, and their
 gradients those of the plain kernel to ~1e-9 and central finite differences.
 """
 
@@ -18,13 +18,18 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from lightcal.core import render
-from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
-from lightcal.core.footprint import check_vignetting, pixel_footprints
+from lightcal.core.footprint import SENSOR_CODES, check_vignetting, pixel_footprints
+from lightcal.core.kernels import fastmath, solid_angle
+from lightcal.core.kernels.flux import flux_pixels, flux_pixels_parallel, flux_pixels_serial
+from lightcal.core.kernels.quad_flux import wall_quad_flux
+from lightcal.core.kernels.wall_gradients import GRAD_BLOCK
 from lightcal.core.render_reference import flux_reference, render_image_reference
 from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID, SymmetricTableRID, Table2DRID
+from lightcal.core.rid_eval import rid_tuple, stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.solid_angle import quad_solid_angle
+from tests.kernel_reference import flux_image, flux_pixels_plain, geometry_image
 
 RTOL = 1e-12
 
@@ -94,28 +99,23 @@ def _render_two_kernels(
     weight = np.zeros((hb, wb, b * b))
     valid = np.zeros((hb, wb), dtype=np.bool_)
     R = view.R_camera_world
-    codes = {"radiance": 0, "cos4": 1, "paper": 2, "map": 3}
-    rk.geometry_image(grid_xy, grid_ok, R, view.center_world, codes[sensor], vmap, b, weight, valid)
+    C = view.center_world
+    geometry_image(grid_xy, grid_ok, R, C, SENSOR_CODES[sensor], vmap, b, weight, valid)
     out = np.zeros((hb, wb))
     for light in rig.lights:
         L_world = light.position_world(view)
         if L_world[2] <= 0.0:
             continue
-        d = light.rid.data()
-        rk.flux_image(
+        flux_image(
             grid_xy,
+            grid_ok,
             R,
-            view.center_world,
+            C,
             weight,
             valid,
             L_world,
             np.ascontiguousarray(light.rotation_world(view)),
-            d.kind,
-            d.params,
-            d.theta_knots,
-            d.phi_knots,
-            d.values,
-            d.slopes,
+            light.rid.data(),
             rid_subsamples,
             light.scale,
             out,
@@ -143,13 +143,13 @@ def _run(
     n_sub: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(flux (N,), grad (N, 6)) of quads (corners_world, weights, valid) by a flux kernel."""
-    d = rid.data()
     n = quads.corners_world.shape[0]
     flux = np.full(n, np.nan)
     grad = np.full((n, 6), np.nan)
-    kernel(quads.corners_world, quads.weights, quads.valid, L_world, R_world_light, d.kind,
-           d.params, d.theta_knots, d.phi_knots, d.values, d.slopes, n_sub, want_grad, flux,
-           grad)  # fmt: skip
+    # The Python entry point takes the record, the kernels its plain tuple.
+    d = rid.data() if kernel is flux_pixels else rid_tuple(rid.data())
+    kernel(quads.corners_world, quads.weights, quads.valid, L_world, R_world_light, d, n_sub,
+           want_grad, flux, grad)  # fmt: skip
     return flux, grad
 
 
@@ -168,7 +168,7 @@ def test_log_positive_matches_libm_to_two_ulp() -> None:
     )
     for x in xs:
         expected = math.log(x)
-        got = rk.log_positive(x)
+        got = fastmath.log_positive(x)
         assert abs(got - expected) <= 4.5e-16 * max(abs(expected), 1e-300) or got == expected, x
 
 
@@ -176,9 +176,9 @@ def test_exp_real_matches_libm_and_underflows_to_zero() -> None:
     rng = np.random.default_rng(2)
     for y in np.concatenate([rng.uniform(-745.0, 709.0, 2000), rng.uniform(-1.0, 1.0, 500)]):
         expected = math.exp(y)
-        assert rk.exp_real(y) == pytest.approx(expected, rel=5e-16, abs=1e-320), y
-    assert rk.exp_real(0.0) == 1.0
-    assert rk.exp_real(-1500.0) == 0.0
+        assert fastmath.exp_real(y) == pytest.approx(expected, rel=5e-16, abs=1e-320), y
+    assert fastmath.exp_real(0.0) == 1.0
+    assert fastmath.exp_real(-1500.0) == 0.0
 
 
 @pytest.mark.parametrize("m", [0.0, 0.5, 1.0, 2.7, 13.3, 80.0])
@@ -189,15 +189,16 @@ def test_cos_power_matches_pow(m: float) -> None:
         expected = c**m
         # exp(m ln c) carries the rounding of y = m ln c: |y| ulp at worst.
         tol = (abs(m * math.log(c)) + 4.0) * 2.3e-16
-        assert rk.cos_power(c, m) == pytest.approx(expected, rel=tol), (c, m)
-    assert rk.cos_power(0.0, m) == 0.0
-    assert rk.cos_power(-0.3, m) == 0.0
-    assert rk.cos_power(1.0, m) == 1.0
+        assert fastmath.cos_power(c, m) == pytest.approx(expected, rel=tol), (c, m)
+    assert fastmath.cos_power(0.0, m) == 0.0
+    assert fastmath.cos_power(-0.3, m) == 0.0
+    assert fastmath.cos_power(1.0, m) == 1.0
 
 
 def test_atan_series_is_exact_in_its_range() -> None:
-    for x in np.linspace(-rk.ATAN_SERIES_MAX, rk.ATAN_SERIES_MAX, 2001):
-        assert rk.atan_series(x) == pytest.approx(math.atan(x), rel=3e-16, abs=1e-300)
+    x_max = fastmath.ATAN_SERIES_MAX
+    for x in np.linspace(-x_max, x_max, 2001):
+        assert fastmath.atan_series(x) == pytest.approx(math.atan(x), rel=3e-16, abs=1e-300)
 
 
 def test_quad_omega_equals_two_atan2_including_large_angles() -> None:
@@ -207,9 +208,9 @@ def test_quad_omega_equals_two_atan2_including_large_angles() -> None:
         n1, n2 = rng.normal(size=2) * scale
         d1, d2 = rng.normal(size=2) + rng.choice([0.0, 1.5])
         signed = 2.0 * math.atan2(n1, d1) + 2.0 * math.atan2(n2, d2)
-        got = rk.quad_omega(n1, d1, n2, d2)
+        got = solid_angle.quad_omega(n1, d1, n2, d2)
         assert got == pytest.approx(abs(signed), rel=1e-13, abs=1e-15)
-        got_signed = rk.quad_omega_signed(n1, d1, n2, d2)
+        got_signed = solid_angle.quad_omega_signed(n1, d1, n2, d2)
         assert got_signed == pytest.approx(signed, rel=1e-13, abs=1e-15)
         assert abs(got_signed) == got
 
@@ -221,9 +222,7 @@ def test_quad_omega_near_the_hemisphere() -> None:
     quad = np.array([[[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]]])
     expected = quad_solid_angle(L, quad)[0]
     assert expected > 6.2
-    d = IsotropicRID().data()
-    got = rk._quad_flux_fast(quad[None], 0, 0, L[0], L[1], L[2], np.eye(3), d.kind, d.params,
-                             d.theta_knots, d.phi_knots, d.values, d.slopes)  # fmt: skip
+    got = wall_quad_flux(quad[None], 0, 0, L[0], L[1], L[2], np.eye(3), IsotropicRID().data())
     assert got == pytest.approx(expected, rel=1e-13)
 
 
@@ -239,9 +238,9 @@ def test_flux_pixels_fast_path_matches_gradient_path_and_reference(rid_name: str
     light = _light(RIDS[rid_name])
     L_world = light.position_world(VIEW)
     R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
-    fast, _ = _run(rk.flux_pixels, fp, L_world, R_wl, light.rid, want_grad=False)
-    fast_grad_path, _ = _run(rk.flux_pixels, fp, L_world, R_wl, light.rid, want_grad=True)
-    plain, _ = _run(rk._flux_pixels_plain, fp, L_world, R_wl, light.rid, want_grad=True)
+    fast, _ = _run(flux_pixels, fp, L_world, R_wl, light.rid, want_grad=False)
+    fast_grad_path, _ = _run(flux_pixels, fp, L_world, R_wl, light.rid, want_grad=True)
+    plain, _ = _run(flux_pixels_plain, fp, L_world, R_wl, light.rid, want_grad=True)
     np.testing.assert_allclose(fast, plain, rtol=RTOL, atol=0.0)
     np.testing.assert_allclose(fast_grad_path, plain, rtol=RTOL, atol=0.0)
     ref = flux_reference(fp, L_world, R_wl, light.rid, 1)
@@ -259,11 +258,11 @@ def test_flux_pixels_falls_back_for_quads_off_the_wall(want_grad: bool) -> None:
         corners_world=corners, weights=np.array([[0.7, 1.3], [1.1, 0.4]]), valid=np.ones(2, bool)
     )
     L = np.array([0.02, -0.03, 1.0])
-    flux, grad = _run(rk.flux_pixels, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad)
+    flux, grad = _run(flux_pixels, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad)
     omega = quad_solid_angle(L, corners.reshape(4, 4, 3)).reshape(2, 2)
     np.testing.assert_allclose(flux, np.sum(quads.weights * omega, axis=1), rtol=1e-13)
     plain, plain_grad = _run(
-        rk._flux_pixels_plain, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad
+        flux_pixels_plain, quads, L, np.eye(3), IsotropicRID(), want_grad=want_grad
     )
     assert flux[0] == plain[0]  # the same quad loop
     if want_grad:
@@ -316,15 +315,15 @@ def _assert_grads_close(
 def _assert_fast_gradients_match_plain(
     quads: SimpleNamespace, L_world: np.ndarray, R_wl: np.ndarray, rid: Any
 ) -> tuple[np.ndarray, np.ndarray]:
-    flux, grad = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
-    plain, plain_grad = _run(rk._flux_pixels_plain, quads, L_world, R_wl, rid, want_grad=True)
+    flux, grad = _run(flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
+    plain, plain_grad = _run(flux_pixels_plain, quads, L_world, R_wl, rid, want_grad=True)
     # atol: where u_z -> 0 (f ~ 1e-23 at the edge of a cos^m), the plain kernel's
     # cos(atan2(rho, u_z)) keeps only ~1e-16 / u_z relative precision; the fast path
     # takes u_z as it is.
     np.testing.assert_allclose(flux, plain, rtol=RTOL, atol=1e-13 * np.max(plain))
     _assert_grads_close(grad, plain_grad, GRAD_RTOL, atol_of_max=1e-13)
     assert np.all(flux[~quads.valid] == 0.0) and np.all(grad[~quads.valid] == 0.0)
-    values, _ = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=False)
+    values, _ = _run(flux_pixels, quads, L_world, R_wl, rid, want_grad=False)
     np.testing.assert_allclose(flux, values, rtol=RTOL, atol=0.0)
     return flux, grad
 
@@ -378,7 +377,7 @@ def test_flux_pixels_fast_gradient_matches_finite_differences(rid_name: str) -> 
     quads = _weighted_quads(camera, VIEW, pixels, 2, rng)
     rid = RIDS[rid_name]
     for L_world, R_wl in (LIGHT_POSES["above"], LIGHT_POSES["oblique"]):
-        flux, grad = _run(rk.flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
+        flux, grad = _run(flux_pixels, quads, L_world, R_wl, rid, want_grad=True)
         h = 1e-6
         fd = np.zeros_like(grad)
         for j in range(3):
@@ -386,10 +385,10 @@ def test_flux_pixels_fast_gradient_matches_finite_differences(rid_name: str) -> 
             step[j] = h
             # Position: L +- h e_j; rotation: R -> exp(+- h [e_j]x) R (left perturbation).
             for sign in (1.0, -1.0):
-                f_pos, _ = _run(rk.flux_pixels, quads, L_world + sign * step, R_wl, rid,
+                f_pos, _ = _run(flux_pixels, quads, L_world + sign * step, R_wl, rid,
                                 want_grad=True)  # fmt: skip
                 R_rot = Rotation.from_rotvec(sign * step).as_matrix() @ R_wl
-                f_rot, _ = _run(rk.flux_pixels, quads, L_world, R_rot, rid, want_grad=True)
+                f_rot, _ = _run(flux_pixels, quads, L_world, R_rot, rid, want_grad=True)
                 fd[:, j] += sign * f_pos / (2 * h)
                 fd[:, 3 + j] += sign * f_rot / (2 * h)
         assert np.count_nonzero(flux) > 0.5 * len(flux)
@@ -503,7 +502,7 @@ def test_render_image_light_behind_the_wall_gives_the_offset() -> None:
 
 def test_stack_rid_data_pads_tables() -> None:
     datas = [RIDS["cos_power"].data(), RIDS["table_2d"].data(), RIDS["table_1d"].data()]
-    kind, params, theta, n_theta, phi, n_phi, values, slopes = rk.stack_rid_data(datas)
+    kind, params, theta, n_theta, phi, n_phi, values, slopes = stack_rid_data(datas)
     assert kind.tolist() == [d.kind for d in datas]
     assert n_theta.tolist() == [1, 8, 9] and n_phi.tolist() == [1, 6, 1]
     assert values.shape == (3, 6, 9) and slopes.shape == (3, 6, 9)
@@ -523,13 +522,13 @@ def test_flux_pixels_parallel_and_serial_kernels_agree_bitwise(
     pixels = np.stack([uu.ravel(), vv.ravel()], axis=1)
     fp = pixel_footprints(camera, VIEW, pixels, binning=1)
     # 12,000 pixels: chunks of ~47 pixels, not multiples of the gradient path's blocks.
-    assert len(fp) % rk.GRAD_BLOCK != 0
+    assert len(fp) % GRAD_BLOCK != 0
     light = _light(RIDS[rid_name])
     L_world = light.position_world(VIEW)
     R_wl = np.ascontiguousarray(light.rotation_world(VIEW))
     results = [
         _run(kernel, fp, L_world, R_wl, light.rid, want_grad=want_grad)
-        for kernel in (rk._flux_pixels_parallel, rk._flux_pixels_serial, rk.flux_pixels)
+        for kernel in (flux_pixels_parallel, flux_pixels_serial, flux_pixels)
     ]
     for flux, grad in results[1:]:
         np.testing.assert_array_equal(results[0][0], flux)

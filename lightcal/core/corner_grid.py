@@ -3,7 +3,7 @@
 Every pixel corner of an image, undistorted once: the renderer of whole images and the
 footprints of dense pixel selections read their corners from it instead of undistorting
 each corner four times (neighbouring pixels share corners). Corner (j, i) sits at pixel
-coordinates (i - 1/2, j - 1/2) (MODEL.md: pixel centres at integers).
+coordinates (i - 1/2, j - 1/2) (docs/model.md: pixel centres at integers).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from threading import Lock
 import numba
 import numpy as np
 
-from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
+from lightcal.core.distortion import undistort_normalized
 
 CornerGrid = tuple[np.ndarray, np.ndarray]
 """grid_xy (H+1, W+1, 2) undistorted normalised coordinates and grid_ok (H+1, W+1)."""
@@ -34,10 +34,41 @@ def corner_grid(camera: Camera) -> CornerGrid:
     grid_xy = np.empty((camera.height + 1, camera.width + 1, 2))
     grid_ok = np.empty((camera.height + 1, camera.width + 1), dtype=np.bool_)
     with numba.parallel_chunksize(8):  # dynamic scheduling: rows cost unequal Newton work
-        rk.undistorted_corner_grid(
+        undistorted_corner_grid(
             np.ascontiguousarray(camera.K), np.ascontiguousarray(camera.dist), grid_xy, grid_ok
         )
     return grid_xy, grid_ok
+
+
+@numba.njit(cache=True, parallel=True)
+def undistorted_corner_grid(
+    K: np.ndarray, dist: np.ndarray, out_xy: np.ndarray, out_ok: np.ndarray
+) -> None:
+    """Undistorted normalised coordinates of every pixel corner, rows in parallel.
+
+    The same arithmetic as `Camera.pixels_to_normalized` (bit for bit).
+
+    Args:
+        K: (3, 3) intrinsics; dist: (8,) OpenCV coefficients, zero padded.
+        out_xy: (H+1, W+1, 2) written; corner (j, i) sits at pixel (i - 1/2, j - 1/2);
+            (0, 0) where the undistortion fails.
+        out_ok: (H+1, W+1) written: the undistortion succeeded.
+    """
+    n_rows = out_xy.shape[0]
+    n_cols = out_xy.shape[1]
+    fx = K[0, 0]
+    s = K[0, 1]
+    cx = K[0, 2]
+    fy = K[1, 1]
+    cy = K[1, 2]
+    for j in numba.prange(n_rows):
+        yd = (float(j) - 0.5 - cy) / fy
+        for i in range(n_cols):
+            xd = (float(i) - 0.5 - cx - s * yd) / fx
+            x, y, ok = undistort_normalized(xd, yd, dist)
+            out_ok[j, i] = ok
+            out_xy[j, i, 0] = x if ok else 0.0
+            out_xy[j, i, 1] = y if ok else 0.0
 
 
 def _camera_key(camera: Camera) -> bytes:

@@ -35,20 +35,26 @@ import numba
 import numpy as np
 
 from lightcal.core import footprint_kernels as fk
-from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
 from lightcal.core.corner_grid import GRID_CACHE, CornerGrid
+from lightcal.core.kernels.sensor import (
+    SENSOR_COS4,
+    SENSOR_MAP,
+    SENSOR_PAPER,
+    SENSOR_RADIANCE,
+)
 from lightcal.core.scene import View
 
 SensorModel = Literal["radiance", "cos4", "paper", "map"]
 SENSOR_MODELS: tuple[SensorModel, ...] = ("radiance", "cos4", "paper", "map")
 
-_SENSOR_CODES = {
-    "radiance": rk.SENSOR_RADIANCE,
-    "cos4": rk.SENSOR_COS4,
-    "paper": rk.SENSOR_PAPER,
-    "map": rk.SENSOR_MAP,
+SENSOR_CODES = {
+    "radiance": SENSOR_RADIANCE,
+    "cos4": SENSOR_COS4,
+    "paper": SENSOR_PAPER,
+    "map": SENSOR_MAP,
 }
+"""The kernels' code of each sensor model."""
 
 GRID_MIN_CORNER_SHARE = 0.5
 """Build the camera's corner grid for a selection whose own corners number at least this
@@ -170,7 +176,7 @@ def pixel_footprints(
         np.ascontiguousarray(camera.dist),
         np.ascontiguousarray(view.R_camera_world),
         np.ascontiguousarray(view.center_world),
-        _SENSOR_CODES[sensor],
+        SENSOR_CODES[sensor],
         vmap,
     )
     outputs = (corners, weights, valid, area)

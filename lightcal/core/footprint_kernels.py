@@ -11,11 +11,12 @@ operation, so that the results are the same to the last bit (with NumPy 2.4 and 
 OpenBLAS; the order of a sum or an FMA only ever moves the last bit):
 
 - corner (u_c, v_c): yd = (v_c - cy) / fy, xd = (u_c - cx - s yd) / fx, undistorted by
-  `undistort_normalized` (`Camera.pixels_to_normalized`, `undistorted_corner_grid`);
+  `undistort_normalized` (`Camera.pixels_to_normalized`, `corner_grid`);
 - ray d = R^T (x, y, 1) rounded as `(N, 3) @ (3, 3)` does in OpenBLAS's FMA kernels:
   d_k = fl(fma(y, R[1, k], fl(x R[0, k])) + R[2, k]);
 - wall point C + lambda d, lambda = -C_z / d_z, hit when undistorted, d_z < 0 and
-  lambda > 0; its z is exactly 0;
+  lambda > 0; its z is exactly 0 (this and the sensor weights: `kernels.sensor`, shared
+  with the full-image renderer);
 - sums over a super-pixel's b^2 quads in NumPy's pairwise order (`pairwise_sum`), sums
   over a quad's 4 corners left to right, the squared length of a 3-vector as
   `numpy.einsum` evaluates it, (o_x^2 + o_z^2) + o_y^2.
@@ -23,39 +24,24 @@ OpenBLAS; the order of a sum or an FMA only ever moves the last bit):
 
 from __future__ import annotations
 
-import math
-from typing import Any
-
 import numba
 import numpy as np
-from numba import types
-from numba.extending import intrinsic
 
 from lightcal.core.distortion import undistort_normalized
-from lightcal.core.render_kernels import (
+from lightcal.core.kernels.sensor import (
     SENSOR_COS4,
     SENSOR_MAP,
     SENSOR_PAPER,
     SENSOR_RADIANCE,
+    cos4,
+    paper_weight,
+    quad_area,
+    view_scalars,
+    wall_point,
 )
 
 #: Corners per parallel work item (each item allocates its small scratch array once).
 CHUNK_CORNERS = 1024
-
-
-def _fma_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
-    """a * b + c of float64s with one rounding (LLVM's fma: the FMA instruction, or libm's)."""
-    if not all(t == types.float64 for t in (a, b, c)):
-        return None
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return builder.fma(*args)
-
-    return sig, codegen
-
-
-_fma: Any = intrinsic(_fma_typer)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -170,11 +156,9 @@ def _pixel_footprint(
     wall_y = scratch[1]
     norm_x = scratch[2]
     norm_y = scratch[3]
-    quad_area = scratch[4]
+    areas = scratch[4]
     terms = scratch[5]
-    c0 = center_world[0]
-    c1 = center_world[1]
-    c2 = center_world[2]
+    view = view_scalars(R, center_world)
     u0 = pixels[p, 0] * b
     v0 = pixels[p, 1] * b
     valid = True
@@ -190,16 +174,13 @@ def _pixel_footprint(
             else:
                 xd = (float(col) - 0.5 - K[0, 2] - K[0, 1] * yd) / K[0, 0]
                 x, y, ok = undistort_normalized(xd, yd, dist)
-            dx = _fma(y, R[1, 0], x * R[0, 0]) + R[2, 0]
-            dy = _fma(y, R[1, 1], x * R[0, 1]) + R[2, 1]
-            dz = _fma(y, R[1, 2], x * R[0, 2]) + R[2, 2]
-            lam = -c2 / dz
-            if not (ok and dz < 0.0 and lam > 0.0):
+            px, py, hit = wall_point(x, y, ok, view, True)
+            if not hit:
                 valid = False
                 break
             i = jj * n_lat + ii
-            wall_x[i] = c0 + lam * dx
-            wall_y[i] = c1 + lam * dy
+            wall_x[i] = px
+            wall_y[i] = py
             norm_x[i] = x
             norm_y[i] = y
         if not valid:
@@ -239,25 +220,17 @@ def _pixel_footprint(
         out_corners[p, m, 3, 0] = x4
         out_corners[p, m, 3, 1] = y4
         out_corners[p, m, 3, 2] = 0.0
-        d1x = x3 - x1
-        d1y = y3 - y1
-        d2x = x4 - x2
-        d2y = y4 - y2
-        quad_area[m] = 0.5 * abs(d1x * d2y - d1y * d2x)
+        areas[m] = quad_area(x1, y1, x2, y2, x3, y3, x4, y4)
         if sensor == SENSOR_PAPER:
-            # Offset from the quad's centroid (z = 0) to the camera centre.
-            ox = c0 - (((x1 + x2) + x3) + x4) / 4.0
-            oy = c1 - (((y1 + y2) + y3) + y4) / 4.0
-            d2sum = (ox * ox + c2 * c2) + oy * oy  # einsum's order
-            out_weights[p, m] = (c2 / math.sqrt(d2sum)) / d2sum / k
+            out_weights[p, m] = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view) / k
         elif sensor == SENSOR_COS4:
-            mx = (((norm_x[i1] + norm_x[i2]) + norm_x[i3]) + norm_x[i4]) / 4.0
-            my = (((norm_y[i1] + norm_y[i2]) + norm_y[i3]) + norm_y[i4]) / 4.0
-            cos2 = 1.0 / (1.0 + (mx * mx + my * my))
-            terms[m] = cos2 * cos2
+            terms[m] = cos4(
+                norm_x[i1], norm_y[i1], norm_x[i2], norm_y[i2],
+                norm_x[i3], norm_y[i3], norm_x[i4], norm_y[i4],
+            )  # fmt: skip
         elif sensor == SENSOR_MAP:
             terms[m] = vignetting[v0 + jj, u0 + m - jj * b]
-    area = pairwise_sum(quad_area, 0, k)
+    area = pairwise_sum(areas, 0, k)
     out_area[p] = area
     if sensor != SENSOR_PAPER:
         v_mean = 1.0
@@ -301,7 +274,7 @@ def pixel_footprints_parallel(
         dist: (8,) OpenCV distortion, zero padded.
         R_camera_world: (3, 3) the view's rotation.
         center_world: (3,) the camera centre, m (z > 0).
-        sensor: SENSOR_* code of `render_kernels`.
+        sensor: SENSOR_* code of `kernels.sensor`.
         vignetting: (H, W) fall-off map for SENSOR_MAP; any shape otherwise.
         chunk_pixels: pixels per parallel work item (>= 1).
         out_corners: (N, b^2, 4, 3) written: quads P1..P4 of each member, world frame, m;

@@ -20,27 +20,23 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from lightcal.core import render_kernels as rk
 from lightcal.core.camera import Camera
 from lightcal.core.corner_grid import GRID_CACHE
 from lightcal.core.corner_grid import corner_grid as corner_grid  # re-exported
 from lightcal.core.footprint import (
+    SENSOR_CODES,
     SENSOR_MODELS,
     Footprints,
     SensorModel,
     check_vignetting,
     pixel_footprints,
 )
+from lightcal.core.kernels.flux import flux_pixels
+from lightcal.core.kernels.image import render_image_fused
+from lightcal.core.rid_eval import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.core.wall_kernels import accumulate_image, apply_wall
-
-_SENSOR_CODES = {
-    "radiance": rk.SENSOR_RADIANCE,
-    "cos4": rk.SENSOR_COS4,
-    "paper": rk.SENSOR_PAPER,
-    "map": rk.SENSOR_MAP,
-}
 
 
 def _check_subsamples(rid_subsamples: int) -> int:
@@ -123,19 +119,13 @@ def light_flux(
         if wall_grad_out is not None:
             wall_grad_out.fill(0.0)
         return flux, grad
-    d = light.rid.data()
-    rk.flux_pixels(
+    flux_pixels(
         footprints.corners_world,
         footprints.weights,
         footprints.valid,
         L_world,
         np.ascontiguousarray(R_world_light),
-        d.kind,
-        d.params,
-        d.theta_knots,
-        d.phi_knots,
-        d.values,
-        d.slopes,
+        light.rid.data(),
         n_sub,
         want_grad,
         flux,
@@ -352,32 +342,23 @@ def _render_fused(
     lights_world = np.array([p for _, p, _ in lit], dtype=np.float64).reshape(len(lit), 3)
     R_world_lights = np.array([r for _, _, r in lit], dtype=np.float64).reshape(len(lit), 3, 3)
     scales = np.array([light.scale for light, _, _ in lit], dtype=np.float64)
-    kind, params, theta, n_theta, phi, n_phi, values, slopes = rk.stack_rid_data(
-        [light.rid.data() for light, _, _ in lit]
-    )
+    rids = stack_rid_data([light.rid.data() for light, _, _ in lit])
     out = np.empty((hb, wb))
     invalid = np.empty((hb, wb), dtype=np.bool_)
     # Dynamic scheduling of the row chunks: the machine's cores may be shared.
     with numba.parallel_chunksize(1):
-        rk.render_image_fused(
+        render_image_fused(
             grid_xy,
             grid_ok,
             np.ascontiguousarray(view.R_camera_world),
             np.ascontiguousarray(view.center_world),
-            _SENSOR_CODES[sensor],
+            SENSOR_CODES[sensor],
             vmap,
             b,
             lights_world,
             R_world_lights,
             scales,
-            kind,
-            params,
-            theta,
-            n_theta,
-            phi,
-            n_phi,
-            values,
-            slopes,
+            rids,
             n_sub,
             float(view.exposure),
             float(offset),

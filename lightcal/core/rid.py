@@ -72,14 +72,7 @@ class RID(ABC):
         theta, phi = np.broadcast_arrays(theta, phi)
         d = self.data()
         f, ft, fp = rid_eval.rid_eval_many(
-            np.ascontiguousarray(theta.ravel()),
-            np.ascontiguousarray(phi.ravel()),
-            d.kind,
-            d.params,
-            d.theta_knots,
-            d.phi_knots,
-            d.values,
-            d.slopes,
+            np.ascontiguousarray(theta.ravel()), np.ascontiguousarray(phi.ravel()), d
         )
         return f.reshape(theta.shape), ft.reshape(theta.shape), fp.reshape(theta.shape)
 

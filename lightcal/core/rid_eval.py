@@ -14,6 +14,10 @@ Python-level `RID.__call__` share one implementation:
   centred finite-difference slopes (C1 everywhere off the pole).
 
 Angles: theta from the light's +z axis, phi the azimuth from +x towards +y (radians).
+
+The kernels pass a RID around as one record, the `RIDData` named tuple (numba types it
+as a heterogeneous tuple); `stack_rid_data` pads the RIDs of several lights into one
+`RIDStack` and `light_rid` takes one light's `RIDData` back out of it in a kernel.
 """
 
 from __future__ import annotations
@@ -23,6 +27,8 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+
+from lightcal.core.kernels.fastmath import cos_power
 
 KIND_ISOTROPIC = 0
 KIND_COS_POWER = 1
@@ -51,6 +57,20 @@ class RIDData(NamedTuple):
     phi_knots: np.ndarray
     values: np.ndarray
     slopes: np.ndarray
+
+
+RIDTuple = tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""The fields of a `RIDData` as a plain tuple (how kernels called from Python take it)."""
+
+
+def rid_tuple(rid: RIDData) -> RIDTuple:
+    """The fields of `rid` as a plain tuple: what the kernels called from Python take.
+
+    numba's dispatcher types a plain tuple in C, a NamedTuple in Python: 1 us more per
+    call (~1 % of the solver's call of `flux_pixels` on 1,000 pixels). The kernels
+    rebuild the record inside, `RIDData(*rid)`.
+    """
+    return (int(rid.kind), rid.params, rid.theta_knots, rid.phi_knots, rid.values, rid.slopes)
 
 
 @numba.njit(cache=True, inline="always")
@@ -95,26 +115,18 @@ def hermite(
 
 
 @numba.njit(cache=True)
-def rid_value_grad(
-    theta: float,
-    phi: float,
-    kind: int,
-    params: np.ndarray,
-    theta_knots: np.ndarray,
-    phi_knots: np.ndarray,
-    values: np.ndarray,
-    slopes: np.ndarray,
-) -> tuple[float, float, float]:
+def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float, float]:
     """RID value and its partial derivatives at one direction.
 
     Args:
         theta: Angle from the light axis, radians, in [0, pi].
         phi: Azimuth in the light frame, radians (any real; wrapped).
-        kind, params, theta_knots, phi_knots, values, slopes: the fields of `RIDData`.
+        rid: the RID.
 
     Returns:
         (f, df/dtheta, df/dphi).
     """
+    kind, params, theta_knots, phi_knots, values, slopes = rid
     if kind == KIND_ISOTROPIC:
         return 1.0, 0.0, 0.0
     if kind == KIND_COS_POWER:
@@ -186,15 +198,7 @@ def rid_value_grad(
 
 @numba.njit(cache=True)
 def rid_value_grad_direction(
-    ux: float,
-    uy: float,
-    uz: float,
-    kind: int,
-    params: np.ndarray,
-    theta_knots: np.ndarray,
-    phi_knots: np.ndarray,
-    values: np.ndarray,
-    slopes: np.ndarray,
+    ux: float, uy: float, uz: float, rid: RIDData
 ) -> tuple[float, float, float, float]:
     """RID value and gradient with respect to a unit direction in the light frame.
 
@@ -203,27 +207,26 @@ def rid_value_grad_direction(
 
     Args:
         ux, uy, uz: Unit direction from the emitter, light frame.
-        kind, params, theta_knots, phi_knots, values, slopes: the fields of `RIDData`.
+        rid: the RID.
 
     Returns:
         (f, gx, gy, gz).
     """
+    kind = rid.kind
     if kind == KIND_ISOTROPIC:
         return 1.0, 0.0, 0.0, 0.0
     rho = math.sqrt(ux * ux + uy * uy)
     theta = math.atan2(rho, uz)
     # Only 2-D tables depend on the azimuth (an atan2 saved for the symmetric kinds).
     phi = math.atan2(uy, ux) if rho > 0.0 and kind == KIND_TABLE_2D else 0.0
-    f, f_t, f_p = rid_value_grad(theta, phi, kind, params, theta_knots, phi_knots, values, slopes)
+    f, f_t, f_p = rid_value_grad(theta, phi, rid)
     # grad = f_t e_theta + (f_p / sin theta) e_phi, written without dividing by zero:
     # e_theta = (cos t cos p, cos t sin p, -sin t) = (uz ux / rho, uz uy / rho, -rho),
     # e_phi = (-sin p, cos p, 0) = (-uy / rho, ux / rho, 0).
     if rho < 1e-9:
         # On the axis: the limit of f_t / sin(theta) is f''(0) for a smooth profile.
         eps = 1e-6
-        _, f_t_eps, _ = rid_value_grad(
-            eps, phi, kind, params, theta_knots, phi_knots, values, slopes
-        )
+        _, f_t_eps, _ = rid_value_grad(eps, phi, rid)
         a = f_t_eps / eps
         return f, a * ux * uz, a * uy * uz, 0.0
     a = f_t / rho
@@ -231,16 +234,32 @@ def rid_value_grad_direction(
     return f, a * uz * ux - b * uy, a * uz * uy + b * ux, -f_t * rho
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def rid_value_direction(ux: float, uy: float, uz: float, rid: RIDData) -> float:
+    """RID value (no gradient) at a unit direction (ux, uy, uz) of the light frame.
+
+    For the renderer's pixel loops: cos^m by `cos_power` (no libm call: the loop
+    vectorises), the other symmetric models inline (a call per pixel passing arrays
+    costs their reference counting), with the formulas of `rid_value_grad`.
+    """
+    kind = rid.kind
+    if kind == KIND_ISOTROPIC:
+        return 1.0
+    if kind == KIND_COS_POWER:
+        return cos_power(uz, rid.params[0])
+    rho = math.sqrt(ux * ux + uy * uy)
+    theta = math.atan2(rho, uz)
+    if kind == KIND_GAUSSIAN:
+        return math.exp(-0.5 * (theta / rid.params[0]) ** 2)
+    if kind == KIND_TABLE_1D:
+        return hermite(theta, rid.theta_knots, rid.values[0], rid.slopes[0])[0]
+    phi = math.atan2(uy, ux) if rho > 0.0 else 0.0
+    return rid_value_grad(theta, phi, rid)[0]
+
+
 @numba.njit(cache=True)
 def rid_eval_many(
-    theta: np.ndarray,
-    phi: np.ndarray,
-    kind: int,
-    params: np.ndarray,
-    theta_knots: np.ndarray,
-    phi_knots: np.ndarray,
-    values: np.ndarray,
-    slopes: np.ndarray,
+    theta: np.ndarray, phi: np.ndarray, rid: RIDData
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vectorised `rid_value_grad` over (N,) arrays: returns (f, df/dtheta, df/dphi)."""
     n = theta.shape[0]
@@ -248,7 +267,67 @@ def rid_eval_many(
     ft = np.empty(n)
     fp = np.empty(n)
     for i in range(n):
-        f[i], ft[i], fp[i] = rid_value_grad(
-            theta[i], phi[i], kind, params, theta_knots, phi_knots, values, slopes
-        )
+        f[i], ft[i], fp[i] = rid_value_grad(theta[i], phi[i], rid)
     return f, ft, fp
+
+
+class RIDStack(NamedTuple):
+    """The `RIDData` of L lights padded into arrays (`stack_rid_data`), one record.
+
+    Light l uses theta_knots[l, :n_theta[l]], phi_knots[l, :n_phi[l]] and
+    values[l, :n_phi[l], :n_theta[l]] (`light_rid`).
+
+    Attributes:
+        kind: (L,) int64; params: (L, 2); theta_knots: (L, NT); n_theta: (L,) int64;
+        phi_knots: (L, NP); n_phi: (L,) int64; values, slopes: (L, NP, NT).
+    """
+
+    kind: np.ndarray
+    params: np.ndarray
+    theta_knots: np.ndarray
+    n_theta: np.ndarray
+    phi_knots: np.ndarray
+    n_phi: np.ndarray
+    values: np.ndarray
+    slopes: np.ndarray
+
+
+def stack_rid_data(rids: list[RIDData]) -> RIDStack:
+    """Stack the `RIDData` of L lights into padded arrays (for `kernels.image`)."""
+    n_l = len(rids)
+    nt = max([1, *(d.theta_knots.shape[0] for d in rids)])
+    n_p = max([1, *(d.phi_knots.shape[0] for d in rids)])
+    kind = np.array([d.kind for d in rids], dtype=np.int64)
+    params = np.zeros((n_l, 2))
+    theta = np.zeros((n_l, nt))
+    phi = np.zeros((n_l, n_p))
+    values = np.zeros((n_l, n_p, nt))
+    slopes = np.zeros((n_l, n_p, nt))
+    n_theta = np.zeros(n_l, dtype=np.int64)
+    n_phi = np.zeros(n_l, dtype=np.int64)
+    for i, d in enumerate(rids):
+        k_t = d.theta_knots.shape[0]
+        k_p = d.phi_knots.shape[0]
+        params[i, : d.params.shape[0]] = d.params
+        theta[i, :k_t] = d.theta_knots
+        phi[i, :k_p] = d.phi_knots
+        values[i, :k_p, :k_t] = d.values
+        slopes[i, :k_p, :k_t] = d.slopes
+        n_theta[i] = k_t
+        n_phi[i] = k_p
+    return RIDStack(kind, params, theta, n_theta, phi, n_phi, values, slopes)
+
+
+@numba.njit(cache=True, inline="always")
+def light_rid(stack: RIDStack, li: int) -> RIDData:
+    """The `RIDData` of light li of a `RIDStack` (views of its arrays)."""
+    nt = stack.n_theta[li]
+    n_p = stack.n_phi[li]
+    return RIDData(
+        stack.kind[li],
+        stack.params[li],
+        stack.theta_knots[li, :nt],
+        stack.phi_knots[li, :n_p],
+        stack.values[li, :n_p, :nt],
+        stack.slopes[li, :n_p, :nt],
+    )

@@ -12,7 +12,7 @@ clockwise seen from the viewpoint (a . (e1 x e2) > 0). A quad is split into (P1,
 (P1, P3, P4); its solid angle is the absolute value of the signed sum, exact for any
 simple planar quad.
 
-The compiled kernels in `lightcal.core.render_kernels` implement the same formulas;
+The compiled kernels in `lightcal.core.kernels.solid_angle` implement the same formulas;
 this module is the readable reference that the tests hold them to.
 """
 

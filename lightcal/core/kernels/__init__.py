@@ -1,0 +1,18 @@
+"""Compiled (numba) kernels of the energy-preserving renderer (the model of docs/model.md).
+
+- `fastmath`: branch-free log, exp, cos^m and atan series (no libm calls: pixel loops
+  vectorise) and the float-bits / FMA intrinsics;
+- `solid_angle`: Van Oosterom-Strackee solid angles of triangles and footprint quads;
+- `sensor`: the sensor-model codes, where pixel corners meet the wall, and the sensor
+  weights (shared with `lightcal.core.footprint_kernels`);
+- `quad_flux`: the flux of one footprint quad and of one pixel's quads (the plain quad
+  loop, with gradients);
+- `wall_gradients`: the vectorised gradient path of quads on the wall;
+- `flux`: `flux_pixels`, any pixels for one light, with gradients (`render.shade`);
+- `image`: `render_image_fused`, a whole image of a rig in one pass (`render.render_image`).
+
+The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
+one `rid_eval.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
+implementation of the same model that the tests compare these kernels against;
+`tests/kernel_reference.py` holds the plain compiled versions of the fast paths.
+"""

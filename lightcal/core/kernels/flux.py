@@ -1,0 +1,193 @@
+"""`flux_pixels`: the flux of any set of pixels for one light, with gradients.
+
+What `render.shade` (and so the solver) calls: sum_k weight_k Phi_k / I0 of each pixel
+(the model of docs/model.md; `kernels.quad_flux`) and its gradients with respect to the
+light's world position and a left rotation perturbation of its orientation. With
+n = 1, quads on the wall z = 0 take the fast paths: without gradients `wall_quad_flux`
+(shared corner norms, one arctangent per quad, `cos_power`), with gradients
+`kernels.wall_gradients` (blocks of pixels in vectorised loops). Other quads take the
+plain quad loop (`quad_flux`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from lightcal.core.kernels.quad_flux import pixel_flux
+from lightcal.core.kernels.wall_gradients import wall_grad_range
+from lightcal.core.rid_eval import RIDData, RIDTuple, rid_tuple
+
+#: Below this many quad evaluations (pixels x quads x sub-quads, x 4 with gradients by
+#: the quad loop: n > 1), `flux_pixels` runs on the calling thread: waking the thread pool
+#: costs more. (With n = 1 a quad with gradients costs about one without.)
+SERIAL_WORK = 20_000
+
+
+@numba.njit(cache=True, inline="always")
+def flux_range(
+    i0: int,
+    i1: int,
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    valid: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: RIDData,
+    n_sub: int,
+    want_grad: bool,
+    allow_fast: bool,
+    out_flux: np.ndarray,
+    out_grad: np.ndarray,
+) -> None:
+    """`flux_pixels` for pixels i0 .. i1 - 1; without `allow_fast` no fast path is taken.
+
+    The parallel and serial entry points below (and the plain one of the tests) inline
+    it (they are separate functions: numba's cache does not tell apart compilations of
+    one function with different options).
+    """
+    if allow_fast and want_grad and n_sub == 1:
+        wall_grad_range(
+            i0,
+            i1,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            rid,
+            out_flux,
+            out_grad,
+        )
+    else:
+        g = np.zeros(6)
+        gq = np.zeros(6)
+        for i in range(i0, i1):
+            pixel_flux(
+                i,
+                corners_world,
+                weights,
+                valid,
+                light_world,
+                R_world_light,
+                rid,
+                n_sub,
+                want_grad,
+                allow_fast,
+                g,
+                gq,
+                out_flux,
+                out_grad,
+            )
+
+
+@numba.njit(cache=True, parallel=True)
+def flux_pixels_parallel(
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    valid: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: RIDTuple,
+    n_sub: int,
+    want_grad: bool,
+    out_flux: np.ndarray,
+    out_grad: np.ndarray,
+) -> None:
+    """`flux_pixels` on all threads, in chunks of pixels (scratch buffers per chunk).
+
+    rid: `rid_tuple` of the RID (a plain tuple: faster to dispatch than the record).
+    """
+    n = corners_world.shape[0]
+    n_chunks = min(n, 256)
+    for ch in numba.prange(n_chunks):
+        flux_range(
+            ch * n // n_chunks,
+            (ch + 1) * n // n_chunks,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            RIDData(*rid),
+            n_sub,
+            want_grad,
+            True,
+            out_flux,
+            out_grad,
+        )
+
+
+@numba.njit(cache=True)
+def flux_pixels_serial(
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    valid: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: RIDTuple,
+    n_sub: int,
+    want_grad: bool,
+    out_flux: np.ndarray,
+    out_grad: np.ndarray,
+) -> None:
+    """`flux_pixels` on the calling thread (small sets: no thread launch); rid: as
+    `flux_pixels_parallel`'s."""
+    flux_range(
+        0,
+        corners_world.shape[0],
+        corners_world,
+        weights,
+        valid,
+        light_world,
+        R_world_light,
+        RIDData(*rid),
+        n_sub,
+        want_grad,
+        True,
+        out_flux,
+        out_grad,
+    )
+
+
+def flux_pixels(
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    valid: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: RIDData,
+    n_sub: int,
+    want_grad: bool,
+    out_flux: np.ndarray,
+    out_grad: np.ndarray,
+) -> None:
+    """Weighted footprint flux of pixels for one light; writes (not adds) the outputs.
+
+    Args:
+        corners_world: (N, K, 4, 3) the K footprint quads of each pixel, world frame, m.
+        weights: (N, K) sensor weights of each quad.
+        valid: (N,) pixels to compute; others get 0.
+        light_world: (3,) emitter position, world frame, m. Must have z > 0.
+        R_world_light: (3, 3) light orientation in the world frame.
+        rid: the light's RID.
+        n_sub: RID sub-sampling per side of each quad.
+        want_grad: compute out_grad.
+        out_flux: (N,) sum_k weight_k Phi_k / I0.
+        out_grad: (N, 6) d out_flux / d (L_world (3), delta_world (3)); untouched if not want_grad.
+    """
+    per_quad = 4 if want_grad and n_sub > 1 else 1
+    work = corners_world.shape[0] * corners_world.shape[1] * n_sub * n_sub * per_quad
+    kernel = flux_pixels_serial if work < SERIAL_WORK else flux_pixels_parallel
+    kernel(
+        corners_world,
+        weights,
+        valid,
+        light_world,
+        R_world_light,
+        rid_tuple(rid),
+        int(n_sub),
+        bool(want_grad),
+        out_flux,
+        out_grad,
+    )
