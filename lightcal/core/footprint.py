@@ -6,7 +6,7 @@ wall z = 0: the footprint quad. A pixel whose corner ray misses the wall (or fai
 undistort) is invalid. A super-pixel of a b x b binned image is the union of its b^2
 pixels' footprints: it is represented by those b^2 quads, so its flux is exact.
 
-Sensor models (MODEL.md, step 5); a pixel's value is
+Sensor models (docs/model.md, step 5); a pixel's value is
 offset + gain * sum_lights scale * sum_k weight_k * Phi_k / I0 over its quads k, with
 
 - ``radiance``: weight = 1 / A (A the footprint's area): irradiance, V = 1;

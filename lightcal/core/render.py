@@ -1,6 +1,6 @@
 """The energy-preserving renderer: pixel values of the wall lit by a rig of lights.
 
-Two entry points over one model (MODEL.md, "Rendering one pixel"):
+Two entry points over one model (docs/model.md, "Rendering one pixel"):
 
 - `render_pixels` / `shade`: any set of (super-)pixels of any image. The solver builds
   the light-independent `Footprints` once and calls `shade` with new light poses; `shade`
@@ -33,10 +33,10 @@ from lightcal.core.footprint import (
 )
 from lightcal.core.kernels.flux import flux_pixels
 from lightcal.core.kernels.image import render_image_fused
+from lightcal.core.kernels.wall import accumulate_image, apply_wall
 from lightcal.core.rid_eval import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
-from lightcal.core.wall_kernels import accumulate_image, apply_wall
 
 
 def _check_subsamples(rid_subsamples: int) -> int:

@@ -1,6 +1,6 @@
 """Plain vectorised NumPy implementation of the renderer: the reference and the baseline.
 
-Same model as `lightcal.core.render` (MODEL.md), written for readability with array
+Same model as `lightcal.core.render` (docs/model.md), written for readability with array
 operations only: footprints from `pixel_footprints`, sub-quads from
 `subdivide_quads`, solid angles from `lightcal.core.solid_angle`, RID values through
 `RID.__call__`. The tests hold the compiled kernels to it; `benchmarks/render.py` uses

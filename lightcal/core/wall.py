@@ -47,8 +47,8 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from lightcal.core import wall_kernels as wk
-from lightcal.core.wall_kernels import TABLE_SIZE
+from lightcal.core.kernels import wall as wk
+from lightcal.core.kernels.wall import TABLE_SIZE
 
 __all__ = [
     "WALL_MODELS",
@@ -68,7 +68,7 @@ class WallData(NamedTuple):
     """What the compiled evaluator needs.
 
     Attributes:
-        kind: one of `wall_kernels.KIND_*`.
+        kind: one of `kernels.wall.KIND_*`.
         params: (MAX_PARAMS,) the model's parameters (padded with 0).
         tables: (3, TABLE_SIZE) plastic transmittance T, dT/dalpha, dT/deta on
             mu_k = k / (TABLE_SIZE - 1) (zeros for other models).

@@ -9,7 +9,9 @@
   loop, with gradients);
 - `wall_gradients`: the vectorised gradient path of quads on the wall;
 - `flux`: `flux_pixels`, any pixels for one light, with gradients (`render.shade`);
-- `image`: `render_image_fused`, a whole image of a rig in one pass (`render.render_image`).
+- `image`: `render_image_fused`, a whole image of a rig in one pass (`render.render_image`);
+- `wall`: the wall's relative reflectance B (`lightcal.core.wall`): per pixel with the
+  chain rule on a light's flux and gradients, and on whole images.
 
 The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
 one `rid_eval.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
