@@ -151,15 +151,17 @@ def test_render_is_lambertian_times_factor(name: str) -> None:
     np.testing.assert_allclose(glossy, lam * b, rtol=1e-13)
 
 
+@pytest.mark.parametrize("sensor", ["radiance", "paper"])
 @pytest.mark.parametrize("binning", [1, 2])
 @pytest.mark.parametrize("name", sorted(WALLS))
-def test_full_image_matches_pixels(name: str, binning: int) -> None:
+def test_full_image_matches_pixels(name: str, binning: int, sensor: str) -> None:
     camera, view, _ = _scene()
     rig = two_light_rig(CosPowerRID(2.0))
     wall = WALLS[name]
-    img = render_image(camera, view, rig, wall=wall, binning=binning, offset=3.0)
+    kw = {"wall": wall, "binning": binning, "offset": 3.0, "sensor": sensor}
+    img = render_image(camera, view, rig, **kw)
     px = all_pixels(camera.width // binning, camera.height // binning)
-    vals = render_pixels(camera, view, rig, px, wall=wall, binning=binning, offset=3.0)
+    vals = render_pixels(camera, view, rig, px, **kw)
     np.testing.assert_allclose(img.filled(np.nan).ravel(), vals.filled(np.nan), rtol=1e-9)
 
 

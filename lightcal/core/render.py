@@ -33,7 +33,7 @@ from lightcal.core.footprint import (
 )
 from lightcal.core.kernels.flux import flux_pixels
 from lightcal.core.kernels.image import render_image_fused
-from lightcal.core.kernels.wall import accumulate_image, apply_wall
+from lightcal.core.kernels.wall import apply_wall
 from lightcal.core.rid_eval import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
@@ -292,37 +292,13 @@ def render_image(
     n_sub = _check_subsamples(rid_subsamples)
     b = int(binning)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
-    hb, wb = camera.height // b, camera.width // b
     # Lights on or behind the wall illuminate nothing in this view.
     lit = [
         (light, *light_in_view(light, view))
         for light in rig.lights
         if light.position_world(view)[2] > 0.0
     ]
-    if wall.is_lambertian or not lit:
-        out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset)
-        return np.ma.masked_array(out, mask=invalid, copy=False)
-    # Each light's flux meets the wall's B for its own direction: one pass per light.
-    out = np.full((hb, wb), float(offset))
-    invalid = np.zeros((hb, wb), dtype=np.bool_)
-    d = wall.data()
-    grid_xy, grid_ok = GRID_CACHE.get(camera)
-    for entry in lit:
-        one, invalid = _render_fused(camera, view, [entry], sensor, vmap, b, n_sub, 0.0)
-        with numba.parallel_chunksize(1):
-            accumulate_image(
-                grid_xy,
-                grid_ok,
-                np.ascontiguousarray(view.R_camera_world),
-                np.ascontiguousarray(view.center_world),
-                b,
-                np.ascontiguousarray(entry[1]),
-                d.kind,
-                d.params,
-                d.tables,
-                one,
-                out,
-            )
+    out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset, wall)
     return np.ma.masked_array(out, mask=invalid, copy=False)
 
 
@@ -335,6 +311,7 @@ def _render_fused(
     b: int,
     n_sub: int,
     offset: float,
+    wall: WallReflectance,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The fused kernel over lights `lit` (light, L_world, R_world_light): values, invalid."""
     grid_xy, grid_ok = GRID_CACHE.get(camera)
@@ -343,6 +320,7 @@ def _render_fused(
     R_world_lights = np.array([r for _, _, r in lit], dtype=np.float64).reshape(len(lit), 3, 3)
     scales = np.array([light.scale for light, _, _ in lit], dtype=np.float64)
     rids = stack_rid_data([light.rid.data() for light, _, _ in lit])
+    wd = wall.data()
     out = np.empty((hb, wb))
     invalid = np.empty((hb, wb), dtype=np.bool_)
     # Dynamic scheduling of the row chunks: the machine's cores may be shared.
@@ -362,6 +340,9 @@ def _render_fused(
             n_sub,
             float(view.exposure),
             float(offset),
+            wd.kind,
+            wd.params,
+            wd.tables,
             out,
             invalid,
         )

@@ -44,6 +44,7 @@ from lightcal.core.kernels.sensor import (
     wall_point,
 )
 from lightcal.core.kernels.solid_angle import omega_series, quad_omega, quad_terms
+from lightcal.core.kernels.wall import KIND_LAMBERTIAN, point_factor
 from lightcal.core.rid_eval import (
     KIND_COS_POWER,
     KIND_ISOTROPIC,
@@ -76,7 +77,7 @@ def _corner_row(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _light_row(
+def _total_row(
     px: np.ndarray,
     py: np.ndarray,
     lx: float,
@@ -302,6 +303,9 @@ def render_image_fused(
     n_sub: int,
     exposure: float,
     offset: float,
+    wall_kind: int,
+    wall_params: np.ndarray,
+    wall_tables: np.ndarray,
     out: np.ndarray,
     out_invalid: np.ndarray,
 ) -> None:
@@ -321,8 +325,11 @@ def render_image_fused(
         rids: the lights' RIDs (`stack_rid_data`).
         n_sub: RID sub-sampling per side of each pixel's quad.
         exposure: the view's gain; offset: added to every valid value.
-        out: (H // b, W // b) written: offset + exposure sum_l scale_l sum_k w_k Phi_k / I0,
-            NaN where invalid.
+        wall_kind, wall_params, wall_tables: the wall model (`WallReflectance.data()`);
+            each light's flux is multiplied by its B at the (super-)pixel's footprint
+            centre, the mean of its quads' corners (skipped for a Lambertian wall).
+        out: (H // b, W // b) written: offset + exposure sum_l scale_l B_l sum_k w_k Phi_k
+            / I0, NaN where invalid.
         out_invalid: (H // b, W // b) written: True where some corner misses the wall.
     """
     hb = out.shape[0]
@@ -334,6 +341,7 @@ def render_image_fused(
     n_chunks = min(hb, 64)
     per_pixel = b == 1 and sensor != SENSOR_PAPER
     view = view_scalars(R_camera_world, center_world)
+    glossy = wall_kind != KIND_LAMBERTIAN
     for ch in numba.prange(n_chunks):
         r_begin = ch * hb // n_chunks
         r_end = (ch + 1) * hb // n_chunks
@@ -350,6 +358,9 @@ def render_image_fused(
         f_row = np.empty(w)
         bad_row = np.empty(w, dtype=np.bool_)
         acc_row = np.empty(w)
+        total_row = np.empty(w)
+        sp_cx = np.empty(wb)
+        sp_cy = np.empty(wb)
         sp_phi = np.empty((n_l, wb))
         sp_area = np.empty(wb)
         sp_v = np.empty(wb)
@@ -359,7 +370,7 @@ def render_image_fused(
         top = 0
         _corner_row(grid_xy, grid_ok, r_begin * b, w + 1, view, px[0], py[0], cok[0])
         for li in range(n_l):
-            _light_row(
+            _total_row(
                 px[0],
                 py[0],
                 lights_world[li, 0],
@@ -372,6 +383,8 @@ def render_image_fused(
         for r in range(r_begin, r_end):
             if not per_pixel:
                 sp_phi[:] = 0.0
+                sp_cx[:] = 0.0
+                sp_cy[:] = 0.0
                 sp_area[:] = 0.0
                 sp_v[:] = 0.0
                 sp_ok[:] = True
@@ -401,8 +414,9 @@ def render_image_fused(
                 _sensor_row(sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, view, bb, v_row)
                 if per_pixel:
                     acc_row[:] = 0.0
+                    total_row[:] = 0.0
                 for li in range(n_l):
-                    _light_row(
+                    _total_row(
                         bpx,
                         bpy,
                         lights_world[li, 0],
@@ -412,8 +426,8 @@ def render_image_fused(
                         ay[bot, li],
                         la[bot, li],
                     )
-                    if not per_pixel:
-                        acc_row[:] = 0.0
+                    if not per_pixel or glossy:
+                        acc_row[:] = 0.0  # this light alone
                     _flux_row(
                         tpx,
                         tpy,
@@ -439,6 +453,19 @@ def render_image_fused(
                         acc_row,
                     )
                     if per_pixel:
+                        if glossy:
+                            # This light's flux times its B at each pixel's footprint centre.
+                            for u in range(w):
+                                bw = point_factor(
+                                    0.25 * (tpx[u] + tpx[u + 1] + bpx[u] + bpx[u + 1]),
+                                    0.25 * (tpy[u] + tpy[u + 1] + bpy[u] + bpy[u + 1]),
+                                    lights_world[li],
+                                    center_world,
+                                    wall_kind,
+                                    wall_params,
+                                    wall_tables,
+                                )
+                                total_row[u] += acc_row[u] * bw
                         continue
                     # Binned or paper: Phi of each member pixel into its super-pixel.
                     if sensor == SENSOR_PAPER:
@@ -451,7 +478,9 @@ def render_image_fused(
                             for ii in range(b):
                                 sp_phi[li, c] += acc_row[c * b + ii]
                 if per_pixel:
-                    # acc_row holds sum_l scale_l Phi_l / I0 of each pixel.
+                    # acc_row holds sum_l scale_l Phi_l / I0 of each pixel (B_l included).
+                    if glossy:
+                        acc_row[:] = total_row
                     for u in range(w):
                         okp = ok_row[u]
                         value = offset + exposure * ((v_row[u] / area_row[u]) * acc_row[u])
@@ -464,11 +493,24 @@ def render_image_fused(
                             sp_ok[c] &= ok_row[u]
                             sp_area[c] += area_row[u]
                             sp_v[c] += v_row[u]
+                            sp_cx[c] += tpx[u] + tpx[u + 1] + bpx[u] + bpx[u + 1]
+                            sp_cy[c] += tpy[u] + tpy[u + 1] + bpy[u] + bpy[u + 1]
                 top = bot
             if per_pixel:
                 continue
             for c in range(wb):
                 if sp_ok[c]:
+                    if glossy:
+                        for li in range(n_l):
+                            sp_phi[li, c] *= point_factor(
+                                sp_cx[c] / (4.0 * bb),
+                                sp_cy[c] / (4.0 * bb),
+                                lights_world[li],
+                                center_world,
+                                wall_kind,
+                                wall_params,
+                                wall_tables,
+                            )
                     total = 0.0
                     if sensor == SENSOR_PAPER:
                         for li in range(n_l):

@@ -216,6 +216,31 @@ def brdf_value(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
+def point_factor(
+    x: float,
+    y: float,
+    light: np.ndarray,
+    center: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+) -> float:
+    """B at the wall point (x, y, 0) for a light and a camera centre (world frame, m)."""
+    lx = light[0] - x
+    ly = light[1] - y
+    vx = center[0] - x
+    vy = center[1] - y
+    rl = 1.0 / math.sqrt(lx * lx + ly * ly + light[2] * light[2])
+    rv = 1.0 / math.sqrt(vx * vx + vy * vy + center[2] * center[2])
+    lz = light[2] * rl
+    vz = center[2] * rv
+    if not (lz > 0.0 and vz > 0.0):
+        return 0.0
+    q = (lx * vx + ly * vy) * rl * rv + lz * vz
+    return brdf_value(kind, lz, q, vz, params, tables)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _oren_nayar(
     mu_l: float, q: float, mu_v: float, params: np.ndarray, dp: np.ndarray
 ) -> tuple[float, float, float]:
@@ -449,105 +474,6 @@ def _apply_wall_serial(
         want_grad,
         out_d_params,
     )
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def _corner_row(
-    j: int,
-    grid_xy: np.ndarray,
-    grid_ok: np.ndarray,
-    R: np.ndarray,
-    center: np.ndarray,
-    out_xy: np.ndarray,
-    out_ok: np.ndarray,
-) -> None:
-    """Wall points (x, y) of corner row j: ray d = R^T (x, y, 1), point C + lambda d."""
-    cz = center[2]
-    for i in range(grid_xy.shape[1]):
-        x = grid_xy[j, i, 0]
-        y = grid_xy[j, i, 1]
-        dx = R[0, 0] * x + R[1, 0] * y + R[2, 0]
-        dy = R[0, 1] * x + R[1, 1] * y + R[2, 1]
-        dz = R[0, 2] * x + R[1, 2] * y + R[2, 2]
-        lam = -cz / dz
-        out_ok[i] = grid_ok[j, i] and lam > 0.0
-        out_xy[i, 0] = center[0] + lam * dx
-        out_xy[i, 1] = center[1] + lam * dy
-
-
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def accumulate_image(
-    grid_xy: np.ndarray,
-    grid_ok: np.ndarray,
-    R_camera_world: np.ndarray,
-    center: np.ndarray,
-    b: int,
-    light: np.ndarray,
-    kind: int,
-    params: np.ndarray,
-    tables: np.ndarray,
-    image: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """out += image * B, B at each (super-)pixel's footprint centre (full-image path).
-
-    The centre is the mean of the wall points of all corners of the b x b pixel quads of a
-    super-pixel (`Footprints.centres_world` of the same footprints), from the camera's
-    undistorted corner grid; each corner row is intersected with the wall once per chunk
-    of rows.
-
-    Args:
-        grid_xy: (H + 1, W + 1, 2) undistorted normalised corner coordinates; grid_ok
-            (H + 1, W + 1) where they are valid.
-        R_camera_world: (3, 3); center: (3,) camera centre, world frame, m.
-        b: binning; light: (3,) light position, world frame, m.
-        kind, params, tables: the wall model.
-        image: (H // b, W // b) one light's rendered values (no offset).
-        out: (H // b, W // b) accumulated.
-    """
-    hb, wb = image.shape
-    n_corners = grid_xy.shape[1]
-    n_chunks = min(hb, 64)
-    inv = 1.0 / (4.0 * b * b)
-    for ch in numba.prange(n_chunks):
-        r0 = ch * hb // n_chunks
-        r1 = (ch + 1) * hb // n_chunks
-        prev = np.empty((n_corners, 2))
-        prev_ok = np.empty(n_corners, dtype=np.bool_)
-        nxt = np.empty((n_corners, 2))
-        nxt_ok = np.empty(n_corners, dtype=np.bool_)
-        sums = np.empty((wb, 2))
-        ok = np.empty(wb, dtype=np.bool_)
-        _corner_row(r0 * b, grid_xy, grid_ok, R_camera_world, center, prev, prev_ok)
-        for r in range(r0, r1):
-            sums[:] = 0.0
-            ok[:] = True
-            for j in range(r * b, r * b + b):
-                _corner_row(j + 1, grid_xy, grid_ok, R_camera_world, center, nxt, nxt_ok)
-                for c in range(wb):
-                    for i in range(c * b, c * b + b):
-                        sums[c, 0] += prev[i, 0] + prev[i + 1, 0] + nxt[i, 0] + nxt[i + 1, 0]
-                        sums[c, 1] += prev[i, 1] + prev[i + 1, 1] + nxt[i, 1] + nxt[i + 1, 1]
-                        if not (prev_ok[i] and prev_ok[i + 1] and nxt_ok[i] and nxt_ok[i + 1]):
-                            ok[c] = False
-                prev, nxt = nxt, prev
-                prev_ok, nxt_ok = nxt_ok, prev_ok
-            for c in range(wb):
-                if not ok[c]:
-                    continue  # the pixel is invalid (masked) anyway
-                px = sums[c, 0] * inv
-                py = sums[c, 1] * inv
-                lx = light[0] - px
-                ly = light[1] - py
-                vx = center[0] - px
-                vy = center[1] - py
-                rl = 1.0 / math.sqrt(lx * lx + ly * ly + light[2] * light[2])
-                rv = 1.0 / math.sqrt(vx * vx + vy * vy + center[2] * center[2])
-                lz = light[2] * rl
-                vz = center[2] * rv
-                if lz > 0.0 and vz > 0.0:
-                    q = (lx * vx + ly * vy) * rl * rv + lz * vz
-                    out[r, c] += image[r, c] * brdf_value(kind, lz, q, vz, params, tables)
 
 
 #: Below this many points the kernels run on the calling thread.
