@@ -1,5 +1,8 @@
 """`render_image_fused`: a whole (binned) image of a rig of lights in one parallel pass.
 
+Over 500 lines for a reason: the fused kernel and the row helpers it inlines belong
+together (the wall factor is applied inside its light loop).
+
 What `render.render_image` calls: the model of docs/model.md (the flux of each pixel's
 footprint quad, `kernels.quad_flux`, times its sensor weight, `kernels.sensor`) for
 every pixel, with less work per pixel than `flux_pixels` on the image's footprints.

@@ -1,5 +1,8 @@
 """Compiled (numba) evaluation of the wall's relative reflectance B(l, v).
 
+Over 500 lines for a reason: each model's value, derivative and one-division forms sit
+beside the kernels that inline them, with numba's parallel/serial twins.
+
 The renderer's footprint irradiance E (docs/model.md, "Rendering one pixel") is that of
 a Lambertian wall; a wall model multiplies each pixel's flux by
 
