@@ -29,7 +29,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.server import LightcalApp, build_app, default_project_path  # noqa: E402
+from lightcal_app.server import LightcalApp, build_app, default_project_path  # noqa: E402
 
 FLAGS = [
     "--no-sandbox",

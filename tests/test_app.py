@@ -20,24 +20,24 @@ from typing import Any
 
 import numpy as np
 import pytest
-from viser import _messages
-from viser._gui_handles import GuiEvent, UploadedFile
-from viser.infra import ClientId
-
-from app.demo_truth import read_truth_lights
-from app.overlays import OverlayImages, display_geometry, full_to_display, legend_picture
-from app.panels import pose_angles_deg, rotation_from_angles_deg
-from app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
-from app.scene3d import cone_lines, cone_mesh
-from app.server import LightcalApp, build_app
-from app.session_file import (
+from lightcal_app.demo_truth import read_truth_lights
+from lightcal_app.overlays import OverlayImages, display_geometry, full_to_display, legend_picture
+from lightcal_app.panels import pose_angles_deg, rotation_from_angles_deg
+from lightcal_app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
+from lightcal_app.scene3d import cone_lines, cone_mesh
+from lightcal_app.server import LightcalApp, build_app
+from lightcal_app.session_file import (
     apply_session,
     parse_session,
     read_session,
     session_from_state,
     session_json,
 )
-from app.state import Display
+from lightcal_app.state import Display
+from viser import _messages
+from viser._gui_handles import GuiEvent, UploadedFile
+from viser.infra import ClientId
+
 from lightcal.core.pose import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
@@ -724,7 +724,7 @@ def test_demo_mode_shows_the_true_light(synthetic: SyntheticProject, tmp_path: P
 
 
 def test_explanation_panel_has_pictures() -> None:
-    from app.explain import SECTIONS, load_figure
+    from lightcal_app.explain import SECTIONS, load_figure
 
     for _, _, figure in SECTIONS:
         assert figure is not None
@@ -735,7 +735,8 @@ def test_explanation_panel_has_pictures() -> None:
 def test_cli_without_sample_project_says_how_to_make_it(
     monkeypatch, capsys, tmp_path: Path
 ) -> None:
-    import app.server as server_module
+    import lightcal_app.server as server_module
+
     from lightcal.cli.main import main
 
     monkeypatch.setattr(
@@ -750,7 +751,8 @@ def test_cli_without_sample_project_says_how_to_make_it(
 def test_cli_warns_when_exposed(
     monkeypatch, capsys, synthetic: SyntheticProject, tmp_path: Path
 ) -> None:
-    import app.server as server_module
+    import lightcal_app.server as server_module
+
     from lightcal.cli.main import main
 
     served = []

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+from lightcal_app.panels import assign
+from lightcal_app.server import LightcalApp, build_app
 
-from app.panels import assign
-from app.server import LightcalApp, build_app
 from lightcal.core.rotations import matrix_from_quaternion_wxyz
 from tests.app_fixtures import make_project
 

@@ -66,7 +66,7 @@ def sample_project_missing(path: Path) -> InputError:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.server import build_app, default_project_path, serve_forever
+    from lightcal_app.server import build_app, default_project_path, serve_forever
 
     path = args.project
     if path is None:

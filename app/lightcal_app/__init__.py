@@ -15,7 +15,7 @@ __all__ = ["build_app", "default_project_path"]
 
 def __getattr__(name: str):  # lazy: importing `app` must not start viser
     if name in __all__:
-        from app import server
+        from lightcal_app import server
 
         return getattr(server, name)
     raise AttributeError(name)

@@ -3,7 +3,7 @@
 Every browser sees and edits this one state. GUI and scene callbacks (viser's thread
 pool) change it only through `AppState` methods under `lock`, mark what must be redrawn
 (`dirty`) and queue requests for the worker (`lightcal app`'s one worker thread, see
-`app.controller`), then `notify()`. Exact values live here; the scene only shows them.
+`lightcal_app.controller`), then `notify()`. Exact values live here; the scene only shows them.
 """
 
 from __future__ import annotations

@@ -21,13 +21,20 @@ from typing import Any
 
 import numpy as np
 
-from app.actions import Actions
-from app.overlays import OverlayImages
-from app.pixel_selection import footprint_centres, project_with_selection, select_image
-from app.redraw import Redrawer
-from app.results import report_zip_bytes, result_json_bytes
-from app.scene3d import Scene3D
-from app.session_file import (
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.scene import Rig
+from lightcal.core.session import SolverSession
+from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
+from lightcal.errors import LightcalError
+from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages, fit_scales, measurements_for, summarise
+from lightcal_app.actions import Actions
+from lightcal_app.overlays import OverlayImages
+from lightcal_app.pixel_selection import footprint_centres, project_with_selection, select_image
+from lightcal_app.redraw import Redrawer
+from lightcal_app.results import report_zip_bytes, result_json_bytes
+from lightcal_app.scene3d import Scene3D
+from lightcal_app.session_file import (
     SessionFile,
     apply_session,
     default_session_path,
@@ -36,7 +43,7 @@ from app.session_file import (
     session_json,
     write_session,
 )
-from app.state import (
+from lightcal_app.state import (
     ALL_DIRT,
     AppState,
     Display,
@@ -44,13 +51,6 @@ from app.state import (
     LightGuess,
     take_frame,
 )
-from lightcal.core.problem import ImageData, LightUnknown
-from lightcal.core.scene import Rig
-from lightcal.core.session import SolverSession
-from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
-from lightcal.errors import LightcalError
-from lightcal.io.project import Project
-from lightcal.pipeline import LoadedImages, fit_scales, measurements_for, summarise
 
 log = logging.getLogger("lightcal.app")
 
@@ -108,7 +108,7 @@ class Controller(Actions):
 
     @property
     def panels(self) -> Any:
-        """The GUI (set by `app.server` once it exists)."""
+        """The GUI (set by `lightcal_app.server` once it exists)."""
         return self.redrawer.panels
 
     @panels.setter

@@ -19,18 +19,6 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.controller import Controller
-from app.demo_truth import read_truth_lights, truth_path_for
-from app.explain import add_explanation
-from app.overlays import legend_picture
-from app.state import OVERLAY_KINDS, Frame, LightGuess, SelectionSettings
-from app.uploads import (
-    MAX_UPLOAD_BYTES,
-    format_size,
-    receive_image,
-    receive_project,
-    receive_rid,
-)
 from lightcal.core.pose import (
     angles_from_axis,
     axis_from_angles,
@@ -40,6 +28,18 @@ from lightcal.core.pose import (
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light
 from lightcal.io.project import Project
+from lightcal_app.controller import Controller
+from lightcal_app.demo_truth import read_truth_lights, truth_path_for
+from lightcal_app.explain import add_explanation
+from lightcal_app.overlays import legend_picture
+from lightcal_app.state import OVERLAY_KINDS, Frame, LightGuess, SelectionSettings
+from lightcal_app.uploads import (
+    MAX_UPLOAD_BYTES,
+    format_size,
+    receive_image,
+    receive_project,
+    receive_rid,
+)
 
 ALL_IMAGES = "all images"
 AS_ALL = "(as all images)"
@@ -600,7 +600,7 @@ class Panels:
             if d & {"status", "plots", "scene"}:
                 self.status_md.content = self._status_text(frame)
             if d & {"result", "scene"}:
-                from app.results import result_markdown
+                from lightcal_app.results import result_markdown
 
                 self.result_md.content = result_markdown(frame.result, state=frame.solver_state)
                 fit = frame.result.fit if frame.result is not None else None

@@ -11,10 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from app.picking import pick, rect_to_polygon
-from app.scene3d import Scene3D
-from app.session_file import parse_session
-from app.state import (
+from lightcal.errors import LightcalError
+from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages
+from lightcal_app.picking import pick, rect_to_polygon
+from lightcal_app.scene3d import Scene3D
+from lightcal_app.session_file import parse_session
+from lightcal_app.state import (
     ALL_DIRT,
     AppState,
     LightGuess,
@@ -22,9 +25,6 @@ from app.state import (
     SelectionSettings,
     UserRegion,
 )
-from lightcal.errors import LightcalError
-from lightcal.io.project import Project
-from lightcal.pipeline import LoadedImages
 
 log = logging.getLogger("lightcal.app")
 

@@ -17,17 +17,17 @@ from typing import Any
 
 import viser
 
-from app.controller import Controller
-from app.demo_truth import read_truth_lights, truth_path_for
-from app.panels import Panels
-from app.session_file import SessionFile, default_session_path, read_session
-from app.state import AppState
-from app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
+from lightcal_app.controller import Controller
+from lightcal_app.demo_truth import read_truth_lights, truth_path_for
+from lightcal_app.panels import Panels
+from lightcal_app.session_file import SessionFile, default_session_path, read_session
+from lightcal_app.state import AppState
+from lightcal_app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
 
-REPO_DIR = Path(__file__).resolve().parents[1]
+REPO_DIR = Path(__file__).resolve().parents[2]
 
 
 def default_project_path() -> Path:

@@ -20,11 +20,11 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
 from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal_app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
 
 SESSION_FORMAT: Literal["lightcal-app-session"] = "lightcal-app-session"
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]

@@ -13,7 +13,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
+STATIC_DIR = Path(__file__).resolve().parents[2] / "static"
 
 SECTIONS: tuple[tuple[str, str, str | None], ...] = (
     (

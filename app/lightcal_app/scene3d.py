@@ -24,13 +24,13 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
-from app.state import LightGuess
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import RID
 from lightcal.core.rotations import matrix_from_quaternion_wxyz, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Light, Rig
 from lightcal.io.project import Project
+from lightcal_app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
+from lightcal_app.state import LightGuess
 
 LIGHT_RGB = (255, 170, 0)
 TRUTH_RGB = (40, 200, 90)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from app.state import Display, OverlayKind, UserRegion
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.camera import Camera
 from lightcal.core.problem import with_view
@@ -25,6 +24,7 @@ from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
 from lightcal.io.project import Project
 from lightcal.pipeline import LoadedImages
+from lightcal_app.state import Display, OverlayKind, UserRegion
 
 INCLUDE_RGB = (40, 210, 60)
 EXCLUDE_RGB = (235, 40, 40)

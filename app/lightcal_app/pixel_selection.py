@@ -14,11 +14,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from app.state import SelectionSettings, UserRegion
 from lightcal.core.problem import ImageData
 from lightcal.core.selection import SelectionOptions
 from lightcal.io.project import Project, RegionSpec
 from lightcal.pipeline import LoadedImages, image_data
+from lightcal_app.state import SelectionSettings, UserRegion
 
 
 def region_spec(region: UserRegion) -> RegionSpec:

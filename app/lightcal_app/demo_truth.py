@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from app.state import LightGuess
 from lightcal.core.pose import rotation_from_axis
 from lightcal.errors import InputError, LightcalError
+from lightcal_app.state import LightGuess
 
 TRUTH_NAME = "truth.json"
 

@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from app.overlays import OverlayImages, shared_vmax
-from app.scene3d import Scene3D
-from app.state import AppState, Display, Frame, LightGuess
 from lightcal.core.scene import Light
+from lightcal_app.overlays import OverlayImages, shared_vmax
+from lightcal_app.scene3d import Scene3D
+from lightcal_app.state import AppState, Display, Frame, LightGuess
 
 
 class Redrawer:
