@@ -47,7 +47,7 @@ from lightcal.core.kernels.sensor import (
     wall_point,
 )
 from lightcal.core.kernels.solid_angle import omega_series, quad_omega, quad_terms
-from lightcal.core.kernels.wall import KIND_LAMBERTIAN, point_factor
+from lightcal.core.kernels.wall import KIND_LAMBERTIAN, add_factor_row, point_factor
 from lightcal.core.rid_eval import (
     KIND_COS_POWER,
     KIND_ISOTROPIC,
@@ -362,6 +362,7 @@ def render_image_fused(
         bad_row = np.empty(w, dtype=np.bool_)
         acc_row = np.empty(w)
         total_row = np.empty(w)
+        wall_scratch = np.empty((5, w))
         sp_cx = np.empty(wb)
         sp_cy = np.empty(wb)
         sp_phi = np.empty((n_l, wb))
@@ -458,17 +459,21 @@ def render_image_fused(
                     if per_pixel:
                         if glossy:
                             # This light's flux times its B at each pixel's footprint centre.
-                            for u in range(w):
-                                bw = point_factor(
-                                    0.25 * (tpx[u] + tpx[u + 1] + bpx[u] + bpx[u + 1]),
-                                    0.25 * (tpy[u] + tpy[u + 1] + bpy[u] + bpy[u + 1]),
-                                    lights_world[li],
-                                    center_world,
-                                    wall_kind,
-                                    wall_params,
-                                    wall_tables,
-                                )
-                                total_row[u] += acc_row[u] * bw
+                            add_factor_row(
+                                wall_kind,
+                                wall_params,
+                                wall_tables,
+                                lights_world[li],
+                                center_world,
+                                tpx,
+                                tpy,
+                                bpx,
+                                bpy,
+                                acc_row,
+                                total_row,
+                                w,
+                                wall_scratch,
+                            )
                         continue
                     # Binned or paper: Phi of each member pixel into its super-pixel.
                     if sensor == SENSOR_PAPER:
