@@ -222,6 +222,11 @@ class PlasticWall(WallReflectance):
         return PlasticWall(a, e, w)
 
     def data(self) -> WallData:
+        return self._data
+
+    @functools.cached_property
+    def _data(self) -> WallData:
+        # Once per wall: a solve renders every image with the same wall at each x.
         return WallData(
             wk.KIND_PLASTIC,
             self.parameters(),

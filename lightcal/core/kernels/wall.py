@@ -110,23 +110,32 @@ def smith_g1(mu: float, alpha: float) -> tuple[float, float, float]:
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _plastic(
+def _plastic_core(
     mu_l: float,
     q: float,
     mu_v: float,
-    params: np.ndarray,
-    tables: np.ndarray,
+    alpha: float,
+    eta: float,
+    w: float,
+    t_l: float,
+    t_l_mu: float,
+    t_v: float,
+    t1: float,
     want_params: bool,
-    dp: np.ndarray,
-) -> tuple[float, float, float]:
-    """Rough plastic B, dB/dmu_l, dB/dq; with want_params dp[:3] = dB/d(alpha, eta, w)."""
-    alpha = params[0]
-    eta = params[1]
-    w = params[2]
+    ta_l: float,
+    ta_v: float,
+    te_l: float,
+    te_v: float,
+    ta1: float,
+    te1: float,
+) -> tuple[float, float, float, float, float, float]:
+    """Rough plastic B, dB/dmu_l, dB/dq, dB/d(alpha, eta, w) from the table reads.
+
+    t_l, t_l_mu, t_v: T(mu_l), dT/dmu(mu_l), T(mu_v); t1 = T(1); with want_params
+    ta_x, te_x = dT/dalpha, dT/deta at mu_x and ta1, te1 at 1 (else their dB/dp are 0).
+    Branch-free arithmetic: loops calling it vectorise.
+    """
     # Diffuse base seen through the coat, normalised to 1 at normal incidence.
-    t_l, t_l_mu = _lerp_table(tables[0], mu_l)
-    t_v, _ = _lerp_table(tables[0], mu_v)
-    t1 = tables[0, TABLE_SIZE - 1]
     inv_t1_2 = 1.0 / (t1 * t1)
     diffuse = t_l * t_v * inv_t1_2
     # Specular coat: pi F D G1(l) G1(v) / (4 mu_l mu_v), half vector h = (l + v) / |l + v|.
@@ -141,20 +150,56 @@ def _plastic(
     spec = k * f * d * g_l * g_v
     spec_mu = k * f * g_v * (d_h * g_l / n + d * g_l_mu) - spec / mu_l
     spec_q = k * g_l * g_v * (f_c * d / (4.0 * c) - f * d_h * (mu_l + mu_v) / (n * n * n))
+    dp0 = 0.0
+    dp1 = 0.0
+    dp2 = 0.0
     if want_params:
-        last = TABLE_SIZE - 1
+        diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * ta1 / t1
+        diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * te1 / t1
+        spec_a = k * f * (d_a * g_l * g_v + d * g_l_a * g_v + d * g_l * g_v_a)
+        spec_e = k * f_e * d * g_l * g_v
+        dp0 = diffuse_a + w * spec_a
+        dp1 = diffuse_e + w * spec_e
+        dp2 = spec
+    return (
+        diffuse + w * spec,
+        t_l_mu * t_v * inv_t1_2 + w * spec_mu,
+        w * spec_q,
+        dp0,
+        dp1,
+        dp2,
+    )
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _plastic(
+    mu_l: float,
+    q: float,
+    mu_v: float,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_params: bool,
+    dp: np.ndarray,
+) -> tuple[float, float, float]:
+    """Rough plastic B, dB/dmu_l, dB/dq; with want_params dp[:3] = dB/d(alpha, eta, w)."""
+    last = TABLE_SIZE - 1
+    t_l, t_l_mu = _lerp_table(tables[0], mu_l)
+    t_v, _ = _lerp_table(tables[0], mu_v)
+    ta_l = ta_v = te_l = te_v = 0.0
+    if want_params:
         ta_l, _ = _lerp_table(tables[1], mu_l)
         ta_v, _ = _lerp_table(tables[1], mu_v)
         te_l, _ = _lerp_table(tables[2], mu_l)
         te_v, _ = _lerp_table(tables[2], mu_v)
-        diffuse_a = (ta_l * t_v + t_l * ta_v) * inv_t1_2 - 2.0 * diffuse * tables[1, last] / t1
-        diffuse_e = (te_l * t_v + t_l * te_v) * inv_t1_2 - 2.0 * diffuse * tables[2, last] / t1
-        spec_a = k * f * (d_a * g_l * g_v + d * g_l_a * g_v + d * g_l * g_v_a)
-        spec_e = k * f_e * d * g_l * g_v
-        dp[0] = diffuse_a + w * spec_a
-        dp[1] = diffuse_e + w * spec_e
-        dp[2] = spec
-    return diffuse + w * spec, t_l_mu * t_v * inv_t1_2 + w * spec_mu, w * spec_q
+    b, b_mu, b_q, dp0, dp1, dp2 = _plastic_core(
+        mu_l, q, mu_v, params[0], params[1], params[2], t_l, t_l_mu, t_v, tables[0, last],
+        want_params, ta_l, ta_v, te_l, te_v, tables[1, last], tables[2, last],
+    )  # fmt: skip
+    if want_params:
+        dp[0] = dp0
+        dp[1] = dp1
+        dp[2] = dp2
+    return b, b_mu, b_q
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -228,10 +273,16 @@ def _plastic_scalars(params: np.ndarray, tables: np.ndarray) -> tuple[float, flo
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _oren_nayar_scalars(params: np.ndarray) -> tuple[float, float]:
-    """(A, B) of the Oren-Nayar model for sigma = params[0]."""
-    s2 = params[0] * params[0]
-    return 1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09)
+def _oren_nayar_scalars(params: np.ndarray) -> tuple[float, float, float, float]:
+    """(A, B, dA/dsigma, dB/dsigma) of the Oren-Nayar model for sigma = params[0]."""
+    sigma = params[0]
+    s2 = sigma * sigma
+    return (
+        1.0 - 0.5 * s2 / (s2 + 0.33),
+        0.45 * s2 / (s2 + 0.09),
+        -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33)),
+        0.081 * sigma / ((s2 + 0.09) * (s2 + 0.09)),
+    )
 
 
 #: Smallest cosine a branch-free loop feeds a model (misses are masked to B = 0 after).
@@ -312,7 +363,7 @@ def add_factor_row(
                 mu_l_row[u], q_row[u], mu_v_row[u], a2, e2, w_spec, diffuse_row[u]
             )
     else:
-        a, b_on = _oren_nayar_scalars(params)
+        a, b_on, _, _ = _oren_nayar_scalars(params)
         for u in range(w):
             b = _oren_nayar_value(mu_l_row[u], q_row[u], mu_v_row[u], a, b_on)
             total_row[u] += flux_row[u] * extra_row[u] * b
@@ -328,7 +379,7 @@ def brdf_value(
         diffuse = _diffuse_value(mu_l, mu_v, tables[0], inv_t1_2)
         return _plastic_value(mu_l, q, mu_v, a2, e2, w_spec, diffuse)
     if kind == KIND_OREN_NAYAR:
-        a, b = _oren_nayar_scalars(params)
+        a, b, _, _ = _oren_nayar_scalars(params)
         return _oren_nayar_value(mu_l, q, mu_v, a, b)
     return 1.0
 
@@ -358,23 +409,11 @@ def _oren_nayar(
 
     sin(a) tan(b) cos(dphi) = (l_t . v_t) / max(mu_l, mu_v) with l_t . v_t = q - mu_l mu_v
     the tangential components' product, a = max(theta_l, theta_v), b = min(...).
-    dp[0] receives dB/dsigma.
+    Returns B, dB/dmu_l, dB/dq; dp[0] receives dB/dsigma.
     """
-    s2 = params[0] * params[0]
-    a = 1.0 - 0.5 * s2 / (s2 + 0.33)
-    b = 0.45 * s2 / (s2 + 0.09)
-    a_s = -0.33 * params[0] / ((s2 + 0.33) * (s2 + 0.33))
-    b_s = 0.081 * params[0] / ((s2 + 0.09) * (s2 + 0.09))
-    u = q - mu_l * mu_v
-    m = max(mu_l, mu_v)
-    if u <= 0.0:
-        dp[0] = a_s
-        return a, 0.0, 0.0
-    dp[0] = a_s + b_s * u / m
-    d_mu = -b * mu_v / m
-    if mu_l >= mu_v:
-        d_mu -= b * u / (m * m)
-    return a + b * u / m, d_mu, b / m
+    a, b, a_s, b_s = _oren_nayar_scalars(params)
+    value, d_mu, d_q, dp[0] = _oren_nayar_branch_free(mu_l, q, mu_v, a, b, a_s, b_s)
+    return value, d_mu, d_q
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -398,19 +437,135 @@ def brdf_terms(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _directions(
-    i: int, points: np.ndarray, light: np.ndarray, camera: np.ndarray
-) -> tuple[float, float, float, float, float, float, float]:
-    """Unit directions from wall point i to the light (l) and the camera (v), and |L - P|."""
-    lx = light[0] - points[i, 0]
-    ly = light[1] - points[i, 1]
-    lz = light[2] - points[i, 2]
-    vx = camera[0] - points[i, 0]
-    vy = camera[1] - points[i, 1]
-    vz = camera[2] - points[i, 2]
-    r_l = math.sqrt(lx * lx + ly * ly + lz * lz)
-    inv_v = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
-    return lx / r_l, ly / r_l, lz / r_l, vx * inv_v, vy * inv_v, vz * inv_v, r_l
+def _oren_nayar_branch_free(
+    mu_l: float, q: float, mu_v: float, a: float, b: float, a_s: float, b_s: float
+) -> tuple[float, float, float, float]:
+    """Oren-Nayar B, dB/dmu_l, dB/dq, dB/dsigma, with selects for branches (vectorises);
+    a, b, a_s, b_s: `_oren_nayar_scalars`."""
+    u = q - mu_l * mu_v
+    m = mu_l if mu_l >= mu_v else mu_v
+    lit = u > 0.0
+    u_pos = u if lit else 0.0
+    d_mu = -b * mu_v / m - (b * u / (m * m) if mu_l >= mu_v else 0.0)
+    return (
+        a + b * u_pos / m,
+        d_mu if lit else 0.0,
+        b / m if lit else 0.0,
+        a_s + b_s * u_pos / m,
+    )
+
+
+#: Points per block of the wall kernels' passes (their work rows stay in L1).
+_BLOCK = 256
+# Offsets of the work rows of `_model_block`: unit l (3), unit v (3), |L - P|, l . v, in
+# front (1 / 0), the table reads (7), and B, dB/dmu_l, dB/dq, dB/dp (MAX_PARAMS).
+_LX, _LY, _LZ, _VX, _VY, _VZ, _RL, _Q, _OK = (r * _BLOCK for r in range(9))
+_T_L, _T_L_MU, _T_V, _TA_L, _TA_V, _TE_L, _TE_V = (r * _BLOCK for r in range(9, 16))
+_B, _B_MU, _B_Q, _DP = (r * _BLOCK for r in range(16, 20))
+_WORK_SIZE = _DP + MAX_PARAMS * _BLOCK
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _model_block(
+    b0: int,
+    b1: int,
+    points: np.ndarray,
+    light: np.ndarray,
+    camera: np.ndarray,
+    kind: int,
+    params: np.ndarray,
+    tables: np.ndarray,
+    want_params: bool,
+    work: np.ndarray,
+) -> None:
+    """B and its derivatives at points b0..b1 - 1 into the rows of work (_WORK_SIZE,).
+
+    work holds its rows one after the other (row r's value for point j at r * _BLOCK + j): one
+    array with constant offsets, so that LLVM sees the rows do not overlap.
+
+    Three passes: directions (vectorised), the plastic table reads (scalar: LLVM does not
+    gather on current x86) and the model (vectorised, branch-free). B and all its
+    derivatives are 0 where the light or the camera is not in front of the wall (or the
+    point is NaN); the models see cosines floored at _MU_FLOOR there, to stay finite.
+    """
+    m = b1 - b0
+    l0, l1, l2 = light[0], light[1], light[2]
+    c0, c1, c2 = camera[0], camera[1], camera[2]
+    for j in range(m):
+        i = b0 + j
+        lx = l0 - points[i, 0]
+        ly = l1 - points[i, 1]
+        lz = l2 - points[i, 2]
+        vx = c0 - points[i, 0]
+        vy = c1 - points[i, 1]
+        vz = c2 - points[i, 2]
+        r_l = math.sqrt(lx * lx + ly * ly + lz * lz)
+        inv_v = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
+        ulx, uly, ulz = lx / r_l, ly / r_l, lz / r_l
+        uvx, uvy, uvz = vx * inv_v, vy * inv_v, vz * inv_v
+        work[_LX + j] = ulx
+        work[_LY + j] = uly
+        work[_LZ + j] = ulz
+        work[_VX + j] = uvx
+        work[_VY + j] = uvy
+        work[_VZ + j] = uvz
+        work[_RL + j] = r_l
+        work[_Q + j] = ulx * uvx + uly * uvy + ulz * uvz
+        work[_OK + j] = 1.0 if (ulz > 0.0) & (uvz > 0.0) else 0.0
+    if kind == KIND_PLASTIC:
+        for j in range(m):  # scalar: the table reads
+            mu_l = _floor_mu(work[_LZ + j])
+            mu_v = _floor_mu(work[_VZ + j])
+            work[_T_L + j], work[_T_L_MU + j] = _lerp_table(tables[0], mu_l)
+            work[_T_V + j], _ = _lerp_table(tables[0], mu_v)
+            if want_params:
+                work[_TA_L + j], _ = _lerp_table(tables[1], mu_l)
+                work[_TA_V + j], _ = _lerp_table(tables[1], mu_v)
+                work[_TE_L + j], _ = _lerp_table(tables[2], mu_l)
+                work[_TE_V + j], _ = _lerp_table(tables[2], mu_v)
+            else:
+                work[_TA_L + j] = work[_TA_V + j] = work[_TE_L + j] = work[_TE_V + j] = 0.0
+        last = TABLE_SIZE - 1
+        alpha, eta, w = params[0], params[1], params[2]
+        t1, ta1, te1 = tables[0, last], tables[1, last], tables[2, last]
+        for j in range(m):
+            b, b_mu, b_q, dp0, dp1, dp2 = _plastic_core(
+                _floor_mu(work[_LZ + j]), work[_Q + j], _floor_mu(work[_VZ + j]), alpha, eta, w,
+                work[_T_L + j], work[_T_L_MU + j], work[_T_V + j], t1, want_params,
+                work[_TA_L + j], work[_TA_V + j], work[_TE_L + j], work[_TE_V + j], ta1, te1,
+            )  # fmt: skip
+            ok = work[_OK + j] != 0.0
+            work[_B + j] = b if ok else 0.0
+            work[_B_MU + j] = b_mu if ok else 0.0
+            work[_B_Q + j] = b_q if ok else 0.0
+            work[_DP + j] = dp0 if ok else 0.0
+            work[_DP + 1 * _BLOCK + j] = dp1 if ok else 0.0
+            work[_DP + 2 * _BLOCK + j] = dp2 if ok else 0.0
+    elif kind == KIND_OREN_NAYAR:
+        a, bb, a_s, b_s = _oren_nayar_scalars(params)
+        for j in range(m):
+            b, b_mu, b_q, dp0 = _oren_nayar_branch_free(
+                _floor_mu(work[_LZ + j]), work[_Q + j], _floor_mu(work[_VZ + j]), a, bb, a_s, b_s
+            )
+            ok = work[_OK + j] != 0.0
+            work[_B + j] = b if ok else 0.0
+            work[_B_MU + j] = b_mu if ok else 0.0
+            work[_B_Q + j] = b_q if ok else 0.0
+            work[_DP + j] = dp0 if ok else 0.0
+            work[_DP + 1 * _BLOCK + j] = 0.0
+            work[_DP + 2 * _BLOCK + j] = 0.0
+    else:
+        for j in range(m):
+            ok = work[_OK + j] != 0.0
+            work[_B + j] = 1.0 if ok else 0.0
+            work[_B_MU + j] = work[_B_Q + j] = 0.0
+            work[_DP + j] = work[_DP + 1 * _BLOCK + j] = work[_DP + 2 * _BLOCK + j] = 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _floor_mu(mu: float) -> float:
+    """mu where it is above _MU_FLOOR, else _MU_FLOOR (NaN included)."""
+    return mu if mu > _MU_FLOOR else _MU_FLOOR
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -425,13 +580,12 @@ def _factor_range(
     tables: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    for i in range(i0, i1):
-        lx, ly, lz, vx, vy, vz, _ = _directions(i, points, light, camera)
-        if lz > 0.0 and vz > 0.0:
-            q = lx * vx + ly * vy + lz * vz
-            out[i] = brdf_value(kind, lz, q, vz, params, tables)
-        else:  # light or camera not in front of the wall (or an invalid footprint)
-            out[i] = 0.0
+    work = np.empty(_WORK_SIZE)
+    for b0 in range(i0, i1, _BLOCK):
+        b1 = min(b0 + _BLOCK, i1)
+        _model_block(b0, b1, points, light, camera, kind, params, tables, False, work)
+        for j in range(b1 - b0):
+            out[b0 + j] = work[_B + j]
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -452,41 +606,37 @@ def _apply_range(
     """flux *= B in place and, with want_grad, the chain rule on grad (N, 6) in place:
     d(flux B)/dL = B dflux/dL + flux dB/dL, d(flux B)/d delta = B dflux/d delta, and
     out_d_params (N, P) = flux dB/dp (P = 0: no parameters wanted)."""
-    dp = np.zeros(MAX_PARAMS)
     n_p = out_d_params.shape[1]
     want_params = want_grad and n_p > 0
-    for i in range(i0, i1):
-        lx, ly, lz, vx, vy, vz, r_l = _directions(i, points, light, camera)
-        if not (lz > 0.0 and vz > 0.0):
-            f0 = 0.0
-            b = 0.0
-            b_mu = 0.0
-            b_q = 0.0
-            for d in range(n_p):
-                dp[d] = 0.0
-        else:
-            f0 = flux[i]
-            q = lx * vx + ly * vy + lz * vz
-            b, b_mu, b_q = brdf_terms(kind, lz, q, vz, params, tables, dp, want_params)
-        flux[i] = f0 * b
-        if want_grad:
-            # dB/dL = (I - l l^T) (dB/dmu e_z + dB/dq v) / |L - P|.
-            gx = b_q * vx
-            gy = b_q * vy
-            gz = b_mu + b_q * vz
-            lg = lx * gx + ly * gy + lz * gz
-            s = f0 / r_l if b != 0.0 else 0.0
-            grad[i, 0] = b * grad[i, 0] + s * (gx - lx * lg)
-            grad[i, 1] = b * grad[i, 1] + s * (gy - ly * lg)
-            grad[i, 2] = b * grad[i, 2] + s * (gz - lz * lg)
-            grad[i, 3] *= b
-            grad[i, 4] *= b
-            grad[i, 5] *= b
-            for d in range(n_p):
-                out_d_params[i, d] = f0 * dp[d]
+    work = np.empty(_WORK_SIZE)
+    for b0 in range(i0, i1, _BLOCK):
+        b1 = min(b0 + _BLOCK, i1)
+        _model_block(b0, b1, points, light, camera, kind, params, tables, want_params, work)
+        for j in range(b1 - b0):
+            i = b0 + j
+            b = work[_B + j]
+            f0 = flux[i] if work[_OK + j] != 0.0 else 0.0
+            flux[i] = f0 * b
+            if want_grad:
+                # dB/dL = (I - l l^T) (dB/dmu e_z + dB/dq v) / |L - P|.
+                lx, ly, lz = work[_LX + j], work[_LY + j], work[_LZ + j]
+                b_q = work[_B_Q + j]
+                gx = b_q * work[_VX + j]
+                gy = b_q * work[_VY + j]
+                gz = work[_B_MU + j] + b_q * work[_VZ + j]
+                lg = lx * gx + ly * gy + lz * gz
+                s = f0 / work[_RL + j] if b != 0.0 else 0.0
+                grad[i, 0] = b * grad[i, 0] + s * (gx - lx * lg)
+                grad[i, 1] = b * grad[i, 1] + s * (gy - ly * lg)
+                grad[i, 2] = b * grad[i, 2] + s * (gz - lz * lg)
+                grad[i, 3] *= b
+                grad[i, 4] *= b
+                grad[i, 5] *= b
+                for d in range(n_p):
+                    out_d_params[i, d] = f0 * work[_DP + d * _BLOCK + j]
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _wall_factor_parallel(
     points: np.ndarray,
     light: np.ndarray,
@@ -512,7 +662,7 @@ def _wall_factor_parallel(
         )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _wall_factor_serial(
     points: np.ndarray,
     light: np.ndarray,
@@ -525,7 +675,7 @@ def _wall_factor_serial(
     _factor_range(0, points.shape[0], points, light, camera, kind, params, tables, out)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _apply_wall_parallel(
     points: np.ndarray,
     light: np.ndarray,
@@ -557,7 +707,7 @@ def _apply_wall_parallel(
         )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _apply_wall_serial(
     points: np.ndarray,
     light: np.ndarray,
