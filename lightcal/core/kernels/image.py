@@ -501,8 +501,12 @@ def render_image_fused(
                             sp_ok[c] &= ok_row[u]
                             sp_area[c] += area_row[u]
                             sp_v[c] += v_row[u]
-                            sp_cx[c] += tpx[u] + tpx[u + 1] + bpx[u] + bpx[u + 1]
-                            sp_cy[c] += tpy[u] + tpy[u + 1] + bpy[u] + bpy[u + 1]
+                    if glossy:  # the super-pixel's footprint centre, for B
+                        for c in range(wb):
+                            for ii in range(b):
+                                u = c * b + ii
+                                sp_cx[c] += tpx[u] + tpx[u + 1] + bpx[u] + bpx[u + 1]
+                                sp_cy[c] += tpy[u] + tpy[u + 1] + bpy[u] + bpy[u + 1]
                 top = bot
             if per_pixel:
                 continue
