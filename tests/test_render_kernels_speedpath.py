@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lightcal.core import render
+from lightcal.core import render, rid_eval
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import SENSOR_CODES, check_vignetting, pixel_footprints
 from lightcal.core.kernels import fastmath, solid_angle
@@ -72,6 +72,11 @@ RIDS = {
     "cos_power": CosPowerRID(3.7),
     "gaussian": GaussianRID(0.6),
     "table_1d": SymmetricTableRID(np.linspace(0.0, 1.5, 9), np.cos(np.linspace(0.0, 1.5, 9)) + 0.1),
+    # Knots not uniform: the kernels' binary search instead of the one-step interval.
+    "table_1d_irregular": SymmetricTableRID(
+        np.array([0.0, 0.1, 0.35, 0.5, 0.9, 1.0, 1.5]),
+        np.cos(np.array([0.0, 0.1, 0.35, 0.5, 0.9, 1.0, 1.5])) + 0.1,
+    ),
     "table_2d": _table_2d(),
 }
 
@@ -199,6 +204,39 @@ def test_atan_series_is_exact_in_its_range() -> None:
     x_max = fastmath.ATAN_SERIES_MAX
     for x in np.linspace(-x_max, x_max, 2001):
         assert fastmath.atan_series(x) == pytest.approx(math.atan(x), rel=3e-16, abs=1e-300)
+
+
+def test_atan2_nonneg_matches_libm_to_two_ulp() -> None:
+    rng = np.random.default_rng(4)
+    angle = rng.uniform(0.0, math.pi, 20000)
+    r = 10.0 ** rng.uniform(-8.0, 3.0, angle.size)
+    ys = np.concatenate([np.abs(r * np.sin(angle)), [0.0, 0.0, 1.0, 1.0, 1e-300, 0.0, 3.0]])
+    xs = np.concatenate([r * np.cos(angle), [1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -3.0]])
+    for y, x in zip(ys, xs, strict=True):
+        expected = math.atan2(y, x)
+        ulp = math.ulp(expected) if expected else 5e-324
+        assert abs(fastmath.atan2_nonneg(y, x) - expected) <= 2 * ulp, (y, x)
+    assert fastmath.atan2_nonneg(0.0, 0.0) == 0.0
+    assert fastmath.atan2_nonneg(0.0, -2.0) == math.pi
+
+
+def test_table_knot_interval_from_the_step_equals_the_binary_search() -> None:
+    # IES-like knots (degrees to radians): uniform within rounding.
+    theta = np.radians(np.arange(0.0, 90.5, 2.5))
+    rid = SymmetricTableRID(theta, np.cos(theta) ** 2.5 + 0.02).data()
+    assert rid.params[0] == pytest.approx((theta.size - 1) / theta[-1])
+    rng = np.random.default_rng(5)
+    xs = np.concatenate(
+        [rng.uniform(-0.1, 1.7, 5000), theta, np.nextafter(theta, 10.0), np.nextafter(theta, -1)]
+    )
+    for x in xs:
+        by_step = rid_eval.hermite(x, rid.theta_knots, rid.values[0], rid.slopes[0], rid.params[0])
+        by_search = rid_eval.hermite(x, rid.theta_knots, rid.values[0], rid.slopes[0], 0.0)
+        assert by_step == by_search, x
+    f, df = rid_eval.hermite(math.nan, rid.theta_knots, rid.values[0], rid.slopes[0], 0.0)
+    assert math.isnan(f) and math.isnan(df)
+    assert rid_eval.table_params(np.array([0.0, 0.1, 0.3]))[0] == 0.0
+    assert rid_eval.table_params(np.array([0.2, 0.4, 0.6]))[0] == 0.0  # not from 0
 
 
 def test_quad_omega_equals_two_atan2_including_large_angles() -> None:

@@ -241,7 +241,7 @@ class SymmetricTableRID(RID):
             "_data",
             RIDData(
                 rid_eval.KIND_TABLE_1D,
-                np.zeros(2),
+                rid_eval.table_params(theta),
                 theta,
                 np.zeros(1),
                 values[None, :].copy(),
@@ -304,7 +304,9 @@ class Table2DRID(RID):
         object.__setattr__(
             self,
             "_data",
-            RIDData(rid_eval.KIND_TABLE_2D, np.zeros(2), theta, phi, values, slopes),
+            RIDData(
+                rid_eval.KIND_TABLE_2D, rid_eval.table_params(theta), theta, phi, values, slopes
+            ),
         )
 
     def data(self) -> RIDData:

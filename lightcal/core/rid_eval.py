@@ -8,7 +8,7 @@ Python-level `RID.__call__` share one implementation:
 - ``kind`` 1 cosine power: f = cos(theta)^m for theta < pi/2, else 0 (``params[0] = m``);
 - ``kind`` 2 Gaussian: f = exp(-theta^2 / (2 sigma^2)) (``params[0] = sigma``, radians);
 - ``kind`` 3 symmetric table: cubic Hermite in theta on ``theta_knots`` with
-  ``values[0]`` and ``slopes[0]``; 0 beyond the last knot;
+  ``values[0]`` and ``slopes[0]``; 0 beyond the last knot (``params``: `table_params`);
 - ``kind`` 4 2-D table: cubic Hermite in theta on each azimuth row (rows at
   ``phi_knots``, periodic over 2 pi), then cubic Hermite in phi through the rows with
   centred finite-difference slopes (C1 everywhere off the pole).
@@ -37,6 +37,10 @@ KIND_TABLE_1D = 3
 KIND_TABLE_2D = 4
 
 TWO_PI = 2.0 * math.pi
+#: Directions with sin(theta) below AXIS_RHO count as on the axis, where the RID's
+#: gradient takes the limit f_theta / sin(theta) -> f_theta(AXIS_EPS) / AXIS_EPS.
+AXIS_RHO = 1e-9
+AXIS_EPS = 1e-6
 
 
 class RIDData(NamedTuple):
@@ -73,26 +77,64 @@ def rid_tuple(rid: RIDData) -> RIDTuple:
     return (int(rid.kind), rid.params, rid.theta_knots, rid.phi_knots, rid.values, rid.slopes)
 
 
-@numba.njit(cache=True, inline="always")
-def hermite(
-    x: float, knots: np.ndarray, values: np.ndarray, slopes: np.ndarray
-) -> tuple[float, float]:
-    """Cubic Hermite value and derivative at x; 0 beyond the last knot."""
-    n = knots.shape[0]
-    if x > knots[n - 1]:
-        return 0.0, 0.0
-    if x <= knots[0]:
-        return values[0], slopes[0]
+def table_params(theta_knots: np.ndarray) -> np.ndarray:
+    """`RIDData.params` of a table RID: (1 / h, 0) when its theta knots are uniform with
+    step h (to 1e-9 h: IES and EULUMDAT files), else (0, 0).
+
+    With 1 / h the kernels find a knot interval by one multiplication and one comparison
+    (`knot_interval`) instead of a binary search: the same interval, the same numbers.
+    """
+    t = np.asarray(theta_knots, dtype=np.float64)
+    n = t.shape[0]
+    if n < 2 or t[0] != 0.0:
+        return np.zeros(2)
+    h = t[-1] / (n - 1)
+    uniform = h > 0.0 and bool(np.all(np.abs(t - h * np.arange(n)) <= 1e-9 * h))
+    return np.array([1.0 / h if uniform else 0.0, 0.0])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _knot_search(x: float, knots: np.ndarray) -> int:
+    """lo with knots[lo] <= x < knots[lo + 1] (lo = n - 2 at x = knots[n - 1]) for
+    knots[0] <= x <= knots[n - 1], by binary search."""
     lo = 0
-    hi = n - 1
+    hi = knots.shape[0] - 1
     while hi - lo > 1:
         mid = (lo + hi) >> 1
         if knots[mid] <= x:
             lo = mid
         else:
             hi = mid
+    return lo
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def hermite(
+    x: float, knots: np.ndarray, values: np.ndarray, slopes: np.ndarray, inv_h: float
+) -> tuple[float, float]:
+    """Cubic Hermite value and derivative at x; (values[0], slopes[0]) at and before the
+    first knot, 0 beyond the last, NaN at NaN.
+
+    inv_h: `table_params`' first entry: > 0 for uniform knots, whose interval comes from
+    x / h (corrected by one knot where rounding put it across); 0: a binary search.
+    Written out in one function: numba's inlining of a second function taking arrays
+    costs a pixel loop 3x (reference counts).
+    """
+    n = knots.shape[0]
+    beyond = x > knots[n - 1]
+    inside = (x > knots[0]) & (not beyond)  # False for NaN: xc stays a knot
+    xc = x if inside else (knots[n - 1] if beyond else knots[0])
+    if inv_h > 0.0:
+        lo = min(int(xc * inv_h), n - 2)
+        if knots[lo] > xc and lo > 0:
+            lo -= 1
+        elif lo < n - 2 and knots[lo + 1] <= xc:
+            lo += 1
+    else:
+        lo = _knot_search(xc, knots)
+    hi = lo + 1
     h = knots[hi] - knots[lo]
-    t = (x - knots[lo]) / h
+    t = (xc - knots[lo]) / h
     t2 = t * t
     t3 = t2 * t
     v0 = values[lo]
@@ -110,8 +152,11 @@ def hermite(
         + (3 * t2 - 4 * t + 1) * m0
         + (-6 * t2 + 6 * t) * v1
         + (3 * t2 - 2 * t) * m1
-    )
-    return f, df / h
+    ) / h
+    f = f if inside else (0.0 if beyond else values[0])
+    df = df if inside else (0.0 if beyond else slopes[0])
+    nan = x != x
+    return (x if nan else f), (x if nan else df)
 
 
 @numba.njit(cache=True)
@@ -141,7 +186,7 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
         f = math.exp(-0.5 * (theta / s) ** 2)
         return f, -f * theta / (s * s), 0.0
     if kind == KIND_TABLE_1D:
-        f, df = hermite(theta, theta_knots, values[0], slopes[0])
+        f, df = hermite(theta, theta_knots, values[0], slopes[0], params[0])
         return f, df, 0.0
     # KIND_TABLE_2D: periodic rows in phi.
     n_p = phi_knots.shape[0]
@@ -169,10 +214,10 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
     d_2 = phi_knots[j2] - phi_knots[j1]
     if d_2 <= 0.0:
         d_2 += TWO_PI
-    gm, dgm = hermite(theta, theta_knots, values[jm], slopes[jm])
-    g0, dg0 = hermite(theta, theta_knots, values[j], slopes[j])
-    g1, dg1 = hermite(theta, theta_knots, values[j1], slopes[j1])
-    g2, dg2 = hermite(theta, theta_knots, values[j2], slopes[j2])
+    gm, dgm = hermite(theta, theta_knots, values[jm], slopes[jm], params[0])
+    g0, dg0 = hermite(theta, theta_knots, values[j], slopes[j], params[0])
+    g1, dg1 = hermite(theta, theta_knots, values[j1], slopes[j1], params[0])
+    g2, dg2 = hermite(theta, theta_knots, values[j2], slopes[j2], params[0])
     s0 = (g1 - gm) / (d_m + d_1)
     s1 = (g2 - g0) / (d_1 + d_2)
     ds0 = (dg1 - dgm) / (d_m + d_1)
@@ -223,11 +268,10 @@ def rid_value_grad_direction(
     # grad = f_t e_theta + (f_p / sin theta) e_phi, written without dividing by zero:
     # e_theta = (cos t cos p, cos t sin p, -sin t) = (uz ux / rho, uz uy / rho, -rho),
     # e_phi = (-sin p, cos p, 0) = (-uy / rho, ux / rho, 0).
-    if rho < 1e-9:
+    if rho < AXIS_RHO:
         # On the axis: the limit of f_t / sin(theta) is f''(0) for a smooth profile.
-        eps = 1e-6
-        _, f_t_eps, _ = rid_value_grad(eps, phi, rid)
-        a = f_t_eps / eps
+        _, f_t_eps, _ = rid_value_grad(AXIS_EPS, phi, rid)
+        a = f_t_eps / AXIS_EPS
         return f, a * ux * uz, a * uy * uz, 0.0
     a = f_t / rho
     b = f_p / (rho * rho)
@@ -252,7 +296,7 @@ def rid_value_direction(ux: float, uy: float, uz: float, rid: RIDData) -> float:
     if kind == KIND_GAUSSIAN:
         return math.exp(-0.5 * (theta / rid.params[0]) ** 2)
     if kind == KIND_TABLE_1D:
-        return hermite(theta, rid.theta_knots, rid.values[0], rid.slopes[0])[0]
+        return hermite(theta, rid.theta_knots, rid.values[0], rid.slopes[0], rid.params[0])[0]
     phi = math.atan2(uy, ux) if rho > 0.0 else 0.0
     return rid_value_grad(theta, phi, rid)[0]
 

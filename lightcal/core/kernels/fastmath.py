@@ -156,3 +156,67 @@ def atan_series(x: float) -> float:
     """atan(x) for |x| <= ATAN_SERIES_MAX (odd series to x^9)."""
     x2 = x * x
     return x * (1.0 + x2 * (-1.0 / 3.0 + x2 * (0.2 + x2 * (-1.0 / 7.0 + x2 * (1.0 / 9.0)))))
+
+
+# Cephes' atan: atan(x) = x + x z P(z) / Q(z), z = x^2, for |x| <= 0.66 (Q monic).
+_ATAN_P = (
+    -8.750608600031904122785e-01,
+    -1.615753718733365076637e01,
+    -7.500855792314704667340e01,
+    -1.228866684490136173410e02,
+    -6.485021904942025371773e01,
+)
+_ATAN_Q = (
+    2.485846490142306297962e01,
+    1.650270098316988542046e02,
+    4.328810604912902668951e02,
+    4.853903996359136964868e02,
+    1.945506571482613964425e02,
+)
+_PI_2_LO = 6.123233995736765886130e-17  # pi / 2 - float(pi / 2)
+_PI_2 = 1.5707963267948966
+_PI_4 = 0.7853981633974483
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def atan2_nonneg(y: float, x: float) -> float:
+    """atan2(y, x) for y >= 0 (an angle in [0, pi]), within 2 ulp, branch-free.
+
+    For the angle theta from a light's axis, atan2(rho, u_z), in pixel loops that must
+    vectorise (libm's atan2 is a call per pixel). a = min(y, |x|) / max(y, |x|) in
+    [0, 1], atan(a) by Cephes' rational approximation (reduced by pi / 4 above 0.66),
+    then the octant: pi / 2 - atan(a) where y > |x|, pi - that where x < 0.
+    """
+    ax = abs(x)
+    hi = max(y, ax)
+    lo = min(y, ax)
+    a = lo / hi if hi > 0.0 else 0.0
+    big = a > 0.66
+    t = (a - 1.0) / (a + 1.0) if big else a
+    z = t * t
+    p = (((_ATAN_P[0] * z + _ATAN_P[1]) * z + _ATAN_P[2]) * z + _ATAN_P[3]) * z + _ATAN_P[4]
+    q = ((((z + _ATAN_Q[0]) * z + _ATAN_Q[1]) * z + _ATAN_Q[2]) * z + _ATAN_Q[3]) * z
+    q = q + _ATAN_Q[4]
+    r = t + t * (z * p / q)
+    r = (_PI_4 + (r + 0.5 * _PI_2_LO)) if big else r
+    r = ((_PI_2 - r) + _PI_2_LO) if y > ax else r
+    return ((2.0 * _PI_2 - r) + 2.0 * _PI_2_LO) if x < 0.0 else r
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def rotate_transposed(
+    x: float,
+    y: float,
+    z: float,
+    R9: tuple[float, float, float, float, float, float, float, float, float],
+) -> tuple[float, float, float]:
+    """R.T @ (x, y, z) for R given by columns as R9 = (r00, r10, r20, r01, ..., r22).
+
+    A world direction to the light frame with R = R_world_light, without array reads in
+    the pixel loop.
+    """
+    return (
+        R9[0] * x + R9[1] * y + R9[2] * z,
+        R9[3] * x + R9[4] * y + R9[5] * z,
+        R9[6] * x + R9[7] * y + R9[8] * z,
+    )

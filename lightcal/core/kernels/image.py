@@ -34,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from lightcal.core.kernels.fastmath import cos_power
+from lightcal.core.kernels.fastmath import atan2_nonneg, cos_power, rotate_transposed
 from lightcal.core.kernels.quad_flux import quad_flux
 from lightcal.core.kernels.sensor import (
     SENSOR_COS4,
@@ -51,8 +51,10 @@ from lightcal.core.kernels.wall import KIND_LAMBERTIAN, add_factor_row, point_fa
 from lightcal.core.rid_eval import (
     KIND_COS_POWER,
     KIND_ISOTROPIC,
+    KIND_TABLE_1D,
     RIDData,
     RIDStack,
+    hermite,
     light_rid,
     rid_value_direction,
 )
@@ -137,6 +139,28 @@ def _pixel_terms(
     mx = 0.25 * (x1 + x2 + x3 + x4)
     my = 0.25 * (y1 + y2 + y3 + y4)
     return n1, d1, n2, d2, mx, my
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _centroid_dir_light(
+    tpx: np.ndarray,
+    tpy: np.ndarray,
+    bpx: np.ndarray,
+    bpy: np.ndarray,
+    u: int,
+    lx: float,
+    ly: float,
+    az: float,
+    R9: tuple[float, float, float, float, float, float, float, float, float],
+) -> tuple[float, float, float]:
+    """Unit direction from the light to pixel u's footprint centroid, in the light frame.
+
+    R9 is R_world_light by columns (r00, r10, r20, r01, r11, r21, r02, r12, r22).
+    """
+    mx = 0.25 * (tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]) - lx
+    my = 0.25 * (tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]) - ly
+    rr = math.sqrt(mx * mx + my * my + az * az)
+    return rotate_transposed(mx / rr, my / rr, az / rr, R9)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -229,20 +253,29 @@ def _flux_row(
             om_row[u], bad = omega_series(n1, d1, n2, d2)
             bad_row[u] = bad
             n_bad += bad
+        R9 = (
+            R_world_light[0, 0], R_world_light[1, 0], R_world_light[2, 0],
+            R_world_light[0, 1], R_world_light[1, 1], R_world_light[2, 1],
+            r02, r12, r22,
+        )  # fmt: skip
+        if kind == KIND_TABLE_1D:
+            # The angle from the axis (branch-free atan2, vectorised); the table reads
+            # are gathers, which LLVM does not vectorise: a loop of their own.
+            for u in range(w):
+                ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
+                f_row[u] = atan2_nonneg(math.sqrt(ux * ux + uy * uy), uz)
+            knots = rid.theta_knots
+            values = rid.values[0]
+            slopes = rid.slopes[0]
+            inv_h = rid.params[0]
+            for u in range(w):
+                f_row[u] = hermite(f_row[u], knots, values, slopes, inv_h)[0]
+        else:
+            for u in range(w):
+                ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
+                f_row[u] = rid_value_direction(ux, uy, uz, rid)
         for u in range(w):
-            mx = 0.25 * (tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]) - lx
-            my = 0.25 * (tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]) - ly
-            rr = math.sqrt(mx * mx + my * my + az * az)
-            wx = mx / rr
-            wy = my / rr
-            wz = az / rr
-            R = R_world_light
-            ux = R[0, 0] * wx + R[1, 0] * wy + R[2, 0] * wz
-            uy = R[0, 1] * wx + R[1, 1] * wy + R[2, 1] * wz
-            uz = r02 * wx + r12 * wy + r22 * wz
-            f = rid_value_direction(ux, uy, uz, rid)
-            acc_row[u] += 0.0 if bad_row[u] else scale * (om_row[u] * f)
-            f_row[u] = f
+            acc_row[u] += 0.0 if bad_row[u] else scale * (om_row[u] * f_row[u])
     if n_bad > 0:
         # Pixels outside the series' range (large solid angles): the general formula.
         for u in range(w):

@@ -25,13 +25,23 @@ import math
 import numba
 import numpy as np
 
-from lightcal.core.kernels.fastmath import ATAN_SERIES_MAX, atan_series, cos_power
+from lightcal.core.kernels.fastmath import (
+    ATAN_SERIES_MAX,
+    atan2_nonneg,
+    atan_series,
+    cos_power,
+    rotate_transposed,
+)
 from lightcal.core.kernels.quad_flux import pixel_flux
 from lightcal.core.kernels.solid_angle import wall_quad_omega_signed
 from lightcal.core.rid_eval import (
+    AXIS_EPS,
+    AXIS_RHO,
     KIND_COS_POWER,
     KIND_ISOTROPIC,
+    KIND_TABLE_1D,
     RIDData,
+    hermite,
     rid_value_grad_direction,
 )
 
@@ -119,6 +129,7 @@ def wall_grad_block(
     r02 = R_world_light[0, 2]
     r12 = R_world_light[1, 2]
     r22 = R_world_light[2, 2]
+    R9 = (r00, r10, r20, r01, r11, r21, r02, r12, r22)
     for k in range(n_k):
         # Geometry: solid angle (series), its gradient, the direction to the centroid.
         for i in range(nb):
@@ -234,6 +245,35 @@ def wall_grad_block(
                 gwx[i] = kf * (r02 - uz * wx)
                 gwy[i] = kf * (r12 - uz * wy)
                 gwz[i] = kf * (r22 - uz * wz)
+        elif rid.kind == KIND_TABLE_1D:
+            # theta by the branch-free atan2 and the gradient vectorised; the table reads
+            # (gathers, which LLVM does not vectorise) in a scalar loop between them.
+            knots = rid.theta_knots
+            values = rid.values[0]
+            slopes = rid.slopes[0]
+            inv_h = rid.params[0]
+            # On the axis: the limit of f_t / sin(theta), as `rid_value_grad_direction`.
+            a_axis = hermite(AXIS_EPS, knots, values, slopes, inv_h)[1] / AXIS_EPS
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                theta = atan2_nonneg(math.sqrt(ux * ux + uy * uy), uz)
+                fs[i] = theta if on_wall[i] & valid[i0 + i] else 0.0
+            for i in range(nb):
+                fs[i], gwz[i] = hermite(fs[i], knots, values, slopes, inv_h)
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                rho = math.sqrt(ux * ux + uy * uy)
+                f_t = gwz[i]
+                axis = rho < AXIS_RHO
+                a = a_axis if axis else f_t / rho
+                gux = a * uz * ux
+                guy = a * uz * uy
+                guz = 0.0 if axis else -f_t * rho
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
+                gwy[i] = (r10 * gux + r11 * guy + r12 * guz) if ok else 0.0
+                gwz[i] = (r20 * gux + r21 * guy + r22 * guz) if ok else 0.0
         else:
             for i in range(nb):
                 if not (on_wall[i] and valid[i0 + i]):
@@ -242,12 +282,7 @@ def wall_grad_block(
                     gwy[i] = 0.0
                     gwz[i] = 0.0
                     continue
-                wx = wxs[i]
-                wy = wys[i]
-                wz = wzs[i]
-                ux = r00 * wx + r10 * wy + r20 * wz
-                uy = r01 * wx + r11 * wy + r21 * wz
-                uz = r02 * wx + r12 * wy + r22 * wz
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
                 f, gux, guy, guz = rid_value_grad_direction(ux, uy, uz, rid)
                 fs[i] = f
                 gwx[i] = r00 * gux + r01 * guy + r02 * guz
