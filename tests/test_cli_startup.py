@@ -49,7 +49,7 @@ def run_lightcal(*args: str) -> tuple[str, set[str]]:
 
 @pytest.mark.parametrize(
     "args",
-    [("--version",), ("--help",), ("calibrate", "--help"), ("app", "--help")],
+    [("--version",), ("--help",), ("calibrate", "--help"), ("app", "--help"), ("sample", "--help")],
 )
 def test_help_and_version_do_not_import_the_numerical_stack(args: tuple[str, ...]) -> None:
     out, imported = run_lightcal(*args)
@@ -58,6 +58,6 @@ def test_help_and_version_do_not_import_the_numerical_stack(args: tuple[str, ...
     else:
         assert out.startswith("usage: lightcal")
     if args == ("--help",):
-        for command in ("synth", "calibrate", "render", "schema", "init", "camera"):
+        for command in ("sample", "synth", "calibrate", "render", "schema", "init", "camera"):
             assert command in out
     assert sorted(imported.intersection(HEAVY)) == []
