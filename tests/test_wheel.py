@@ -3,9 +3,10 @@
 `lightcal app` without a project (the packaged sample, its pictures) run there.
 
 How the venv gets its dependencies without the repository. The wheel is installed with
-`--no-deps` into a new venv (no `--system-site-packages`). Its third-party dependencies
-come from the running interpreter's site-packages, named as plain paths in a `.pth` file
-of the new venv. Python's `site` runs the `.pth` files of site directories only, so the
+`--no-deps` into a new venv (no `--system-site-packages`). Then, so that pip never sees
+(or offers to uninstall) the developer's own install, its third-party dependencies are
+added: the running interpreter's site-packages, named as plain paths in a `.pth` file of
+the new venv. Python's `site` runs the `.pth` files of site directories only, so the
 `.pth` files inside those added paths are never executed; among them is the editable
 install's `__editable__.lightcal-*.pth`, whose finder would map `lightcal` to the
 repository. The new venv's own site-packages (holding the wheel) also comes first on
@@ -69,12 +70,19 @@ def copy_source(dest: Path) -> None:
     archive.unlink()
 
 
+def clean_env() -> dict[str, str]:
+    """This environment without PYTHONPATH / PYTHONHOME (which name the repository)."""
+    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("wheel")
     copy_source(root / "src")
     pip_wheel = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q"]
-    subprocess.run([*pip_wheel, "-w", str(root / "dist"), str(root / "src")], check=True)
+    subprocess.run(
+        [*pip_wheel, "-w", str(root / "dist"), str(root / "src")], env=clean_env(), check=True
+    )
     (path,) = (root / "dist").glob("lightcal-*.whl")
     return path
 
@@ -120,17 +128,20 @@ def venv(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
         text=True,
         check=True,
     ).stdout.strip()
+    pip_install = [sys.executable, "-m", "pip", "--python", str(python), "install", "-q"]
+    subprocess.run(
+        [*pip_install, "--no-deps", "--no-index", str(wheel)], env=clean_env(), check=True
+    )
+    # Only now the dependencies: pip never saw the repository's editable install.
     deps = [p for p in site.getsitepackages() if not Path(p).resolve().is_relative_to(REPO)]
     (Path(purelib) / "lightcal-test-dependencies.pth").write_text("\n".join(deps) + "\n")
-    pip_install = [sys.executable, "-m", "pip", "--python", str(python), "install", "-q"]
-    subprocess.run([*pip_install, "--no-deps", "--no-index", str(wheel)], check=True)
     return root
 
 
 def venv_env(venv: Path, tmp: Path) -> dict[str, str]:
     """The environment of a command in the venv: no PYTHONPATH, the user's folders in
     `tmp`, one numba cache for the module's tests (beside the venv)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env = clean_env()
     env.update(
         XDG_DATA_HOME=str(tmp / "data"),
         XDG_STATE_HOME=str(tmp / "state"),
