@@ -7,13 +7,14 @@ line saying how to draw it.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-STATIC_DIR = Path(__file__).resolve().parents[2] / "static"
+from lightcal.resources import data_folder
+
+STATIC_DIR = data_folder("lightcal_app", "static")  # installed: package data; checkout: static/
 
 SECTIONS: tuple[tuple[str, str, str | None], ...] = (
     (

@@ -20,6 +20,7 @@ import viser
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
+from lightcal.resources import sample_project_dir
 from lightcal_app.controller import Controller
 from lightcal_app.demo_truth import read_truth_lights, truth_path_for
 from lightcal_app.panels import Panels
@@ -27,12 +28,10 @@ from lightcal_app.session_file import SessionFile, default_session_path, read_se
 from lightcal_app.state import AppState
 from lightcal_app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
 
-REPO_DIR = Path(__file__).resolve().parents[2]
-
 
 def default_project_path() -> Path:
-    """The sample project shipped with the repository."""
-    return REPO_DIR / "sample_data" / "project.json"
+    """The bundled sample project (installed: package data; checkout: sample_data/)."""
+    return sample_project_dir() / "project.json"
 
 
 def default_state_dir() -> Path:

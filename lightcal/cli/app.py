@@ -1,8 +1,11 @@
 """`lightcal app [PROJECT] [--host H] [--port P] [--demo] [--fresh]`: the calibration app.
 
-Opens the interactive calibration page (viser) on the project, by default the
-repository's sample project, and serves it until Ctrl-C. It binds 127.0.0.1 (this
-machine only) unless `--host` says otherwise; viser's share tunnel is never used.
+Opens the interactive calibration page (viser) on the project, by default the bundled
+sample project, and serves it until Ctrl-C. Installed, the sample is first copied to the
+user's data folder (`lightcal.resources.user_sample_dir`), so that the autosave beside
+the project and any edits never go into site-packages; in a source checkout the app
+opens sample_data/ in place. It binds 127.0.0.1 (this machine only) unless `--host` says
+otherwise; viser's share tunnel is never used.
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "project",
         nargs="?",
         type=Path,
-        help="project file (JSON or YAML); default: sample_data/project.json of the repository",
+        help="project file (JSON or YAML); default: the bundled sample project "
+        "(sample_data/ of a source checkout; installed: a copy in ~/.local/share/lightcal)",
     )
     p.add_argument(
         "--host",
@@ -65,14 +69,32 @@ def sample_project_missing(path: Path) -> InputError:
     )
 
 
-def run(args: argparse.Namespace) -> int:
-    from lightcal_app.server import build_app, default_project_path, serve_forever
+def sample_project_for_app() -> Path:
+    """The project `lightcal app` opens without one: the sample in place in a source
+    checkout; installed, the user's copy of it (made, or completed, first)."""
+    from lightcal_app import server
 
-    path = args.project
-    if path is None:
-        path = default_project_path()
-        if not path.is_file():
-            raise sample_project_missing(path)
+    from lightcal.resources import sample_project_is_packaged, user_sample_dir, write_sample_project
+
+    path = server.default_project_path()
+    if not path.is_file():
+        raise sample_project_missing(path)
+    if not sample_project_is_packaged():
+        return path
+    copy = write_sample_project(user_sample_dir(), force=True, source=path.parent)
+    if copy.written:
+        print(
+            f"lightcal app: copied the sample project to {copy.folder} (your changes and "
+            "the autosave stay there)",
+            flush=True,
+        )
+    return copy.folder / "project.json"
+
+
+def run(args: argparse.Namespace) -> int:
+    from lightcal_app.server import build_app, serve_forever
+
+    path = args.project if args.project is not None else sample_project_for_app()
     if args.host in EXPOSED_HOSTS:
         print(
             f"lightcal app: warning: --host {args.host or '(all)'} exposes the app to every "

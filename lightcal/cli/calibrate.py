@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from lightcal.cli.progress import console, stage_progress
-from lightcal.core.solver import IterationReport
+if TYPE_CHECKING:
+    from lightcal.core.solver import IterationReport
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +29,7 @@ EXIT_MISFIT = 3
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcal.cli.progress import console, stage_progress
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images

@@ -16,7 +16,7 @@ from lightcal import __version__
 from lightcal.errors import LightcalError
 
 # Subcommand modules, in the order `lightcal --help` lists them.
-SUBCOMMANDS = ("synth", "calibrate", "render", "schema", "init", "camera", "app")
+SUBCOMMANDS = ("sample", "synth", "calibrate", "render", "schema", "init", "camera", "app")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lightcal.cli.progress import console, stage_progress
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="render a project's images with calibrated lights")
@@ -22,6 +20,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import tifffile
 
+    from lightcal.cli.progress import console, stage_progress
     from lightcal.core.scene import Light, Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.errors import InputError

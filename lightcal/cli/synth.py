@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
 from lightcal.errors import InputError
-from lightcal.synthetic.scenes import LIGHT_MODELS
+from lightcal.synthetic.light_models import LIGHT_MODELS
 
 if TYPE_CHECKING:
     from lightcal.core.wall import WallReflectance

@@ -4,6 +4,8 @@ The data goes to a temporary file in the same folder (same file system, so the f
 `os.replace` is atomic), is flushed and fsync'ed, and only then replaces the target.
 If anything fails on the way (including an exception raised by the iterable that
 produces the data), the temporary file is removed and the old file is left untouched.
+`atomic_create_bytes` is the same for a file that must not exist yet: the temporary
+file is hard-linked to the target, which fails instead of replacing a file.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import secrets
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["atomic_write_bytes", "atomic_write_text"]
+__all__ = ["atomic_create_bytes", "atomic_write_bytes", "atomic_write_text"]
 
 _NEW_FILE_MODE = 0o666
 """Mode of a newly created file before the umask applies (as `open(path, "w")` does)."""
@@ -36,8 +38,50 @@ def atomic_write_bytes(
             is unchanged and no temporary file is left behind.
     """
     target = Path(path)
-    folder = target.parent
-    temp = folder / f".{target.name}.{secrets.token_hex(6)}.tmp"
+    temp = _temporary_copy(target, data)
+    try:
+        with contextlib.suppress(FileNotFoundError):
+            temp.chmod(target.stat().st_mode & 0o7777)
+        temp.replace(target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            temp.unlink()
+        raise
+    _fsync_folder(target.parent)
+
+
+def atomic_create_bytes(path: str | Path, data: bytes | bytearray | memoryview) -> None:
+    """Create `path` holding `data`, atomically, never replacing an existing file.
+
+    Args:
+        path: The file to create. Its folder must exist.
+        data: The bytes to write.
+
+    Raises:
+        FileExistsError: `path` exists (it is left untouched).
+        OSError: The folder does not exist or cannot be written; no temporary file is
+            left behind.
+    """
+    target = Path(path)
+    temp = _temporary_copy(target, data)
+    try:
+        try:
+            os.link(temp, target)
+        except FileExistsError:
+            raise
+        except OSError:  # no hard links on this file system: exclusive create instead
+            fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _NEW_FILE_MODE)
+            with os.fdopen(fd, "wb") as stream:
+                stream.write(data)
+    finally:
+        with contextlib.suppress(OSError):
+            temp.unlink()
+    _fsync_folder(target.parent)
+
+
+def _temporary_copy(target: Path, data: bytes | bytearray | memoryview | Iterable[bytes]) -> Path:
+    """A new hidden file beside `target` holding `data`, flushed to disk."""
+    temp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
     fd = os.open(temp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _NEW_FILE_MODE)
     try:
         with os.fdopen(fd, "wb") as stream:
@@ -48,14 +92,11 @@ def atomic_write_bytes(
                     stream.write(chunk)
             stream.flush()
             os.fsync(stream.fileno())
-        with contextlib.suppress(FileNotFoundError):
-            temp.chmod(target.stat().st_mode & 0o7777)
-        temp.replace(target)
     except BaseException:
         with contextlib.suppress(OSError):
             temp.unlink()
         raise
-    _fsync_folder(folder)
+    return temp
 
 
 def atomic_write_text(path: str | Path, text: str, *, encoding: str = "utf-8") -> None:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +47,7 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.errors import InputError
+from lightcal.synthetic.light_models import LIGHT_MODELS, LightModel
 
 __all__ = [
     "LIGHT_MODELS",
@@ -72,16 +72,6 @@ __all__ = [
     "vignetting_image",
     "white_level",
 ]
-
-LightModel = Literal["isotropic", "cos_power", "gaussian", "table", "table2d", "ies"]
-"""Angular profile of a synthetic light.
-
-`table` and `ies` are the same rotationally symmetric measured-like profile
-(`symmetric_profile_table`), written as a CSV or an axial IES file; `table2d` is a
-lopsided elliptical beam without rotational symmetry (`elliptical_beam_table`).
-"""
-
-LIGHT_MODELS: tuple[str, ...] = get_args(LightModel)
 
 TABLE_STEP_DEG = 2.5
 """Angular step of the synthetic tables (vertical angles 0..90 degrees)."""

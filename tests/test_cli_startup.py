@@ -1,0 +1,63 @@
+"""`lightcal --help` and `--version` start without the numerical stack.
+
+Building the parser imports every subcommand module; each registers its arguments with
+cheap imports only and imports its machinery inside its run function. The check is on
+the modules a real `python -m lightcal` process imports (`-X importtime` lists every
+one), not on time: `benchmarks/startup.py` times it.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lightcal import __version__
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: Top-level packages that --help / --version must not import (each costs 0.1 - 1 s).
+HEAVY = ("numpy", "scipy", "numba", "cv2", "viser", "rawpy", "tifffile", "PIL", "pydantic")
+
+
+def run_lightcal(*args: str) -> tuple[str, set[str]]:
+    """stdout of `python -X importtime -m lightcal ARGS` and the top-level modules it imported."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(REPO), str(REPO / "app"), *filter(None, [env.get("PYTHONPATH")])]
+    )
+    env["COLUMNS"] = "100"
+    proc = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "lightcal", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+        check=True,
+    )
+    imported = {
+        line.rsplit("|", 1)[1].strip().split(".")[0]
+        for line in proc.stderr.splitlines()
+        if line.startswith("import time:") and line.count("|") == 2
+    }
+    assert "lightcal" in imported, proc.stderr[-2000:]
+    return proc.stdout, imported
+
+
+@pytest.mark.parametrize(
+    "args",
+    [("--version",), ("--help",), ("calibrate", "--help"), ("app", "--help"), ("sample", "--help")],
+)
+def test_help_and_version_do_not_import_the_numerical_stack(args: tuple[str, ...]) -> None:
+    out, imported = run_lightcal(*args)
+    if args == ("--version",):
+        assert out.strip() == f"lightcal {__version__}"
+    else:
+        assert out.startswith("usage: lightcal")
+    if args == ("--help",):
+        for command in ("sample", "synth", "calibrate", "render", "schema", "init", "camera"):
+            assert command in out
+    assert sorted(imported.intersection(HEAVY)) == []
