@@ -154,6 +154,7 @@ def build_app(
         session_path=session_file,
         state_dir=state_dir,
         follow_iterations=follow_iterations,
+        upload_limit_bytes=upload_limit_bytes,
     )
 
     def reject(client_id: int, filename: str, size: int) -> None:
@@ -167,15 +168,16 @@ def build_app(
         )
 
     install_size_guard(server, reject, limit=upload_limit_bytes)
-    panels = Panels(server, controller, upload_limit_bytes=upload_limit_bytes)
+    panels = Panels(server, controller)
     controller.panels = panels
-    controller.start(restored, source=str(session_file) if session_file else "")
+    source = session_file.name if session_file is not None else ""
+    controller.start(restored, source=source)
     if restored is not None:
         notes.append(
             (
                 "Session restored",
                 f"Your previous session (saved {restored.saved_at}) was restored from "
-                f"{session_file}. To begin anew, start `lightcal app --fresh`.",
+                f"{source}. To begin anew, start `lightcal app --fresh`.",
             )
         )
     controller.startup_notes = notes
