@@ -33,13 +33,21 @@ from lightcal_app.session_file import (
     default_session_path,
     parse_session,
     read_session,
+    remove_stale_temps,
     session_from_state,
     session_json,
     write_session,
 )
 from lightcal_app.solve_service import Notify, SolveService
 from lightcal_app.state import ALL_DIRT, AppState, Download, LightGuess
-from lightcal_app.uploads import MAX_UPLOAD_BYTES, receive_image, receive_project, receive_rid
+from lightcal_app.upload_checks import project_paths
+from lightcal_app.uploads import (
+    MAX_UPLOAD_BYTES,
+    Place,
+    receive_image,
+    receive_project,
+    receive_rid,
+)
 
 log = logging.getLogger("lightcal.app")
 
@@ -88,8 +96,20 @@ class FilesService:
         self.upload_root = state_dir / "uploads"
         self.upload_limit = upload_limit_bytes
         self._last_autosave = 0.0
+        self._autosave_failed = False
+        for path in (session_path, self.saved_session_path()):
+            if path is not None:
+                remove_stale_temps(path)
 
     # ------------------------------------------------------------------ uploads
+
+    def _place(self) -> Place:
+        """Where uploads go; the folders the project shown reads from stay."""
+        with self.state.lock:
+            project = self.state.project
+        folder = project.folder
+        keep = [folder] + [(folder / p).parent for _, p in project_paths(project.spec)]
+        return Place(self.upload_root, self.upload_limit, tuple(keep))
 
     def _upload(self, name: str, client: Any, receive: Callable[[], SwitchProject]) -> None:
         try:
@@ -108,9 +128,7 @@ class FilesService:
         """A project (zip or project file) replaces the one shown."""
 
         def receive() -> SwitchProject:
-            project, loaded = receive_project(
-                name, content, self.upload_root, limit=self.upload_limit
-            )
+            project, loaded = receive_project(name, content, self._place())
             truth = None
             truth_file = truth_path_for(project.path)
             if self.truth is not None and truth_file.is_file():  # demo mode: its ghost too
@@ -128,9 +146,7 @@ class FilesService:
         def receive() -> SwitchProject:
             with self.state.lock:
                 project = self.state.project
-            new, loaded, index = receive_image(
-                name, content, project, self.upload_root, limit=self.upload_limit
-            )
+            new, loaded, index = receive_image(name, content, project, self._place())
             note = f"Image {project.names[index]} replaced by {name}."
             return SwitchProject(new, loaded, self.truth, True, note, client=client)
 
@@ -144,9 +160,7 @@ class FilesService:
                 project = self.state.project
             names = [u.initial.name for u in project.lights]
             j = names.index(light) if light in names else 0
-            new, loaded = receive_rid(
-                name, content, project, j, self.upload_root, limit=self.upload_limit
-            )
+            new, loaded = receive_rid(name, content, project, j, self._place())
             note = f"Light {names[j]} now uses the RID of {name}."
             return SwitchProject(new, loaded, self.truth, True, note, client=client)
 
@@ -254,7 +268,8 @@ class FilesService:
 
     def autosave(self, *, force: bool = False) -> None:
         """Write the session when it changed (at most every `AUTOSAVE_INTERVAL_S`, not
-        while the solver runs, unless `force`)."""
+        while the solver runs, unless `force`). A failure keeps the last good file and
+        says so once in the page, until a save works again."""
         if self.session_path is None:
             return
         st = self.state
@@ -264,10 +279,26 @@ class FilesService:
                 return
             if st.solver_state == "running" and not force:
                 return
-            session = session_from_state(st)
-            st.changed = False
+            st.changed = False  # a failure waits for the next change: no loop of retries
+            try:
+                session: SessionFile | None = session_from_state(st)
+            except Exception as exc:
+                session, error = None, exc
         self._last_autosave = now
-        try:
-            write_session(session, self.session_path)
-        except OSError as exc:
-            log.warning("autosave failed: %s", exc)
+        if session is not None:
+            try:
+                write_session(session, self.session_path)
+                self._autosave_failed = False
+                return
+            except Exception as exc:
+                error = exc
+        log.warning("autosave failed: %r", error)
+        if not self._autosave_failed:
+            self._autosave_failed = True
+            self.notify(
+                None,
+                "Autosave failed",
+                f"The session could not be saved ({type(error).__name__}); the last saved "
+                "file is kept. Use Files > Save session to try again.",
+                error=True,
+            )

@@ -11,7 +11,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
-from lightcal_app.uploads import format_size
+from lightcal_app.upload_checks import format_size
 
 
 class FilesPanel(TabPanel):
