@@ -22,7 +22,8 @@ import numpy as np
 import pytest
 from lightcal_app.demo_truth import read_truth_lights
 from lightcal_app.overlays import OverlayImages, display_geometry, full_to_display, legend_picture
-from lightcal_app.panels import pose_angles_deg, rotation_from_angles_deg
+from lightcal_app.panels.light import pose_angles_deg, rotation_from_angles_deg
+from lightcal_app.panels.solve import status_text
 from lightcal_app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
 from lightcal_app.scene3d import cone_lines, cone_mesh
 from lightcal_app.server import LightcalApp, build_app
@@ -256,38 +257,38 @@ def test_selection_is_what_calibrate_would_use(
         expected = image_data(st.project, st.loaded, i).footprints.pixels
         np.testing.assert_array_equal(st.selected[i], expected)
         assert len(expected) == 60
-    assert "240 pixels" in app.panels.selection_md.content
+    assert "240 pixels" in app.panels.pixels.selection_md.content
 
 
 def test_step_adds_an_iteration_to_the_cost_plot(app: LightcalApp) -> None:
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     st = app.state
     assert [h.iteration for h in st.history] == [0, 1]
     assert st.history[1].cost < st.history[0].cost
-    it, cost = app.panels.cost_plot.data
+    it, cost = app.panels.solve.cost_plot.data
     np.testing.assert_array_equal(it, [0, 1])
     np.testing.assert_allclose(cost, [h.cost for h in st.history])
     assert st.solver_state == "paused"
     assert st.result is not None and "paused after iteration 1" in st.result.message
     # The position plot shows the estimate in mm.
-    data = app.panels.position_plot.data
+    data = app.panels.solve.position_plot.data
     assert data[1][-1] == pytest.approx(st.history[-1].x[0] * 1e3)
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     assert [h.iteration for h in st.history] == [0, 1, 2]
-    assert len(app.panels.cost_plot.data[0]) == 3
+    assert len(app.panels.solve.cost_plot.data[0]) == 3
 
 
 def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
-    _set(app.panels.run_button, True)
+    _set(app.panels.solve.run_button, True)
     _idle(app, 120)
     st = app.state
     assert st.solver_state == "finished"
     res = st.result
     assert res is not None and res.converged
     np.testing.assert_allclose(res.lights[0].pose.position_m, TRUE_POSITION_M, atol=2e-4)
-    md = app.panels.result_md.content
+    md = app.panels.result.result_md.content
     assert md.startswith("**converged**")
     x_mm = re.search(r"\| position x \(mm\) \| ([-+0-9.]+) \| ([0-9.e-]+) \|", md)
     assert x_mm is not None and float(x_mm.group(1)) == pytest.approx(100.0, abs=0.05)
@@ -297,17 +298,17 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
         app.controller.scene.gizmos[0].position, res.lights[0].pose.position_m, atol=1e-6
     )
     # Step after the end asks for a reset instead of starting a second solve.
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     assert st.messages[-1][0] == "The solve has ended"
     # Downloads: the result JSON and the zipped report.
-    _set(app.panels.download_result, True)
+    _set(app.panels.result.download_result, True)
     _idle(app)
     d = st.downloads[-1]
     assert d.name == "project.result.json"
     data = json.loads(d.content)
     np.testing.assert_allclose(data["lights"][0]["position_m"], TRUE_POSITION_M, atol=2e-4)
-    _set(app.panels.download_report, True)
+    _set(app.panels.result.download_report, True)
     _idle(app, 120)
     d = st.downloads[-1]
     assert d.name == "project.report.zip"
@@ -315,14 +316,14 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
     assert "report/summary.md" in names and "report/result.json" in names
     assert sum(n.startswith("report/residual_") for n in names) == 4
     # Reset goes back to the initial guess.
-    _set(app.panels.reset_button, True)
+    _set(app.panels.solve.reset_button, True)
     _idle(app)
     assert st.history == [] and st.result is None and st.solver_state == "idle"
     np.testing.assert_allclose(app.controller.scene.gizmos[0].position, [0.05, 0.0, 0.0])
 
 
 def test_gizmo_drag_changes_rendered_overlay_and_numbers(app: LightcalApp) -> None:
-    _set(app.panels.overlay_all, "rendered")
+    _set(app.panels.view.overlay_all, "rendered")
     _idle(app)
     frustum = app.controller.scene.frusta[0]
     before = frustum.image.copy()
@@ -340,13 +341,13 @@ def test_gizmo_drag_changes_rendered_overlay_and_numbers(app: LightcalApp) -> No
     after = frustum.image
     assert np.abs(after.astype(int) - before.astype(int)).mean() > 1.0
     np.testing.assert_allclose(app.state.guess[0].position_m, [0.12, -0.02, 0.0])
-    w = app.panels.light_widgets[0]
+    w = app.panels.light.light_widgets[0]
     assert w["position"].value == pytest.approx((120.0, -20.0, 0.0))
     assert w["tilt"].value[0] == pytest.approx(math.degrees(math.atan(0.2)), abs=1e-3)
 
 
 def test_typed_numbers_move_the_gizmo_without_fighting_a_solve(app: LightcalApp) -> None:
-    w = app.panels.light_widgets[0]
+    w = app.panels.light.light_widgets[0]
     _set(w["position"], (80.0, 10.0, 5.0))
     _idle(app)
     np.testing.assert_allclose(app.state.guess[0].position_m, [0.08, 0.01, 0.005])
@@ -356,7 +357,7 @@ def test_typed_numbers_move_the_gizmo_without_fighting_a_solve(app: LightcalApp)
     a, b, _ = pose_angles_deg(app.state.guess[0].R_camera_light)
     assert (a, b) == pytest.approx((5.0, -3.0))
     # A step writes the estimate into the widgets; those writes are not user edits.
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     gen = app.state.session_gen
     assert len(app.state.history) == 2
@@ -424,7 +425,7 @@ def test_rectangle_on_an_image_changes_its_selection(app: LightcalApp) -> None:
         is None
     )
     assert st.messages[-1][0] == "No image under the rectangle"
-    _set(app.panels.clear_regions, True)
+    _set(app.panels.pixels.clear_regions, True)
     _idle(app)
     for i in range(4):
         np.testing.assert_array_equal(st.selected[i], before[i])
@@ -439,7 +440,7 @@ def test_clicks_add_pixels_and_per_image_strategy(app: LightcalApp) -> None:
     x = ((30 + 0.5) / 160 * 2 - 1) * hw
     y = ((40 + 0.5) / 120 * 2 - 1) * hh
     d = plane.R_world_camera @ np.array([x, y, plane.depth_m])
-    _set(app.panels.click_mode, "adds a pixel")
+    _set(app.panels.pixels.click_mode, "adds a pixel")
     app.controller.click(plane.center_world, d, mode="add")
     _idle(app)
     assert st.points[st.project.names[2]] == [(30, 40)]
@@ -449,24 +450,24 @@ def test_clicks_add_pixels_and_per_image_strategy(app: LightcalApp) -> None:
     _idle(app)
     assert st.points[st.project.names[2]] == []
     # One image gets its own strategy: a grid of step 20 -> (160 / 20) x (120 / 20) nodes.
-    _set(app.panels.sel_target, st.project.names[3])
-    _set(app.panels.strategy, "grid")
-    _set(app.panels.grid_step, 20)
+    _set(app.panels.pixels.sel_target, st.project.names[3])
+    _set(app.panels.pixels.strategy, "grid")
+    _set(app.panels.pixels.grid_step, 20)
     _idle(app)
     grid = st.selected[3]
     assert np.all(grid % 20 == 10)
     assert len(grid) <= 48 and len(st.selected[0]) == 60
-    _set(app.panels.clear_override, True)
+    _set(app.panels.pixels.clear_override, True)
     _idle(app)
     assert len(st.selected[3]) == 60
 
 
 def test_residual_overlay_and_legend(app: LightcalApp) -> None:
-    _set(app.panels.overlay_image, app.state.project.names[0])
-    _set(app.panels.overlay_one, "residual")
+    _set(app.panels.view.overlay_image, app.state.project.names[0])
+    _set(app.panels.view.overlay_one, "residual")
     _idle(app)
     assert app.state.overlay_of(0) == "residual" and app.state.overlay_of(1) == "real"
-    assert "pixel values" in app.panels.legend_md.content
+    assert "pixel values" in app.panels.view.legend_md.content
     img = app.controller.scene.frusta[0].image.astype(int)
     # Diverging colours: the light is off, so the residual has both signs, red and blue.
     assert (img[..., 0] - img[..., 2] > 60).any() and (img[..., 2] - img[..., 0] > 60).any()
@@ -485,13 +486,17 @@ def test_concurrent_clicks_run_one_solve(app: LightcalApp) -> None:
 
     watcher = threading.Thread(target=watch)
     watcher.start()
-    buttons = [app.panels.step_button, app.panels.run_button, app.panels.pause_button] * 4
+    buttons = [
+        app.panels.solve.step_button,
+        app.panels.solve.run_button,
+        app.panels.solve.pause_button,
+    ] * 4
     threads = [threading.Thread(target=_set, args=(b, True)) for b in buttons]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    _set(app.panels.run_button, True)
+    _set(app.panels.solve.run_button, True)
     _idle(app, 120)
     stop.set()
     watcher.join()
@@ -503,15 +508,15 @@ def test_concurrent_clicks_run_one_solve(app: LightcalApp) -> None:
 
 def test_reset_while_running_ends_the_solve(app: LightcalApp) -> None:
     st = app.state
-    app.controller.follow_timeout_s = 30.0
+    app.controller.solve.follow_timeout_s = 30.0
     with st.lock:  # hold the redraw: the solver waits for each iteration to be drawn
-        _set(app.panels.run_button, True)
+        _set(app.panels.solve.run_button, True)
         time.sleep(0.3)
-        _set(app.panels.reset_button, True)
+        _set(app.panels.solve.reset_button, True)
     _idle(app)
     assert st.solver_state == "idle" and st.history == [] and st.result is None
     assert not any(t.name == "lightcal-solver" for t in threading.enumerate())
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     assert [h.iteration for h in st.history] == [0, 1]
 
@@ -520,20 +525,20 @@ def test_bad_uploads_get_a_message_and_the_server_keeps_working(
     app: LightcalApp, tmp_path: Path
 ) -> None:
     st = app.state
-    _upload(app.panels.upload_project, "broken.zip", b"not a zip at all")
+    _upload(app.panels.files.upload_project, "broken.zip", b"not a zip at all")
     assert st.messages[-1] == ("⚠ Upload rejected: broken.zip", "broken.zip: not a valid zip file")
-    _upload(app.panels.upload_rid, "lamp.ies", b"IESNA:LM-63-2002\nnonsense\n")
+    _upload(app.panels.files.upload_rid, "lamp.ies", b"IESNA:LM-63-2002\nnonsense\n")
     assert st.messages[-1][0] == "⚠ Upload rejected: lamp.ies"
     assert "lamp.ies" in st.messages[-1][1]
-    _upload(app.panels.upload_image, "other.png", b"\x89PNG....")
+    _upload(app.panels.files.upload_image, "other.png", b"\x89PNG....")
     assert "no project image has this file name" in st.messages[-1][1]
     evil = io.BytesIO()
     with zipfile.ZipFile(evil, "w") as zf:
         zf.writestr("../escape.json", "{}")
-    _upload(app.panels.upload_project, "evil.zip", evil.getvalue())
+    _upload(app.panels.files.upload_project, "evil.zip", evil.getvalue())
     assert "unsafe path in the zip: '../escape.json'" in st.messages[-1][1]
     assert not (tmp_path / "escape.json").exists()
-    _set(app.panels.step_button, True)
+    _set(app.panels.solve.step_button, True)
     _idle(app)
     assert len(st.history) == 2
 
@@ -542,16 +547,16 @@ def test_uploads_over_the_limit_are_dropped(synthetic: SyntheticProject, tmp_pat
     a = _build(synthetic, tmp_path, upload_limit_bytes=1000)
     try:
         _idle(a)
-        _upload(a.panels.upload_session, "s.json", b"x" * 10)  # small: parsed
+        _upload(a.panels.files.upload_session, "s.json", b"x" * 10)  # small: parsed
         assert "not valid JSON" in a.state.messages[-1][1]
-        _upload(a.panels.upload_project, "big.zip", b"x" * 2000)
+        _upload(a.panels.files.upload_project, "big.zip", b"x" * 2000)
         assert a.state.messages[-1] == (
             "⚠ Upload rejected: big.zip",
             "big.zip: the file is 2.0 kB; uploads are limited to 1.0 kB per file",
         )
         # The transfer guard drops an upload announced too large before its data arrives.
         gui = a.server.gui
-        uuid = a.panels.upload_project._impl.uuid
+        uuid = a.panels.files.upload_project._impl.uuid
         msg = _messages.FileTransferStartUpload(
             source_component_uuid=uuid,
             transfer_uuid="t1",
@@ -595,15 +600,15 @@ def test_project_and_rid_uploads_switch_the_project(
         for p in sorted(folder.rglob("*")):
             if p.is_file() and p.suffix in (".json", ".yaml", ".png") and "session" not in p.name:
                 zf.write(p, f"myproj/{p.relative_to(folder)}")
-    _upload(app.panels.upload_project, "myproj.zip", buf.getvalue())
+    _upload(app.panels.files.upload_project, "myproj.zip", buf.getvalue())
     _idle(app)
     st = app.state
     assert st.project.path.parent.name == "myproj"
-    assert st.project.path.is_relative_to(app.controller.upload_root)
+    assert st.project.path.is_relative_to(app.controller.files.upload_root)
     assert st.messages[-1][0] == "Project updated"
     assert len(app.controller.scene.frusta) == 4
     # An IES file becomes the light's RID; the guess is kept.
-    _set(app.panels.light_widgets[0]["position"], (70.0, 0.0, 0.0))
+    _set(app.panels.light.light_widgets[0]["position"], (70.0, 0.0, 0.0))
     _idle(app)
     gamma = np.arange(0.0, 91.0, 5.0)
     table = PhotometricTable(
@@ -614,7 +619,7 @@ def test_project_and_rid_uploads_switch_the_project(
         "axial",
     )
     write_ies(tmp_path / "lamp.ies", table)
-    _upload(app.panels.upload_rid, "lamp.ies", (tmp_path / "lamp.ies").read_bytes())
+    _upload(app.panels.files.upload_rid, "lamp.ies", (tmp_path / "lamp.ies").read_bytes())
     _idle(app)
     assert st.project.spec.lights[0].rid.type == "ies"
     np.testing.assert_allclose(st.guess[0].position_m, [0.07, 0.0, 0.0])
@@ -625,11 +630,11 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
     a = _build(synthetic, tmp_path)
     try:
         _idle(a)
-        _set(a.panels.light_widgets[0]["position"], (60.0, -5.0, 1.0))
-        _set(a.panels.n_per_image, 40)
+        _set(a.panels.light.light_widgets[0]["position"], (60.0, -5.0, 1.0))
+        _set(a.panels.pixels.n_per_image, 40)
         a.controller.add_point(1, 50, 60)
-        _set(a.panels.overlay_all, "residual")
-        _set(a.panels.step_button, True)
+        _set(a.panels.view.overlay_all, "residual")
+        _set(a.panels.solve.step_button, True)
         _idle(a)
         path = tmp_path / "autosave.session.json"
         deadline = time.monotonic() + 5.0  # written by the worker after the changes
@@ -645,7 +650,7 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
         assert not list(tmp_path.glob(".autosave*.tmp"))  # atomic: no leftovers
         x_last = a.state.history[-1].x.copy()
     finally:
-        a.controller.session_path = None  # like a crash: no final write
+        a.controller.files.session_path = None  # like a crash: no final write
         a.close()
     b = _build(synthetic, tmp_path)
     try:
@@ -659,7 +664,7 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
         assert b.controller.startup_notes[0][0] == "Session restored"
         np.testing.assert_allclose(b.controller.scene.gizmos[0].position, x_last[:3])
         # Continuing picks up at iteration 2.
-        _set(b.panels.step_button, True)
+        _set(b.panels.solve.step_button, True)
         _idle(b)
         assert [h.iteration for h in st.history] == [0, 1, 2]
         assert st.history[2].cost <= st.history[1].cost
@@ -675,18 +680,18 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
 
 def test_save_and_reload_session(app: LightcalApp) -> None:
     st = app.state
-    _set(app.panels.seed, 7)
+    _set(app.panels.pixels.seed, 7)
     _idle(app)
-    _set(app.panels.save_session, True)
+    _set(app.panels.files.save_session, True)
     _idle(app)
-    path = app.controller.saved_session_path()
+    path = app.controller.files.saved_session_path()
     assert read_session(path).selection.seed == 7
     assert st.downloads[-1].name == path.name
-    _set(app.panels.seed, 3)
+    _set(app.panels.pixels.seed, 3)
     _idle(app)
-    _set(app.panels.reload_session, True)
+    _set(app.panels.files.reload_session, True)
     _idle(app)
-    assert st.selection.seed == 7 and app.panels.seed.value == 7
+    assert st.selection.seed == 7 and app.panels.pixels.seed.value == 7
     assert st.messages[-1][0] == "Session restored"
 
 
@@ -702,7 +707,7 @@ def test_session_keeps_which_iterations_were_reweighted(app: LightcalApp) -> Non
     st.history = []
     apply_session(st, parse_session(text, "s.json"))
     assert [h.reweighted for h in st.history] == [False, True]
-    assert "re-weighted" in app.panels._status_text(
+    assert "re-weighted" in status_text(
         SimpleNamespace(history=st.history, solver_state="finished", solver_message="")
     )
 
@@ -799,9 +804,9 @@ def _result_text_after_run(project: Path, state: Path) -> tuple[str, bool]:
     a = build_app(project, port=0, state_dir=state, session_path=state / "autosave.json")
     try:
         _idle(a)
-        _set(a.panels.run_button, True)
+        _set(a.panels.solve.run_button, True)
         _idle(a, 120)
-        return a.panels.result_md.content, bool(a.panels.fit_plot.visible)
+        return a.panels.result.result_md.content, bool(a.panels.result.fit_plot.visible)
     finally:
         a.close()
 

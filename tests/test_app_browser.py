@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from lightcal_app.panels import assign
+from lightcal_app.panels.base import assign
 from lightcal_app.server import LightcalApp, build_app
 
 from lightcal.core.rotations import matrix_from_quaternion_wxyz
@@ -172,7 +172,7 @@ def test_step_updates_the_cost_plot(fresh: LightcalApp, page_and_client: tuple[A
     page.get_by_role("tab", name="Solve").click()
     page.get_by_role("button", name="Step").click()
     wait_for(lambda: len(app.state.history) == 2 and app.state.solver_state == "paused", "a step")
-    uuid = app.panels.cost_plot._impl.uuid
+    uuid = app.panels.solve.cost_plot._impl.uuid
     data = wait_for(
         lambda: (d := uplot_data(page, uuid)) is not None and len(d[0]) == 2 and d,
         "the cost plot to show two iterations",
@@ -236,7 +236,7 @@ def test_region_drawn_on_an_image_changes_its_selection(
     app.controller.set_overlay("real")
     page.get_by_role("tab", name="View").click()
     # "Look through image" for image v01 (the dropdown's value is set server-side).
-    assign(app.panels.overlay_image, st.project.names[1])
+    assign(app.panels.view.overlay_image, st.project.names[1])
     page.get_by_role("button", name="Look through image").click()
     view = st.project.views[1]
     wait_for(
@@ -297,7 +297,7 @@ def test_two_browsers_see_the_same_state(
         assert [h.iteration for h in app.state.history] == [0, 1, 2, 3]
         for page in (page1, page2):
             page.get_by_text("iteration 3, cost").wait_for()
-        uuid = app.panels.cost_plot._impl.uuid
+        uuid = app.panels.solve.cost_plot._impl.uuid
         for page in (page1, page2):
 
             def four_points(page: Any = page) -> bool:

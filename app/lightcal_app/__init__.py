@@ -1,11 +1,18 @@
 """The interactive calibration web app (`lightcal app`), built on viser.
 
-Layers: `state` (the shared state and its lock), `actions` (what a user can do: state
-changes and queued requests), `controller` (the one worker thread: selection, solve,
-files), `redraw` (one redraw inside `server.atomic()`), `scene3d` and `panels` (what
-the browsers see), `overlays` (pictures on the frusta), `picking` (clicks and
-rectangles to image pixels), `pixel_selection`, `results`, `uploads`, `session_file`,
-`demo_truth`, `explain`, and `server` (`build_app`).
+Layers, from the bottom (nothing imports upwards; the first six import no viser):
+
+- `state`: the shared state, its lock, the dirty flags; `requests`: the typed requests
+  the worker handles;
+- `solve_service` (selection, model via `lightcal.pipeline`, stepping, results) and
+  `files_service` (uploads, downloads, sessions, autosave), with `pixel_selection`,
+  `results`, `uploads`, `session_file`, `demo_truth`;
+- `worker`: the one thread that takes the requests in order and draws;
+- `actions`: what a user can do (state changes and queued requests);
+- `overlays`, `picking`: pictures on the frusta, clicks and rectangles to pixels;
+- `controller` (actions + services + worker + messages), `redraw` (one redraw inside
+  `server.atomic()`), `scene3d` and `panels/` (one class per tab): what browsers see;
+- `server`: `build_app`, the server and its guards.
 """
 
 from __future__ import annotations

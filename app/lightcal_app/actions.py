@@ -1,22 +1,27 @@
 """What the user can do: every action changes `AppState` under its lock or queues a
-request for the worker, and returns at once (viser runs callbacks in a thread pool, so
-several may run at the same time). `Controller` (the worker) inherits these.
+typed request for the worker, and returns at once (viser runs callbacks in a thread
+pool, so several may run at the same time). No viser import: `Controller` adds the
+worker and the services.
 """
 
 from __future__ import annotations
 
-import logging
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from lightcal.errors import LightcalError
-from lightcal.io.project import Project
-from lightcal.pipeline import LoadedImages
-from lightcal_app.picking import pick, rect_to_polygon
-from lightcal_app.scene3d import Scene3D
-from lightcal_app.session_file import parse_session
+from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
+from lightcal_app.requests import (
+    DownloadKind,
+    LoadSavedSession,
+    Pause,
+    PrepareDownload,
+    Reset,
+    SaveSession,
+    Solve,
+)
+from lightcal_app.solve_service import Notify
 from lightcal_app.state import (
     ALL_DIRT,
     AppState,
@@ -26,24 +31,22 @@ from lightcal_app.state import (
     UserRegion,
 )
 
-log = logging.getLogger("lightcal.app")
-
 
 class Actions:
     """The user's actions on the shared state (thread-safe, non-blocking).
 
-    Attributes:
-        server: the viser server (notifications go to its browsers).
+    Args:
         state: the shared state.
-        scene: the 3D view (its frustum planes turn clicks into pixels).
+        planes: the frustum planes of the 3D view (turn clicks into pixels).
+        notify: shows a message in the page.
     """
 
-    server: Any
-    state: AppState
-    scene: Scene3D
-    truth: list[LightGuess] | None
-    upload_root: Path
-    session_path: Path | None
+    def __init__(
+        self, state: AppState, *, planes: Callable[[], list[FrustumPlane]], notify: Notify
+    ) -> None:
+        self.state = state
+        self._planes = planes
+        self._notify = notify
 
     def _base_pose(self, j: int) -> LightGuess:
         st = self.state
@@ -202,23 +205,23 @@ class Actions:
             st.ref_image = index
             st.mark(*ALL_DIRT, changed=True)
 
-    def step(self) -> None:
-        self.state.request("step")
+    def step(self, client: Any = None) -> None:
+        self.state.request(Solve("step", client=client))
 
-    def run(self) -> None:
-        self.state.request("run")
+    def run(self, client: Any = None) -> None:
+        self.state.request(Solve("run", client=client))
 
-    def pause(self) -> None:
-        self.state.request("pause")
+    def pause(self, client: Any = None) -> None:
+        self.state.request(Pause(client=client))
 
-    def reset(self) -> None:
-        self.state.request("reset")
+    def reset(self, client: Any = None) -> None:
+        self.state.request(Reset(client=client))
 
     def click(self, origin: np.ndarray, direction: np.ndarray, *, mode: str) -> None:
         """A click in the 3D view: add or remove a pixel of the image under it."""
         if mode not in ("add", "remove"):
             return
-        hit = pick(self.scene.planes, np.asarray(origin), np.asarray(direction))
+        hit = pick(self._planes(), np.asarray(origin), np.asarray(direction))
         if hit is None:
             return
         i, u, v = hit
@@ -241,7 +244,7 @@ class Actions:
     ) -> UserRegion | None:
         """A rectangle dragged in the 3D view: a region on the image under its centre."""
         hit = rect_to_polygon(
-            self.scene.planes,
+            self._planes(),
             camera_position,
             camera_wxyz,
             fov_y_rad=fov_y_rad,
@@ -250,7 +253,7 @@ class Actions:
             screen_max=screen_max,
         )
         if hit is None:
-            self.notify(
+            self._notify(
                 client,
                 "No image under the rectangle",
                 "Shift-drag over an image on a camera frustum (tip: View > Look through image).",
@@ -266,63 +269,16 @@ class Actions:
         self.add_region(region)
         return region
 
-    def request_download(self, what: str, client: Any = None) -> None:
+    def request_download(self, what: DownloadKind, client: Any = None) -> None:
         """Queue a download: "result", "report" or "session"."""
-        self.state.request("download", what=what, client=client)
+        self.state.request(PrepareDownload(what, client=client))
 
     def save_session(self, client: Any = None) -> None:
-        self.state.request("save_session", client=client)
+        self.state.request(SaveSession(client=client))
 
     def load_saved_session(self, client: Any = None) -> None:
-        self.state.request("load_saved_session", client=client)
+        self.state.request(LoadSavedSession(client=client))
 
-    def load_session_bytes(self, name: str, content: bytes, client: Any = None) -> None:
-        try:
-            session = parse_session(content, name)
-        except LightcalError as exc:
-            self.notify(client, "Session not loaded", str(exc), error=True)
-            return
-        self.state.request("apply_session", session=session, client=client, source=name)
-
-    def switch_project(
-        self,
-        project: Project,
-        loaded: LoadedImages,
-        *,
-        truth: list[LightGuess] | None,
-        keep_choices: bool,
-        client: Any = None,
-        note: str = "",
-    ) -> None:
-        """Show another project (uploads); keep_choices keeps guess and selection."""
-        self.state.request(
-            "switch_project",
-            project=project,
-            loaded=loaded,
-            truth=truth,
-            keep=keep_choices,
-            client=client,
-            note=note,
-        )
-
-    def notify(self, client: Any, title: str, body: str, *, error: bool = False) -> None:
-        """A message in the page: a notification (for `client`, else every browser) and
-        the messages box (everyone)."""
-        st = self.state
-        with st.lock:
-            st.messages = [*st.messages[-5:], (("⚠ " if error else "") + title, body)]
-            st.mark("status")
-        targets = [client] if client is not None else list(self.server.get_clients().values())
-        for c in targets:
-            try:
-                c.add_notification(
-                    title,
-                    body,
-                    color="red" if error else "blue",
-                    auto_close_seconds=None if error else 8.0,
-                )
-            except Exception:  # a browser that just left
-                log.debug("notification failed", exc_info=True)
-
-    def _on_gizmo(self, j: int, position_m: np.ndarray, R: np.ndarray, client: Any) -> None:
+    def on_gizmo(self, j: int, position_m: np.ndarray, R: np.ndarray, client: Any) -> None:
+        """The light's gizmo was dragged."""
         self.set_guess(j, position_m=position_m, R_camera_light=R)

@@ -10,7 +10,8 @@ from __future__ import annotations
 import contextlib
 import io
 import os
-import time
+import signal
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,12 +22,14 @@ from lightcal.errors import InputError, LightcalError
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
 from lightcal.resources import sample_project_dir
+from lightcal_app.access import AccessGuard, guard_handshakes
 from lightcal_app.controller import Controller
 from lightcal_app.demo_truth import read_truth_lights, truth_path_for
 from lightcal_app.panels import Panels
 from lightcal_app.session_file import SessionFile, default_session_path, read_session
 from lightcal_app.state import AppState
-from lightcal_app.uploads import MAX_UPLOAD_BYTES, format_size, install_size_guard
+from lightcal_app.transfer_guard import TransferGuard
+from lightcal_app.uploads import MAX_UPLOAD_BYTES
 
 
 def default_project_path() -> Path:
@@ -65,7 +68,8 @@ class LightcalApp:
         state: the shared state.
         controller: actions and the worker thread.
         panels: the GUI handles.
-        url: where to open it.
+        url: where to open it (with the access token when one is needed).
+        access: who may connect.
     """
 
     server: viser.ViserServer
@@ -73,6 +77,7 @@ class LightcalApp:
     controller: Controller
     panels: Panels
     url: str
+    access: AccessGuard
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
         """Block until every queued request is handled and drawn."""
@@ -142,7 +147,9 @@ def build_app(
                 session_file.replace(bad)
             notes.append(("Session not restored", f"{exc}. The file was kept as {bad.name}."))
 
-    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner; we print the URL
+    access = AccessGuard.for_host(host)
+    with contextlib.redirect_stdout(io.StringIO()), guard_handshakes(access):
+        # viser's banner goes nowhere: we print the URL (with the token).
         server = viser.ViserServer(host=host, port=port, verbose=False)
     disable_share_tunnel(server)
     state = AppState(project, loaded)
@@ -153,28 +160,26 @@ def build_app(
         session_path=session_file,
         state_dir=state_dir,
         follow_iterations=follow_iterations,
+        upload_limit_bytes=upload_limit_bytes,
     )
 
-    def reject(client_id: int, filename: str, size: int) -> None:
+    def reject(client_id: int, filename: str, reason: str) -> None:
         client = server.get_clients().get(client_id)
         controller.notify(
-            client,
-            f"Upload rejected: {filename}",
-            f"{filename}: the file is {format_size(size)}; uploads are limited to "
-            f"{format_size(upload_limit_bytes)} per file",
-            error=True,
+            client, f"Upload rejected: {filename}", f"{filename}: {reason}", error=True
         )
 
-    install_size_guard(server, reject, limit=upload_limit_bytes)
-    panels = Panels(server, controller, upload_limit_bytes=upload_limit_bytes)
+    TransferGuard(server, reject, limit=upload_limit_bytes)
+    panels = Panels(server, controller)
     controller.panels = panels
-    controller.start(restored, source=str(session_file) if session_file else "")
+    source = session_file.name if session_file is not None else ""
+    controller.start(restored, source=source)
     if restored is not None:
         notes.append(
             (
                 "Session restored",
                 f"Your previous session (saved {restored.saved_at}) was restored from "
-                f"{session_file}. To begin anew, start `lightcal app --fresh`.",
+                f"{source}. To begin anew, start `lightcal app --fresh`.",
             )
         )
     controller.startup_notes = notes
@@ -185,14 +190,23 @@ def build_app(
             client.add_notification(title, body, auto_close_seconds=12.0)
 
     shown_host = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
-    url = f"http://{shown_host}:{server.get_port()}"
-    return LightcalApp(server, state, controller, panels, url)
+    if ":" in shown_host:
+        shown_host = f"[{shown_host}]"
+    url = f"http://{shown_host}:{server.get_port()}{access.url_suffix()}"
+    return LightcalApp(server, state, controller, panels, url, access)
 
 
 def serve_forever(app: LightcalApp) -> None:
-    """Keep the app running until Ctrl-C, then close it."""
+    """Keep the app running until Ctrl-C or SIGTERM, then close it (the final autosave
+    runs in both cases)."""
+    stop = threading.Event()
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
     try:
-        while True:
-            time.sleep(1.0)
+        while not stop.wait(1.0):
+            pass
     finally:
         app.close()
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

@@ -10,6 +10,8 @@ also save a copy, reload it, download it and upload one.
 
 from __future__ import annotations
 
+import contextlib
+import glob
 import hashlib
 import json
 import os
@@ -178,6 +180,14 @@ def write_session(session: SessionFile, path: Path) -> None:
     """Write a session file atomically (its folder is created)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, session_json(session))
+
+
+def remove_stale_temps(path: Path) -> None:
+    """Remove what a killed atomic write of `path` left behind (`.<name>.<hex>.tmp`)."""
+    with contextlib.suppress(OSError):
+        for temp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+            with contextlib.suppress(OSError):
+                temp.unlink()
 
 
 def parse_session(text: str | bytes, source: str | Path) -> SessionFile:

@@ -3,7 +3,7 @@
 Every browser sees and edits this one state. GUI and scene callbacks (viser's thread
 pool) change it only through `AppState` methods under `lock`, mark what must be redrawn
 (`dirty`) and queue requests for the worker (`lightcal app`'s one worker thread, see
-`lightcal_app.controller`), then `notify()`. Exact values live here; the scene only shows them.
+`lightcal_app.worker`), then `notify()`. Exact values live here; the scene only shows them.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -20,6 +20,7 @@ from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal_app.requests import Request, SetupChanged
 
 OverlayKind = Literal["real", "rendered", "residual"]
 OVERLAY_KINDS: tuple[OverlayKind, ...] = ("real", "rendered", "residual")
@@ -110,7 +111,7 @@ class AppState:
         self.lock = threading.RLock()
         self.cond = threading.Condition(self.lock)
         self.closing = False
-        self.requests: deque[tuple[str, dict[str, Any]]] = deque()
+        self.requests: deque[Request] = deque()
         self.dirty: set[Dirt] = set(ALL_DIRT)
         self.messages: list[tuple[str, str]] = []  # (title, body) shown in the page
         self.downloads: list[Download] = []
@@ -160,10 +161,10 @@ class AppState:
 
     # -- requests -------------------------------------------------------------------------
 
-    def request(self, kind: str, **payload: Any) -> None:
+    def request(self, request: Request) -> None:
         """Queue a request for the worker (call with or without the lock held)."""
         with self.cond:
-            self.requests.append((kind, payload))
+            self.requests.append(request)
             self.cond.notify_all()
 
     def mark(self, *dirt: Dirt, changed: bool = False) -> None:
@@ -179,7 +180,7 @@ class AppState:
             self.setup_rev += 1
             if selection:
                 self.selection_rev += 1
-            self.request("setup_changed")
+            self.request(SetupChanged())
             self.mark("light", "overlays", "selection", "widgets", "status", changed=True)
 
     def image_index(self, name: str) -> int:

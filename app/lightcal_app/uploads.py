@@ -1,45 +1,63 @@
-"""Files uploaded through the page: size cap, safe unpacking, validation by the readers.
+"""Files uploaded through the page: size caps, safe unpacking, validation by the readers.
 
-Limits (also shown in the page): at most `MAX_UPLOAD_BYTES` (50 MB) per file; a zip may
-unpack to at most `MAX_UNPACKED_BYTES` (500 MB) in at most `MAX_ZIP_MEMBERS` files,
-none with an absolute path or `..`. viser holds a whole upload in memory and has no
-cap of its own, so `install_size_guard` drops a transfer whose announced size is over
-the limit before its data arrives.
+Limits (also shown in the page): at most `MAX_UPLOAD_BYTES` (50 MB) per file, and the
+checks of `lightcal_app.upload_checks` (zip size and member count, paths confined to
+the upload, image sizes from their headers, a bound on the upload folder). viser holds
+a whole upload in memory and has no cap of its own: `lightcal_app.transfer_guard`
+bounds the bytes in flight.
 
 Every upload is written into a fresh folder and read back with the project, image and
 photometry readers; anything they reject raises `InputError`, which the app shows in
-the page. Nothing uploaded touches the original project's folder: a changed project
-(another image, another RID file) is a new project file in the upload folder with
-absolute paths.
+the page, and the folder is removed. Nothing uploaded touches the original project's
+folder: a changed project (another image, another RID file) is a new project file in
+the upload folder with absolute paths.
 """
 
 from __future__ import annotations
 
-import io
-import uuid
-import zipfile
 from collections.abc import Callable
-from pathlib import Path, PurePosixPath
-from typing import Any, Literal
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
 
 from lightcal.errors import InputError
-from lightcal.io.project import Project, ProjectFile, load_project, project_from_spec, save_project
+from lightcal.io.document import read_document
+from lightcal.io.project import (
+    Project,
+    ProjectFile,
+    parse_project,
+    project_from_spec,
+    save_project,
+)
 from lightcal.pipeline import LoadedImages, load_images
+from lightcal_app.upload_checks import (
+    MAX_UPLOAD_FOLDER_BYTES,
+    PROJECT_SUFFIXES,
+    check_confined,
+    check_image_headers,
+    format_size,
+    make_room,
+    unpack_zip,
+    upload_folder,
+)
 
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
-MAX_UNPACKED_BYTES = 500 * 1024 * 1024
-MAX_ZIP_MEMBERS = 2000
-PROJECT_SUFFIXES = (".json", ".yaml", ".yml")
 RID_SUFFIXES = (".ies", ".ldt")
 
 
-def format_size(n_bytes: int) -> str:
-    """A byte count for people: '812 bytes', '3.4 kB', '51.2 MB'."""
-    if n_bytes < 1000:
-        return f"{n_bytes} bytes"
-    if n_bytes < 1_000_000:
-        return f"{n_bytes / 1e3:.1f} kB"
-    return f"{n_bytes / 1e6:.1f} MB"
+@dataclass(frozen=True)
+class Place:
+    """Where uploads go.
+
+    Attributes:
+        root: the upload folder (one sub-folder per upload).
+        limit: the per-file cap in bytes.
+        keep: folders under `root` that must stay (those the project shown reads).
+    """
+
+    root: Path
+    limit: int = MAX_UPLOAD_BYTES
+    keep: tuple[Path, ...] = ()
 
 
 def check_size(name: str, size: int, *, limit: int = MAX_UPLOAD_BYTES) -> None:
@@ -54,115 +72,41 @@ def check_size(name: str, size: int, *, limit: int = MAX_UPLOAD_BYTES) -> None:
         raise InputError(name, "the file is empty")
 
 
-def install_size_guard(
-    server: Any, on_reject: Callable[[int, str, int], None], *, limit: int = MAX_UPLOAD_BYTES
-) -> None:
-    """Drop uploads announced over `limit` before their data is buffered.
-
-    Runs after viser's own handler of the transfer start (handlers run in registration
-    order) and forgets the transfer, so its parts are ignored.
-
-    Args:
-        server: the viser server.
-        on_reject: called with (client id, file name, size in bytes) for a dropped upload.
-        limit: the cap in bytes.
-    """
-    from viser import _messages
-
-    gui = server.gui
-
-    def guard(client_id: int, message: Any) -> None:
-        if message.size_bytes > limit:
-            gui._current_file_upload_states.pop(message.transfer_uuid, None)
-            on_reject(client_id, message.filename, int(message.size_bytes))
-
-    server._websock_server.register_handler(_messages.FileTransferStartUpload, guard)
-
-
-def new_upload_folder(root: Path) -> Path:
-    """A fresh folder for one upload."""
-    folder = root / uuid.uuid4().hex[:12]
-    folder.mkdir(parents=True)
-    return folder
-
-
-def _safe_member(name: str, archive: str) -> PurePosixPath:
-    p = PurePosixPath(name)
-    if p.is_absolute() or ".." in p.parts or name.startswith(("/", "\\")) or ":" in p.parts[0]:
-        raise InputError(archive, f"unsafe path in the zip: {name!r}; expected relative paths")
-    return p
-
-
-def unpack_zip(name: str, content: bytes, folder: Path) -> None:
-    """Extract a zip into `folder` after checking its paths and sizes."""
-    try:
-        zf = zipfile.ZipFile(io.BytesIO(content))
-    except zipfile.BadZipFile as exc:
-        raise InputError(name, "not a valid zip file") from exc
-    with zf:
-        members = [m for m in zf.infolist() if not m.is_dir()]
-        if len(members) > MAX_ZIP_MEMBERS:
-            raise InputError(name, f"the zip holds {len(members)} files; at most {MAX_ZIP_MEMBERS}")
-        total = sum(m.file_size for m in members)
-        if total > MAX_UNPACKED_BYTES:
-            raise InputError(
-                name,
-                f"the zip unpacks to {format_size(total)}; "
-                f"at most {format_size(MAX_UNPACKED_BYTES)}",
-            )
-        for m in members:
-            rel = _safe_member(m.filename, name)
-            target = folder.joinpath(*rel.parts)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            with zf.open(m) as src:
-                data = src.read(m.file_size + 1)
-            if len(data) != m.file_size:
-                raise InputError(name, f"{m.filename}: size differs from the zip's directory")
-            target.write_bytes(data)
-
-
-def find_project_file(folder: Path, source: str) -> Path:
-    """The project file in an unpacked upload: project.json/.yaml/.yml, shallowest first."""
-    candidates = sorted(
-        (p for p in folder.rglob("*") if p.is_file() and p.stem == "project"),
-        key=lambda p: (len(p.relative_to(folder).parts), str(p)),
-    )
-    candidates = [p for p in candidates if p.suffix.lower() in PROJECT_SUFFIXES]
-    if not candidates:
-        raise InputError(source, "no project file in the upload; expected project.json (or .yaml)")
-    return candidates[0]
-
-
-def receive_project(
-    name: str, content: bytes, root: Path, *, limit: int = MAX_UPLOAD_BYTES
-) -> tuple[Project, LoadedImages]:
+def receive_project(name: str, content: bytes, place: Place) -> tuple[Project, LoadedImages]:
     """Unpack and validate an uploaded project (a .zip with project.json, images, camera
-    file; or a lone project file whose paths are absolute or relative to nothing else).
+    file; or a lone project file naming no other file).
 
     Returns:
-        the project and its images, read from a fresh folder under `root`.
+        the project and its images, read from a fresh folder under `place.root`.
     """
-    check_size(name, len(content), limit=limit)
-    folder = new_upload_folder(root)
+    check_size(name, len(content), limit=place.limit)
     suffix = Path(name).suffix.lower()
-    if suffix == ".zip":
-        unpack_zip(name, content, folder)
-        path = find_project_file(folder, name)
-    elif suffix in PROJECT_SUFFIXES:
-        path = folder / f"project{suffix}"
-        path.write_bytes(content)
-    else:
+    if suffix not in (".zip", *PROJECT_SUFFIXES):
         raise InputError(name, "expected a project .zip, .json or .yaml file")
-    try:
-        project = load_project(path)
-        loaded = load_images(project)
-    except InputError as exc:
-        raise InputError(name, _relative_message(exc, folder)) from exc
+    make_room(place.root, len(content), keep=place.keep, limit=MAX_UPLOAD_FOLDER_BYTES)
+    with upload_folder(place.root) as folder:
+        if suffix == ".zip":
+            path = unpack_zip(name, content, folder)
+        else:
+            path = folder / f"project{suffix}"
+            path.write_bytes(content)
+        try:
+            doc = read_document(path, what="project file", as_json=path.suffix.lower() == ".json")
+            spec = parse_project(doc, path)
+            check_confined(spec, path.parent, name)
+            project = project_from_spec(spec, path.resolve())
+            check_image_headers(project.image_paths, name)
+            loaded = load_images(project)
+        except InputError as exc:
+            raise InputError(name, _relative_message(exc, folder, name)) from exc
     return project, loaded
 
 
-def _relative_message(exc: InputError, folder: Path) -> str:
-    return str(exc).replace(str(folder.resolve()) + "/", "").replace(str(folder) + "/", "")
+def _relative_message(exc: InputError, folder: Path, name: str) -> str:
+    """The reader's message with the upload folder left out (and the upload's own name
+    once: the caller puts it in front)."""
+    text = str(exc).replace(str(folder.resolve()) + "/", "").replace(str(folder) + "/", "")
+    return text.removeprefix(f"{name}: ")
 
 
 def absolute_spec(spec: ProjectFile, folder: Path) -> ProjectFile:
@@ -190,62 +134,73 @@ def absolute_spec(spec: ProjectFile, folder: Path) -> ProjectFile:
     )
 
 
-def _rebuild(project: Project, spec: ProjectFile, folder: Path) -> tuple[Project, LoadedImages]:
-    path = folder / "project.json"
-    save_project(spec, path)
-    new = project_from_spec(spec, path)
-    return new, load_images(new)
+def _file_name(name: str, suffix: str) -> str:
+    """The uploaded file's own name, without any folder (never empty)."""
+    base = Path(name.replace("\\", "/")).name
+    return base if base not in ("", ".", "..") else f"upload{suffix}"
 
 
-def receive_rid(
+def _with_upload(
     name: str,
     content: bytes,
     project: Project,
-    light_index: int,
-    root: Path,
-    *,
-    limit: int = MAX_UPLOAD_BYTES,
+    place: Place,
+    change: Callable[[ProjectFile, Path], ProjectFile],
+) -> tuple[Project, LoadedImages]:
+    """Write the upload into a fresh folder, change the project's spec with it (paths
+    made absolute) and read the new project back; the folder goes when it fails."""
+    check_size(name, len(content), limit=place.limit)
+    make_room(place.root, len(content), keep=place.keep, limit=MAX_UPLOAD_FOLDER_BYTES)
+    with upload_folder(place.root) as folder:
+        path = folder / _file_name(name, Path(name).suffix.lower())
+        path.write_bytes(content)
+        try:
+            check_image_headers([path], name)
+            spec = change(absolute_spec(project.spec, project.folder), path)
+            new_path = folder / "project.json"
+            save_project(spec, new_path)
+            new = project_from_spec(spec, new_path)
+            return new, load_images(new)
+        except InputError as exc:
+            raise InputError(name, _relative_message(exc, folder, name)) from exc
+
+
+def receive_rid(
+    name: str, content: bytes, project: Project, light_index: int, place: Place
 ) -> tuple[Project, LoadedImages]:
     """An uploaded IES/LDT file as the RID of light `light_index`.
 
     Returns:
         the project with that light's RID replaced, and its images.
     """
-    check_size(name, len(content), limit=limit)
     suffix = Path(name).suffix.lower()
     if suffix not in RID_SUFFIXES:
         raise InputError(name, "expected an IES (.ies) or EULUMDAT (.ldt) file")
     if not 0 <= light_index < len(project.spec.lights):
         raise InputError("light", f"expected a light index below {len(project.spec.lights)}")
-    folder = new_upload_folder(root)
-    path = folder / Path(name).name
-    path.write_bytes(content)
     kind: Literal["ies", "ldt"] = "ies" if suffix == ".ies" else "ldt"
-    spec = absolute_spec(project.spec, project.folder)
-    lights = list(spec.lights)
-    light = lights[light_index]
-    lights[light_index] = light.model_copy(
-        update={"rid": light.rid.model_copy(update={"type": kind, "path": str(path)})}
-    )
-    spec = spec.model_copy(update={"lights": lights})
-    try:
-        return _rebuild(project, spec, folder)
-    except InputError as exc:
-        raise InputError(name, _relative_message(exc, folder)) from exc
+
+    def change(spec: ProjectFile, path: Path) -> ProjectFile:
+        lights = list(spec.lights)
+        rid = lights[light_index].rid.model_copy(update={"type": kind, "path": str(path)})
+        lights[light_index] = lights[light_index].model_copy(update={"rid": rid})
+        return spec.model_copy(update={"lights": lights})
+
+    return _with_upload(name, content, project, place, change)
 
 
 def receive_image(
-    name: str, content: bytes, project: Project, root: Path, *, limit: int = MAX_UPLOAD_BYTES
+    name: str, content: bytes, project: Project, place: Place
 ) -> tuple[Project, LoadedImages, int]:
     """An uploaded image replacing the project image with the same file name (or stem).
 
     Returns:
         the project with that image replaced, its images, and the replaced image's index.
     """
-    check_size(name, len(content), limit=limit)
-    stem = Path(name).stem
+    base = _file_name(name, "")
+    stem = Path(base).stem
     index = next(
-        (i for i, p in enumerate(project.image_paths) if p.name == Path(name).name),
+        (i for i, p in enumerate(project.image_paths) if p.name == base),
         next((i for i, p in enumerate(project.image_paths) if p.stem == stem), None),
     )
     if index is None:
@@ -253,17 +208,13 @@ def receive_image(
         raise InputError(
             name, f"no project image has this file name; expected one of {known} (same pose)"
         )
-    folder = new_upload_folder(root)
-    path = folder / Path(name).name
-    path.write_bytes(content)
-    spec = absolute_spec(project.spec, project.folder)
-    images = list(spec.images)
-    images[index] = images[index].model_copy(
-        update={"path": str(path), "name": project.names[index]}
-    )
-    spec = spec.model_copy(update={"images": images})
-    try:
-        new, loaded = _rebuild(project, spec, folder)
-    except InputError as exc:
-        raise InputError(name, _relative_message(exc, folder)) from exc
+
+    def change(spec: ProjectFile, path: Path) -> ProjectFile:
+        images = list(spec.images)
+        images[index] = images[index].model_copy(
+            update={"path": str(path), "name": project.names[index]}
+        )
+        return spec.model_copy(update={"images": images})
+
+    new, loaded = _with_upload(name, content, project, place, change)
     return new, loaded, index

@@ -207,6 +207,28 @@ def rotation_from_axis(axis_camera: ArrayLike) -> NDArray[np.float64]:
     return np.eye(3) + K + inv_one_plus_z * (K @ K)
 
 
+def axis_roll_from_rotation(R_camera_light: ArrayLike) -> tuple[float, float, float]:
+    """`(a_rad, b_rad, roll_rad)` of a light orientation, the inverse of
+    `rotation_from_axis_roll`: the axis chart's angles (`angles_from_axis`) and the
+    roll about the axis relative to the minimal rotation from +z (`rotation_from_axis`).
+
+    Args:
+        R_camera_light: (3, 3) rotation, light frame -> camera frame.
+    """
+    R = check_rotation_matrix(R_camera_light, name="R_camera_light")
+    axis = R[:, 2] / np.linalg.norm(R[:, 2])
+    a, b = angles_from_axis(axis)
+    twist = rotation_from_axis(axis).T @ R  # a rotation about +z
+    return a, b, math.atan2(float(twist[1, 0]), float(twist[0, 0]))
+
+
+def rotation_from_axis_roll(a_rad: float, b_rad: float, roll_rad: float) -> NDArray[np.float64]:
+    """`R_camera_light` (3, 3) of the axis chart's angles (a, b) and a roll about the axis."""
+    axis = axis_from_angles(a_rad, b_rad)
+    roll = _finite_scalar(roll_rad, name="roll_rad")
+    return rotation_from_axis(axis) @ matrix_from_rotvec(np.array([0.0, 0.0, roll]))
+
+
 # ----------------------------------------------------------------------- the paper's angles
 
 

@@ -18,7 +18,7 @@ It knows files (through `lightcal.io`) but nothing of terminals or browsers.
 from lightcal.pipeline.diagnose import covariance, dark_light_warnings, variety_warnings
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images, vignetting_for
 from lightcal.pipeline.measurements import Measurements, measurements_for
-from lightcal.pipeline.model import build_model, fit_scales
+from lightcal.pipeline.model import build_model, fit_scales, starting_lights
 from lightcal.pipeline.results import CalibrationResult, LightResult, PoseSummary, summarise
 from lightcal.pipeline.select import image_data, noise_floor, regions_for
 from lightcal.pipeline.solve import (
@@ -52,6 +52,7 @@ __all__ = [
     "regions_for",
     "solve",
     "solve_project",
+    "starting_lights",
     "summarise",
     "variety_warnings",
     "vignetting_for",

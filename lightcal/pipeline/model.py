@@ -77,11 +77,26 @@ def build_model(
             "no usable pixels in any image (all saturated, masked, below the noise floor "
             "or off the wall); check the selection and sensor settings",
         )
+    unknowns = list(lights) if lights is not None else starting_lights(project, data)
+    return CalibrationModel(data, unknowns, project.solver, project.wall)
+
+
+def starting_lights(
+    project: Project, images: list[ImageData], lights: list[LightUnknown] | None = None
+) -> list[LightUnknown]:
+    """The lights a solve starts from: `lights` (default: the project's), with the
+    scales the project leaves to be fitted (`scale` not given) fitted to `images`.
+
+    Args:
+        project: the project (which scales are fitted, the offset, the wall).
+        images: the selected pixels; none: the scales are left as they are.
+        lights: lights to start from instead of the project's (e.g. the app's guess).
+    """
     unknowns = list(lights) if lights is not None else list(project.lights)
     auto = [j for j, ls in enumerate(project.spec.lights) if ls.initial.scale is None]
-    if auto and lights is None:
-        scales = fit_scales(data, unknowns, project.solver.offset, project.wall.initial)
+    if auto and images:
+        scales = fit_scales(images, unknowns, project.solver.offset, project.wall.initial)
         for j in auto:
             u = unknowns[j]
             unknowns[j] = replace(u, initial=u.initial.replace(scale=scales[j]))
-    return CalibrationModel(data, unknowns, project.solver, project.wall)
+    return unknowns

@@ -1,0 +1,75 @@
+"""What every tab's panel shares: the "programmatic write" flag and widget helpers.
+
+Every handle is server-level (`server.gui`), so all browsers see the same panel. The
+callbacks only call `Controller` actions (state changes under the lock, queued
+requests); each panel's `update` writes the state back into its widgets during a
+redraw. Those writes fire the widgets' own callbacks with `client None`; a thread-local
+flag, shared by all panels, makes those callbacks ignore them, so they are not taken
+for user edits.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import viser
+
+from lightcal_app.controller import Controller
+
+
+def assign(handle: Any, value: Any) -> None:
+    """Set a widget's value (viser sends it to every browser and fires its callbacks)."""
+    handle.value = value
+
+
+def rounded(v: float, digits: int) -> float:
+    """`v` rounded for a widget (a plain float)."""
+    return float(round(float(v), digits))
+
+
+class Programmatic:
+    """A thread-local flag: widget writes inside `writing()` are not user edits."""
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        old = getattr(self._local, "on", False)
+        self._local.on = True
+        try:
+            yield
+        finally:
+            self._local.on = old
+
+    def active(self) -> bool:
+        return bool(getattr(self._local, "on", False))
+
+
+class TabPanel:
+    """A tab's widgets and their callbacks.
+
+    Args:
+        server: the viser server.
+        ctl: where user actions go.
+        flag: the shared programmatic-write flag.
+    """
+
+    def __init__(self, server: viser.ViserServer, ctl: Controller, flag: Programmatic) -> None:
+        self.server = server
+        self.gui = server.gui
+        self.ctl = ctl
+        self.flag = flag
+
+    def guard(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        """`fn` called for user edits only (not for the panel's own writes)."""
+
+        def cb(event: Any) -> None:
+            if event.client is None and self.flag.active():
+                return
+            fn(event)
+
+        return cb

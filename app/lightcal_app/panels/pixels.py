@@ -1,0 +1,154 @@
+"""The Pixels tab: the selection strategy (for all images or one), regions and clicks."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import viser
+
+from lightcal.io.project import Project
+from lightcal_app.controller import Controller
+from lightcal_app.panels.base import Programmatic, TabPanel, assign
+from lightcal_app.state import Frame, SelectionSettings
+
+ALL_IMAGES = "all images"
+RECT_MODES = ("include region", "exclude region")
+CLICK_MODES = ("does nothing", "adds a pixel", "removes nearby pixels")
+STRATEGIES = ("random", "grid", "all")
+
+
+class PixelsPanel(TabPanel):
+    """The Pixels tab (built in the current GUI container)."""
+
+    def __init__(self, server: viser.ViserServer, ctl: Controller, flag: Programmatic) -> None:
+        super().__init__(server, ctl, flag)
+        gui = self.gui
+        names = list(ctl.state.project.names)
+        sel = ctl.state.selection
+        self.sel_target = gui.add_dropdown(
+            "settings apply to",
+            [ALL_IMAGES, *names],
+            initial_value=ALL_IMAGES,
+            hint="edit the selection of every image, or give one image its own",
+        )
+        self.strategy = gui.add_dropdown("strategy", STRATEGIES, initial_value=sel.strategy)
+        self.n_per_image = gui.add_number(
+            "pixels per image (random)", sel.n_per_image, min=1, step=1
+        )
+        self.grid_step = gui.add_number("grid step (grid)", sel.grid_step, min=1, step=1)
+        self.binning = gui.add_number("binning b (all)", sel.binning, min=1, max=64, step=1)
+        self.seed = gui.add_number("seed", sel.seed, min=0, step=1)
+        self.clear_override = gui.add_button("This image: use the settings of all images")
+        gui.add_markdown(
+            "**Regions**: hold *Shift* and drag over an image in the 3D view to draw a region "
+            "(tip: *View > Look through image*). **Clicks** on an image add or remove pixels."
+        )
+        self.rect_mode = gui.add_dropdown(
+            "shift-drag draws", RECT_MODES, initial_value=RECT_MODES[0]
+        )
+        self.click_mode = gui.add_dropdown(
+            "a click on an image", CLICK_MODES, initial_value=CLICK_MODES[0]
+        )
+        self.clear_regions = gui.add_button("Clear all regions")
+        self.clear_points = gui.add_button("Clear all clicked pixels")
+        self.show_selection = gui.add_checkbox("show selection and masks on the images", True)
+        self.selection_md = gui.add_markdown("")
+        self._wire()
+
+    def _settings(self) -> SelectionSettings:
+        return SelectionSettings(
+            self.strategy.value,  # type: ignore[arg-type]
+            max(1, int(self.n_per_image.value)),
+            max(1, int(self.grid_step.value)),
+            max(1, int(self.binning.value)),
+            int(self.seed.value),
+        )
+
+    def _wire(self) -> None:
+        ctl = self.ctl
+
+        def selection_changed(event: Any) -> None:
+            target = self.sel_target.value
+            ctl.set_selection(self._settings(), image=None if target == ALL_IMAGES else target)
+
+        for h in (self.strategy, self.n_per_image, self.grid_step, self.binning, self.seed):
+            h.on_update(self.guard(selection_changed))
+        self.sel_target.on_update(lambda e: self.show_settings())
+
+        def clear_override(event: Any) -> None:
+            if self.sel_target.value != ALL_IMAGES:
+                ctl.clear_selection_override(self.sel_target.value)
+
+        self.clear_override.on_click(clear_override)
+        self.clear_regions.on_click(lambda e: ctl.clear_regions())
+        self.clear_points.on_click(lambda e: ctl.clear_points())
+        self.show_selection.on_update(
+            self.guard(lambda e: ctl.set_show_selection(self.show_selection.value))
+        )
+
+        scene = self.server.scene
+
+        @scene.on_click()
+        def _(event: Any) -> None:
+            mode = {"adds a pixel": "add", "removes nearby pixels": "remove"}.get(
+                self.click_mode.value
+            )
+            if mode is not None:
+                ctl.click(np.array(event.ray_origin), np.array(event.ray_direction), mode=mode)
+
+        @scene.on_rect_select(modifier="shift")
+        def _(event: Any) -> None:
+            cam = event.client.camera
+            ctl.rect(
+                event.screen_min,
+                event.screen_max,
+                camera_position=np.array(cam.position),
+                camera_wxyz=np.array(cam.wxyz),
+                fov_y_rad=float(cam.fov),
+                aspect=float(cam.aspect),
+                include=self.rect_mode.value == RECT_MODES[0],
+                client=event.client,
+            )
+
+    def show_settings(self) -> None:
+        """The settings of the chosen target (all images or one) into the widgets."""
+        st = self.ctl.state
+        target = self.sel_target.value
+        with st.lock:
+            s = (
+                st.selection
+                if target == ALL_IMAGES
+                else st.selection_per_image.get(target, st.selection)
+            )
+        with self.flag.writing():
+            assign(self.strategy, s.strategy)
+            assign(self.n_per_image, s.n_per_image)
+            assign(self.grid_step, s.grid_step)
+            assign(self.binning, s.binning)
+            assign(self.seed, s.seed)
+
+    def set_project(self, project: Project) -> None:
+        self.sel_target.options = [ALL_IMAGES, *project.names]
+
+    def update(self, frame: Frame) -> None:
+        d = frame.dirty
+        if d & {"widgets", "scene"}:
+            self.show_settings()
+            with self.ctl.state.lock:
+                assign(self.show_selection, self.ctl.state.show_selection)
+        if d & {"selection", "status", "scene"}:
+            self.selection_md.content = self._selection_text(frame)
+
+    def _selection_text(self, frame: Frame) -> str:
+        names = self.ctl.state.project.names
+        total = sum(frame.selection_summary)
+        rows = [f"**{total} pixels** selected in {len(names)} images:  "]
+        rows.append(
+            ", ".join(f"{n}: {k}" for n, k in zip(names, frame.selection_summary, strict=True))
+        )
+        n_regions = sum(len(r) for r in frame.regions)
+        n_points = sum(len(p) for p in frame.points)
+        if n_regions or n_points:
+            rows.append(f"\n\n{n_regions} region(s) and {n_points} clicked pixel(s) apply.")
+        return "\n".join(rows)

@@ -1,0 +1,38 @@
+"""The Result tab: the estimate with its uncertainties, the fit test's picture, downloads."""
+
+from __future__ import annotations
+
+import numpy as np
+import viser
+
+from lightcal.io.figures import angle_residual_figure
+from lightcal_app.controller import Controller
+from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.results import result_markdown
+from lightcal_app.state import Frame
+
+
+class ResultPanel(TabPanel):
+    """The Result tab (built in the current GUI container)."""
+
+    def __init__(self, server: viser.ViserServer, ctl: Controller, flag: Programmatic) -> None:
+        super().__init__(server, ctl, flag)
+        gui = self.gui
+        self.result_md = gui.add_markdown("")
+        # Residuals against the mirror / incidence angle (the fit test's picture).
+        self.fit_plot = gui.add_image(
+            np.full((8, 8, 3), 255, dtype=np.uint8), label="residuals vs angle", visible=False
+        )
+        self.download_result = gui.add_button("Download result (JSON)", icon=viser.Icon.DOWNLOAD)
+        self.download_report = gui.add_button("Download report (zip)", icon=viser.Icon.DOWNLOAD)
+        self.download_result.on_click(lambda e: ctl.request_download("result", e.client))
+        self.download_report.on_click(lambda e: ctl.request_download("report", e.client))
+
+    def update(self, frame: Frame) -> None:
+        if not frame.dirty & {"result", "scene"}:
+            return
+        self.result_md.content = result_markdown(frame.result, state=frame.solver_state)
+        fit = frame.result.fit if frame.result is not None else None
+        if fit:
+            self.fit_plot.image = angle_residual_figure(fit, size=(720, 300))
+        self.fit_plot.visible = bool(fit)

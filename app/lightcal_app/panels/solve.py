@@ -1,0 +1,128 @@
+"""The Solve tab: Step, Run, Pause, Reset, the status and the plots per iteration."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import viser
+
+from lightcal_app.controller import Controller
+from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.state import Frame
+
+COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
+
+
+def status_text(frame: Any) -> str:
+    """The solve's state, and the last iteration's numbers."""
+    if not frame.history:
+        return f"**{frame.solver_state}**: press Step or Run. {frame.solver_message}"
+    last = frame.history[-1]
+    return (
+        f"**{frame.solver_state}** {frame.solver_message}  \n"
+        f"iteration {last.iteration}, cost {last.cost:.6g}, "
+        f"|gradient| {last.gradient_norm:.3g}, "
+        f"{last.nfev} evaluations"
+        + (" (re-weighted: pixel sigmas from the rendered values)" if last.reweighted else "")
+    )
+
+
+class SolvePanel(TabPanel):
+    """The Solve tab (built in the current GUI container)."""
+
+    def __init__(self, server: viser.ViserServer, ctl: Controller, flag: Programmatic) -> None:
+        super().__init__(server, ctl, flag)
+        gui = self.gui
+        self.step_button = gui.add_button(
+            "Step", icon=viser.Icon.PLAYER_TRACK_NEXT, hint="one iteration"
+        )
+        self.run_button = gui.add_button(
+            "Run", icon=viser.Icon.PLAYER_PLAY, hint="until convergence"
+        )
+        self.pause_button = gui.add_button("Pause", icon=viser.Icon.PLAYER_PAUSE)
+        self.reset_button = gui.add_button(
+            "Reset", icon=viser.Icon.REFRESH, hint="stop and go back to the initial guess"
+        )
+        self.status_md = gui.add_markdown("")
+        empty = np.zeros(0)
+        self.cost_plot = gui.add_uplot(
+            (empty, empty),
+            ({"label": "iteration"}, {"label": "cost", "stroke": "#d9480f", "width": 2}),
+            title="cost (log scale)",
+            axes=({}, {"size": 100}),
+            scales={"x": {"time": False, "range": (None, None)}, "y": {"distr": 3, "log": 10}},
+            aspect=1.6,
+        )
+        self.position_plot = self._parameter_plot("position (mm, camera frame)")
+        self.angle_plot = self._parameter_plot("axis angles (deg)")
+        self.step_button.on_click(lambda e: ctl.step(e.client))
+        self.run_button.on_click(lambda e: ctl.run(e.client))
+        self.pause_button.on_click(lambda e: ctl.pause(e.client))
+        self.reset_button.on_click(lambda e: ctl.reset(e.client))
+
+    def _parameter_plot(self, title: str) -> Any:
+        empty = np.zeros(0)
+        return self.gui.add_uplot(
+            (empty, empty),
+            ({"label": "iteration"}, {"label": "-"}),
+            title=title,
+            axes=({}, {"size": 64}),
+            scales={"x": {"time": False, "range": (None, None)}},
+            aspect=1.6,
+        )
+
+    def update(self, frame: Frame) -> None:
+        d = frame.dirty
+        if d & {"plots", "scene"}:
+            self._update_plots(frame)
+        if d & {"status", "plots", "scene"}:
+            self.status_md.content = status_text(frame)
+
+    def _update_plots(self, frame: Frame) -> None:
+        """Cost and parameters per iteration. The scales are set with the data: uPlot
+        keeps its first scales on data pushes."""
+        hist = frame.history
+        it = np.array([h.iteration for h in hist], dtype=np.float64)
+        x_range = (0.0, float(max(it.max(), 1.0))) if hist else (0.0, 1.0)
+        cost = np.array([max(h.cost, 1e-300) for h in hist], dtype=np.float64)
+        if hist:
+            lo = 10.0 ** math.floor(math.log10(cost.min()))
+            hi = 10.0 ** math.ceil(math.log10(cost.max()))
+            cost_range = (lo, hi if hi > lo else 10 * lo)
+        else:
+            cost_range = (1.0, 10.0)
+        self.cost_plot.scales = {
+            "x": {"time": False, "range": x_range},
+            "y": {"distr": 3, "log": 10, "range": cost_range},
+        }
+        self.cost_plot.data = (it, cost)
+        names = list(frame.parameter_names)
+        xs = np.array([h.x for h in hist]) if hist else np.zeros((0, len(names)))
+        for plot, suffix, factor in (
+            (self.position_plot, "_m", 1e3),
+            (self.angle_plot, "_rad", 180.0 / math.pi),
+        ):
+            cols = [k for k, n in enumerate(names) if n.endswith(suffix)]
+            if not cols or not hist:
+                plot.data = (np.zeros(0), np.zeros(0))
+                plot.series = ({"label": "iteration"}, {"label": "-"})
+                continue
+            series: list[Any] = [{"label": "iteration"}] + [
+                {
+                    "label": names[k].removesuffix(suffix),
+                    "stroke": COLOURS[c % len(COLOURS)],
+                    "width": 2,
+                }
+                for c, k in enumerate(cols)
+            ]
+            values = xs[:, cols] * factor
+            lo, hi = float(values.min()), float(values.max())
+            pad = max(0.05 * (hi - lo), 1e-3 * max(abs(lo), abs(hi)), 1e-6)
+            plot.scales = {
+                "x": {"time": False, "range": x_range},
+                "y": {"range": (lo - pad, hi + pad)},
+            }
+            plot.series = tuple(series)
+            plot.data = (it, *(values[:, c] for c in range(len(cols))))

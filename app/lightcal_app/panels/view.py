@@ -1,0 +1,110 @@
+"""The View tab: what the images on the frusta show, looking through an image, rays."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import viser
+
+from lightcal.io.project import Project
+from lightcal_app.controller import Controller
+from lightcal_app.overlays import legend_picture
+from lightcal_app.panels.base import Programmatic, TabPanel, assign
+from lightcal_app.state import OVERLAY_KINDS, Frame
+
+AS_ALL = "(as all images)"
+
+
+class ViewPanel(TabPanel):
+    """The View tab (built in the current GUI container)."""
+
+    def __init__(self, server: viser.ViserServer, ctl: Controller, flag: Programmatic) -> None:
+        super().__init__(server, ctl, flag)
+        gui = self.gui
+        st = ctl.state
+        names = list(st.project.names)
+        self.overlay_all = gui.add_dropdown(
+            "images show",
+            OVERLAY_KINDS,
+            initial_value=st.overlay_default,
+            hint="real image, image rendered with the current light, or real minus rendered",
+        )
+        self.overlay_image = gui.add_dropdown("image", names, initial_value=names[0])
+        self.overlay_one = gui.add_dropdown(
+            "this image shows", [AS_ALL, *OVERLAY_KINDS], initial_value=AS_ALL
+        )
+        self.look_through = gui.add_button("Look through image", icon=viser.Icon.CAMERA)
+        self.rays = gui.add_dropdown(
+            "rays from the light for", ["none", "all", *names], initial_value=st.rays_image
+        )
+        self.legend_md = gui.add_markdown(
+            "**Residual colours** (shown when an image shows *residual*):"
+        )
+        self.legend = gui.add_image(legend_picture(1.0), label="residual scale", format="png")
+        self._legend_shown: float | None = None
+        self._wire()
+
+    def _wire(self) -> None:
+        ctl = self.ctl
+        g = self.guard
+        self.overlay_all.on_update(g(lambda e: ctl.set_overlay(self.overlay_all.value)))
+
+        def overlay_one(event: Any) -> None:
+            v = self.overlay_one.value
+            ctl.set_overlay(None if v == AS_ALL else v, image=self.overlay_image.value)  # type: ignore[arg-type]
+
+        self.overlay_one.on_update(g(overlay_one))
+
+        def overlay_image(event: Any) -> None:
+            with ctl.state.lock:
+                v = ctl.state.overlay_per_image.get(self.overlay_image.value, AS_ALL)
+            with self.flag.writing():
+                assign(self.overlay_one, v)
+
+        self.overlay_image.on_update(overlay_image)
+        self.look_through.on_click(self._look_through)
+        self.rays.on_update(g(lambda e: ctl.set_rays(self.rays.value)))
+
+    def _look_through(self, event: Any) -> None:
+        """Move the browser's camera (all browsers when the click has no client) to the
+        chosen image's camera, looking at the wall as the image does."""
+        st = self.ctl.state
+        with st.lock:
+            i = st.project.names.index(self.overlay_image.value)
+            view = st.project.views[i]
+            fov = st.project.camera.fov_y_rad
+        R_wc = view.R_camera_world.T
+        centre = view.center_world
+        clients = (
+            [event.client] if event.client is not None else list(self.server.get_clients().values())
+        )
+        for client in clients:
+            with client.atomic():
+                client.camera.fov = min(math.radians(100.0), 1.15 * fov)
+                client.camera.up_direction = -R_wc[:, 1]
+                client.camera.position = centre - 0.02 * R_wc[:, 2]
+                client.camera.look_at = centre + float(centre[2]) * R_wc[:, 2]
+
+    def set_project(self, project: Project) -> None:
+        self.overlay_image.options = list(project.names)
+        self.rays.options = ["none", "all", *project.names]
+
+    def update(self, frame: Frame, *, legend_vmax: float | None) -> None:
+        d = frame.dirty
+        if d & {"widgets", "scene"}:
+            st = self.ctl.state
+            with st.lock:
+                assign(self.overlay_all, st.overlay_default)
+                assign(self.rays, st.rays_image)
+        if (
+            legend_vmax is not None
+            and d & {"overlays", "scene"}
+            and self._legend_shown != legend_vmax
+        ):
+            self._legend_shown = legend_vmax
+            self.legend.image = legend_picture(legend_vmax)
+            self.legend_md.content = (
+                f"**Residual colours**: real − rendered, ±{legend_vmax:.4g} pixel values "
+                "(99th percentile over the images shown as residual; grey: no value)."
+            )

@@ -1,0 +1,128 @@
+"""What the worker can be asked to do: one frozen dataclass per kind of request.
+
+Callbacks (viser's thread pool) queue these with `AppState.request`; the worker
+(`lightcal_app.worker`) takes them in order and hands each to the handler registered
+for its type. `client` is the browser that asked (None: every browser or nobody); it
+is only passed back to `notify` and downloads, never inspected. A kind with no field
+of its own subclasses `FromBrowser` without the decorator (it needs none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+from lightcal.core.solver import SolveOutcome
+from lightcal.io.project import Project
+from lightcal.pipeline import LoadedImages
+
+if TYPE_CHECKING:  # both import `state`, which imports this module
+    from lightcal_app.session_file import SessionFile
+    from lightcal_app.state import LightGuess
+
+DownloadKind = Literal["result", "report", "session"]
+
+
+@dataclass(frozen=True)
+class FromBrowser:
+    """A request a browser made (its messages go to that browser; keyword only)."""
+
+    client: Any = field(default=None, kw_only=True)
+
+
+@dataclass(frozen=True)
+class SetupChanged:
+    """The guess or the selection changed: drop the solve, reselect if needed."""
+
+
+@dataclass(frozen=True)
+class Solve(FromBrowser):
+    """Start or continue the solve: one more iteration ("step") or to the end ("run")."""
+
+    how: Literal["step", "run"] = "step"
+
+
+class Pause(FromBrowser):
+    """Hold the solver after its current iteration."""
+
+
+@dataclass(frozen=True)
+class Finished:
+    """The solver's thread ended solve `gen` with `outcome`."""
+
+    gen: int
+    outcome: SolveOutcome
+
+
+class Reset(FromBrowser):
+    """Stop the solve and go back to the initial guess."""
+
+
+@dataclass(frozen=True)
+class PrepareDownload(FromBrowser):
+    """Prepare a file for the browser: the result, the report or the session."""
+
+    what: DownloadKind
+
+
+class SaveSession(FromBrowser):
+    """Write the session beside the autosave and send it as a download."""
+
+
+@dataclass(frozen=True)
+class ApplySession(FromBrowser):
+    """Restore a session (an uploaded file)."""
+
+    session: SessionFile
+    source: str
+
+
+class LoadSavedSession(FromBrowser):
+    """Restore the session written by `SaveSession`."""
+
+
+@dataclass(frozen=True)
+class SwitchProject(FromBrowser):
+    """Show another project (an upload); `keep` keeps the guess and the selection."""
+
+    project: Project
+    loaded: LoadedImages
+    truth: list[LightGuess] | None
+    keep: bool
+    note: str = ""
+
+
+Request = (
+    SetupChanged
+    | Solve
+    | Pause
+    | Reset
+    | Finished
+    | PrepareDownload
+    | SaveSession
+    | LoadSavedSession
+    | ApplySession
+    | SwitchProject
+)
+
+MERGED: frozenset[type] = frozenset((SetupChanged,))
+"""Kinds handled once when several are queued (the first; it reads the latest state)."""
+
+
+def merge(requests: list[Request]) -> list[Request]:
+    """Keep the order but only the first of each merged kind."""
+    seen: set[type] = set()
+    out: list[Request] = []
+    for req in requests:
+        kind = type(req)
+        if kind in MERGED:
+            if kind in seen:
+                continue
+            seen.add(kind)
+        out.append(req)
+    return out
+
+
+def client_of(request: Request) -> Any:
+    """The browser that asked (None when none did)."""
+    return getattr(request, "client", None)

@@ -1,0 +1,414 @@
+"""The solve behind the page, without a browser: selection, model, stepping, results.
+
+`SolveService` owns the pixel selection as the user set it (`pixel_selection`), the
+one `SolverSession` (step, run, pause, reset), and what the state shows of it (the
+history, the display of the guess or the estimate, the result with uncertainties).
+The model is built by `lightcal.pipeline` (`starting_lights`, as `lightcal calibrate`
+does), from the images the user's selection leaves. It imports no viser: tests drive
+it with an `AppState` and a list for the messages.
+
+All methods but `on_iteration` run on the worker thread. The solver's own thread calls
+`on_iteration`, which records the iteration and waits until the worker has drawn it
+(when `follow_iterations`), so the page follows every iteration.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any, Literal
+
+import numpy as np
+
+from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.scene import Rig
+from lightcal.core.session import SolverSession
+from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
+from lightcal.errors import LightcalError
+from lightcal.io.project import Project
+from lightcal.pipeline import measurements_for, starting_lights, summarise
+from lightcal_app.pixel_selection import footprint_centres, select_image
+from lightcal_app.requests import Finished
+from lightcal_app.state import AppState, Display, LightGuess
+
+log = logging.getLogger("lightcal.app")
+
+Notify = Callable[..., None]
+"""`notify(client, title, body, *, error=False)`: a message in the page."""
+
+
+class SolveService:
+    """The selection and the solve of the state's project.
+
+    Args:
+        state: the shared state.
+        notify: shows a message in the page.
+        follow_iterations: the solver waits for each iteration to be drawn.
+    """
+
+    def __init__(self, state: AppState, *, notify: Notify, follow_iterations: bool = True) -> None:
+        self.state = state
+        self.notify = notify
+        self.follow_iterations = follow_iterations
+        self.follow_timeout_s = 10.0
+        self.session: SolverSession | None = None
+        self.model: CalibrationModel | None = None
+        self._model_index: list[int] = []  # project image of each model image
+        self._image_data: list[ImageData | None] = [None] * len(state.project.names)
+        self._selection_done = -1
+        self._iteration_offset = 0
+        self._last_session_state = "idle"
+
+    # ------------------------------------------------------------------ setup
+
+    def setup_changed(self) -> None:
+        """The guess or the selection changed: the solve starts over."""
+        self.drop()
+        st = self.state
+        with st.lock:
+            need = st.selection_rev != self._selection_done
+        if need:
+            self.compute_selection()
+        self.show_guess()
+
+    def project_changed(self) -> None:
+        """The state shows another project: select its pixels, show its guess."""
+        self.drop()
+        with self.state.lock:
+            self._image_data = [None] * len(self.state.project.names)
+            self._selection_done = -1
+        self.compute_selection()
+        self.show_guess()
+
+    def drop(self) -> None:
+        """Throw the solve away (its thread ends)."""
+        st = self.state
+        with st.cond:
+            session, self.session, self.model = self.session, None, None
+            st.session_gen += 1
+            st.history = []
+            st.result = None
+            st.solver_state = "idle"
+            st.solver_message = ""
+            self._iteration_offset = 0
+            self._last_session_state = "idle"
+            st.mark("plots", "status", "result", "widgets")
+        if session is not None:
+            session.stop()
+
+    def reset(self) -> None:
+        """Back to the guess; a restored estimate is forgotten."""
+        with self.state.lock:
+            self.state.resume_x = None
+            self.state.changed = True
+        self.drop()
+        self.show_guess()
+
+    def close(self) -> None:
+        """End the solver's thread."""
+        session = self.session
+        if session is not None:
+            session.stop()
+
+    def running(self) -> bool:
+        """A solve is iterating or has news the worker has not taken yet."""
+        session = self.session
+        return session is not None and (
+            session.state == "running" or session.state != self._last_session_state
+        )
+
+    def compute_selection(self) -> None:
+        """Select every image's pixels with the user's settings, regions and clicks."""
+        st = self.state
+        with st.lock:
+            project, loaded = st.project, st.loaded
+            rev = st.selection_rev
+            settings = [st.selection_of(i) for i in range(len(project.names))]
+            regions = list(st.regions)
+            points = [list(st.points.get(n, [])) for n in project.names]
+        datas: list[ImageData | None] = []
+        for i in range(len(project.names)):
+            try:
+                datas.append(select_image(project, loaded, i, settings[i], regions, points[i]))
+            except LightcalError as exc:
+                datas.append(None)
+                self.notify(None, f"Selection failed for {project.names[i]}", str(exc), error=True)
+        with st.lock:
+            if st.project is not project:
+                return
+            self._image_data = datas
+            self._selection_done = rev
+            st.selected = [
+                d.footprints.pixels if d is not None else np.zeros((0, 2), np.int64) for d in datas
+            ]
+            st.selected_binning = [s.binning if s.strategy == "all" else 1 for s in settings]
+            st.selected_wall_points = [
+                footprint_centres(d) if d is not None else np.zeros((0, 3)) for d in datas
+            ]
+            st.mark("selection", "light", "status")
+
+    def usable_images(self) -> tuple[list[ImageData], list[int]]:
+        """The selected images with pixels, and their project indices."""
+        datas, index = [], []
+        for i, d in enumerate(self._image_data):
+            if d is not None and len(d.observed) > 0:
+                datas.append(d)
+                index.append(i)
+        return datas, index
+
+    def _lights(
+        self, project: Project, guess: list[LightGuess], datas: list[ImageData]
+    ) -> list[LightUnknown]:
+        posed = [
+            replace(
+                u,
+                initial=u.initial.replace(
+                    t_camera_light=g.position_m, R_camera_light=g.R_camera_light
+                ),
+            )
+            for u, g in zip(project.lights, guess, strict=True)
+        ]
+        return starting_lights(project, datas, posed)
+
+    def show_guess(self) -> None:
+        """Display the guess, with the scales fitted to the selection."""
+        st = self.state
+        with st.lock:
+            project = st.project
+            guess = list(st.guess)
+            gen = st.session_gen
+            datas, _ = self.usable_images()
+        units = self._lights(project, guess, datas)
+        display = Display(
+            Rig(tuple(u.initial for u in units)),
+            tuple(1.0 for _ in project.names),
+            project.solver.offset,
+            "guess",
+        )
+        with st.lock:
+            if st.session_gen == gen and st.project is project:
+                st.display = display
+                st.mark("overlays", "light", "widgets")
+
+    # ------------------------------------------------------------------ the solve
+
+    def ensure_session(self, client: Any = None) -> bool:
+        """Build the model and the solver session if there is none. False (with a
+        message) when no image has pixels."""
+        if self.session is not None:
+            return True
+        st = self.state
+        with st.lock:
+            project = st.project
+            guess = list(st.guess)
+            datas, index = self.usable_images()
+            resume = st.resume_x
+            saved_names = list(st.parameter_names)
+            history = list(st.history)
+            gen = st.session_gen
+        if not datas:
+            self.notify(
+                client,
+                "No pixels to fit",
+                "No image has usable pixels: check the selection (Pixels tab) and the regions.",
+                error=True,
+            )
+            return False
+        model = CalibrationModel(
+            datas, self._lights(project, guess, datas), project.solver, project.wall
+        )
+        session = SolverSession(
+            model,
+            on_iteration=lambda rep: self.on_iteration(gen, model, rep),
+            on_finish=lambda out: st.request(Finished(gen, out)),
+        )
+        offset = 0
+        if (
+            resume is not None
+            and history
+            and resume.shape == (model.layout.n,)
+            and saved_names == list(model.layout.names)
+        ):
+            session.reset(resume)
+            offset = history[-1].iteration
+        with st.lock:
+            if st.session_gen != gen:
+                return False
+            self.session = session
+            self.model = model
+            self._model_index = index
+            self._iteration_offset = offset
+            if not offset:
+                st.history = []
+            st.parameter_names = list(model.layout.names)
+        return True
+
+    def estimate_display(self, model: CalibrationModel, x: np.ndarray) -> Display:
+        """What the page shows of the estimate `x` (n,)."""
+        gains = np.ones(len(self.state.project.names))
+        g_model = model.layout.gain_factors(x)
+        for k, i in enumerate(self._model_index):
+            gains[i] = g_model[k]
+        return Display(
+            model.layout.rig(x), tuple(float(g) for g in gains), model.layout.offset(x), "estimate"
+        )
+
+    def on_iteration(self, gen: int, model: CalibrationModel, rep: IterationReport) -> None:
+        """Called by the solver's thread: record, then wait until drawn."""
+        st = self.state
+        display = self.estimate_display(model, rep.x)
+        with st.cond:
+            if st.session_gen != gen:
+                return
+            if self._iteration_offset:
+                if rep.iteration == 0:
+                    return  # the restored estimate, already in the history
+                rep = replace(rep, iteration=rep.iteration + self._iteration_offset)
+            st.history.append(rep)
+            st.display = display
+            st.solver_state = "running"
+            st.mark("plots", "status", "light", "overlays", "widgets")
+            if self.follow_iterations:
+                it = rep.iteration
+                st.cond.wait_for(
+                    lambda: st.drawn >= (gen, it) or st.session_gen != gen or st.closing,
+                    timeout=self.follow_timeout_s,
+                )
+
+    def start(self, how: Literal["step", "run"], client: Any = None) -> None:
+        """ "step" (one iteration) or "run" (to convergence)."""
+        st = self.state
+        with st.lock:
+            done = st.solver_state in ("finished", "stopped", "failed")
+        if done:
+            self.notify(client, "The solve has ended", "Press Reset to start again.")
+            return
+        if not self.ensure_session(client):
+            return
+        session = self.session
+        assert session is not None
+        with st.lock:
+            st.solver_state = "running"
+            st.solver_message = ""
+            st.result = None
+            st.mark("status", "result")
+        if how == "step":
+            session.step()
+        else:
+            session.run()
+
+    def pause(self) -> None:
+        if self.session is not None:
+            self.session.pause()
+
+    def finished(self, gen: int, outcome: SolveOutcome) -> None:
+        """The solve `gen` ended: its result with the uncertainties of the images."""
+        st = self.state
+        with st.lock:
+            if st.session_gen != gen or self.model is None:
+                return
+            model = self.model
+            project, loaded = st.project, st.loaded
+        result = None
+        message = outcome.message
+        try:
+            # The fit test and the uncertainty with the images' noise and pose covariances.
+            result = summarise(model, outcome, measurements_for(project, loaded, model))
+        except Exception as exc:
+            log.warning("uncertainties failed", exc_info=True)
+            message = f"{outcome.message} (uncertainties failed: {type(exc).__name__})"
+        with st.lock:
+            if st.session_gen != gen:
+                return
+            st.result = result
+            st.solver_state = "stopped" if outcome.status == -2 else "finished"
+            st.solver_message = message
+            self._last_session_state = st.solver_state
+            st.mark("result", "status", changed=True)
+
+    def poll(self) -> None:
+        """Take the session's news (paused, failed) into the state."""
+        session = self.session
+        if session is None:
+            return
+        state = session.state
+        st = self.state
+        if state == self._last_session_state:
+            return
+        self._last_session_state = state
+        if state == "paused":
+            with st.lock:
+                st.solver_state = "paused"
+                it = st.history[-1].iteration if st.history else 0
+                st.solver_message = f"after iteration {it}"
+                st.mark("status", changed=True)
+            self.interim_result()
+        elif state == "failed":
+            error = session.error
+            reason = str(error) if isinstance(error, LightcalError) else type(error).__name__
+            with st.lock:
+                st.solver_state = "failed"
+                st.solver_message = f"the solver failed: {reason}"
+                st.mark("status", changed=True)
+            log.warning("solver failed: %r", error)
+            self.notify(None, "Solver failed", reason, error=True)
+
+    def interim_result(self) -> None:
+        """Uncertainties at the current estimate while the solve is paused."""
+        st = self.state
+        model, session = self.model, self.session
+        if model is None or session is None:
+            return
+        with st.lock:
+            history = list(st.history)
+            gen = st.session_gen
+        if not history:
+            return
+        last = history[-1]
+        outcome = SolveOutcome(
+            last.x.copy(),
+            -2,
+            f"paused after iteration {last.iteration}",
+            False,
+            last.iteration,
+            last.nfev,
+            last.cost,
+            0.0,
+            history,
+        )
+        try:
+            result = summarise(model, outcome)
+        except Exception:
+            log.debug("interim summary failed", exc_info=True)
+            return
+        with st.lock:
+            if st.session_gen == gen:
+                st.result = result
+                st.mark("result")
+
+    def restore_estimate(self) -> None:
+        """After a restore with a history: show its last estimate, ready to continue."""
+        st = self.state
+        with st.lock:
+            resume = st.resume_x
+            history = list(st.history)
+        if resume is None or not history:
+            return
+        if not self.ensure_session(None) or self._iteration_offset == 0:
+            with st.lock:
+                st.history = []
+                st.resume_x = None
+                st.mark("plots", "status")
+            self.drop()
+            self.show_guess()
+            return
+        assert self.model is not None
+        display = self.estimate_display(self.model, resume)
+        with st.lock:
+            st.history = history
+            st.display = display
+            st.solver_state = "paused"
+            st.solver_message = f"restored at iteration {history[-1].iteration}"
+            st.mark("plots", "status", "light", "overlays", "widgets")
+        self.interim_result()

@@ -1,0 +1,246 @@
+"""The app's services and worker without a browser or a viser server.
+
+`SolveService` and `FilesService` are driven directly on an `AppState`, with a list for
+the page's messages; the worker thread with a redraw that only records frames. Nothing
+here imports viser.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from lightcal_app import requests as rq
+from lightcal_app.files_service import FilesService
+from lightcal_app.solve_service import SolveService
+from lightcal_app.state import AppState, Frame, LightGuess, SelectionSettings, UserRegion
+from lightcal_app.worker import Worker
+
+from lightcal.core.pose import axis_roll_from_rotation, rotation_from_axis, rotation_from_axis_roll
+from lightcal.core.rotations import matrix_from_rotvec
+from lightcal.io.project import load_project
+from lightcal.pipeline import build_model, image_data, load_images
+from tests.app_fixtures import TRUE_POSITION_M, SyntheticProject, make_project
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory: pytest.TempPathFactory) -> SyntheticProject:
+    return make_project(tmp_path_factory.mktemp("svc"), n_views=4, width=96, height=72)
+
+
+class Messages:
+    """A `notify` that keeps what the page would show."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[Any, str, str, bool]] = []
+
+    def __call__(self, client: Any, title: str, body: str, *, error: bool = False) -> None:
+        self.items.append((client, title, body, error))
+
+    def titles(self) -> list[str]:
+        return [t for _, t, _, _ in self.items]
+
+
+def _state(synthetic: SyntheticProject) -> AppState:
+    project = load_project(synthetic.path)
+    return AppState(project, load_images(project))
+
+
+def _service(synthetic: SyntheticProject) -> tuple[AppState, SolveService, Messages]:
+    state = _state(synthetic)
+    messages = Messages()
+    # Nobody draws here: the solver must not wait for a redraw.
+    solve = SolveService(state, notify=messages, follow_iterations=False)
+    solve.setup_changed()
+    return state, solve, messages
+
+
+def _run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) -> None:
+    """What the worker does with the solve's requests (Finished), without a thread."""
+    deadline = threading.Event()
+    for _ in range(int(timeout / 0.01)):
+        with state.lock:
+            pending = list(state.requests)
+            state.requests.clear()
+        for req in pending:
+            if isinstance(req, rq.Finished):
+                solve.finished(req.gen, req.outcome)
+        solve.poll()
+        if not solve.running() and not pending:
+            return
+        deadline.wait(0.01)
+    raise AssertionError("the solve did not settle")
+
+
+def test_the_services_import_no_viser() -> None:
+    code = (
+        "import sys; import lightcal_app.solve_service, lightcal_app.files_service, "
+        "lightcal_app.worker, lightcal_app.actions, lightcal_app.requests; "
+        "print('viser' in sys.modules)"
+    )
+    import subprocess
+
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=None
+    )
+    assert out.stdout.strip() == "False"
+
+
+def test_selection_matches_the_pipeline_and_the_model_uses_its_lights(
+    synthetic: SyntheticProject,
+) -> None:
+    state, solve, messages = _service(synthetic)
+    for i in range(len(state.project.names)):
+        expected = image_data(state.project, state.loaded, i).footprints.pixels
+        np.testing.assert_array_equal(state.selected[i], expected)
+    assert state.display is not None and state.display.source == "guess"
+    assert solve.ensure_session()
+    assert solve.model is not None
+    # With the project's guess, the model starts where `build_model` starts.
+    reference = build_model(state.project, state.loaded)
+    np.testing.assert_allclose(solve.model.layout.x0, reference.layout.x0)
+    assert messages.items == []
+
+
+def test_step_records_an_iteration_and_an_interim_result(synthetic: SyntheticProject) -> None:
+    state, solve, _ = _service(synthetic)
+    solve.start("step")
+    _run_requests(solve, state)
+    assert [h.iteration for h in state.history] == [0, 1]
+    assert state.solver_state == "paused"
+    assert state.result is not None and "paused after iteration 1" in state.result.message
+    assert state.display is not None and state.display.source == "estimate"
+
+
+def test_run_finds_the_true_light_then_reset_returns_to_the_guess(
+    synthetic: SyntheticProject,
+) -> None:
+    state, solve, messages = _service(synthetic)
+    solve.start("run")
+    _run_requests(solve, state, timeout=120.0)
+    assert state.solver_state == "finished"
+    assert state.result is not None and state.result.converged
+    np.testing.assert_allclose(state.result.lights[0].pose.position_m, TRUE_POSITION_M, atol=5e-4)
+    solve.start("step")  # after the end: a message, no second solve
+    assert messages.titles()[-1] == "The solve has ended"
+    solve.reset()
+    assert state.history == [] and state.result is None and state.solver_state == "idle"
+    assert state.display is not None and state.display.source == "guess"
+
+
+def test_the_guess_and_the_selection_reach_the_model(synthetic: SyntheticProject) -> None:
+    state, solve, _ = _service(synthetic)
+    with state.lock:
+        state.guess = [LightGuess(np.array([0.08, 0.0, 0.0]), np.eye(3))]
+        state.selection = SelectionSettings("grid", 60, 24, 1, 0)
+        state.regions = [
+            UserRegion("rect", ((0.0, 0.0), (40.0, 30.0)), False, state.project.names[0])
+        ]
+        state.selection_rev += 1
+    solve.setup_changed()
+    assert len(state.selected[0]) < len(state.selected[1])
+    assert solve.ensure_session()
+    assert solve.model is not None
+    np.testing.assert_allclose(solve.model.layout.x0[:3], [0.08, 0.0, 0.0])
+
+
+def test_no_pixels_is_a_message_not_a_solve(synthetic: SyntheticProject) -> None:
+    state, solve, messages = _service(synthetic)
+    with state.lock:
+        state.regions = [UserRegion("rect", ((-1.0, -1.0), (200.0, 200.0)), False, None)]
+        state.selection_rev += 1
+    solve.setup_changed()
+    solve.start("run")
+    assert solve.session is None
+    assert messages.items[-1][1:] == (
+        "No pixels to fit",
+        "No image has usable pixels: check the selection (Pixels tab) and the regions.",
+        True,
+    )
+
+
+def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_path: Path) -> None:
+    state, solve, messages = _service(synthetic)
+    files = FilesService(
+        state,
+        solve,
+        notify=messages,
+        deliver=lambda c, n, b: None,
+        on_switch=lambda p, loaded, t: None,
+        truth=None,
+        session_path=tmp_path / "s.session.json",
+        state_dir=tmp_path / "state",
+    )
+    solve.start("step")
+    _run_requests(solve, state)
+    files.save_session(rq.SaveSession())
+    assert state.downloads[-1].name == "project.saved-session.json"
+    solve.reset()
+    files.load_saved_session(rq.LoadSavedSession())
+    assert [h.iteration for h in state.history] == [0, 1]
+    assert state.solver_state == "paused"
+    assert messages.titles()[-1] == "Session restored"
+    solve.start("step")
+    _run_requests(solve, state)
+    assert [h.iteration for h in state.history] == [0, 1, 2]
+
+
+def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: SyntheticProject) -> None:
+    state = _state(synthetic)
+    handled: list[rq.Request] = []
+    frames: list[Frame] = []
+    messages = Messages()
+    worker = Worker(
+        state,
+        handlers={rq.SetupChanged: handled.append, rq.Solve: handled.append},
+        redraw=frames.append,
+        notify=messages,
+    )
+    with state.lock:
+        state.request(rq.SetupChanged())
+        state.request(rq.Solve(client="browser-1"))
+        state.request(rq.SetupChanged())
+    worker.start()
+    try:
+        assert worker.wait_idle(10)
+        assert [type(r) for r in handled] == [rq.SetupChanged, rq.Solve]
+        assert frames and frames[0].dirty  # the first round draws everything
+        state.request(rq.Pause())  # no handler: an internal error, shown once
+        assert worker.wait_idle(10)
+        assert messages.titles() == ["Internal error"]
+    finally:
+        worker.stop()
+
+
+def test_worker_shows_a_repeated_error_once(synthetic: SyntheticProject) -> None:
+    state = _state(synthetic)
+    messages = Messages()
+
+    def broken_redraw(frame: Frame) -> None:
+        raise RuntimeError("cannot draw")
+
+    def notify(client: Any, title: str, body: str, *, error: bool = False) -> None:
+        messages(client, title, body, error=error)
+        state.mark("status")  # as the page's notify does: this asks for a redraw
+
+    worker = Worker(state, handlers={}, redraw=broken_redraw, notify=notify)
+    worker.start()
+    try:
+        threading.Event().wait(0.5)
+    finally:
+        worker.stop()
+    assert messages.titles() == ["Internal error"]
+
+
+def test_pose_angles_in_core_round_trip() -> None:
+    R = matrix_from_rotvec(np.array([0.3, -0.2, 0.4]))
+    np.testing.assert_allclose(rotation_from_axis_roll(*axis_roll_from_rotation(R)), R, atol=1e-12)
+    R = rotation_from_axis(np.array([0.0, math.sin(0.2), math.cos(0.2)]))
+    assert axis_roll_from_rotation(R) == pytest.approx((0.0, 0.2, 0.0), abs=1e-12)
+    with pytest.raises(ValueError, match="roll_rad"):
+        rotation_from_axis_roll(0.0, 0.0, math.nan)
