@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from lightcal.core.misfit import angle_trend, diagnose, image_noise, pixel_angles
+from lightcal.core.misfit import NOISE_SAMPLES, angle_trend, diagnose, image_noise, pixel_angles
 
 
 def _angles(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -83,11 +83,16 @@ def test_angle_trend_needs_pixels() -> None:
     assert angle_trend("mirror", np.arange(50.0), np.zeros(50), np.zeros(50)) is None
 
 
-def test_image_noise_recovers_poisson_gaussian() -> None:
+@pytest.mark.parametrize("h, w", [(300, 400), (900, 1200)])  # the second one subsampled
+def test_image_noise_recovers_poisson_gaussian(h: int, w: int) -> None:
     rng = np.random.default_rng(2)
-    h, w = 300, 400
+    assert (h - 2) * (w - 2) < NOISE_SAMPLES or (h - 2) * (w - 2) > 5 * NOISE_SAMPLES
     yy, xx = np.mgrid[0:h, 0:w]
-    signal = 3000.0 * np.exp(-((xx - 200.0) ** 2 + (yy - 150.0) ** 2) / (2 * 150.0**2)) + 50.0
+    s = h / 300.0
+    signal = 3000.0 * np.exp(
+        -((xx - 200.0 * s) ** 2 + (yy - 150.0 * s) ** 2) / (2 * (150.0 * s) ** 2)
+    )
+    signal += 50.0
     gain, read_variance = 0.8, 25.0
     img = signal + rng.normal(size=signal.shape) * np.sqrt(gain * signal + read_variance)
     est = image_noise(img, np.ones((h, w), dtype=bool))

@@ -289,6 +289,10 @@ def pixel_angles(
     return mirror, incidence
 
 
+NOISE_SAMPLES = 200_000
+"""Most usable pixels `image_noise` reads from one image (a regular subsample beyond)."""
+
+
 def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] | None:
     """A Poisson-Gaussian noise model (gain, read_variance) estimated from one image.
 
@@ -306,18 +310,25 @@ def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] |
 
     Returns:
         (gain, read_variance), or None with fewer than 2,000 usable interior pixels.
+        Beyond NOISE_SAMPLES interior pixels, every k-th row is used.
         Demosaiced or compressed images have correlated noise: the estimate is then low.
     """
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] < 3:
         return None
-    c = v[1:-1, 1:-1]
-    lap = c - 0.25 * (v[:-2, 1:-1] + v[2:, 1:-1] + v[1:-1, :-2] + v[1:-1, 2:])
-    diag = 0.25 * (v[:-2, :-2] + v[2:, 2:] + v[:-2, 2:] + v[2:, :-2])
-    ok = np.ones(c.shape, dtype=bool)
-    for dy in range(3):
+    # Every k-th interior row, at most NOISE_SAMPLES pixels: the medians below cost about
+    # 70 ms per megapixel, and 200,000 samples pin each bin's variance to about 2 %.
+    h, w = v.shape
+    step = -(-((h - 2) * (w - 2)) // NOISE_SAMPLES)
+    rows = np.arange(1, h - 1, step)
+    above, here, below = v[rows - 1], v[rows], v[rows + 1]
+    lap = here[:, 1:-1] - 0.25 * (above[:, 1:-1] + below[:, 1:-1] + here[:, :-2] + here[:, 2:])
+    diag = 0.25 * (above[:, :-2] + below[:, 2:] + above[:, 2:] + below[:, :-2])
+    ok = np.ones(lap.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        u_rows = usable[rows + dy]
         for dx in range(3):
-            ok &= usable[dy : dy + c.shape[0], dx : dx + c.shape[1]]
+            ok &= u_rows[:, dx : dx + w - 2]
     ok &= np.isfinite(lap) & np.isfinite(diag)
     level = diag[ok]
     n = lap[ok]

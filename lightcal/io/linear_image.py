@@ -11,6 +11,7 @@ colour is combined with the Rec. 709 weights `LUMINANCE_WEIGHTS_RGB`.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +84,13 @@ class LinearImage:
     def shape(self) -> tuple[int, int]:
         """(H, W)."""
         return (int(self.values.shape[0]), int(self.values.shape[1]))
+
+    @functools.cached_property
+    def percentile_99(self) -> float | None:
+        """The 99th percentile of the finite values (None when there are none); computed
+        once (the values are read-only)."""
+        finite = self.values[np.isfinite(self.values)]
+        return float(np.percentile(finite, 99)) if finite.size else None
 
 
 def saturation_threshold(white_level: float, black_level: float) -> float:

@@ -4,7 +4,9 @@ vignetting map."""
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +17,9 @@ from lightcal.errors import InputError
 from lightcal.io.images import read_image
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
+
+READ_THREADS = min(4, os.cpu_count() or 1)
+"""Images decoded at once by `load_images`."""
 
 ProgressFn = Callable[[str, int, int], None]
 """progress(stage, done, total): what the pipeline reports while it works."""
@@ -43,36 +48,45 @@ def load_images(project: Project, *, progress: ProgressFn | None = None) -> Load
         from lightcal.io.response import ResponseCurve
 
         response = ResponseCurve.load(project.folder / sensor.response)
-    images: list[LinearImage] = []
-    excluded: list[np.ndarray | None] = []
-    camera = project.camera
-    for i, path in enumerate(project.image_paths):
-        if progress is not None:
-            progress("reading images", i, len(project.image_paths))
+    paths = project.image_paths
+
+    def read(i: int) -> tuple[LinearImage, np.ndarray | None]:
         img = read_image(
-            path,
+            paths[i],
             channel=sensor.channel,
             black_level=sensor.black_level,
             white_level=sensor.white_level,
             response=response,
             assume_linear=sensor.assume_linear,
         )
-        h, w = img.values.shape
-        if (w, h) != (camera.width, camera.height):
-            b = img.binning
-            if b > 1 and (w, h) == (camera.width // b, camera.height // b):
-                camera = project.camera.binned(b)
-            else:
-                raise InputError(
-                    path,
-                    f"image is {w}x{h} pixels but the camera intrinsics are for "
-                    f"{camera.width}x{camera.height}; expected the same size",
-                )
-        images.append(img)
         mask_path = project.mask_paths[i]
-        excluded.append(_read_mask(mask_path, (h, w)) if mask_path is not None else None)
+        h, w = img.values.shape
+        return img, (_read_mask(mask_path, (h, w)) if mask_path is not None else None)
+
+    images: list[LinearImage] = []
+    excluded: list[np.ndarray | None] = []
+    camera = project.camera
+    # The decoders (OpenCV, LibRaw, tifffile) release the GIL: a few images at once. Results
+    # come back in order, so the first bad file named is the first in the project.
+    with ThreadPoolExecutor(max_workers=min(READ_THREADS, max(1, len(paths)))) as pool:
+        for i, (img, mask) in enumerate(pool.map(read, range(len(paths)))):
+            if progress is not None:
+                progress("reading images", i, len(paths))
+            h, w = img.values.shape
+            if (w, h) != (camera.width, camera.height):
+                b = img.binning
+                if b > 1 and (w, h) == (camera.width // b, camera.height // b):
+                    camera = project.camera.binned(b)
+                else:
+                    raise InputError(
+                        paths[i],
+                        f"image is {w}x{h} pixels but the camera intrinsics are for "
+                        f"{camera.width}x{camera.height}; expected the same size",
+                    )
+            images.append(img)
+            excluded.append(mask)
     if progress is not None:
-        progress("reading images", len(project.image_paths), len(project.image_paths))
+        progress("reading images", len(paths), len(paths))
     return LoadedImages(images, excluded, camera)
 
 

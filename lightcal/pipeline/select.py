@@ -40,8 +40,8 @@ def noise_floor(project: Project, image: LinearImage) -> float:
     sensor = project.spec.sensor
     if sensor.noise is not None:
         return sensor.offset + 5.0 * math.sqrt(sensor.noise.read_variance)
-    finite = image.values[np.isfinite(image.values)]
-    return sensor.offset + 0.01 * float(np.percentile(finite, 99)) if finite.size else 0.0
+    p99 = image.percentile_99
+    return sensor.offset + 0.01 * p99 if p99 is not None else 0.0
 
 
 def image_data(
