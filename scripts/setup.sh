@@ -44,3 +44,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   .venv/bin/python -m pip install -q -e "$spec"
   echo "$want" > "$stamp"
 fi
+
+# Compile the numba kernels now, with a progress line (once per install: one to a few
+# minutes on two cores), so that no command or test run pays it in silence.
+.venv/bin/lightcal warmup

@@ -94,6 +94,8 @@ def sample_project_for_app() -> Path:
 def run(args: argparse.Namespace) -> int:
     from lightcal_app.server import build_app, serve_forever
 
+    from lightcal.cli.progress import ensure_kernels
+
     path = args.project if args.project is not None else sample_project_for_app()
     if args.host in EXPOSED_HOSTS:
         print(
@@ -102,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
             "read your data and upload files",
             file=sys.stderr,
         )
+    ensure_kernels()
     app = build_app(
         path,
         host=args.host,

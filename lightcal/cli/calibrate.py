@@ -29,12 +29,13 @@ EXIT_MISFIT = 3
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.cli.progress import console, stage_progress
+    from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
 
     project = load_project(args.project)
+    ensure_kernels(quiet=args.quiet)
     with stage_progress(enabled=not args.quiet) as progress:
         loaded = load_images(project, progress=progress)
         model = build_model(project, loaded, progress=progress)

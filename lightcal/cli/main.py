@@ -16,7 +16,17 @@ from lightcal import __version__
 from lightcal.errors import LightcalError
 
 # Subcommand modules, in the order `lightcal --help` lists them.
-SUBCOMMANDS = ("sample", "synth", "calibrate", "render", "schema", "init", "camera", "app")
+SUBCOMMANDS = (
+    "sample",
+    "synth",
+    "calibrate",
+    "render",
+    "schema",
+    "init",
+    "camera",
+    "app",
+    "warmup",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -41,3 +41,47 @@ def stage_progress(*, enabled: bool = True) -> Iterator[StageProgress]:
         transient=True,
     ) as progress:
         yield StageProgress(progress)
+
+
+def ensure_kernels(*, quiet: bool = False) -> None:
+    """Compile the numba kernels now, with a progress line, unless they are cached.
+
+    The first command after an install would otherwise compile them silently inside its
+    work (minutes on a small machine, which looks like a hang). One line on stderr says
+    what happens even with `quiet`; the families follow as a bar on a terminal, as
+    lines otherwise.
+    """
+    from lightcal.warmup import kernels_ready, warm_up
+
+    if kernels_ready():
+        return
+    console.print(
+        "compiling the numba kernels (once per install; `lightcal warmup` does it ahead)",
+        highlight=False,
+    )
+    if quiet:
+        warm_up()
+        return
+    if sys.stderr.isatty():
+        with Progress(
+            TextColumn("{task.description:<36}"),
+            BarColumn(),
+            TextColumn("{task.completed}/{task.total}"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
+        ) as bar:
+            task = bar.add_task("compiling kernels", total=1)
+
+            def show(label: str, done: int, total: int) -> None:
+                bar.update(task, description=label, completed=done, total=total)
+
+            seconds = warm_up(show)
+    else:
+
+        def show(label: str, done: int, total: int) -> None:
+            if done < total:
+                console.print(f"compiling kernels {done + 1}/{total}: {label}", highlight=False)
+
+        seconds = warm_up(show)
+    console.print(f"kernels compiled in {seconds:.0f} s (cached from now on)", highlight=False)

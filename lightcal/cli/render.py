@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import tifffile
 
-    from lightcal.cli.progress import console, stage_progress
+    from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.core.scene import Light, Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.errors import InputError
@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     project = load_project(args.project)
     result = read_result(args.result)
+    ensure_kernels()
     by_name = {lr.name: lr for lr in result.lights}
     lights = []
     for unknown in project.lights:

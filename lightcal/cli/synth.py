@@ -269,6 +269,9 @@ def run(args: argparse.Namespace) -> int:
     def progress(line: str) -> None:
         print(f"lightcal synth: {line}", file=sys.stderr, flush=True)
 
+    from lightcal.cli.progress import ensure_kernels
+
+    ensure_kernels(quiet=args.quiet)
     dataset = _build(
         lambda: write_dataset(
             args.out_dir, config, force=args.force, progress=None if args.quiet else progress

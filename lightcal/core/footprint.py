@@ -172,10 +172,12 @@ def pixel_footprints(
         grid is not None,
         grid_xy,
         grid_ok,
-        np.ascontiguousarray(camera.K),
-        np.ascontiguousarray(camera.dist),
-        np.ascontiguousarray(view.R_camera_world),
-        np.ascontiguousarray(view.center_world),
+        # Writable copies (a few numbers): numba compiles once per read-only flag, and
+        # cameras and views hold read-only or writable arrays depending on their origin.
+        np.array(camera.K, dtype=np.float64),
+        np.array(camera.dist, dtype=np.float64),
+        np.array(view.R_camera_world, dtype=np.float64),
+        np.array(view.center_world, dtype=np.float64),
         SENSOR_CODES[sensor],
         vmap,
     )

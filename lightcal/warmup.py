@@ -1,0 +1,204 @@
+"""Compiling the numba kernels once, where the user expects to wait, and saying so.
+
+numba compiles a kernel the first time it runs and keeps the machine code on disk
+(`cache=True`), so only the first run after an install, an upgrade or a change of the
+sources pays: one to a few minutes on two cores. Unannounced, that first run looks hung.
+
+- `warm_up` runs, per kernel family, a tiny synthetic calibration end to end: it writes a
+  64 x 48 dataset in a temporary folder (which renders full images), reads it back,
+  selects pixels, builds the model, solves a few iterations, tests the fit and, for the
+  first family, writes the report. Every kernel a command or the app runs is then in the
+  cache, with the argument types real projects give it. It ends by writing a marker
+  beside numba's cache listing the kernels it compiled.
+- `kernels_ready` reads that marker back and asks numba's cache whether each listed
+  kernel is still there and matches its source; it takes a few milliseconds.
+- `lightcal warmup` (run by `scripts/setup.sh`) and the first `calibrate`, `render`,
+  `init` or `app` without a ready cache run `warm_up` with a progress line.
+
+numba's cache objects (`Dispatcher._cache`) are not public API: if they change, the check
+says "ready" and numba compiles silently, as before.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+MARKER_NAME = "lightcal-warmup.json"
+"""The marker file, beside numba's cache of the kernels package."""
+
+WarmupProgress = Callable[[str, int, int], None]
+"""progress(family, done, total): called before each family and once at the end."""
+
+
+@dataclass(frozen=True)
+class Family:
+    """One group of kernels and the synthetic calibration that compiles it."""
+
+    label: str
+    size: tuple[int, int] = (64, 48)
+    light_model: str = "cos_power"
+    n_lights: int = 1
+    wall: dict[str, Any] | None = None
+    selection: dict[str, Any] | None = None
+    report: bool = False
+
+
+# Beyond the kinds of light and wall, numba compiles a kernel once per combination of
+# argument types (read-only arrays count), and the large problems run parallel twins of
+# the small ones' kernels: sparse and dense selections, small and large images, both.
+_DENSE = (200, 150)  # 30,000 pixels: above every kernel's parallel threshold (20,000)
+FAMILIES: tuple[Family, ...] = (
+    Family("sparse pixels, cos^m, solver"),
+    Family(
+        "all pixels, parallel kernels, report",
+        size=_DENSE,
+        selection={"strategy": "all", "binning": 1},
+        report=True,
+    ),
+    Family("binned pixels", size=_DENSE, selection={"strategy": "all", "binning": 2}),
+    Family("measured tables (IES, LDT, CSV)", light_model="ies"),
+    Family("2-D tables, two lights", light_model="table2d", n_lights=2),
+    Family("Gaussian lights", light_model="gaussian"),
+    Family("isotropic lights", light_model="isotropic"),
+    Family(
+        "wall models: plastic",
+        size=_DENSE,
+        wall={"model": "plastic", "estimate": ["roughness", "specular_weight"]},
+        selection={"strategy": "all", "binning": 1},
+    ),
+    Family("wall models: Oren-Nayar", wall={"model": "oren_nayar", "estimate": ["sigma_deg"]}),
+)
+
+
+def _dispatchers() -> dict[str, Any]:
+    """Every numba dispatcher with a disk cache in the loaded lightcal modules, by
+    'module:name'."""
+    from numba.core.dispatcher import Dispatcher
+
+    out: dict[str, Any] = {}
+    for name, module in list(sys.modules.items()):
+        if not (name == "lightcal" or name.startswith("lightcal.")) or module is None:
+            continue
+        for attr, obj in vars(module).items():
+            if (
+                isinstance(obj, Dispatcher)
+                and obj.__module__ == name
+                and getattr(getattr(obj, "_cache", None), "_cache_path", None)
+            ):
+                out[f"{name}:{attr}"] = obj
+    return out
+
+
+def _marker_path() -> Path | None:
+    """Where numba caches the renderer's kernels, and so the marker; None if unknown."""
+    try:
+        from lightcal.core.kernels.image import render_image_fused
+
+        dispatcher: Any = render_image_fused
+        return Path(dispatcher._cache._cache_path) / MARKER_NAME
+    except (AttributeError, ImportError):  # numba's internals moved
+        return None
+
+
+def _cached(dispatcher: Any) -> bool:
+    """Whether numba's disk cache holds compiled code for `dispatcher`'s current source."""
+    return bool(dispatcher._cache._cache_file._load_index())
+
+
+def kernels_ready() -> bool:
+    """True when the kernels `warm_up` compiles are all in numba's cache (or when numba's
+    cache cannot be inspected); False before the first warm-up or after a change."""
+    marker = _marker_path()
+    if marker is None:
+        return True
+    try:
+        names = json.loads(marker.read_text(encoding="utf-8"))["kernels"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    try:
+        for qualified in names:
+            module_name, attr = qualified.split(":", 1)
+            dispatcher = getattr(importlib.import_module(module_name), attr, None)
+            if dispatcher is None or not _cached(dispatcher):
+                return False
+    except (AttributeError, ImportError, ValueError):
+        return True
+    return True
+
+
+def _write_dataset(folder: Path, family: Family) -> Path:
+    """A tiny synthetic dataset for `family`; returns its project file."""
+    from lightcal.core.camera import Camera
+    from lightcal.synthetic.dataset import SynthConfig, write_dataset
+    from lightcal.synthetic.scenes import RigConfig, SceneConfig
+
+    w, h = family.size
+    f = 0.95 * w
+    camera = Camera.from_params(
+        fx=f, fy=f, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h, dist=(-0.1, 0.02, 0, 0, 0)
+    )
+    config = SynthConfig(
+        camera=camera,
+        scene=SceneConfig(n_views=4),
+        rig=RigConfig(n_lights=family.n_lights, model=family.light_model),  # type: ignore[arg-type]
+        seed=1,
+    )
+    dataset = write_dataset(folder, config)
+    project = json.loads(dataset.project_path.read_text(encoding="utf-8"))
+    project["solver"] = {"max_iterations": 3}
+    # 120 pixels: below the footprint kernel's parallel chunk (256), as in the paper (100).
+    project["selection"] = family.selection or {"strategy": "random", "n_per_image": 120}
+    if family.wall is not None:
+        project["wall"] = family.wall
+    dataset.project_path.write_text(json.dumps(project), encoding="utf-8")
+    return dataset.project_path
+
+
+def _calibrate(project_path: Path, report_dir: Path | None) -> None:
+    """The pipeline of `lightcal calibrate` on one project (and its report)."""
+    from lightcal.io.project import load_project
+    from lightcal.pipeline import build_model, calibrate, load_images
+
+    project = load_project(project_path)
+    loaded = load_images(project)
+    model = build_model(project, loaded)
+    cal = calibrate(project, loaded, model)
+    if report_dir is not None:
+        from lightcal.report import write_report
+
+        write_report(report_dir, project, loaded, cal.model, cal.result)
+
+
+def warm_up(progress: WarmupProgress | None = None) -> float:
+    """Compile every kernel family (see the module docstring); returns the seconds taken.
+
+    Writes only in a temporary folder and numba's cache (and the marker beside it).
+    """
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="lightcal-warmup-") as tmp:
+        for i, family in enumerate(FAMILIES):
+            if progress is not None:
+                progress(family.label, i, len(FAMILIES))
+            folder = Path(tmp) / f"family{i}"
+            project_path = _write_dataset(folder, family)
+            _calibrate(project_path, Path(tmp) / f"report{i}" if family.report else None)
+    if progress is not None:
+        progress("done", len(FAMILIES), len(FAMILIES))
+    marker = _marker_path()
+    if marker is not None:
+        compiled = sorted(name for name, d in _dispatchers().items() if _cached(d))
+        try:
+            tmp_marker = marker.with_suffix(".tmp")
+            tmp_marker.write_text(json.dumps({"kernels": compiled}, indent=1), encoding="utf-8")
+            tmp_marker.replace(marker)
+        except OSError:
+            pass  # a read-only cache: numba could not write there either
+    return time.perf_counter() - start

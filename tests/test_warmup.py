@@ -1,0 +1,133 @@
+"""The kernel warm-up: it compiles what the commands use, and says so when it runs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import lightcal.warmup as warmup
+from lightcal.cli import progress as cli_progress
+from lightcal.cli.main import main
+
+REPO = Path(__file__).resolve().parents[1]
+
+# After warm_up, run the sample's calibration (as given, and dense with binning) and its
+# report in the same process and list every kernel signature compiled after the warm-up.
+_COVERAGE_SCRIPT = textwrap.dedent(
+    """
+    import json, shutil, sys, tempfile
+    from pathlib import Path
+    import lightcal.warmup as W
+    tmp = Path(tempfile.mkdtemp())
+    W._marker_path = lambda: tmp / "marker.json"
+    W.warm_up()
+    def snapshot():
+        return {k: set(map(str, d.signatures)) for k, d in W._dispatchers().items()}
+    before = snapshot()
+    from lightcal.io.project import load_project
+    from lightcal.pipeline import build_model, calibrate, load_images
+    from lightcal.report import write_report
+    sample = tmp / "sample"
+    shutil.copytree(sys.argv[1], sample)
+    for i, selection in enumerate([None, {"strategy": "all", "binning": 8}]):
+        if selection is not None:
+            src = json.loads((sample / "project.json").read_text())
+            src["selection"] = selection
+            (sample / "project.json").write_text(json.dumps(src))
+        project = load_project(sample / "project.json")
+        loaded = load_images(project)
+        model = build_model(project, loaded)
+        cal = calibrate(project, loaded, model)
+        write_report(tmp / f"report{i}", project, loaded, cal.model, cal.result)
+    after = snapshot()
+    print(json.dumps(sorted(k for k in after if after[k] - before.get(k, set()))))
+    """
+)
+
+
+def test_warm_up_compiles_every_kernel_the_sample_calibration_and_report_use() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", _COVERAGE_SCRIPT, str(REPO / "sample_data")],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=REPO,
+    )
+    new = json.loads(out.stdout.strip().splitlines()[-1])
+    assert new == [], f"compiled after the warm-up: {new}"
+
+
+@pytest.fixture
+def marker(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    path = tmp_path / "lightcal-warmup.json"
+    monkeypatch.setattr(warmup, "_marker_path", lambda: path)
+    return path
+
+
+def test_kernels_ready_reads_the_marker_and_numbas_cache(marker: Path) -> None:
+    from lightcal.core.camera import Camera
+    from lightcal.core.render import render_image
+    from lightcal.core.rid import CosPowerRID
+    from lightcal.core.scene import Light, Rig, View
+
+    camera = Camera.from_params(fx=30.0, fy=30.0, cx=7.5, cy=5.5, width=16, height=12)
+    view = View.looking_at(np.array([0.0, 0.0, 1.0]), np.zeros(3))
+    light = Light(CosPowerRID(2.0), np.array([0.1, 0.0, 0.0]), np.eye(3), scale=1.0)
+    render_image(camera, view, Rig.single(light))  # the fused kernel is in the cache now
+
+    assert not warmup.kernels_ready()  # no marker: never warmed up
+    marker.write_text("{not json", encoding="utf-8")
+    assert not warmup.kernels_ready()
+    marker.write_text(
+        json.dumps({"kernels": ["lightcal.core.kernels.image:render_image_fused"]}),
+        encoding="utf-8",
+    )
+    assert warmup.kernels_ready()
+    marker.write_text(
+        json.dumps({"kernels": ["lightcal.core.kernels.image:no_such_kernel"]}), encoding="utf-8"
+    )
+    assert not warmup.kernels_ready()  # renamed since: warm up again
+
+
+def test_ensure_kernels_says_what_it_compiles(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    calls: list[tuple[str, int, int]] = []
+
+    def fake_warm_up(progress=None) -> float:  # the real one is tested above
+        for i, label in enumerate(("sparse pixels", "wall models")):
+            calls.append((label, i, 2))
+            progress(label, i, 2)
+        progress("done", 2, 2)
+        return 83.4
+
+    monkeypatch.setattr(warmup, "kernels_ready", lambda: False)
+    monkeypatch.setattr(warmup, "warm_up", fake_warm_up)
+    cli_progress.ensure_kernels()
+    err = capsys.readouterr().err
+    assert err.splitlines() == [
+        "compiling the numba kernels (once per install; `lightcal warmup` does it ahead)",
+        "compiling kernels 1/2: sparse pixels",
+        "compiling kernels 2/2: wall models",
+        "kernels compiled in 83 s (cached from now on)",
+    ]
+    assert len(calls) == 2
+
+
+def test_ensure_kernels_is_silent_when_cached(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def fail(progress=None) -> float:
+        raise AssertionError("warm_up must not run when the kernels are cached")
+
+    monkeypatch.setattr(warmup, "kernels_ready", lambda: True)
+    monkeypatch.setattr(warmup, "warm_up", fail)
+    cli_progress.ensure_kernels()
+    assert main(["warmup"]) == 0
+    assert capsys.readouterr().err.splitlines() == ["kernels already compiled and cached"]
