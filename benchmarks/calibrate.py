@@ -449,15 +449,74 @@ def _table(head: list[str], rows: list[list[str]]) -> None:
         print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)))
 
 
+def _dense_time(r: dict[str, Any]) -> str:
+    total = r["build_s"] + r["solve_s"]
+    return f"{total:.2f} s (footprints {r['build_s']:.2f} + solve {r['solve_s']:.2f})"
+
+
+HOG = "while True: pass"
+"""The CPU hog: one busy Python process, which takes one core."""
+
+
+def contention(size: tuple[int, int]) -> int:
+    """The dense row quiet, then with a busy process beside it, in each threading set-up.
+
+    Target (issue 12): with the hog, within 2.5x of the quiet figure (the hog takes one of
+    the machine's cores: on 2 cores the kernels lose half their CPU, so 2x is the share).
+    """
+    w, h = size
+    load = os.getloadavg()
+    print(
+        f"dense row under contention: 12 x {w * h:,} px, {os.cpu_count()} CPUs, load average "
+        f"{load[0]:.2f} before; the hog is `python -c '{HOG}'`"
+    )
+    print()
+    variants: list[tuple[str, dict[str, str]]] = [
+        ("as shipped", {}),
+        ("NUMBA_THREADING_LAYER=workqueue", {"NUMBA_THREADING_LAYER": "workqueue"}),
+        ("NUMBA_NUM_THREADS=1", {"NUMBA_NUM_THREADS": "1"}),
+    ]
+    rows = []
+    for label, env in variants:
+        quiet = run_measure("dense", w, h, 1, env=env)
+        hog = subprocess.Popen([sys.executable, "-c", HOG])
+        try:
+            time.sleep(0.5)
+            busy = run_measure("dense", w, h, 1, env=env)
+        finally:
+            hog.kill()
+            hog.wait()
+        t_quiet = quiet["build_s"] + quiet["solve_s"]
+        t_busy = busy["build_s"] + busy["solve_s"]
+        rows.append(
+            [
+                label,
+                _dense_time(quiet),
+                _dense_time(busy),
+                f"{t_busy / t_quiet:.2f}x",
+                "<= 2.5x",
+            ]
+        )
+    _table(["threads", "quiet", "beside the hog", "ratio", "target"], rows)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a small smoke run")
+    parser.add_argument(
+        "--contention",
+        action="store_true",
+        help="only the dense row, quiet and beside a CPU hog taking one core (issue 12)",
+    )
     parser.add_argument("--measure", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.measure:
         name, *rest = args.measure
         print(json.dumps(MEASURES[name](*map(_parse, rest))))
         return 0
+    if args.contention:
+        return contention((250, 150) if args.quick else (750, 500))
 
     quick = args.quick
     repeats = 5 if quick else 21
