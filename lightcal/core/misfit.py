@@ -278,14 +278,22 @@ def pixel_angles(
     mirror: angle between the wall normal +z and the half vector of the unit directions
     to the light and to the camera; incidence: angle between the normal and the light.
     """
-    l = light_world - points_world
-    v = camera_world - points_world
-    l /= np.linalg.norm(l, axis=1, keepdims=True)
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    h = l + v
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    mirror = np.degrees(np.arccos(np.clip(h[:, 2], -1.0, 1.0)))
-    incidence = np.degrees(np.arccos(np.clip(l[:, 2], -1.0, 1.0)))
+    # Per coordinate (contiguous columns): the same arithmetic as norms of (N, 3) rows,
+    # several times faster on millions of points.
+    p = np.asarray(points_world, dtype=np.float64)
+    lx, ly, lz = (light_world[k] - p[:, k] for k in range(3))
+    vx, vy, vz = (camera_world[k] - p[:, k] for k in range(3))
+    ln = np.sqrt(lx * lx + ly * ly + lz * lz)
+    vn = np.sqrt(vx * vx + vy * vy + vz * vz)
+    lx /= ln
+    ly /= ln
+    lz /= ln
+    hx = lx + vx / vn
+    hy = ly + vy / vn
+    hz = lz + vz / vn
+    hz /= np.sqrt(hx * hx + hy * hy + hz * hz)
+    mirror = np.degrees(np.arccos(np.clip(hz, -1.0, 1.0)))
+    incidence = np.degrees(np.arccos(np.clip(lz, -1.0, 1.0)))
     return mirror, incidence
 
 
