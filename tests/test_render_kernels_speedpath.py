@@ -60,9 +60,10 @@ DISTORTION = (-0.12, 0.03, 0.0007, -0.0011, -0.004)
 VIEW = View.looking_at(np.array([0.3, -0.2, 1.4]), np.array([0.05, 0.1, 0.0]), exposure=1.7)
 
 
-def _table_2d() -> Table2DRID:
+def _table_2d(phi_jitter: float = 0.0) -> Table2DRID:
     theta = np.linspace(0.0, 1.4, 8)
-    phi = np.linspace(0.0, 2 * math.pi, 6, endpoint=False)
+    phi = np.linspace(0.0, 2 * math.pi, 6, endpoint=False) + 0.25
+    phi[1:-1] += phi_jitter * np.array([0.1, -0.2, 0.15, -0.05])
     values = np.cos(theta)[None, :] ** 2 * (1.0 + 0.3 * np.cos(phi)[:, None]) + 0.05
     return Table2DRID(theta, phi, values)
 
@@ -78,6 +79,8 @@ RIDS = {
         np.cos(np.array([0.0, 0.1, 0.35, 0.5, 0.9, 1.0, 1.5])) + 0.1,
     ),
     "table_2d": _table_2d(),
+    # Azimuths in unequal steps: the kernels' scan instead of the one-step interval.
+    "table_2d_irregular": _table_2d(phi_jitter=1.0),
 }
 
 
@@ -572,3 +575,17 @@ def test_flux_pixels_parallel_and_serial_kernels_agree_bitwise(
         np.testing.assert_array_equal(results[0][0], flux)
         np.testing.assert_array_equal(results[0][1], grad)
     assert np.mean(results[0][0] > 0.0) > 0.5  # most pixels lie inside the RID
+
+
+def test_table_2d_azimuth_interval_from_the_step_equals_the_scan() -> None:
+    rid = RIDS["table_2d"].data()
+    assert rid.params[1] > 0.0 and RIDS["table_2d_irregular"].data().params[1] == 0.0
+    knots = rid.phi_knots
+    rng = np.random.default_rng(5)
+    probes = np.concatenate(
+        [rng.uniform(0.0, 2 * math.pi, 2000), knots, np.nextafter(knots, 0.0), [0.0, 6.28318]]
+    )
+    for p in probes:
+        assert rid_eval._phi_interval(p, knots, rid.params[1]) == rid_eval._phi_interval(
+            p, knots, 0.0
+        ), p

@@ -305,7 +305,12 @@ class Table2DRID(RID):
             self,
             "_data",
             RIDData(
-                rid_eval.KIND_TABLE_2D, rid_eval.table_params(theta), theta, phi, values, slopes
+                rid_eval.KIND_TABLE_2D,
+                rid_eval.table_params(theta, phi),
+                theta,
+                phi,
+                values,
+                slopes,
             ),
         )
 

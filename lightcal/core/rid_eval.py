@@ -77,20 +77,34 @@ def rid_tuple(rid: RIDData) -> RIDTuple:
     return (int(rid.kind), rid.params, rid.theta_knots, rid.phi_knots, rid.values, rid.slopes)
 
 
-def table_params(theta_knots: np.ndarray) -> np.ndarray:
-    """`RIDData.params` of a table RID: (1 / h, 0) when its theta knots are uniform with
-    step h (to 1e-9 h: IES and EULUMDAT files), else (0, 0).
+def _uniform_step(knots: np.ndarray, start: float, span: float) -> float:
+    """1 / h when knots[k] = start + k h (to 1e-9 h) with h = span / (number of steps),
+    else 0."""
+    n = knots.shape[0]
+    steps = n - 1 if span == 0.0 else n
+    if steps < 1:
+        return 0.0
+    h = (knots[-1] - start) / (n - 1) if span == 0.0 else span / n
+    ok = h > 0.0 and bool(np.all(np.abs(knots - start - h * np.arange(n)) <= 1e-9 * h))
+    return 1.0 / h if ok else 0.0
 
-    With 1 / h the kernels find a knot interval by one multiplication and one comparison
-    (`knot_interval`) instead of a binary search: the same interval, the same numbers.
+
+def table_params(theta_knots: np.ndarray, phi_knots: np.ndarray | None = None) -> np.ndarray:
+    """`RIDData.params` of a table RID: (1 / h_theta, 1 / h_phi), each 0 where not uniform.
+
+    1 / h_theta > 0 when the theta knots are 0, h, 2h, ... (to 1e-9 h: IES and EULUMDAT
+    files); 1 / h_phi > 0 when the azimuths of a 2-D table are phi_0 + k 2 pi / n_p, the
+    full circle in equal steps. The kernels then find a knot interval by one
+    multiplication and a comparison instead of a search: the same interval, the same
+    numbers.
     """
     t = np.asarray(theta_knots, dtype=np.float64)
-    n = t.shape[0]
-    if n < 2 or t[0] != 0.0:
-        return np.zeros(2)
-    h = t[-1] / (n - 1)
-    uniform = h > 0.0 and bool(np.all(np.abs(t - h * np.arange(n)) <= 1e-9 * h))
-    return np.array([1.0 / h if uniform else 0.0, 0.0])
+    inv_t = _uniform_step(t, 0.0, 0.0) if t.shape[0] >= 2 and t[0] == 0.0 else 0.0
+    inv_p = 0.0
+    if phi_knots is not None:
+        p = np.asarray(phi_knots, dtype=np.float64)
+        inv_p = _uniform_step(p, float(p[0]), TWO_PI) if p.shape[0] >= 2 else 0.0
+    return np.array([inv_t, inv_p])
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -171,7 +185,7 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
     Returns:
         (f, df/dtheta, df/dphi).
     """
-    kind, params, theta_knots, phi_knots, values, slopes = rid
+    kind, params, theta_knots, _, values, slopes = rid
     if kind == KIND_ISOTROPIC:
         return 1.0, 0.0, 0.0
     if kind == KIND_COS_POWER:
@@ -189,8 +203,25 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
         f, df = hermite(theta, theta_knots, values[0], slopes[0], params[0])
         return f, df, 0.0
     # KIND_TABLE_2D: periodic rows in phi.
+    return table2d_value_grad(theta, phi, rid)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _phi_interval(p: float, phi_knots: np.ndarray, inv_h: float) -> int:
+    """j with phi_knots[j] <= p < phi_knots[j + 1] on the circle, p in [0, 2 pi): the last
+    knot's interval (j = n_p - 1) wraps to phi_knots[0] + 2 pi. inv_h: `table_params`'
+    second entry (> 0: equal steps, the interval by one multiplication)."""
     n_p = phi_knots.shape[0]
-    p = phi - TWO_PI * math.floor(phi / TWO_PI)
+    if inv_h > 0.0:
+        if p < phi_knots[0]:
+            return n_p - 1
+        j = min(int((p - phi_knots[0]) * inv_h), n_p - 1)
+        # Rounding may put p one interval off: the linear scan's answer, exactly.
+        if phi_knots[j] > p:
+            j -= 1
+        elif j < n_p - 1 and phi_knots[j + 1] <= p:
+            j += 1
+        return j
     j = n_p - 1
     for k in range(n_p - 1):
         if phi_knots[k + 1] > p:
@@ -198,6 +229,18 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
             break
     if p < phi_knots[0]:
         j = n_p - 1
+    return j
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def table2d_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float, float]:
+    """`rid_value_grad` of a 2-D table: cubic Hermite in theta along the four rows around
+    phi (one knot interval and one basis for the four), Catmull-Rom-like in phi."""
+    params, theta_knots, phi_knots = rid.params, rid.theta_knots, rid.phi_knots
+    values, slopes = rid.values, rid.slopes
+    n_p = phi_knots.shape[0]
+    p = phi - TWO_PI * math.floor(phi / TWO_PI)
+    j = _phi_interval(p, phi_knots, params[1])
     jm = (j - 1) % n_p
     j1 = (j + 1) % n_p
     j2 = (j + 2) % n_p
@@ -214,10 +257,56 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
     d_2 = phi_knots[j2] - phi_knots[j1]
     if d_2 <= 0.0:
         d_2 += TWO_PI
-    gm, dgm = hermite(theta, theta_knots, values[jm], slopes[jm], params[0])
-    g0, dg0 = hermite(theta, theta_knots, values[j], slopes[j], params[0])
-    g1, dg1 = hermite(theta, theta_knots, values[j1], slopes[j1], params[0])
-    g2, dg2 = hermite(theta, theta_knots, values[j2], slopes[j2], params[0])
+    # The theta interval and Hermite basis once (as `hermite` computes them), four rows.
+    x = theta
+    knots = theta_knots
+    n = knots.shape[0]
+    beyond = x > knots[n - 1]
+    inside = (x > knots[0]) & (not beyond)
+    xc = x if inside else (knots[n - 1] if beyond else knots[0])
+    inv_h = params[0]
+    if inv_h > 0.0:
+        lo = min(int(xc * inv_h), n - 2)
+        if knots[lo] > xc and lo > 0:
+            lo -= 1
+        elif lo < n - 2 and knots[lo + 1] <= xc:
+            lo += 1
+    else:
+        lo = _knot_search(xc, knots)
+    hi = lo + 1
+    h_t = knots[hi] - knots[lo]
+    u = (xc - knots[lo]) / h_t
+    u2 = u * u
+    u3 = u2 * u
+    b0 = 2 * u3 - 3 * u2 + 1
+    b1 = u3 - 2 * u2 + u
+    b2 = -2 * u3 + 3 * u2
+    b3 = u3 - u2
+    e0 = 6 * u2 - 6 * u
+    e1 = 3 * u2 - 4 * u + 1
+    e2 = -6 * u2 + 6 * u
+    e3 = 3 * u2 - 2 * u
+    gm = g0 = g1 = g2 = dgm = dg0 = dg1 = dg2 = 0.0
+    for r in range(4):  # scalars, no array: this runs once per pixel
+        row = jm if r == 0 else (j if r == 1 else (j1 if r == 2 else j2))
+        v0 = values[row, lo]
+        v1 = values[row, hi]
+        m0 = slopes[row, lo] * h_t
+        m1 = slopes[row, hi] * h_t
+        f_r = b0 * v0 + b1 * m0 + b2 * v1 + b3 * m1
+        df_r = (e0 * v0 + e1 * m0 + e2 * v1 + e3 * m1) / h_t
+        f_r = f_r if inside else (0.0 if beyond else values[row, 0])
+        df_r = df_r if inside else (0.0 if beyond else slopes[row, 0])
+        if r == 0:
+            gm, dgm = f_r, df_r
+        elif r == 1:
+            g0, dg0 = f_r, df_r
+        elif r == 2:
+            g1, dg1 = f_r, df_r
+        else:
+            g2, dg2 = f_r, df_r
+    if x != x:
+        gm = g0 = g1 = g2 = dgm = dg0 = dg1 = dg2 = x
     s0 = (g1 - gm) / (d_m + d_1)
     s1 = (g2 - g0) / (d_1 + d_2)
     ds0 = (dg1 - dgm) / (d_m + d_1)

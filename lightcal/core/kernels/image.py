@@ -52,11 +52,13 @@ from lightcal.core.rid_eval import (
     KIND_COS_POWER,
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
+    KIND_TABLE_2D,
     RIDData,
     RIDStack,
     hermite,
     light_rid,
     rid_value_direction,
+    table2d_value_grad,
 )
 
 
@@ -182,7 +184,7 @@ def _flux_row(
     scale: float,
     ok_row: np.ndarray,
     om_row: np.ndarray,
-    f_row: np.ndarray,
+    f_rows: np.ndarray,
     bad_row: np.ndarray,
     q: np.ndarray,
     gdummy: np.ndarray,
@@ -191,8 +193,10 @@ def _flux_row(
     """Add scale * Phi / I0 of one light to acc_row (w,) for the pixels of a row.
 
     Only pixels with ok_row set are guaranteed; the others may receive any value.
+    f_rows: (2, w) scratch (the RID per pixel; the azimuth of 2-D tables).
     """
     w = acc_row.shape[0]
+    f_row = f_rows[0]
     lx = light_world[0]
     ly = light_world[1]
     lz = light_world[2]
@@ -270,6 +274,17 @@ def _flux_row(
             inv_h = rid.params[0]
             for u in range(w):
                 f_row[u] = hermite(f_row[u], knots, values, slopes, inv_h)[0]
+        elif kind == KIND_TABLE_2D:
+            # Both angles vectorised (the azimuth by atan2_nonneg and the sign of uy),
+            # the table (four rows around the azimuth) in a scalar pass.
+            phi_row = f_rows[1]
+            for u in range(w):
+                ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
+                f_row[u] = atan2_nonneg(math.sqrt(ux * ux + uy * uy), uz)
+                a = atan2_nonneg(abs(uy), ux)
+                phi_row[u] = -a if uy < 0.0 else a
+            for u in range(w):
+                f_row[u] = table2d_value_grad(f_row[u], phi_row[u], rid)[0]
         else:
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
@@ -391,7 +406,7 @@ def render_image_fused(
         area_row = np.empty(w)
         v_row = np.empty(w)
         om_row = np.empty(w)
-        f_row = np.empty(w)
+        f_rows = np.empty((2, w))
         bad_row = np.empty(w, dtype=np.bool_)
         acc_row = np.empty(w)
         total_row = np.empty(w)
@@ -483,7 +498,7 @@ def render_image_fused(
                         light_scales[li] if per_pixel else 1.0,
                         ok_row,
                         om_row,
-                        f_row,
+                        f_rows,
                         bad_row,
                         q,
                         gdummy,

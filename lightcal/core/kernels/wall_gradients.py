@@ -40,9 +40,11 @@ from lightcal.core.rid_eval import (
     KIND_COS_POWER,
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
+    KIND_TABLE_2D,
     RIDData,
     hermite,
     rid_value_grad_direction,
+    table2d_value_grad,
 )
 
 #: Pixels per block of the fast gradient path (its scratch rows stay in the L1 cache).
@@ -269,6 +271,44 @@ def wall_grad_block(
                 gux = a * uz * ux
                 guy = a * uz * uy
                 guz = 0.0 if axis else -f_t * rho
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
+                gwy[i] = (r10 * gux + r11 * guy + r12 * guz) if ok else 0.0
+                gwz[i] = (r20 * gux + r21 * guy + r22 * guz) if ok else 0.0
+        elif rid.kind == KIND_TABLE_2D:
+            # As the 1-D table, with the azimuth: (theta, phi, rho) vectorised into
+            # (fs, gwx, gwy); the table's (f, f_t, f_p) and the axis-safe f_t / rho into
+            # (fs, gwz, gwx, gwy) by a scalar pass; the gradient vectorised.
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                rho = math.sqrt(ux * ux + uy * uy)
+                ok = on_wall[i] & valid[i0 + i]
+                a = atan2_nonneg(abs(uy), ux)
+                fs[i] = atan2_nonneg(rho, uz) if ok else 0.0
+                gwx[i] = (-a if uy < 0.0 else a) if ok else 0.0
+                gwy[i] = rho if ok else 1.0
+            for i in range(nb):
+                rho = gwy[i]
+                f, f_t, f_p = table2d_value_grad(fs[i], gwx[i], rid)
+                if rho < AXIS_RHO:
+                    # The limit of f_t / sin(theta), as `rid_value_grad_direction`.
+                    a = table2d_value_grad(AXIS_EPS, gwx[i], rid)[1] / AXIS_EPS
+                else:
+                    a = f_t / rho
+                fs[i] = f
+                gwz[i] = f_t
+                gwx[i] = f_p
+                gwy[i] = a
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                rho = math.sqrt(ux * ux + uy * uy)
+                axis = rho < AXIS_RHO
+                a = gwy[i]
+                b = 0.0 if axis else gwx[i] / (rho * rho)
+                gux = a * uz * ux - b * uy
+                guy = a * uz * uy + b * ux
+                guz = 0.0 if axis else -gwz[i] * rho
                 ok = on_wall[i] & valid[i0 + i]
                 fs[i] = fs[i] if ok else 0.0
                 gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
