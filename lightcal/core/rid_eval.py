@@ -258,6 +258,8 @@ def table2d_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, f
     if d_2 <= 0.0:
         d_2 += TWO_PI
     # The theta interval and Hermite basis once (as `hermite` computes them), four rows.
+    # Written out, not shared with `hermite` through a helper: an inlined helper taking
+    # the knots array made the 1-D table's full frame 1.4x slower (measured).
     x = theta
     knots = theta_knots
     n = knots.shape[0]
