@@ -598,6 +598,25 @@ class SolveOutcome:
     history: list[IterationReport] = field(default_factory=list)
     weights_at: np.ndarray | None = None
 
+    @classmethod
+    def stopped(
+        cls, history: list[IterationReport], message: str, *, time_s: float = 0.0
+    ) -> SolveOutcome:
+        """An unfinished outcome (status -2) at the last report of `history` (non-empty):
+        a solve stopped before its first iteration, or one paused by its caller."""
+        last = history[-1]
+        return cls(
+            x=last.x.copy(),
+            status=-2,
+            message=message,
+            success=False,
+            iterations=last.iteration,
+            nfev=last.nfev,
+            cost=last.cost,
+            time_s=time_s,
+            history=history,
+        )
+
 
 def run_least_squares(
     model: CalibrationModel,
@@ -630,16 +649,8 @@ def run_least_squares(
     try:
         emit(model.report(x_start, 0))
     except StopIteration:
-        return SolveOutcome(
-            x_start,
-            -2,
-            "stopped before the first iteration",
-            False,
-            0,
-            model.nfev,
-            history[0].cost,
-            time.perf_counter() - t0,
-            history,
+        return SolveOutcome.stopped(
+            history, "stopped before the first iteration", time_s=time.perf_counter() - t0
         )
     res, hit_limit = _trf(model, x_start, (lo, hi), 0, emit)
     if model.reweights and res.status > 0 and not hit_limit:
@@ -650,16 +661,16 @@ def run_least_squares(
     if hit_limit:
         status, message = 0, f"stopped after the maximum of {opts.max_iterations} iterations"
     return SolveOutcome(
-        np.asarray(res.x),
-        status,
-        message,
-        status > 0,
-        iterations,
-        model.nfev,
-        float(res.cost),
-        time.perf_counter() - t0,
-        history,
-        None if model.weights_at is None else model.weights_at.copy(),
+        x=np.asarray(res.x),
+        status=status,
+        message=message,
+        success=status > 0,
+        iterations=iterations,
+        nfev=model.nfev,
+        cost=float(res.cost),
+        time_s=time.perf_counter() - t0,
+        history=history,
+        weights_at=None if model.weights_at is None else model.weights_at.copy(),
     )
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
-from lightcal.io.project import Project
+from lightcal.io.project import Project, SolverSpec
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
 from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
@@ -25,6 +25,9 @@ from lightcal.pipeline.wall_choice import (
     wall_candidate,
     without_mirror,
 )
+
+# The multi-start defaults are the project file's (defined once).
+_SOLVER_SPEC = SolverSpec()
 
 
 def perturbed_start(
@@ -49,9 +52,9 @@ def perturbed_start(
 def solve(
     model: CalibrationModel,
     *,
-    multistart: int = 0,
-    multistart_position_m: float = 0.3,
-    multistart_angle_deg: float = 30.0,
+    multistart: int = _SOLVER_SPEC.multistart,
+    multistart_position_m: float = _SOLVER_SPEC.multistart_position_m,
+    multistart_angle_deg: float = _SOLVER_SPEC.multistart_angle_deg,
     seed: int = 0,
     on_iteration: Callable[[IterationReport], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
