@@ -31,15 +31,15 @@ _SOLVER_SPEC = SolverSpec()
 
 
 def perturbed_start(
-    model: CalibrationModel, rng: np.random.Generator, *, position_m: float, angle_deg: float
+    model: CalibrationModel, rng: np.random.Generator, *, shift_m: float, angle_deg: float
 ) -> np.ndarray:
-    """A random start near the initial guess: positions moved by up to `position_m`,
-    light axes/orientations rotated by up to `angle_deg`."""
+    """A random start near the initial guess: each light's `t_camera_light` moved by up to
+    `shift_m`, light axes/orientations rotated by up to `angle_deg`."""
     x = model.layout.x0.copy()
     for block in model.layout.blocks:
         p = x[block.pose].copy()
         d = rng.normal(size=3)
-        p[:3] += d / np.linalg.norm(d) * rng.uniform(0, position_m)
+        p[:3] += d / np.linalg.norm(d) * rng.uniform(0, shift_m)
         R, t = block.param.to_pose(p)
         if block.param.n_rot:
             w = rng.normal(size=3)
@@ -71,7 +71,7 @@ def solve(
     rng = np.random.default_rng(seed)
     for k in range(1, n_starts):
         x0 = perturbed_start(
-            model, rng, position_m=multistart_position_m, angle_deg=multistart_angle_deg
+            model, rng, shift_m=multistart_position_m, angle_deg=multistart_angle_deg
         )
         if on_start is not None:
             on_start(k, n_starts)
