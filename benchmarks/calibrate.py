@@ -380,7 +380,7 @@ def measure_subsets(per_size: int) -> dict[str, Any]:
             positions.append(est.t_camera_light)
             axes.append(est.axis_camera)
             errors.append(pose_errors(est, light))
-            sigmas.append(float(np.linalg.norm(lr.sigma.position_m)))
+            sigmas.append(float(np.linalg.norm(lr.sigma.t_camera_light)))
             sigma_deg.append(math.hypot(lr.sigma.roll_deg, lr.sigma.pitch_deg))
         p = np.array(positions)
         a = np.array(axes)

@@ -127,8 +127,8 @@ def _summary_markdown(
     )
     lines.append("")
     for lr in result.lights:
-        pos = lr.pose.position_m
-        sp = lr.sigma.position_m
+        pos = lr.pose.t_camera_light
+        sp = lr.sigma.t_camera_light
         lines.append(f"## {lr.name} ({lr.pose_kind})")
         lines.append("")
         lines.append(

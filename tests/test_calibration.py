@@ -91,7 +91,7 @@ def test_summary_fields(clean):
     np.testing.assert_allclose(cov, cov.T, rtol=1e-10, atol=0)
     assert np.all(np.linalg.eigvalsh(cov) > 0)
     # Position sigmas are the covariance's (the position parameters are x, y, z).
-    np.testing.assert_allclose(lr.sigma.position_m, np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
+    np.testing.assert_allclose(lr.sigma.t_camera_light, np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
     assert lr.scale_sigma == pytest.approx(est.scale * math.sqrt(cov[5, 5]), rel=1e-12)
     for key in ("roll_deg", "pitch_deg", "axis_angle_from_optical_axis_deg"):
         assert 0.0 < getattr(lr.sigma, key) < 1.0
@@ -129,14 +129,15 @@ def test_pose_summary_vector_and_dict_round_trip():
     d = pose.to_dict()
     assert d == describe_pose(R, t)
     assert json.loads(json.dumps(d)) == d
-    assert PoseSummary(**d) == pose
+    assert PoseSummary.from_dict(d) == pose
+    assert pose.position_m is pose.t_camera_light  # the file's name, kept for callers
     assert isinstance(d["roll_deg"], float) and isinstance(d["R_camera_light"][0][0], float)
-    assert pose.R_camera_light.shape == (3, 3) and not pose.position_m.flags.writeable
+    assert pose.R_camera_light.shape == (3, 3) and not pose.t_camera_light.flags.writeable
     assert pose != PoseSummary.from_vector(v + 1e-12)
     with pytest.raises(ValueError, match="shape"):
         PoseSummary.from_vector(v[:-1])
-    with pytest.raises(ValueError, match="position_m"):
-        PoseSummary(**{**d, "position_m": [0.0, 0.0]})
+    with pytest.raises(ValueError, match="t_camera_light"):
+        PoseSummary.from_dict({**d, "position_m": [0.0, 0.0]})
 
 
 def test_summary_of_an_estimated_rid(clean):
@@ -161,7 +162,7 @@ def test_summary_of_gains_and_two_lights():
     assert [lr.name for lr in res.lights] == ["left", "right"]
     np.testing.assert_allclose(res.gains, gains, rtol=1e-8)
     for lr, light in zip(res.lights, rig.lights, strict=True):
-        np.testing.assert_allclose(lr.pose.position_m, light.t_camera_light, atol=1e-9)
+        np.testing.assert_allclose(lr.pose.t_camera_light, light.t_camera_light, atol=1e-9)
         assert lr.scale == pytest.approx(light.scale, rel=1e-8)
 
 
@@ -186,7 +187,7 @@ def test_warning_for_a_light_that_lights_no_pixel():
 
 def _position_sigma(images, light) -> np.ndarray:
     _, res = _solve(images, [light])
-    return np.array(res.lights[0].sigma.position_m)
+    return np.array(res.lights[0].sigma.t_camera_light)
 
 
 def test_uncertainty_shrinks_with_more_pixels_and_less_noise():
@@ -212,8 +213,8 @@ def test_uncertainty_matches_the_monte_carlo_spread(clean):
         noisy = cs.add_noise(images, NOISE, np.random.default_rng(100 + seed))
         _, res = _solve(noisy, [light])
         lr = res.lights[0]
-        estimates.append(lr.pose.position_m)
-        sigmas.append(lr.sigma.position_m)
+        estimates.append(lr.pose.t_camera_light)
+        sigmas.append(lr.sigma.t_camera_light)
         angles.append([lr.pose.roll_deg, lr.pose.pitch_deg])
         angle_sigmas.append([lr.sigma.roll_deg, lr.sigma.pitch_deg])
     spread = np.std(estimates, axis=0, ddof=1)
@@ -271,14 +272,14 @@ def test_perturbed_start_stays_within_the_limits(clean):
     rng = np.random.default_rng(0)
     x0 = model.layout.x0
     for _ in range(30):
-        x = perturbed_start(model, rng, position_m=0.3, angle_deg=30.0)
+        x = perturbed_start(model, rng, shift_m=0.3, angle_deg=30.0)
         est = model.layout.rig(x).lights[0]
         position, axis = cs.pose_errors(est, light)
         assert position <= 0.3 + 1e-12
         assert axis <= 30.0 + 1e-9
         assert x[5] == x0[5]  # the scale is kept
     iso = cs.model_of(images, [LightUnknown(light, pose_kind="isotropic")])
-    x = perturbed_start(iso, rng, position_m=0.1, angle_deg=30.0)
+    x = perturbed_start(iso, rng, shift_m=0.1, angle_deg=30.0)
     assert x.shape == (4,) and np.linalg.norm(x[:3] - iso.layout.x0[:3]) <= 0.1
 
 

@@ -114,7 +114,7 @@ def test_sigma_covers_the_truth_with_pose_noise() -> None:
         result = summarise(model, outcome, meas)
         assert result.uncertainty_terms[1] == "camera poses (12 images' marker-fit covariances)"
         light = result.lights[0]
-        z.append((light.pose.position_m - truth.t_camera_light) / light.sigma.position_m)
+        z.append((light.pose.t_camera_light - truth.t_camera_light) / light.sigma.t_camera_light)
     within = (np.abs(np.array(z)) < 1.0).mean(axis=0)
     assert np.all((within >= 0.58) & (within <= 0.78)), within
 

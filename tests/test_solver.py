@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from lightcal.core import solver
+from lightcal.core import calibration_model
+from lightcal.core.calibration_model import _economic_r, _stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
@@ -16,8 +17,6 @@ from lightcal.core.solver import (
     CalibrationModel,
     IterationReport,
     SolverOptions,
-    _economic_r,
-    _stack_r_factors,
     run_least_squares,
 )
 from tests import calib_scenes as cs
@@ -420,10 +419,10 @@ def test_the_compressed_problem_is_chosen_by_pixel_count(noisy_problem, monkeypa
     light, images = noisy_problem
     start = [cs.start_near(light)]
     m = sum(len(im.observed) for im in images)
-    monkeypatch.setattr(solver, "COMPRESS_MIN_PIXELS", m + 1)
+    monkeypatch.setattr(calibration_model, "COMPRESS_MIN_PIXELS", m + 1)
     assert not cs.model_of(images, start).compressed
     assert cs.model_of(images, start, compress=True).compressed
-    monkeypatch.setattr(solver, "COMPRESS_MIN_PIXELS", m)
+    monkeypatch.setattr(calibration_model, "COMPRESS_MIN_PIXELS", m)
     model = cs.model_of(images, start)
     assert model.compressed
     assert model.solver_residuals(model.layout.x0).shape == (model.layout.n + 1,)

@@ -3,10 +3,12 @@
 One module a step (file formats stay in `lightcal.io`):
 
 - `boards`: calibration boards (ArUco grid, ChArUco, chessboard), their geometry on the
-  wall and their printable images (`lightcal.io.board_file` reads and writes them);
+  wall and their printable images (`lightcal.io.board_file` reads and writes them), with
+  `chessboard` and `board_layout` (what the boards share);
 - `plane_texture`: synthetic images of a printed texture on the wall, and look-at poses;
 - `intrinsics`: camera intrinsics from views of a board (`lightcal camera calibrate`);
-- `marker_pose`: a camera pose, with its covariance, from the markers in one image;
+- `marker_pose`: a camera pose, with its covariance, from the markers in one image:
+  `marker_detection` finds them, `pose_fit` fits the pose and its covariance;
 - `colmap_align`: COLMAP poses (`lightcal.io.colmap`) moved into the wall's frame, metres;
 - `project_init`: a project file from a folder of wall photographs (`lightcal init`).
 

@@ -31,181 +31,52 @@ and for synthetic images. Pixels follow docs/conventions.md: pixel (u, v) = (col
 [u - 1/2, u + 1/2] x [v - 1/2, v + 1/2]; `BoardRendering.A_pixel_world` maps world (x, y)
 to (u, v). Markers come from `cv2.aruco.Dictionary.generateImageMarker`, placed at whole
 pixels; the layout equals `cv2.aruco.Board.generateImage` wherever the latter is exact.
+
+`Chessboard` lives in `lightcal.capture.chessboard` and what the boards share (checks,
+ArUco dictionaries, `BoardRendering`) in `lightcal.capture.board_layout`; this module
+exports them.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lightcal.capture.board_layout import (
+    BoardRendering,
+    aruco_dictionary,
+    aruco_dictionary_names,
+    board_to_world,
+    check_count,
+    check_ids,
+    check_length,
+    check_margin,
+    check_origin,
+    check_px_per_m,
+    paste_markers,
+    square_xy,
+    whole_pixels,
+)
+from lightcal.capture.chessboard import Chessboard
 from lightcal.errors import InputError
+
+__all__ = [
+    "R_WORLD_BOARD",
+    "ArucoGridBoard",
+    "Board",
+    "BoardRendering",
+    "CharucoBoard",
+    "Chessboard",
+    "aruco_dictionary",
+    "aruco_dictionary_names",
+]
 
 R_WORLD_BOARD = np.diag([1.0, -1.0, -1.0])
 """(3, 3) rotation from OpenCV's board frame to the world frame (see the module docstring)."""
-
-_WHOLE_PIXEL_TOL = 1e-6
-"""Largest accepted distance, in pixels, of a rendered length from a whole number of pixels."""
-
-
-def aruco_dictionary_names() -> list[str]:
-    """Names of the predefined ArUco dictionaries, e.g. `"DICT_5X5_100"`, sorted."""
-    return sorted(name for name in dir(cv2.aruco) if name.startswith("DICT_"))
-
-
-def aruco_dictionary(name: str) -> Any:
-    """The predefined `cv2.aruco.Dictionary` called `name`.
-
-    Args:
-        name: A `cv2.aruco` dictionary name such as `"DICT_5X5_100"`.
-
-    Raises:
-        InputError: `name` is not a predefined dictionary (the message lists a few).
-    """
-    if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
-        raise InputError(
-            "dictionary",
-            f"unknown ArUco dictionary {name!r}: expected a cv2.aruco name such as "
-            "DICT_4X4_50, DICT_5X5_100, DICT_6X6_250, DICT_7X7_1000 or DICT_APRILTAG_36h11",
-        )
-    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
-
-
-def _check_count(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise InputError(name, f"expected an int >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _check_real(name: str, value: Any, *, positive: bool, expected: str) -> float:
-    """`value` as a float if it is a finite real > 0 (`positive`) or >= 0, else InputError."""
-    is_real = not isinstance(value, bool) and isinstance(
-        value, int | float | np.integer | np.floating
-    )
-    if not (is_real and math.isfinite(value) and (value > 0.0 if positive else value >= 0.0)):
-        raise InputError(name, f"expected {expected}, got {value!r}")
-    return float(value)
-
-
-def _check_length(name: str, value: Any) -> float:
-    return _check_real(name, value, positive=True, expected="a positive length in metres")
-
-
-def _check_origin(value: Any) -> tuple[float, float]:
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        array = np.zeros(0)
-    if array.shape != (2,) or not np.all(np.isfinite(array)):
-        raise InputError(
-            "origin_world_m", f"expected two finite coordinates (x, y) in metres, got {value!r}"
-        )
-    return float(array[0]), float(array[1])
-
-
-def _check_ids(ids: ArrayLike, valid: NDArray[np.int64], *, what: str) -> NDArray[np.int64]:
-    """Return `ids` as an (n,) int64 array, every id one of `valid`."""
-    array = np.asarray(ids)
-    if array.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    if array.dtype.kind not in "iu":
-        raise InputError("ids", f"expected integer {what} ids, got {array.dtype}")
-    flat = array.reshape(-1).astype(np.int64)
-    unknown = flat[~np.isin(flat, valid)]
-    if unknown.size:
-        raise InputError(
-            "ids",
-            f"{what} id {int(unknown[0])} is not on the board: expected ids "
-            f"{int(valid.min())}..{int(valid.max())}",
-        )
-    return flat
-
-
-def _board_to_world(points_board_xy: NDArray[np.float64], origin: tuple[float, float]) -> Any:
-    """(..., 2) board (x, y) -> (..., 3) world points on z = 0."""
-    out = np.zeros((*points_board_xy.shape[:-1], 3))
-    out[..., 0] = origin[0] + points_board_xy[..., 0]
-    out[..., 1] = origin[1] - points_board_xy[..., 1]
-    return out
-
-
-def _square_xy(x0: NDArray[np.float64], y0: NDArray[np.float64], side: float) -> Any:
-    """(n, 4, 2) board-frame squares with top-left corners (x0, y0), OpenCV corner order.
-
-    The order is top-left, top-right, bottom-right, bottom-left as printed: clockwise on
-    the page, the order of `cv2.aruco` marker corners.
-    """
-    dx = np.array([0.0, side, side, 0.0])
-    dy = np.array([0.0, 0.0, side, side])
-    return np.stack([x0[:, None] + dx, y0[:, None] + dy], axis=-1)
-
-
-def _whole_pixels(px_per_m: float, lengths_m: dict[str, float]) -> dict[str, int]:
-    """Each length in whole pixels, or InputError if one is not a whole number."""
-    pixels = {name: length * px_per_m for name, length in lengths_m.items()}
-    bad = {name: n for name, n in pixels.items() if abs(n - round(n)) > _WHOLE_PIXEL_TOL}
-    if bad:
-        details = ", ".join(f"{name} -> {n:.6g} px" for name, n in bad.items())
-        raise InputError(
-            "px_per_m",
-            f"expected the board's lengths to be whole numbers of pixels at "
-            f"{px_per_m!r} px/m, got {details}",
-        )
-    return {name: round(n) for name, n in pixels.items()}
-
-
-def _check_px_per_m(px_per_m: Any) -> float:
-    return _check_real(
-        "px_per_m", px_per_m, positive=True, expected="a positive number of pixels per metre"
-    )
-
-
-def _check_margin(margin_m: Any) -> float:
-    return _check_real("margin_m", margin_m, positive=False, expected="a length >= 0 in metres")
-
-
-@dataclass(frozen=True, eq=False)
-class BoardRendering:
-    """A board drawn at an exact scale.
-
-    Attributes:
-        image: (H, W) uint8, white 255 (paper and margin), black 0 (print).
-        px_per_m: Pixels per metre on the wall.
-        top_left_world_m: (2,) world (x, y) of the image's top-left corner, i.e. the
-            outer corner of pixel (0, 0); rows run towards world -y.
-    """
-
-    image: NDArray[np.uint8]
-    px_per_m: float
-    top_left_world_m: NDArray[np.float64] = field(repr=False)
-
-    @property
-    def A_pixel_world(self) -> NDArray[np.float64]:
-        """(2, 3) affine mapping world (x, y, 1) to image pixel (u, v) (centres at integers).
-
-        u = px_per_m (x - x0) - 1/2 and v = px_per_m (y0 - y) - 1/2 with
-        (x0, y0) = `top_left_world_m`.
-        """
-        s = self.px_per_m
-        x0, y0 = float(self.top_left_world_m[0]), float(self.top_left_world_m[1])
-        return np.array([[s, 0.0, -s * x0 - 0.5], [0.0, -s, s * y0 - 0.5]])
-
-
-def _paste_markers(
-    image: NDArray[np.uint8],
-    dictionary: Any,
-    ids: NDArray[np.int64],
-    top_left_px: NDArray[np.int64],
-    side_px: int,
-) -> None:
-    """Draw markers `ids` with their top-left pixel at `top_left_px` (n, 2) (col, row)."""
-    for marker_id, (col, row) in zip(ids, top_left_px, strict=True):
-        marker = dictionary.generateImageMarker(int(marker_id), side_px)
-        image[row : row + side_px, col : col + side_px] = marker
 
 
 @dataclass(frozen=True)
@@ -238,12 +109,12 @@ class ArucoGridBoard:
 
     def __post_init__(self) -> None:
         dictionary = aruco_dictionary(self.dictionary)
-        object.__setattr__(self, "markers_x", _check_count("markers_x", self.markers_x, 1))
-        object.__setattr__(self, "markers_y", _check_count("markers_y", self.markers_y, 1))
+        object.__setattr__(self, "markers_x", check_count("markers_x", self.markers_x, 1))
+        object.__setattr__(self, "markers_y", check_count("markers_y", self.markers_y, 1))
         for name in ("marker_length_m", "separation_m"):
-            object.__setattr__(self, name, _check_length(name, getattr(self, name)))
-        object.__setattr__(self, "first_id", _check_count("first_id", self.first_id, 0))
-        object.__setattr__(self, "origin_world_m", _check_origin(self.origin_world_m))
+            object.__setattr__(self, name, check_length(name, getattr(self, name)))
+        object.__setattr__(self, "first_id", check_count("first_id", self.first_id, 0))
+        object.__setattr__(self, "origin_world_m", check_origin(self.origin_world_m))
         n_dictionary = int(dictionary.bytesList.shape[0])
         last_id = self.first_id + self.n_markers - 1
         if last_id >= n_dictionary:
@@ -300,9 +171,9 @@ class ArucoGridBoard:
         Raises:
             InputError: An id is not on the board.
         """
-        checked = _check_ids(ids, self.ids, what="marker")
+        checked = check_ids(ids, self.ids, what="marker")
         x0, y0 = self._marker_top_left_xy(checked)
-        return _board_to_world(_square_xy(x0, y0, self.marker_length_m), self.origin_world_m)
+        return board_to_world(square_xy(x0, y0, self.marker_length_m), self.origin_world_m)
 
     def outline_world(self, ids: ArrayLike | None = None) -> NDArray[np.float64]:
         """Polygons covered by printed markers, to mask them in images of the wall.
@@ -332,9 +203,9 @@ class ArucoGridBoard:
             InputError: A non-positive scale, a negative margin, or a length that is not
                 a whole number of pixels.
         """
-        scale = _check_px_per_m(px_per_m)
-        margin = self.marker_length_m if margin_m is None else _check_margin(margin_m)
-        px = _whole_pixels(
+        scale = check_px_per_m(px_per_m)
+        margin = self.marker_length_m if margin_m is None else check_margin(margin_m)
+        px = whole_pixels(
             scale,
             {
                 "marker_length_m": self.marker_length_m,
@@ -354,7 +225,7 @@ class ArucoGridBoard:
             ],
             axis=1,
         )
-        _paste_markers(image, aruco_dictionary(self.dictionary), self.ids, top_left_px, side)
+        paste_markers(image, aruco_dictionary(self.dictionary), self.ids, top_left_px, side)
         top_left = np.array(
             [self.origin_world_m[0] - border / scale, self.origin_world_m[1] + border / scale]
         )
@@ -389,17 +260,17 @@ class CharucoBoard:
 
     def __post_init__(self) -> None:
         dictionary = aruco_dictionary(self.dictionary)
-        object.__setattr__(self, "squares_x", _check_count("squares_x", self.squares_x, 2))
-        object.__setattr__(self, "squares_y", _check_count("squares_y", self.squares_y, 2))
+        object.__setattr__(self, "squares_x", check_count("squares_x", self.squares_x, 2))
+        object.__setattr__(self, "squares_y", check_count("squares_y", self.squares_y, 2))
         for name in ("square_length_m", "marker_length_m"):
-            object.__setattr__(self, name, _check_length(name, getattr(self, name)))
+            object.__setattr__(self, name, check_length(name, getattr(self, name)))
         if self.marker_length_m >= self.square_length_m:
             raise InputError(
                 "marker_length_m",
                 f"expected a marker smaller than the square ({self.square_length_m!r} m), "
                 f"got {self.marker_length_m!r} m",
             )
-        object.__setattr__(self, "origin_world_m", _check_origin(self.origin_world_m))
+        object.__setattr__(self, "origin_world_m", check_origin(self.origin_world_m))
         n_dictionary = int(dictionary.bytesList.shape[0])
         if self.n_markers > n_dictionary:
             raise InputError(
@@ -452,10 +323,10 @@ class CharucoBoard:
         Returns:
             corners_world: (n, 3) metres, z = 0.
         """
-        checked = _check_ids(ids, self.corner_ids, what="ChArUco corner")
+        checked = check_ids(ids, self.corner_ids, what="ChArUco corner")
         row, col = np.divmod(checked, self.squares_x - 1)
         xy = np.stack([(col + 1) * self.square_length_m, (row + 1) * self.square_length_m], -1)
-        return _board_to_world(xy.astype(np.float64), self.origin_world_m)
+        return board_to_world(xy.astype(np.float64), self.origin_world_m)
 
     def marker_corners_world(self, ids: ArrayLike) -> NDArray[np.float64]:
         """World corners of markers.
@@ -466,12 +337,12 @@ class CharucoBoard:
         Returns:
             corners_world: (n, 4, 3) metres, z = 0, in `cv2.aruco` corner order.
         """
-        checked = _check_ids(ids, self.marker_ids, what="marker")
+        checked = check_ids(ids, self.marker_ids, what="marker")
         cells = self._white_cells()[checked].astype(np.float64)
         offset = 0.5 * (self.square_length_m - self.marker_length_m)
         x0 = cells[:, 0] * self.square_length_m + offset
         y0 = cells[:, 1] * self.square_length_m + offset
-        return _board_to_world(_square_xy(x0, y0, self.marker_length_m), self.origin_world_m)
+        return board_to_world(square_xy(x0, y0, self.marker_length_m), self.origin_world_m)
 
     def outline_world(self, corner_ids: ArrayLike | None = None) -> NDArray[np.float64]:
         """Polygons covered by the printed board, to mask them in images of the wall.
@@ -487,8 +358,8 @@ class CharucoBoard:
         if corner_ids is None:
             width, height = self.size_m
             rectangle = np.array([[[0.0, 0.0], [width, 0.0], [width, height], [0.0, height]]])
-            return _board_to_world(rectangle, self.origin_world_m)
-        checked = _check_ids(corner_ids, self.corner_ids, what="ChArUco corner")
+            return board_to_world(rectangle, self.origin_world_m)
+        checked = check_ids(corner_ids, self.corner_ids, what="ChArUco corner")
         row, col = np.divmod(checked, self.squares_x - 1)
         cells = {
             (int(c) + dc, int(r) + dr)
@@ -499,8 +370,8 @@ class CharucoBoard:
         ordered = np.array(sorted(cells, key=lambda cell: (cell[1], cell[0])), dtype=np.float64)
         if ordered.size == 0:
             return np.zeros((0, 4, 3))
-        squares = _square_xy(ordered[:, 0] * s, ordered[:, 1] * s, s)
-        return _board_to_world(squares, self.origin_world_m)
+        squares = square_xy(ordered[:, 0] * s, ordered[:, 1] * s, s)
+        return board_to_world(squares, self.origin_world_m)
 
     def render(self, px_per_m: float, *, margin_m: float | None = None) -> BoardRendering:
         """Draw the board at `px_per_m` pixels per metre.
@@ -518,9 +389,9 @@ class CharucoBoard:
             InputError: A non-positive scale, a negative margin, or a length that is not
                 a whole number of pixels.
         """
-        scale = _check_px_per_m(px_per_m)
-        margin = self.square_length_m if margin_m is None else _check_margin(margin_m)
-        px = _whole_pixels(
+        scale = check_px_per_m(px_per_m)
+        margin = self.square_length_m if margin_m is None else check_margin(margin_m)
+        px = whole_pixels(
             scale,
             {
                 "square_length_m": self.square_length_m,
@@ -545,7 +416,7 @@ class CharucoBoard:
                     r0, c0 = border + row * square, border + col * square
                     image[r0 : r0 + square, c0 : c0 + square] = 0
         top_left_px = border + self._white_cells() * square + inset
-        _paste_markers(
+        paste_markers(
             image,
             aruco_dictionary(self.dictionary),
             self.marker_ids,
@@ -555,99 +426,6 @@ class CharucoBoard:
         top_left = np.array(
             [self.origin_world_m[0] - border / scale, self.origin_world_m[1] + border / scale]
         )
-        return BoardRendering(image=image, px_per_m=scale, top_left_world_m=top_left)
-
-
-@dataclass(frozen=True)
-class Chessboard:
-    """A plain chessboard for intrinsic calibration (`cv2.findChessboardCornersSB`).
-
-    `inner_x` x `inner_y` inner corners, i.e. (inner_x + 1) x (inner_y + 1) squares, the
-    top-left square black. The world origin is the top-left inner corner; corner
-    `k` (OpenCV's row-major order) is in column `k % inner_x` and row `k // inner_x`, at
-    world (col, -row, 0) * square_length_m.
-
-    Attributes:
-        inner_x: Inner corners per row (>= 2).
-        inner_y: Rows of inner corners (>= 2).
-        square_length_m: Side of a square, metres.
-    """
-
-    inner_x: int
-    inner_y: int
-    square_length_m: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "inner_x", _check_count("inner_x", self.inner_x, 2))
-        object.__setattr__(self, "inner_y", _check_count("inner_y", self.inner_y, 2))
-        object.__setattr__(
-            self, "square_length_m", _check_length("square_length_m", self.square_length_m)
-        )
-
-    @property
-    def pattern_size(self) -> tuple[int, int]:
-        """(inner_x, inner_y), the `patternSize` of `cv2.findChessboardCorners*`."""
-        return self.inner_x, self.inner_y
-
-    @property
-    def n_corners(self) -> int:
-        """Number of inner corners."""
-        return self.inner_x * self.inner_y
-
-    def corners_world(self, ids: ArrayLike | None = None) -> NDArray[np.float64]:
-        """World positions of inner corners.
-
-        Args:
-            ids: (n,) corner indices in OpenCV's row-major order, or None for all.
-
-        Returns:
-            corners_world: (n, 3) metres, z = 0.
-        """
-        valid = np.arange(self.n_corners, dtype=np.int64)
-        checked = valid if ids is None else _check_ids(ids, valid, what="chessboard corner")
-        row, col = np.divmod(checked, self.inner_x)
-        xy = np.stack([col, row], axis=-1).astype(np.float64) * self.square_length_m
-        return _board_to_world(xy, (0.0, 0.0))
-
-    def outline_world(self) -> NDArray[np.float64]:
-        """(1, 4, 3) the board's outer rectangle on the wall, metres, z = 0."""
-        s = self.square_length_m
-        rectangle = np.array(
-            [
-                [
-                    [-s, -s],
-                    [self.inner_x * s, -s],
-                    [self.inner_x * s, self.inner_y * s],
-                    [-s, self.inner_y * s],
-                ]
-            ]
-        )
-        return _board_to_world(rectangle, (0.0, 0.0))
-
-    def render(self, px_per_m: float, *, margin_m: float | None = None) -> BoardRendering:
-        """Draw the chessboard at `px_per_m` pixels per metre.
-
-        Args:
-            px_per_m: Scale; `square_length_m` and `margin_m` must each be a whole number
-                of pixels at this scale.
-            margin_m: White border around the squares, metres; None: one square length.
-
-        Returns:
-            The image and its placement on the wall.
-        """
-        scale = _check_px_per_m(px_per_m)
-        margin = self.square_length_m if margin_m is None else _check_margin(margin_m)
-        px = _whole_pixels(scale, {"square_length_m": self.square_length_m, "margin_m": margin})
-        square, border = px["square_length_m"], px["margin_m"]
-        n_x, n_y = self.inner_x + 1, self.inner_y + 1
-        rows, cols = np.divmod(np.arange(n_y * square * n_x * square), n_x * square)
-        squares = ((rows // square) + (cols // square)) % 2 == 0
-        image = np.full((n_y * square + 2 * border, n_x * square + 2 * border), 255, np.uint8)
-        image[border : border + n_y * square, border : border + n_x * square] = np.where(
-            squares.reshape(n_y * square, n_x * square), 0, 255
-        )
-        s = self.square_length_m
-        top_left = np.array([-s - border / scale, s + border / scale])
         return BoardRendering(image=image, px_per_m=scale, top_left_world_m=top_left)
 
 

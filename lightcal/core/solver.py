@@ -1,582 +1,43 @@
-"""Non-linear least squares for the light pose(s): residuals, Jacobian, solve.
+"""Non-linear least squares for the light pose(s): the solve.
 
-`scipy.optimize.least_squares` (trf) minimises the weighted residuals
-r = (m_obs - m_render(x)) / sigma of `CalibrationModel` with its analytic Jacobian
-(pose and scale from the renderer's gradients; RID parameters, when estimated, by
-central differences of the renderer). Every iteration is reported through the solver's
-callback (`IterationReport`); the callback may stop the solve (`StopIteration`), which is
-how `lightcal.core.session.SolverSession` steps, pauses and stops it.
+`scipy.optimize.least_squares` (trf) minimises the weighted residuals of a
+`CalibrationModel` (lightcal/core/calibration_model.py) with its analytic Jacobian. Every
+iteration is reported through the solver's callback (`IterationReport`); the callback may
+stop the solve (`StopIteration`), which is how `lightcal.core.session.SolverSession`
+steps, pauses and stops it.
+
+The solver is three modules: `solver_options` (`SolverOptions`, `IterationReport`,
+`robust_cost`), `calibration_model` (`CalibrationModel`) and this one (`SolveOutcome`,
+`run_least_squares`), which also exports the names of the other two.
 """
 
 from __future__ import annotations
 
-import math
-import threading
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 from scipy.optimize import OptimizeResult, least_squares
 
-from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
-from lightcal.core.pose import axis_from_angles, axis_jacobian
-from lightcal.core.problem import (
-    LOG_CLIP,
-    ImageData,
-    LightUnknown,
-    Loss,
-    ParameterLayout,
-    WallUnknown,
-    poisson_gaussian_sigma,
+from lightcal.core.calibration_model import CalibrationModel
+from lightcal.core.solver_options import (
+    DEFAULT_POSITION_BOUND_M,
+    IterationReport,
+    SolverOptions,
+    robust_cost,
 )
-from lightcal.core.render import light_flux, shade
-from lightcal.core.rotations import left_jacobian_so3
-from lightcal.core.scene import Rig
-from lightcal.core.wall import WallReflectance
 
-# Each light's position may move at most this far (per camera-frame axis) from the origin.
-DEFAULT_POSITION_BOUND_M = 5.0
-# Pixels from which the QR-compressed problem pays (SolverOptions.compress None); measured:
-# 12 x 100 px solve 27 ms compressed vs 21.5 ms full; 12 x 375,000 px 5 s vs 18 s.
-COMPRESS_MIN_PIXELS = 20_000
-# How far beyond the span of its start and the camera centre a light may move (m).
-LIGHT_MOUNT_MARGIN_M = 0.5
-
-
-@dataclass(frozen=True)
-class SolverOptions:
-    """Options of the calibration solve.
-
-    Attributes:
-        loss: robust loss of scipy.optimize.least_squares.
-        f_scale: soft margin between inlier and outlier residuals (in sigma units).
-        max_iterations: at most this many iterations (trf steps).
-        estimate_gains: a free gain per image (exposure unknown); the first image's is fixed.
-        estimate_offset: estimate the black level / ambient offset b.
-        offset: the known offset, or the initial one when estimated.
-        rid_subsamples: RID sub-sampling n x n per footprint.
-        tolerance: ftol = xtol = gtol of least_squares.
-        position_bound_m: box bound on each light's camera-frame position coordinates.
-        compress: with the linear loss, hand trf the QR-compressed problem
-            (`CalibrationModel.reduced`): the same iterates, at a cost and memory that
-            no longer grow with the pixel count beyond one render per evaluation.
-            None: when there are at least COMPRESS_MIN_PIXELS pixels (below, the
-            per-image QR costs more than trf's SVD saves).
-        reweight: when images carry a noise model (`ImageData.noise`), re-derive each
-            pixel's sigma from the values rendered at the converged estimate and solve
-            again from there: sigmas from the noisy observations weight pixels whose noise
-            happened to be negative more, which biases the estimate (measured: ~3 mm at
-            SNR ~35, removed by one re-weighting).
-    """
-
-    loss: Loss = "linear"
-    f_scale: float = 1.0
-    max_iterations: int = 100
-    estimate_gains: bool = False
-    estimate_offset: bool = False
-    offset: float = 0.0
-    rid_subsamples: int = 1
-    tolerance: float = 1e-12
-    position_bound_m: float = DEFAULT_POSITION_BOUND_M
-    compress: bool | None = None
-    reweight: bool = True
-
-    def __post_init__(self) -> None:
-        if self.loss not in ("linear", "huber", "soft_l1", "cauchy"):
-            raise ValueError(
-                f"loss: expected one of linear, huber, soft_l1, cauchy, got {self.loss!r}"
-            )
-        if not (self.f_scale > 0 and math.isfinite(self.f_scale)):
-            raise ValueError(f"f_scale: expected a finite value > 0, got {self.f_scale}")
-        if self.compress is not None and not isinstance(self.compress, bool):
-            raise ValueError(f"compress: expected true, false or null, got {self.compress!r}")
-        if self.max_iterations < 1:
-            raise ValueError(f"max_iterations: expected >= 1, got {self.max_iterations}")
-
-
-@dataclass(frozen=True)
-class IterationReport:
-    """The state after one solver iteration (iteration 0: the start).
-
-    Attributes:
-        iteration: number of completed iterations.
-        x: (n,) parameters.
-        cost: 0.5 * sum of rho(r^2) (least_squares' cost).
-        gradient_norm: max-norm of J^T r at x (linear loss), the first-order optimality.
-        per_image_rms: (n_images,) RMS of the unweighted residual m_obs - m_render.
-        nfev: residual evaluations so far.
-        reweighted: the pixel weights come from rendered values (the re-weighted
-            solve; its cost is not comparable with the iterations before it).
-    """
-
-    iteration: int
-    x: np.ndarray
-    cost: float
-    gradient_norm: float
-    per_image_rms: np.ndarray
-    nfev: int
-    reweighted: bool = False
-
-
-def robust_cost(r: np.ndarray, loss: Loss, f_scale: float) -> float:
-    """least_squares' cost 0.5 C^2 sum rho((r / C)^2) of residuals r (m,)."""
-    z = (r / f_scale) ** 2
-    if loss == "linear":
-        rho = z
-    elif loss == "huber":
-        rho = np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
-    elif loss == "soft_l1":
-        rho = 2.0 * (np.sqrt(1.0 + z) - 1.0)
-    else:  # cauchy
-        rho = np.log1p(z)
-    return 0.5 * f_scale**2 * float(np.sum(rho))
-
-
-class CalibrationModel:
-    """Residuals and Jacobian of a calibration problem.
-
-    Args:
-        images: the selected pixels of each image.
-        unknowns: the lights to calibrate.
-        options: solver options.
-        wall: the wall's reflectance model and which of its parameters to estimate
-            (default: a Lambertian wall).
-    """
-
-    def __init__(
-        self,
-        images: list[ImageData],
-        unknowns: list[LightUnknown],
-        options: SolverOptions,
-        wall: WallUnknown | None = None,
-    ) -> None:
-        if not images:
-            raise ValueError("calibration: expected at least one image with selected pixels")
-        if not unknowns:
-            raise ValueError("calibration: expected at least one light")
-        self.images = images
-        self.unknowns = [_with_curve_range(u, images) for u in unknowns]
-        unknowns = self.unknowns
-        self.options = options
-        self.layout = ParameterLayout.build(
-            unknowns,
-            len(images),
-            estimate_gains=options.estimate_gains,
-            estimate_offset=options.estimate_offset,
-            offset0=options.offset,
-            wall=wall,
-        )
-        self.sizes = np.array([len(im.observed) for im in images])
-        self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
-        self.m = int(self.bounds[-1])
-        self._cache_x: np.ndarray | None = None
-        self._cache_r: np.ndarray | None = None
-        self._cache_J_x: np.ndarray | None = None
-        self._cache_J: np.ndarray | None = None
-        self._cache_R: np.ndarray | None = None
-        self.sigmas: list[np.ndarray] = [im.sigma for im in images]
-        self._buffers = _Buffers()
-        self._evaluating = threading.Lock()
-        self.weights_at: np.ndarray | None = None
-        self.nfev = 0
-
-    # -- evaluation -------------------------------------------------------------------
-
-    @property
-    def compressed(self) -> bool:
-        """trf works on the QR-compressed problem (`reduced`): linear loss only."""
-        if self.options.loss != "linear" or self.options.compress is False:
-            return False
-        return self.options.compress is True or self.m >= COMPRESS_MIN_PIXELS
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """(m,) weighted residuals (m_obs - m_render) / sigma.
-
-        Computed together with the Jacobian (one render with gradients): trf asks for
-        the Jacobian at every point whose residuals it accepts, so this renders once
-        per accepted step instead of twice.
-        """
-        if self._cache_x is None or not np.array_equal(x, self._cache_x):
-            self.nfev += 1
-            self._evaluate(x, full_jacobian=not self.compressed)
-        assert self._cache_r is not None
-        return self._cache_r
-
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """(m, n) d residuals / d x."""
-        if self._cache_J_x is None or not np.array_equal(x, self._cache_J_x):
-            self._evaluate(x, full_jacobian=True)
-        assert self._cache_J is not None
-        return self._cache_J
-
-    def reduced(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The QR-compressed problem at x: (r~ (n+1,), J~ (n+1, n)).
-
-        With [J r] = Q [[R, Q^T r], [0, rho]] (thin QR of the (m, n+1) matrix),
-        r~ = (Q^T r, rho) and J~ = (R; 0) satisfy |r~| = |r|, J~^T r~ = J^T r,
-        J~^T J~ = J^T J and |J~ p + r~| = |J p + r| for every step p: trf's quadratic
-        model, gradient, Jacobian scaling and cost are those of the full problem, so
-        its iterates are the same (to rounding) while every iteration costs O(n^3)
-        instead of an SVD of the (m, n) Jacobian, and no (m, n) matrix is kept.
-        """
-        self.residuals(x)
-        assert self._cache_R is not None
-        return self._cache_R[:, -1], self._cache_R[:, :-1]
-
-    def solver_residuals(self, x: np.ndarray) -> np.ndarray:
-        """The residuals handed to least_squares: `reduced` when compressed, else full."""
-        return self.reduced(x)[0] if self.compressed else self.residuals(x)
-
-    def solver_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """The Jacobian handed to least_squares, matching `solver_residuals`."""
-        return self.reduced(x)[1] if self.compressed else self.jacobian(x)
-
-    def gradient(self, x: np.ndarray) -> np.ndarray:
-        """(n,) J^T r at x."""
-        r_s, J_s = self.solver_residuals(x), self.solver_jacobian(x)
-        return J_s.T @ r_s
-
-    def normal_matrix(self, x: np.ndarray) -> np.ndarray:
-        """(n, n) J^T J at x (Gauss-Newton approximation of the cost's Hessian)."""
-        J_s = self.solver_jacobian(x)
-        return J_s.T @ J_s
-
-    def _evaluate(self, x: np.ndarray, *, full_jacobian: bool) -> None:
-        """Residuals, the QR-compressed problem and optionally the full Jacobian at x."""
-        with self._evaluating, single_threaded_blas():  # one at a time: shared buffers
-            self._evaluate_blas_limited(x, full_jacobian=full_jacobian)
-
-    def _evaluate_blas_limited(self, x: np.ndarray, *, full_jacobian: bool) -> None:
-        n = self.layout.n
-        r = np.empty(self.m)
-        J = np.empty((self.m, n)) if full_jacobian else None
-        tops = []
-        lay = self.layout
-        at_x = _StateAtX(
-            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
-        )
-        for i in range(len(self.images)):
-            rows = slice(self.bounds[i], self.bounds[i + 1])
-            A = self._image_system(x, i, at_x)
-            r[rows] = A[:, n]
-            if J is not None:
-                J[rows] = A[:, :n]
-            if self.compressed and A.shape[0]:
-                tops.append(_economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
-        if self.compressed:
-            self._cache_R = _stack_r_factors(tops, n + 1)
-        self._cache_x = x.copy()
-        self._cache_r = r
-        if J is not None:
-            self._cache_J_x = x.copy()
-            self._cache_J = J
-
-    def _pose_maps(self, x: np.ndarray) -> list[np.ndarray]:
-        """Per light: (6, k) map from (d/dt, d/d delta) (camera frame) to its k pose columns."""
-        maps = []
-        for block in self.layout.blocks:
-            p = x[block.pose]
-            kind = block.param.kind
-            k = block.pose.stop - block.pose.start
-            M = np.zeros((6, k))
-            M[:3, :3] = np.eye(3)
-            if kind == "symmetric":
-                axis = axis_from_angles(p[3], p[4])
-                M[3:, 3:] = np.cross(axis[:, None], axis_jacobian(p[3], p[4]), axis=0)
-            elif kind == "general":
-                M[3:, 3:] = left_jacobian_so3(p[3:6])
-            maps.append(M)
-        return maps
-
-    def _image_system(self, x: np.ndarray, i: int, at_x: _StateAtX) -> np.ndarray:
-        """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals.
-
-        One render with gradients per light; the world-frame gradients go to the pose
-        columns through one (N, 6) x (6, k) product per light.
-        """
-        lay = self.layout
-        im = self.images[i]
-        view = im.view
-        n = lay.n
-        rig, offset, pose_maps = at_x.rig, at_x.offset, at_x.pose_maps
-        g = at_x.gains[i]
-        N = len(im.observed)
-        A, grad_buffer = self._buffers.system(N, n + 1)
-        total = np.zeros(N)
-        # d L_world / d t = R^T and delta_world = R^T delta_camera: rows (world) -> camera.
-        R_t = view.R_camera_world.T
-        to_camera = np.zeros((6, 6))
-        to_camera[:3, :3] = R_t
-        to_camera[3:, 3:] = R_t
-        wall = at_x.wall
-        wall_cols = lay.wall
-        wall_idx = lay.wall_unknown.indices
-        wall_grad = None
-        if not wall.is_lambertian:
-            wall_grad = np.empty((N, len(wall.parameter_names)))
-            A[:, wall_cols] = 0.0
-        for j, block in enumerate(lay.blocks):
-            light = rig.lights[j]
-            flux, grad_world = light_flux(
-                im.footprints,
-                view,
-                light,
-                rid_subsamples=self.options.rid_subsamples,
-                want_grad=True,
-                grad_out=grad_buffer,
-                wall=wall,
-                wall_grad_out=wall_grad,
-            )
-            assert grad_world is not None
-            value_per_flux = g * light.scale
-            sk.add_light_columns(
-                A,
-                total,
-                grad_world,
-                flux,
-                value_per_flux * (to_camera @ pose_maps[j]),
-                block.pose.start,
-                block.log_scale,
-                value_per_flux if abs(x[block.log_scale]) < LOG_CLIP else 0.0,
-                light.scale,
-            )
-            if block.rid.stop > block.rid.start:
-                A[:, block.rid] = self._rid_jacobian(x, i, j, block)
-            if wall_grad is not None and wall_idx:
-                A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
-        sk.finish_rows(
-            A,
-            total,
-            im.footprints.valid,
-            im.observed,
-            self.sigmas[i],
-            g,
-            offset,
-            lay.gains.start + i - 1 if lay.gains.stop > lay.gains.start and i > 0 else -1,
-            -1 if lay.offset_index is None else lay.offset_index,
-        )
-        return A
-
-    def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
-        """d m_render / d (RID params of light j) on image i by central differences."""
-        im = self.images[i]
-        lay = self.layout
-        gain = lay.gain_factors(x)[i]
-        out = np.empty((len(im.observed), block.rid.stop - block.rid.start))
-        lights = list(lay.rig(x).lights)
-        for c, k in enumerate(range(block.rid.start, block.rid.stop)):
-            h = 1e-6 * max(1.0, abs(x[k]))
-            vals = []
-            for sgn in (1.0, -1.0):
-                xs = x.copy()
-                xs[k] += sgn * h
-                lights[j] = lay.light_of(block, xs)
-                sh = shade(
-                    im.footprints,
-                    im.view,
-                    Rig(tuple(lights)),
-                    rid_subsamples=self.options.rid_subsamples,
-                    wall=lay.wall_of(x),
-                )
-                vals.append(gain * sh.values.filled(np.nan))
-            out[:, c] = (vals[0] - vals[1]) / (2 * h)
-        return out
-
-    @property
-    def reweights(self) -> bool:
-        """Whether `run_least_squares` re-weights from the rendered values and solves again."""
-        return self.options.reweight and any(im.noise is not None for im in self.images)
-
-    def set_weights_at(self, x: np.ndarray | None) -> None:
-        """Pixel sigmas from the data (None) or from the values rendered at x.
-
-        At x, an image with a noise model (gain, read_variance) gets
-        sigma = sqrt(gain * max(v - offset, 0) + read_variance) of its rendered values v;
-        images without one keep their sigmas.
-        """
-        sigmas = [im.sigma for im in self.images]
-        if x is not None:
-            lay = self.layout
-            rig, gains, wall = lay.rig(x), lay.gain_factors(x), lay.wall_of(x)
-            for i, im in enumerate(self.images):
-                if im.noise is None:
-                    continue
-                sh = shade(
-                    im.footprints,
-                    im.view,
-                    rig,
-                    rid_subsamples=self.options.rid_subsamples,
-                    wall=wall,
-                )
-                sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
-                sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
-        self.sigmas = sigmas
-        self.weights_at = None if x is None else np.array(x, dtype=np.float64)
-        self._cache_x = self._cache_J_x = None
-
-    def per_image_rms(self, x: np.ndarray) -> np.ndarray:
-        """(n_images,) RMS of m_obs - m_render per image (pixel value units)."""
-        r = self.residuals(x)
-        out = np.empty(len(self.images))
-        for i in range(len(self.images)):
-            d = r[self.bounds[i] : self.bounds[i + 1]] * self.sigmas[i]
-            out[i] = float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
-        return out
-
-    def report(self, x: np.ndarray, iteration: int) -> IterationReport:
-        r = self.residuals(x)
-        return IterationReport(
-            iteration,
-            x.copy(),
-            robust_cost(r, self.options.loss, self.options.f_scale),
-            float(np.abs(self.gradient(x)).max()),
-            self.per_image_rms(x),
-            self.nfev,
-            self.weights_at is not None,
-        )
-
-    def image_jacobians(self, x: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
-        """(i, J_i (N_i, n)) per image: rows of the weighted Jacobian d r / d x at x.
-
-        One image at a time (a copy each), so no (m, n) matrix is held: what the
-        uncertainty terms need for dense problems too.
-        """
-        lay = self.layout
-        at_x = _StateAtX(
-            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
-        )
-        for i in range(len(self.images)):
-            with self._evaluating, single_threaded_blas():  # shared buffers
-                J_i = self._image_system(x, i, at_x)[:, : lay.n].copy()
-            yield i, J_i
-
-    # -- bounds -------------------------------------------------------------------------
-
-    def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds that keep every light in front of the wall in every view.
-
-        Each light's lateral (camera x, y) position is boxed to the span of its start and
-        the camera centre, widened by d, and its forward position z below z_max(d), the
-        largest z that keeps the light in front of the wall in every view for any lateral
-        position in the box. d is the largest value (up to LIGHT_MOUNT_MARGIN_M) that leaves
-        at least a quarter of the start's forward room z_max(0) - z0. Scales and RID
-        parameters stay unbounded: bounding them degrades trf's steps (it scales
-        variables by their distance to finite bounds); the model clips their
-        exponentials instead (`ParameterLayout`).
-        """
-        lo = np.full(self.layout.n, -np.inf)
-        hi = np.full(self.layout.n, np.inf)
-        b = self.options.position_bound_m
-        x0 = self.layout.x0
-        for block in self.layout.blocks:
-            s = block.pose.start
-            # The lateral box spans the start and the camera centre (lights are mounted
-            # near it), widened by d on every side.
-            near = np.minimum(x0[s : s + 2], 0.0)
-            far = np.maximum(x0[s : s + 2], 0.0)
-            z0 = float(x0[s + 2])
-
-            def z_max(d: float, near: np.ndarray = near, far: np.ndarray = far) -> float:
-                z = b
-                for im in self.images:
-                    R = im.view.R_camera_world
-                    if R[2, 2] >= 0.0:
-                        continue  # the camera axis does not point at the wall
-                    # world z = c_z + sum_k R[k, 2] t_k, worst case over the lateral box.
-                    worst = im.view.center_world[2]
-                    for k in range(2):
-                        worst += min(R[k, 2] * (near[k] - d), R[k, 2] * (far[k] + d))
-                    z = min(z, 0.98 * worst / -R[2, 2])
-                return z
-
-            room = z_max(0.0) - z0
-            d = min(b, LIGHT_MOUNT_MARGIN_M)
-            while d > 1e-3 and z_max(d) - z0 < 0.25 * room:
-                d *= 0.8
-            lo[s : s + 2] = np.maximum(near - d, -b)
-            hi[s : s + 2] = np.minimum(far + d, b)
-            lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
-            hi[s + 2] = max(z_max(d), z0 + 1e-9)
-        lo[self.layout.wall], hi[self.layout.wall] = self.layout.wall_bounds()
-        return lo, hi
-
-
-def _economic_r(A: np.ndarray) -> np.ndarray:
-    """R (min(N, k), k) of the thin QR of A (N, k); A (Fortran order) is overwritten."""
-    qr, _, _, info = scipy.linalg.lapack.dgeqrf(A, overwrite_a=True)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"QR of the image system failed (LAPACK info {info})")
-    return np.triu(qr[: min(A.shape)])
-
-
-def _stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
-    """R factor (width, width) of the row-stack of matrices whose R factors are `tops`.
-
-    QR of the stacked (k, width) upper-triangular factors is that of the stack of the
-    original blocks (Q is orthogonal). A None (a block with non-finite residuals) makes
-    the whole result NaN, which trf treats as a failed step.
-    """
-    if any(t is None for t in tops):
-        return np.full((width, width), np.nan)
-    out = np.zeros((width, width))
-    if tops:
-        stack = np.concatenate([t for t in tops if t is not None])
-        top = _economic_r(np.asfortranarray(stack))
-        out[: top.shape[0]] = top
-    return out
-
-
-def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
-    """A "curve" RID without a set range spans the angles the selected pixels are seen
-    at from the initial light (knots beyond them would be unobservable)."""
-    if unknown.estimate_rid != "curve" or unknown.curve_max_angle_rad is not None:
-        return unknown
-    light = unknown.initial
-    largest = 0.0
-    for im in images:
-        L = light.position_world(im.view)
-        axis = light.rotation_world(im.view)[:, 2]
-        w = im.footprints.corners_world.mean(axis=(1, 2)) - L
-        cos = (w @ axis) / np.linalg.norm(w, axis=1)
-        largest = max(largest, float(np.arccos(np.clip(cos.min(), -1.0, 1.0))))
-    # 1 % margin keeps the seen pixels off the last knot, where f drops to 0; knots far
-    # beyond the angles the pixels are seen at are unobservable and
-    # make the solve wander (measured: 1.05 and 1.15 x fail to converge on tests).
-    theta_max = min(math.radians(89.0), 1.01 * largest) if largest > 0 else None
-    return replace(unknown, curve_max_angle_rad=theta_max)
-
-
-class _Buffers:
-    """Work arrays reused across images and evaluations: fresh multi-MB arrays cost a
-    page fault per 4 kB on first touch (~10 ms per 375,000-pixel image system)."""
-
-    def __init__(self) -> None:
-        self._system = np.empty(0)
-        self._grad = np.empty(0)
-
-    def system(self, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
-        """A zeroed (rows, cols) Fortran-order array and a (rows, 6) C-order one."""
-        if self._system.size < rows * cols:
-            self._system = np.empty(rows * cols)
-        if self._grad.size < rows * 6:
-            self._grad = np.empty(rows * 6)
-        A = self._system[: rows * cols].reshape((rows, cols), order="F")
-        A.fill(0.0)
-        return A, self._grad[: rows * 6].reshape(rows, 6)
-
-
-@dataclass(frozen=True)
-class _StateAtX:
-    """What every image's system needs at x: the lights, gains, offset, pose maps, wall."""
-
-    rig: Rig
-    gains: np.ndarray
-    offset: float
-    pose_maps: list[np.ndarray]
-    wall: WallReflectance
+__all__ = [
+    "DEFAULT_POSITION_BOUND_M",
+    "CalibrationModel",
+    "IterationReport",
+    "SolveOutcome",
+    "SolverOptions",
+    "robust_cost",
+    "run_least_squares",
+]
 
 
 @dataclass
@@ -597,6 +58,25 @@ class SolveOutcome:
     time_s: float
     history: list[IterationReport] = field(default_factory=list)
     weights_at: np.ndarray | None = None
+
+    @classmethod
+    def stopped(
+        cls, history: list[IterationReport], message: str, *, time_s: float = 0.0
+    ) -> SolveOutcome:
+        """An unfinished outcome (status -2) at the last report of `history` (non-empty):
+        a solve stopped before its first iteration, or one paused by its caller."""
+        last = history[-1]
+        return cls(
+            x=last.x.copy(),
+            status=-2,
+            message=message,
+            success=False,
+            iterations=last.iteration,
+            nfev=last.nfev,
+            cost=last.cost,
+            time_s=time_s,
+            history=history,
+        )
 
 
 def run_least_squares(
@@ -630,16 +110,8 @@ def run_least_squares(
     try:
         emit(model.report(x_start, 0))
     except StopIteration:
-        return SolveOutcome(
-            x_start,
-            -2,
-            "stopped before the first iteration",
-            False,
-            0,
-            model.nfev,
-            history[0].cost,
-            time.perf_counter() - t0,
-            history,
+        return SolveOutcome.stopped(
+            history, "stopped before the first iteration", time_s=time.perf_counter() - t0
         )
     res, hit_limit = _trf(model, x_start, (lo, hi), 0, emit)
     if model.reweights and res.status > 0 and not hit_limit:
@@ -650,16 +122,16 @@ def run_least_squares(
     if hit_limit:
         status, message = 0, f"stopped after the maximum of {opts.max_iterations} iterations"
     return SolveOutcome(
-        np.asarray(res.x),
-        status,
-        message,
-        status > 0,
-        iterations,
-        model.nfev,
-        float(res.cost),
-        time.perf_counter() - t0,
-        history,
-        None if model.weights_at is None else model.weights_at.copy(),
+        x=np.asarray(res.x),
+        status=status,
+        message=message,
+        success=status > 0,
+        iterations=iterations,
+        nfev=model.nfev,
+        cost=float(res.cost),
+        time_s=time.perf_counter() - t0,
+        history=history,
+        weights_at=None if model.weights_at is None else model.weights_at.copy(),
     )
 
 

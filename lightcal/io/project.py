@@ -176,6 +176,11 @@ class NoiseSpec(_Model):
     read_variance: float = Field(gt=0)
 
 
+# The defaults of the selection and solver sections are the core options' (defined once).
+_SELECTION = SelectionOptions()
+_SOLVER = SolverOptions()
+
+
 class SensorSpec(_Model):
     model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
     vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
@@ -184,8 +189,10 @@ class SensorSpec(_Model):
     white_level: float | None = None
     assume_linear: bool = False
     response: str | None = Field(default=None, description="camera response curve file")
-    offset: float = Field(default=0.0, description="known (or initial) offset after black level")
-    estimate_offset: bool = False
+    offset: float = Field(
+        default=_SOLVER.offset, description="known (or initial) offset after black level"
+    )
+    estimate_offset: bool = _SOLVER.estimate_offset
     noise: NoiseSpec | None = None
 
     @model_validator(mode="after")
@@ -275,13 +282,14 @@ class RegionSpec(_Model):
 
 
 class SelectionSpec(_Model):
-    strategy: Literal["random", "grid", "all"] = "random"
-    n_per_image: int = Field(default=100, ge=1)
-    grid_step: int = Field(default=32, ge=1)
-    binning: int = Field(default=1, ge=1)
-    seed: int = 0
+    strategy: Literal["random", "grid", "all"] = _SELECTION.strategy
+    n_per_image: int = Field(default=_SELECTION.n_per_image, ge=1)
+    grid_step: int = Field(default=_SELECTION.grid_step, ge=1)
+    binning: int = Field(default=_SELECTION.binning, ge=1)
+    seed: int = _SELECTION.seed
     min_signal: float | None = Field(
-        default=None, description="values at or below are dropped; null: 5 read-noise sigmas"
+        default=_SELECTION.min_signal,
+        description="values at or below are dropped; null: 5 read-noise sigmas",
     )
     regions: list[RegionSpec] = Field(default_factory=list)
     exclude_mirror_deg: float | None = Field(
@@ -318,13 +326,13 @@ class WallSpec(_Model):
 
 
 class SolverSpec(_Model):
-    loss: Literal["linear", "huber", "soft_l1", "cauchy"] = "linear"
-    f_scale: float = Field(default=1.0, gt=0)
-    max_iterations: int = Field(default=100, ge=1)
-    estimate_gains: bool = False
-    rid_subsamples: int = Field(default=1, ge=1, le=16)
-    tolerance: float = Field(default=1e-12, gt=0)
-    position_bound_m: float = Field(default=5.0, gt=0)
+    loss: Literal["linear", "huber", "soft_l1", "cauchy"] = _SOLVER.loss
+    f_scale: float = Field(default=_SOLVER.f_scale, gt=0)
+    max_iterations: int = Field(default=_SOLVER.max_iterations, ge=1)
+    estimate_gains: bool = _SOLVER.estimate_gains
+    rid_subsamples: int = Field(default=_SOLVER.rid_subsamples, ge=1, le=16)
+    tolerance: float = Field(default=_SOLVER.tolerance, gt=0)
+    position_bound_m: float = Field(default=_SOLVER.position_bound_m, gt=0)
     multistart: int = Field(default=0, ge=0, description="extra random starts")
     multistart_position_m: float = Field(default=0.3, gt=0)
     multistart_angle_deg: float = Field(default=30.0, gt=0)

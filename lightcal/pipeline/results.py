@@ -25,7 +25,7 @@ class PoseSummary:
     or the 1-sigma uncertainties of those quantities, component by component.
 
     Attributes:
-        position_m: (3,) emitter position, metres.
+        t_camera_light: (3,) emitter position in the camera frame, metres.
         R_camera_light: (3, 3) rotation, light frame -> camera frame.
         quaternion_wxyz: (4,) quaternion of `R_camera_light`, w >= 0.
         axis_camera: (3,) unit light axis.
@@ -33,11 +33,12 @@ class PoseSummary:
         axis_angle_from_optical_axis_deg: angle between the light axis and camera +z.
 
     The arrays are read-only float64. `to_vector` / `from_vector` lay the quantities out
-    as one flat (22,) vector (for propagating the covariance); `to_dict` is the
-    JSON-ready form, keyed by the field names.
+    as one flat (22,) vector (for propagating the covariance); `to_dict` / `from_dict`
+    the JSON-ready form, keyed by the result file's names (`FILE_NAMES`: the position is
+    `position_m` there, as in `describe_pose`).
     """
 
-    position_m: np.ndarray
+    t_camera_light: np.ndarray
     R_camera_light: np.ndarray
     quaternion_wxyz: np.ndarray
     axis_camera: np.ndarray
@@ -46,7 +47,7 @@ class PoseSummary:
     axis_angle_from_optical_axis_deg: float
 
     SHAPES: ClassVar[dict[str, tuple[int, ...]]] = {
-        "position_m": (3,),
+        "t_camera_light": (3,),
         "R_camera_light": (3, 3),
         "quaternion_wxyz": (4,),
         "axis_camera": (3,),
@@ -55,6 +56,8 @@ class PoseSummary:
         "axis_angle_from_optical_axis_deg": (),
     }
     SIZE: ClassVar[int] = sum(math.prod(shape) for shape in SHAPES.values())  # 22
+    # Field -> key in the result file (and `describe_pose`), where they differ.
+    FILE_NAMES: ClassVar[dict[str, str]] = {"t_camera_light": "position_m"}
 
     def __post_init__(self) -> None:
         for name, shape in self.SHAPES.items():
@@ -70,7 +73,13 @@ class PoseSummary:
     @classmethod
     def of_pose(cls, R_camera_light: np.ndarray, t_camera_light: np.ndarray) -> PoseSummary:
         """The description of the pose (R_camera_light, t_camera_light)."""
-        return cls(**describe_pose(R_camera_light, t_camera_light))
+        return cls.from_dict(describe_pose(R_camera_light, t_camera_light))
+
+    @property
+    def position_m(self) -> np.ndarray:
+        """`t_camera_light` under the result file's name (for callers not yet moved to
+        `t_camera_light`; to be removed)."""
+        return self.t_camera_light
 
     def to_vector(self) -> np.ndarray:
         """(22,) the fields in declaration order, arrays flattened row by row."""
@@ -91,12 +100,18 @@ class PoseSummary:
         return cls(**values)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready: nested lists of floats and floats, as `describe_pose` gives."""
+        """JSON-ready: nested lists of floats and floats under the result file's names, as
+        `describe_pose` gives."""
         out: dict[str, Any] = {}
         for name, shape in self.SHAPES.items():
             value = getattr(self, name)
-            out[name] = value.tolist() if shape else value
+            out[self.FILE_NAMES.get(name, name)] = value.tolist() if shape else value
         return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PoseSummary:
+        """The inverse of `to_dict` (also reads `describe_pose`'s dictionaries)."""
+        return cls(**{name: data[cls.FILE_NAMES.get(name, name)] for name in cls.SHAPES})
 
     def __eq__(self, other: object) -> bool:  # unhashable, as it defines __eq__
         if not isinstance(other, PoseSummary):

@@ -11,7 +11,7 @@ import numpy as np
 
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
-from lightcal.io.project import Project
+from lightcal.io.project import Project, SolverSpec
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
 from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
@@ -26,17 +26,20 @@ from lightcal.pipeline.wall_choice import (
     without_mirror,
 )
 
+# The multi-start defaults are the project file's (defined once).
+_SOLVER_SPEC = SolverSpec()
+
 
 def perturbed_start(
-    model: CalibrationModel, rng: np.random.Generator, *, position_m: float, angle_deg: float
+    model: CalibrationModel, rng: np.random.Generator, *, shift_m: float, angle_deg: float
 ) -> np.ndarray:
-    """A random start near the initial guess: positions moved by up to `position_m`,
-    light axes/orientations rotated by up to `angle_deg`."""
+    """A random start near the initial guess: each light's `t_camera_light` moved by up to
+    `shift_m`, light axes/orientations rotated by up to `angle_deg`."""
     x = model.layout.x0.copy()
     for block in model.layout.blocks:
         p = x[block.pose].copy()
         d = rng.normal(size=3)
-        p[:3] += d / np.linalg.norm(d) * rng.uniform(0, position_m)
+        p[:3] += d / np.linalg.norm(d) * rng.uniform(0, shift_m)
         R, t = block.param.to_pose(p)
         if block.param.n_rot:
             w = rng.normal(size=3)
@@ -49,9 +52,9 @@ def perturbed_start(
 def solve(
     model: CalibrationModel,
     *,
-    multistart: int = 0,
-    multistart_position_m: float = 0.3,
-    multistart_angle_deg: float = 30.0,
+    multistart: int = _SOLVER_SPEC.multistart,
+    multistart_position_m: float = _SOLVER_SPEC.multistart_position_m,
+    multistart_angle_deg: float = _SOLVER_SPEC.multistart_angle_deg,
     seed: int = 0,
     on_iteration: Callable[[IterationReport], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
@@ -68,7 +71,7 @@ def solve(
     rng = np.random.default_rng(seed)
     for k in range(1, n_starts):
         x0 = perturbed_start(
-            model, rng, position_m=multistart_position_m, angle_deg=multistart_angle_deg
+            model, rng, shift_m=multistart_position_m, angle_deg=multistart_angle_deg
         )
         if on_start is not None:
             on_start(k, n_starts)

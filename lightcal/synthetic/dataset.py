@@ -35,20 +35,15 @@ byte-identical datasets.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
-import re
-import secrets
 import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -56,25 +51,20 @@ from lightcal import __version__
 from lightcal.core.camera import Camera
 from lightcal.core.pose import describe_pose
 from lightcal.core.render import render_image
-from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
+from lightcal.core.rid import IsotropicRID
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
 from lightcal.io.camera_file import read_camera, write_camera
-from lightcal.io.ies import write_ies
-from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
 from lightcal.io.project import (
     CameraSpec,
     ExposureSpec,
     ImageSpec,
-    InitialSpec,
     LightSpec,
     NoiseSpec,
-    PoseSpec,
     ProjectFile,
-    RIDSpec,
     SelectionSpec,
     SensorSpec,
     SolverSpec,
@@ -83,15 +73,32 @@ from lightcal.io.project import (
     save_project,
 )
 from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
+from lightcal.synthetic.dataset_files import (
+    CAMERA_NAME,
+    IMAGE_SUFFIX,
+    IMAGES_DIR,
+    PROJECT_NAME,
+    TRUTH_NAME,
+    VIGNETTING_NAME,
+    ImageFormat,
+    camera_dict,
+    check_target,
+    encode_image,
+    initial_spec,
+    make_staging,
+    pose_kind,
+    pose_spec,
+    publish,
+    rid_file,
+    view_geometry,
+)
 from lightcal.synthetic.scenes import (
-    AZIMUTH_STEP_DEG,
     RigConfig,
     SceneConfig,
     SensorConfig,
     apply_sensor,
     conversion_gain,
     describe_rid,
-    elliptical_beam_table,
     initial_guess,
     noise_model,
     peak_signal,
@@ -100,28 +107,14 @@ from lightcal.synthetic.scenes import (
     sample_rig,
     sample_views,
     signal_scale,
-    symmetric_profile_table,
     white_level,
 )
 
 __all__ = ["ImageFormat", "SynthConfig", "SynthDataset", "read_truth", "write_dataset"]
 
-ImageFormat = Literal["png", "tiff"]
-
 TRUTH_FORMAT = "lightcal.synth_truth"
 """The `format` tag of truth.json."""
 
-PROJECT_NAME = "project.json"
-TRUTH_NAME = "truth.json"
-CAMERA_NAME = "camera.yaml"
-VIGNETTING_NAME = "vignetting.json"
-IMAGES_DIR = "images"
-
-_CANDELA_ON_AXIS = 1000.0
-"""Intensity on the axis of the IES files written (the RID is relative: any value works)."""
-
-_SUFFIX = {"png": ".png", "tiff": ".tif"}
-_STALE_IMAGE = re.compile(r"view_\d+\.(png|tif)")
 
 Progress = Callable[[str], None]
 
@@ -166,7 +159,7 @@ class SynthConfig:
                 raise InputError(name, f"expected a finite value >= 0, got {value!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InputError("seed", f"expected an integer >= 0, got {self.seed!r}")
-        if self.image_format not in _SUFFIX:
+        if self.image_format not in IMAGE_SUFFIX:
             raise InputError("image_format", f"expected 'png' or 'tiff', got {self.image_format!r}")
 
 
@@ -199,162 +192,6 @@ class SynthDataset:
     vignetting: NDArray[np.float64] | None
 
 
-# ------------------------------------------------------------------------- the folder
-
-
-def _check_target(out_dir: Path, *, force: bool) -> bool:
-    """Whether `out_dir` already holds files (allowed only with `force`)."""
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a folder: expected a new or empty folder")
-    occupied = out_dir.is_dir() and any(out_dir.iterdir())
-    if occupied and not force:
-        raise InputError(
-            out_dir,
-            "the folder is not empty: expected a new or empty folder "
-            "(--force replaces the dataset in it)",
-        )
-    return occupied
-
-
-def _make_staging(out_dir: Path) -> Path:
-    parent = out_dir.parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        staging = parent / f".{out_dir.name}.{secrets.token_hex(6)}.partial"
-        staging.mkdir()
-        (staging / IMAGES_DIR).mkdir()
-    except OSError as exc:
-        raise InputError(out_dir, f"cannot create the dataset folder: {exc}") from exc
-    return staging
-
-
-def _publish(staging: Path, out_dir: Path, *, occupied: bool) -> None:
-    """Move the finished dataset into `out_dir` (see the module docstring)."""
-    if not occupied:
-        if out_dir.is_dir():
-            out_dir.rmdir()  # empty
-        staging.rename(out_dir)
-        return
-    # Replace file by file; the old project goes first and the new one comes last, so a
-    # loadable project.json always describes a complete dataset.
-    with contextlib.suppress(FileNotFoundError):
-        (out_dir / PROJECT_NAME).unlink()
-    new_files = sorted(p.relative_to(staging) for p in staging.rglob("*") if p.is_file())
-    (out_dir / IMAGES_DIR).mkdir(exist_ok=True)
-    old_images = out_dir / IMAGES_DIR
-    for p in old_images.iterdir():
-        if _STALE_IMAGE.fullmatch(p.name) and Path(IMAGES_DIR, p.name) not in new_files:
-            p.unlink()
-    for rel in [*(r for r in new_files if r != Path(PROJECT_NAME)), Path(PROJECT_NAME)]:
-        (staging / rel).replace(out_dir / rel)
-    shutil.rmtree(staging)
-
-
-# --------------------------------------------------------------------------- contents
-
-
-def _rid_file(config: RigConfig, folder: Path) -> RIDSpec:
-    """Write the lights' profile file when the model is a table; the project's RID entry."""
-    if config.model == "isotropic":
-        return RIDSpec(type="isotropic")
-    if config.model == "cos_power":
-        rid = CosPowerRID.from_half_angle(math.radians(config.half_angle_deg))
-        return RIDSpec(type="cos_power", m=rid.m)
-    if config.model == "gaussian":
-        g = GaussianRID.from_half_angle(math.radians(config.half_angle_deg))
-        return RIDSpec(type="gaussian", sigma_deg=math.degrees(g.sigma_rad))
-    if config.model == "table":
-        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
-        write_rid_csv(folder / "rid.csv", theta_deg, values)
-        return RIDSpec(type="table", path="rid.csv")
-    path = folder / "light.ies"
-    if config.model == "ies":
-        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
-        table = PhotometricTable(
-            vertical_deg=theta_deg,
-            horizontal_deg=np.zeros(1),
-            candela=_CANDELA_ON_AXIS * values[None, :],
-            source=str(path),
-            symmetry="axial",
-            luminaire="lightcal synth: rotationally symmetric LED profile",
-        )
-    else:
-        theta_deg, phi_deg, values2 = elliptical_beam_table(
-            config.half_angle_deg, aspect=config.beam_aspect, skew=config.beam_skew
-        )
-        # Type C: the C-plane at angle C is the light-frame azimuth phi = -C (mod 360).
-        n = phi_deg.size
-        rows = [(-k) % n for k in range(n)]
-        table = PhotometricTable(
-            vertical_deg=theta_deg,
-            horizontal_deg=np.arange(n, dtype=np.float64) * AZIMUTH_STEP_DEG,
-            candela=_CANDELA_ON_AXIS * values2[rows],
-            source=str(path),
-            symmetry="none",
-            luminaire="lightcal synth: lopsided elliptical beam",
-        )
-    write_ies(path, table)
-    return RIDSpec(type="ies", path="light.ies")
-
-
-def _pose_spec(view: View, covariance: np.ndarray | None = None) -> PoseSpec:
-    return PoseSpec(
-        R=view.R_camera_world.tolist(),
-        t=view.t_camera_world.tolist(),
-        covariance=None if covariance is None else covariance.tolist(),
-    )
-
-
-def _initial_spec(light: Light) -> InitialSpec:
-    position = light.t_camera_light.tolist()
-    if isinstance(light.rid, IsotropicRID):
-        return InitialSpec(position_m=position)
-    if light.rid.symmetric:
-        return InitialSpec(position_m=position, axis_camera=light.axis_camera.tolist())
-    return InitialSpec(position_m=position, R_camera_light=light.R_camera_light.tolist())
-
-
-def _pose_kind(rid: RID) -> Literal["auto", "isotropic"]:
-    return "isotropic" if isinstance(rid, IsotropicRID) else "auto"
-
-
-def _encode_image(dn: NDArray[np.uint16], image_format: ImageFormat) -> bytes:
-    if image_format == "png":
-        ok, encoded = cv2.imencode(".png", dn)
-        if not ok:  # pragma: no cover - OpenCV always encodes uint16 PNG
-            raise InputError("image", "OpenCV could not encode a 16-bit PNG")
-        return encoded.tobytes()
-    import tifffile
-
-    buffer = io.BytesIO()
-    tifffile.imwrite(buffer, dn, photometric="minisblack")
-    return buffer.getvalue()
-
-
-def _view_geometry(view: View) -> dict[str, float]:
-    """Distance along the optical axis to the wall and tilt from its normal."""
-    axis = view.R_camera_world[2]  # optical axis in the world frame
-    center = view.center_world
-    return {
-        "distance_m": float(-center[2] / axis[2]),
-        "tilt_deg": math.degrees(math.acos(min(1.0, max(-1.0, float(-axis[2]))))),
-    }
-
-
-def _camera_dict(camera: Camera) -> dict[str, Any]:
-    return {
-        "path": CAMERA_NAME,
-        "fx": camera.fx,
-        "fy": camera.fy,
-        "cx": camera.cx,
-        "cy": camera.cy,
-        "skew": camera.skew,
-        "width": camera.width,
-        "height": camera.height,
-        "dist": camera.dist_opencv.tolist(),
-    }
-
-
 # ------------------------------------------------------------------------------ write
 
 
@@ -382,11 +219,11 @@ def write_dataset(
             configuration that lights nothing or whose initial guess sits behind the wall.
     """
     out_dir = Path(out_dir)
-    occupied = _check_target(out_dir, force=force)
-    staging = _make_staging(out_dir)
+    occupied = check_target(out_dir, force=force)
+    staging = make_staging(out_dir)
     try:
         dataset = _write_into(staging, config, progress, out_dir)
-        _publish(staging, out_dir, occupied=occupied)
+        publish(staging, out_dir, occupied=occupied)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
@@ -433,7 +270,7 @@ def _write_into(
                 f"the fall-off reaches {float(vignetting.min()):.3g} inside the image; "
                 "expected V > 0 everywhere",
             )
-    rid_spec = _rid_file(config.rig, folder)
+    rid_spec = rid_file(config.rig, folder)
     rid = build_rid(rid_spec, folder, project_path, "lights[0].rid")
 
     # The scene.
@@ -472,7 +309,7 @@ def _write_into(
     # The images.
     n = len(views)
     digits = max(2, len(str(n - 1)))
-    suffix = _SUFFIX[config.image_format]
+    suffix = IMAGE_SUFFIX[config.image_format]
     image_paths: list[Path] = []
     view_truth: list[dict[str, Any]] = []
     black = sensor.black_level
@@ -484,17 +321,17 @@ def _write_into(
         )
         dn, saturated = apply_sensor(signal, sensor, rng_sensor)
         path = folder / IMAGES_DIR / f"{name}{suffix}"
-        atomic_write_bytes(path, _encode_image(dn, config.image_format))
+        atomic_write_bytes(path, encode_image(dn, config.image_format))
         image_paths.append(path)
         valid = int(signal.count())
         view_truth.append(
             {
                 "name": name,
                 "path": f"{IMAGES_DIR}/{name}{suffix}",
-                "T_camera_world": _pose_spec(view).model_dump(exclude_none=True),
-                "T_camera_world_measured": _pose_spec(measured[i]).model_dump(exclude_none=True),
+                "T_camera_world": pose_spec(view).model_dump(exclude_none=True),
+                "T_camera_world_measured": pose_spec(measured[i]).model_dump(exclude_none=True),
                 "center_world_m": view.center_world.tolist(),
-                **_view_geometry(view),
+                **view_geometry(view),
                 "exposure_time_s": float(times_s[i]),
                 "exposure": view.exposure,
                 "peak_signal_dn": float(signal.max()) if valid else 0.0,
@@ -503,7 +340,7 @@ def _write_into(
             }
         )
         if progress is not None:
-            geometry = _view_geometry(view)
+            geometry = view_geometry(view)
             progress(
                 f"{name}{suffix} {i + 1}/{n}: distance {geometry['distance_m']:.2f} m, "
                 f"tilt {geometry['tilt_deg']:.1f} deg, exposure 1/{1.0 / times_s[i]:.0f} s, "
@@ -532,7 +369,7 @@ def _write_into(
             ImageSpec(
                 path=truth["path"],
                 name=truth["name"],
-                T_camera_world=_pose_spec(measured[i], pose_covariance),
+                T_camera_world=pose_spec(measured[i], pose_covariance),
                 exposure=exposure_specs[i],
             )
             for i, truth in enumerate(view_truth)
@@ -541,8 +378,8 @@ def _write_into(
             LightSpec(
                 name=light.name,
                 rid=rid_spec,
-                pose=_pose_kind(light.rid),
-                initial=_initial_spec(initial[j]),
+                pose=pose_kind(light.rid),
+                initial=initial_spec(initial[j]),
             )
             for j, light in enumerate(rig.lights)
         ],
@@ -559,7 +396,7 @@ def _write_into(
         "version": 1,
         "lightcal_version": __version__,
         "seed": config.seed,
-        "camera": _camera_dict(camera),
+        "camera": camera_dict(camera),
         "sensor": {
             "model": sensor.model,
             "bit_depth": sensor.bit_depth,

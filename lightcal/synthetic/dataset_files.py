@@ -1,0 +1,206 @@
+"""The files of a synthetic dataset: the folder's layout, how it is put in place, and
+what goes into its project (RID file, poses, initial guesses, camera, encoded images).
+
+`lightcal.synthetic.dataset` writes a dataset with these; its docstring has the layout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import re
+import secrets
+import shutil
+from pathlib import Path
+from typing import Any, Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from lightcal.core.camera import Camera
+from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
+from lightcal.core.scene import Light, View
+from lightcal.errors import InputError
+from lightcal.io.ies import write_ies
+from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
+from lightcal.io.project import InitialSpec, PoseSpec, RIDSpec
+from lightcal.synthetic.scenes import (
+    AZIMUTH_STEP_DEG,
+    RigConfig,
+    elliptical_beam_table,
+    symmetric_profile_table,
+)
+
+ImageFormat = Literal["png", "tiff"]
+
+PROJECT_NAME = "project.json"
+TRUTH_NAME = "truth.json"
+CAMERA_NAME = "camera.yaml"
+VIGNETTING_NAME = "vignetting.json"
+IMAGES_DIR = "images"
+
+_CANDELA_ON_AXIS = 1000.0
+"""Intensity on the axis of the IES files written (the RID is relative: any value works)."""
+
+IMAGE_SUFFIX = {"png": ".png", "tiff": ".tif"}
+"""File suffix of each image format."""
+
+_STALE_IMAGE = re.compile(r"view_\d+\.(png|tif)")
+
+
+# ------------------------------------------------------------------------- the folder
+
+
+def check_target(out_dir: Path, *, force: bool) -> bool:
+    """Whether `out_dir` already holds files (allowed only with `force`)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: expected a new or empty folder")
+    occupied = out_dir.is_dir() and any(out_dir.iterdir())
+    if occupied and not force:
+        raise InputError(
+            out_dir,
+            "the folder is not empty: expected a new or empty folder "
+            "(--force replaces the dataset in it)",
+        )
+    return occupied
+
+
+def make_staging(out_dir: Path) -> Path:
+    parent = out_dir.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        staging = parent / f".{out_dir.name}.{secrets.token_hex(6)}.partial"
+        staging.mkdir()
+        (staging / IMAGES_DIR).mkdir()
+    except OSError as exc:
+        raise InputError(out_dir, f"cannot create the dataset folder: {exc}") from exc
+    return staging
+
+
+def publish(staging: Path, out_dir: Path, *, occupied: bool) -> None:
+    """Move the finished dataset into `out_dir` (see lightcal.synthetic.dataset)."""
+    if not occupied:
+        if out_dir.is_dir():
+            out_dir.rmdir()  # empty
+        staging.rename(out_dir)
+        return
+    # Replace file by file; the old project goes first and the new one comes last, so a
+    # loadable project.json always describes a complete dataset.
+    with contextlib.suppress(FileNotFoundError):
+        (out_dir / PROJECT_NAME).unlink()
+    new_files = sorted(p.relative_to(staging) for p in staging.rglob("*") if p.is_file())
+    (out_dir / IMAGES_DIR).mkdir(exist_ok=True)
+    old_images = out_dir / IMAGES_DIR
+    for p in old_images.iterdir():
+        if _STALE_IMAGE.fullmatch(p.name) and Path(IMAGES_DIR, p.name) not in new_files:
+            p.unlink()
+    for rel in [*(r for r in new_files if r != Path(PROJECT_NAME)), Path(PROJECT_NAME)]:
+        (staging / rel).replace(out_dir / rel)
+    shutil.rmtree(staging)
+
+
+# --------------------------------------------------------------------------- contents
+
+
+def rid_file(config: RigConfig, folder: Path) -> RIDSpec:
+    """Write the lights' profile file when the model is a table; the project's RID entry."""
+    if config.model == "isotropic":
+        return RIDSpec(type="isotropic")
+    if config.model == "cos_power":
+        rid = CosPowerRID.from_half_angle(math.radians(config.half_angle_deg))
+        return RIDSpec(type="cos_power", m=rid.m)
+    if config.model == "gaussian":
+        g = GaussianRID.from_half_angle(math.radians(config.half_angle_deg))
+        return RIDSpec(type="gaussian", sigma_deg=math.degrees(g.sigma_rad))
+    if config.model == "table":
+        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
+        write_rid_csv(folder / "rid.csv", theta_deg, values)
+        return RIDSpec(type="table", path="rid.csv")
+    path = folder / "light.ies"
+    if config.model == "ies":
+        theta_deg, values = symmetric_profile_table(config.half_angle_deg)
+        table = PhotometricTable(
+            vertical_deg=theta_deg,
+            horizontal_deg=np.zeros(1),
+            candela=_CANDELA_ON_AXIS * values[None, :],
+            source=str(path),
+            symmetry="axial",
+            luminaire="lightcal synth: rotationally symmetric LED profile",
+        )
+    else:
+        theta_deg, phi_deg, values2 = elliptical_beam_table(
+            config.half_angle_deg, aspect=config.beam_aspect, skew=config.beam_skew
+        )
+        # Type C: the C-plane at angle C is the light-frame azimuth phi = -C (mod 360).
+        n = phi_deg.size
+        rows = [(-k) % n for k in range(n)]
+        table = PhotometricTable(
+            vertical_deg=theta_deg,
+            horizontal_deg=np.arange(n, dtype=np.float64) * AZIMUTH_STEP_DEG,
+            candela=_CANDELA_ON_AXIS * values2[rows],
+            source=str(path),
+            symmetry="none",
+            luminaire="lightcal synth: lopsided elliptical beam",
+        )
+    write_ies(path, table)
+    return RIDSpec(type="ies", path="light.ies")
+
+
+def pose_spec(view: View, covariance: np.ndarray | None = None) -> PoseSpec:
+    return PoseSpec(
+        R=view.R_camera_world.tolist(),
+        t=view.t_camera_world.tolist(),
+        covariance=None if covariance is None else covariance.tolist(),
+    )
+
+
+def initial_spec(light: Light) -> InitialSpec:
+    position = light.t_camera_light.tolist()
+    if isinstance(light.rid, IsotropicRID):
+        return InitialSpec(position_m=position)
+    if light.rid.symmetric:
+        return InitialSpec(position_m=position, axis_camera=light.axis_camera.tolist())
+    return InitialSpec(position_m=position, R_camera_light=light.R_camera_light.tolist())
+
+
+def pose_kind(rid: RID) -> Literal["auto", "isotropic"]:
+    return "isotropic" if isinstance(rid, IsotropicRID) else "auto"
+
+
+def encode_image(dn: NDArray[np.uint16], image_format: ImageFormat) -> bytes:
+    if image_format == "png":
+        ok, encoded = cv2.imencode(".png", dn)
+        if not ok:  # pragma: no cover - OpenCV always encodes uint16 PNG
+            raise InputError("image", "OpenCV could not encode a 16-bit PNG")
+        return encoded.tobytes()
+    import tifffile
+
+    buffer = io.BytesIO()
+    tifffile.imwrite(buffer, dn, photometric="minisblack")
+    return buffer.getvalue()
+
+
+def view_geometry(view: View) -> dict[str, float]:
+    """Distance along the optical axis to the wall and tilt from its normal."""
+    axis = view.R_camera_world[2]  # optical axis in the world frame
+    center = view.center_world
+    return {
+        "distance_m": float(-center[2] / axis[2]),
+        "tilt_deg": math.degrees(math.acos(min(1.0, max(-1.0, float(-axis[2]))))),
+    }
+
+
+def camera_dict(camera: Camera) -> dict[str, Any]:
+    return {
+        "path": CAMERA_NAME,
+        "fx": camera.fx,
+        "fy": camera.fy,
+        "cx": camera.cx,
+        "cy": camera.cy,
+        "skew": camera.skew,
+        "width": camera.width,
+        "height": camera.height,
+        "dist": camera.dist_opencv.tolist(),
+    }

@@ -1,0 +1,49 @@
+"""Defaults are defined once: the project file's selection, sensor and solver sections
+take theirs from the core options (`SelectionOptions`, `SolverOptions`), and the
+pipeline's multi-start defaults from the project file's solver section."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+
+from lightcal.core.selection import SelectionOptions
+from lightcal.core.solver import SolverOptions
+from lightcal.io.project import SelectionSpec, SensorSpec, SolverSpec
+from lightcal.pipeline.solve import solve
+
+
+def _shared_defaults(spec_cls, options) -> list[tuple[str, object, object]]:
+    """(name, spec default, options default) of every field both have."""
+    fields = spec_cls.model_fields
+    return [
+        (f.name, fields[f.name].get_default(call_default_factory=True), getattr(options, f.name))
+        for f in dataclasses.fields(options)
+        if f.name in fields
+    ]
+
+
+def test_selection_spec_defaults_are_the_selection_options():
+    shared = _shared_defaults(SelectionSpec, SelectionOptions())
+    names = {name for name, _, _ in shared}
+    assert names == {f.name for f in dataclasses.fields(SelectionOptions)}
+    for name, spec_default, option_default in shared:
+        assert spec_default == option_default, name
+
+
+def test_solver_and_sensor_spec_defaults_are_the_solver_options():
+    shared = _shared_defaults(SolverSpec, SolverOptions()) + _shared_defaults(
+        SensorSpec, SolverOptions()
+    )
+    names = {name for name, _, _ in shared}
+    # compress and reweight are not in the project file: always their option defaults.
+    assert names == {f.name for f in dataclasses.fields(SolverOptions)} - {"compress", "reweight"}
+    for name, spec_default, option_default in shared:
+        assert spec_default == option_default, name
+
+
+def test_multistart_defaults_are_the_solver_spec():
+    params = inspect.signature(solve).parameters
+    spec = SolverSpec()
+    for name in ("multistart", "multistart_position_m", "multistart_angle_deg"):
+        assert params[name].default == getattr(spec, name), name
