@@ -37,9 +37,21 @@ ALLOWED: dict[str, frozenset[str]] = {
     "pipeline": frozenset({"base", "core", "io"}),
     "report": frozenset({"base", "core", "io", "pipeline"}),
     "resources": frozenset({"base", "io"}),
+    "warmup": frozenset({"base", "core", "io", "synthetic", "pipeline", "report"}),
     "app": frozenset({"base", "core", "io", "pipeline", "report", "resources"}),
     "cli": frozenset(
-        {"base", "core", "io", "capture", "synthetic", "pipeline", "report", "resources", "app"}
+        {
+            "base",
+            "core",
+            "io",
+            "capture",
+            "synthetic",
+            "pipeline",
+            "report",
+            "resources",
+            "warmup",
+            "app",
+        }
     ),
 }
 
@@ -72,8 +84,8 @@ def layer_of(module: str) -> str | None:
         return "cli"
     if parts[1] in ("core", "io", "capture", "synthetic", "pipeline", "cli", "report"):
         return parts[1]
-    if parts[1] == "resources":
-        return "resources"
+    if parts[1] in ("resources", "warmup"):
+        return parts[1]
     return None
 
 
