@@ -26,6 +26,7 @@ the results. Timings are wall-clock seconds (`time.perf_counter`).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -236,7 +237,24 @@ def measure_baseline_pixels(width: int, height: int, rid_name: str, n: int) -> d
     return {"seconds": t, "pixels": n, "peak_mb": peak_rss_mb()}
 
 
+def measure_mitsuba(width: int, height: int, spp: int) -> dict[str, Any]:
+    """The scene of `tests/mitsuba_peer.py` by lightcal and by Mitsuba 3 (`scalar_rgb`)."""
+    from tests.mitsuba_peer import compare
+
+    r = compare(width, height, spp)
+    return {
+        "ours_s": r.ours_s,
+        "mitsuba_s": r.mitsuba_s,
+        "scale": r.scale,
+        "median_rel": r.median_rel,
+        "p99_rel": r.p99_rel,
+        "lit": r.lit,
+        "peak_mb": peak_rss_mb(),
+    }
+
+
 MEASURES: dict[str, Callable[..., dict[str, Any]]] = {
+    "mitsuba": measure_mitsuba,
     "compile": measure_compile,
     "image": measure_image,
     "pixels": measure_pixels,
@@ -435,6 +453,23 @@ def main(argv: list[str] | None = None) -> int:
             )
     print()
     print_table(rows)
+    if importlib.util.find_spec("mitsuba") is not None:
+        # An independent renderer as a peer: the same image, the same light.
+        mw, mh = (240, 180) if args.quick else (960, 720)
+        spp = 16 if args.quick else 64
+        m = run_measure("mitsuba", mw, mh, spp)
+        print()
+        print(
+            f"Mitsuba 3 as a peer ({mw} x {mh}, spot light, Lambertian wall, {spp} samples "
+            f"per pixel, scalar_rgb): lightcal {m['ours_s'] * 1e3:.1f} ms, Mitsuba "
+            f"{m['mitsuba_s']:.2f} s ({m['mitsuba_s'] / m['ours_s']:.0f}x); over "
+            f"{m['lit']:,} lit pixels Mitsuba / lightcal = {m['scale']:.6f} (albedo / pi = "
+            f"{0.5 / math.pi:.6f}), median relative difference {m['median_rel']:.1e}, 99th "
+            f"percentile {m['p99_rel']:.1e} (Mitsuba's sampling noise; the spot's kinks)"
+        )
+    else:
+        print()
+        print("Mitsuba 3 not installed (`pip install .[reference]`): no peer row")
     load_after = os.getloadavg()
     print()
     print(
