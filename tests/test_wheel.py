@@ -133,7 +133,14 @@ def venv(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
         [*pip_install, "--no-deps", "--no-index", str(wheel)], env=clean_env(), check=True
     )
     # Only now the dependencies: pip never saw the repository's editable install.
-    deps = [p for p in site.getsitepackages() if not Path(p).resolve().is_relative_to(REPO)]
+    # (The checkout's own .venv holds them in CI and scripts/test.sh: keep it; a .pth line
+    # adds a folder without running the editable install's .pth files inside it.)
+    deps = [
+        p
+        for p in site.getsitepackages()
+        if not Path(p).resolve().is_relative_to(REPO)
+        or Path(p).resolve().is_relative_to(REPO / ".venv")
+    ]
     (Path(purelib) / "lightcal-test-dependencies.pth").write_text("\n".join(deps) + "\n")
     return root
 
@@ -186,7 +193,15 @@ def test_installed_lightcal_runs_away_from_the_repository(venv: Path, tmp_path: 
     info = json.loads(run(venv, tmp_path, "python", "-c", CHECK_ISOLATION))
     for key in ("lightcal", "lightcal_app", "static", "sample"):
         assert Path(info[key]).is_relative_to(venv), (key, info[key])
-    assert [p for p in info["sys_path"] if p and Path(p).resolve().is_relative_to(REPO)] == []
+    # Nothing of the checkout on the path but its .venv's dependencies (CI keeps them there).
+    in_repo = [
+        p
+        for p in info["sys_path"]
+        if p
+        and Path(p).resolve().is_relative_to(REPO)
+        and not Path(p).resolve().is_relative_to(REPO / ".venv")
+    ]
+    assert in_repo == []
     assert not any("editable" in m for m in info["finders"]), info["finders"]
     assert info["figures"] and all(info["figures"])
     assert info["packaged"]
