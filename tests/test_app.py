@@ -14,6 +14,7 @@ import re
 import threading
 import time
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -762,8 +763,10 @@ def test_cli_warns_when_exposed(
 
     served = []
 
-    def serve(a: LightcalApp) -> None:
+    def serve(a: LightcalApp, on_ready: Callable[[], None] | None = None) -> None:
         served.append(a.url)
+        if on_ready is not None:
+            on_ready()
         a.close()
 
     monkeypatch.setattr(server_module, "serve_forever", serve)

@@ -403,8 +403,7 @@ fs.AUTOSAVE_INTERVAL_S = 1e9  # only the final autosave writes
 app = build_app(sys.argv[1], port=0, session_path=__import__("pathlib").Path(sys.argv[2]),
                 state_dir=__import__("pathlib").Path(sys.argv[3]))
 assert app.wait_idle()
-print("ready", flush=True)
-serve_forever(app)
+serve_forever(app, on_ready=lambda: print("ready", flush=True))
 print("closed", flush=True)
 """
 

@@ -12,6 +12,7 @@ import io
 import os
 import signal
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -196,13 +197,16 @@ def build_app(
     return LightcalApp(server, state, controller, panels, url, access)
 
 
-def serve_forever(app: LightcalApp) -> None:
+def serve_forever(app: LightcalApp, on_ready: Callable[[], None] | None = None) -> None:
     """Keep the app running until Ctrl-C or SIGTERM, then close it (the final autosave
-    runs in both cases)."""
+    runs in both cases). `on_ready` runs once SIGTERM is handled (e.g. to print the URL:
+    a SIGTERM before that would end the process without the final autosave)."""
     stop = threading.Event()
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
+    if on_ready is not None:
+        on_ready()
     try:
         while not stop.wait(1.0):
             pass

@@ -114,7 +114,10 @@ def run(args: argparse.Namespace) -> int:
         restore=not args.fresh,
         state_dir=args.state_dir,
     )
-    print(f"lightcal app: serving {app.state.project.path}", flush=True)
-    print(f"lightcal app: open {app.url} in your browser (Ctrl-C stops)", flush=True)
-    serve_forever(app)
+
+    def announce() -> None:
+        print(f"lightcal app: serving {app.state.project.path}", flush=True)
+        print(f"lightcal app: open {app.url} in your browser (Ctrl-C stops)", flush=True)
+
+    serve_forever(app, on_ready=announce)
     return 0
