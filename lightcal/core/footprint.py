@@ -102,16 +102,30 @@ class Footprints:
         """(N, 3) footprint centres (the mean of all quad corners), world frame, m.
 
         Where the wall's reflectance is evaluated (`lightcal.core.wall`); NaN if invalid.
+        Kept once computed (the wall models read them every evaluation); `centres_now`
+        gives them without keeping them.
         """
-        n = len(self)
-        corners = self.corners_world.reshape(n, -1, 3)
-        # The mean by a running sum over the few corners (numpy's `mean(axis=1)` over a
-        # short strided axis is several times slower; same additions in the same order).
-        total = corners[:, 0].copy()
-        for j in range(1, corners.shape[1]):
-            total += corners[:, j]
-        total /= corners.shape[1]
-        return total
+        return quad_corner_means(self.corners_world)
+
+    def centres_now(self) -> np.ndarray:
+        """`centres_world` if already kept, else computed and not kept (N x 24 bytes)."""
+        kept = self.__dict__.get("centres_world")  # functools.cached_property's slot
+        return kept if kept is not None else quad_corner_means(self.corners_world)
+
+
+def quad_corner_means(corners_world: np.ndarray) -> np.ndarray:
+    """(N, 3) means of the K * 4 corners of each pixel of corners_world (N, K, 4, 3).
+
+    A running sum over the few corners (numpy's `mean(axis=1)` over a short strided axis
+    is several times slower; the same additions in the same order, bit for bit).
+    """
+    n = corners_world.shape[0]
+    corners = corners_world.reshape(n, -1, 3)
+    total = corners[:, 0].copy()
+    for j in range(1, corners.shape[1]):
+        total += corners[:, j]
+    total /= corners.shape[1]
+    return total
 
 
 def check_pixels(pixels: np.ndarray, width: int, height: int, name: str = "pixels") -> np.ndarray:
