@@ -1,5 +1,8 @@
 import sys
 
-from lightcal.cli.main import main
+try:
+    from lightcal.cli.main import main
+except KeyboardInterrupt:  # Ctrl-C while Python starts: no traceback either
+    sys.exit(130)
 
 sys.exit(main())

@@ -8,9 +8,13 @@ the user's input (`LightcalError`) are caught here, once, and printed as one lin
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import sys
+import traceback
 from collections.abc import Sequence
+from pathlib import Path
 
 from lightcal import __version__
 from lightcal.errors import LightcalError
@@ -35,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Calibrate the pose of a light source relative to the camera it is mounted on.",
     )
     parser.add_argument("--version", action="version", version=f"lightcal {__version__}")
+    parser.add_argument(
+        "--debug", action="store_true", help="print the traceback of an internal error"
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:
         try:
@@ -47,17 +54,62 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _usable_streams() -> None:
+    """Closed standard streams (`2>&-`) become os.devnull: nothing here may crash on them."""
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is None or getattr(stream, "closed", False):
+            setattr(sys, name, Path(os.devnull).open("w", encoding="utf-8"))  # noqa: SIM115
+
+
+def _say(line: str) -> None:
+    """One line on stderr, whatever became of it."""
+    with contextlib.suppress(OSError, ValueError):
+        print(line, file=sys.stderr, flush=True)
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: the rest of stdout (and the flush at exit) goes nowhere."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run one `lightcal` command; returns its exit code.
+
+    0 success, 1 a solve that did not converge or an internal error, 2 an input error
+    (`lightcal <command>: error: <file>[:<line>]: <what was expected>`) or a usage error
+    (argparse's `usage:` lines), 3 a misfit (see `lightcal calibrate`), 130 Ctrl-C. A
+    reader that closes the pipe early (`lightcal schema | head -1`) ends it quietly with 0.
+    """
+    _usable_streams()
+    command = "lightcal"
+    words = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in words  # anywhere: `lightcal calibrate ... --debug` too
+    words = [w for w in words if w != "--debug"]
     try:
+        parser = build_parser()
+        args = parser.parse_args(words)
+        command = f"lightcal {args.command}"
         return int(args.func(args))
     except LightcalError as exc:
-        print(f"lightcal {args.command}: error: {exc}", file=sys.stderr)
+        _say(f"{command}: error: {exc}")
         return 2
     except KeyboardInterrupt:
-        print(f"lightcal {args.command}: interrupted", file=sys.stderr)
+        _say(f"{command}: interrupted")
         return 130
+    except BrokenPipeError:
+        _silence_stdout()
+        return 0
+    except Exception as exc:  # an internal error: one line, the traceback on request
+        if debug:
+            traceback.print_exc()
+        _say(
+            f"{command}: internal error: {type(exc).__name__}: {exc} "
+            "(a bug in lightcal: run again with --debug for the traceback and report it)"
+        )
+        return 1
 
 
 if __name__ == "__main__":
