@@ -26,6 +26,7 @@ from lightcal.io.figures import (
     residual_figure,
     write_png,
 )
+from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
 
@@ -92,14 +93,21 @@ def write_report(
     )
     written: list[Path] = []
     rms_rows = []
-    for name, img, rendered in zip(names, loaded.images, renders, strict=True):
-        real = np.ma.masked_array(img.values, mask=img.saturated | np.ma.getmaskarray(rendered))
+    files = safe_names(names)  # image names come from the data: one plain part each
+    for name, file, img, excluded, rendered in zip(
+        names, files, loaded.images, loaded.excluded, renders, strict=True
+    ):
+        # The user's masks (markers, stray light) are not wall: not in the residuals.
+        hidden = img.saturated | np.ma.getmaskarray(rendered)
+        if excluded is not None:
+            hidden = hidden | excluded
+        real = np.ma.masked_array(img.values, mask=hidden)
         residual = real - rendered
-        p = out / f"residual_{name}.png"
+        p = inside(out, f"residual_{file}.png")
         rms = float(np.sqrt(np.ma.mean(residual**2))) if residual.count() else math.nan
         write_png(p, residual_figure(residual, title=f"{name}: real - rendered (RMS {rms:.4g})"))
         written.append(p)
-        p = out / f"images_{name}.png"
+        p = inside(out, f"images_{file}.png")
         write_png(p, image_pair_figure(real, rendered, title=name))
         written.append(p)
         rms_rows.append((name, rms))

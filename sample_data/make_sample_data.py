@@ -491,6 +491,7 @@ def run_pipeline(folder: Path) -> None:
         ],
         [
             "init",
+            "--force",  # regenerating: replace the previous project and masks
             str(folder / "images"),
             "--camera",
             str(folder / "camera.yaml"),

@@ -257,6 +257,7 @@ def _init(root: Path, images: Path, *extra: str) -> list[str]:
         str(root / "board.yaml"),
         "--out",
         str(root / "project.json"),
+        "--force",  # the cases below run in one folder, one after another
         *extra,
     ]
 
@@ -367,3 +368,33 @@ def test_init_writes_how_each_pose_moves_with_the_intrinsics(scene):
     )
     assert all(o.d_pose_d_intrinsics is None for o in plain.accepted)
     assert load_project(root / "plain.json").pose_intrinsics_jacobians == [None] * 3
+
+
+def test_init_never_replaces_a_project_or_masks_without_force(scene, capsys):
+    root = scene["dir"]
+    out = root / "project.json"
+    argv = ["init", str(scene["images"]), "--camera", str(root / "camera.yaml")]
+    argv += ["--board", str(root / "board.yaml"), "--half-angle-deg", "25", "--out", str(out)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    before = out.read_bytes()
+    masks = sorted((root / "masks").iterdir())
+    stamps = [m.stat().st_mtime_ns for m in masks]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal init: error: {out}: --out: exists; use --force to replace it\n"
+    )
+    out.unlink()
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal init: error: {root / 'masks'}: the masks folder: the folder is not empty; "
+        "use --force to write into it\n"
+    )
+    assert [m.stat().st_mtime_ns for m in masks] == stamps
+    assert main([*argv, "--force"]) == 0
+    assert out.read_bytes() == before
+    image = sorted(scene["images"].iterdir())[0]
+    assert main([*argv[:-1], str(image), "--force"]) == 2
+    assert capsys.readouterr().err.endswith(
+        f"{image}: --out: is input {image.name}, an input of the project; write elsewhere\n"
+    )

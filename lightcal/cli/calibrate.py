@@ -17,6 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report", type=Path, help="folder for residual maps, renders, plots")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary")
     p.add_argument(
+        "--force", action="store_true", help="write the report into a non-empty --report folder"
+    )
+    p.add_argument(
         "--allow-misfit",
         action="store_true",
         help="exit 0 even when the fit test fails (default: exit 3, see docs/model.md)",
@@ -30,11 +33,17 @@ EXIT_MISFIT = 3
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
+    from lightcal.io.outputs import check_output_file, check_output_folder, project_inputs
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
 
     project = load_project(args.project)
+    # Before any work: a long solve must not end in an unwritable or forbidden path.
+    inputs = project_inputs(project)
+    check_output_file(args.out, option="--out", inputs=inputs)
+    if args.report is not None:
+        check_output_folder(args.report, option="--report", inputs=inputs, force=args.force)
     ensure_kernels(quiet=args.quiet)
     with stage_progress(enabled=not args.quiet) as progress:
         loaded = load_images(project, progress=progress)

@@ -51,6 +51,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="initial light axis in the camera frame (default 0 0 1: the optical axis)",
     )
     p.add_argument("--out", type=Path, default=Path("project.json"), help="project file to write")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing --out project and the masks beside it",
+    )
     p.add_argument("--min-markers", type=int, default=4, help="fewest markers per image (4)")
     p.add_argument(
         "--mask-margin-px", type=float, default=3.0, help="padding of the marker masks (3)"
@@ -82,6 +87,21 @@ def run(args: argparse.Namespace) -> int:
     def on_image(outcome: ImageOutcome) -> None:
         print(outcome.report_line(), flush=True)
 
+    from lightcal.capture.project_init import MASKS_DIR
+    from lightcal.io.outputs import check_output_file, check_output_folder
+
+    # Before any work: the project and its masks never replace existing ones without
+    # --force, and never an input (the photos, camera, board and light files).
+    inputs = {
+        p.resolve(): f"input {p.name}"
+        for p in [args.camera, args.board, args.light_ies]
+        + (sorted(args.image_dir.iterdir()) if args.image_dir.is_dir() else [])
+        if p is not None and p.is_file()
+    }
+    check_output_file(args.out, option="--out", inputs=inputs, force=args.force)
+    masks = args.out.parent / MASKS_DIR
+    if masks.exists():
+        check_output_folder(masks, option="the masks folder", inputs=inputs, force=args.force)
     result = init_project(
         args.image_dir,
         camera_path=args.camera,

@@ -11,6 +11,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("project", type=Path)
     p.add_argument("--result", type=Path, required=True, help="result JSON of calibrate")
     p.add_argument("--out", type=Path, required=True, help="folder for the renders")
+    p.add_argument(
+        "--force", action="store_true", help="write into a non-empty --out (replacing renders)"
+    )
     p.set_defaults(func=run)
 
 
@@ -26,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_write_bytes
     from lightcal.io.figures import image_pair_figure, write_png
+    from lightcal.io.outputs import check_output_folder, inside, project_inputs, safe_names
     from lightcal.io.project import load_project
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
@@ -54,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
+    check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
@@ -66,13 +71,15 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
             wall=wall,
         )
-    for name, img, rendered in zip(project.names, loaded.images, renders, strict=True):
+    files = safe_names(project.names)  # image names come from the data: one plain part each
+    for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)
         buf = io.BytesIO()
         tifffile.imwrite(buf, data)
-        atomic_write_bytes(args.out / f"{name}_rendered.tif", buf.getvalue())
+        atomic_write_bytes(inside(args.out, f"{file}_rendered.tif"), buf.getvalue())
         write_png(
-            args.out / f"{name}_compare.png", image_pair_figure(img.values, rendered, title=name)
+            inside(args.out, f"{file}_compare.png"),
+            image_pair_figure(img.values, rendered, title=name),
         )
     console.print(
         f"{len(renders)} renders (32-bit float TIFF, NaN off the wall) written to {args.out}",
