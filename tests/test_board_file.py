@@ -96,14 +96,17 @@ def test_file_errors(tmp_path: Path):
         read_board(empty)
     folder = tmp_path / "folder.yaml"
     folder.mkdir()
-    with _raises(folder, "board file not found"):
+    with _raises(folder, "is a folder; expected a board file"):
         read_board(folder)
 
 
 def test_corrupt_files(tmp_path: Path):
     binary = tmp_path / "binary.yaml"
     binary.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00garbage")
-    with pytest.raises(InputError, match=rf"^{re.escape(str(binary))}: cannot read the board file"):
+    with pytest.raises(
+        InputError,
+        match=rf"^{re.escape(str(binary))}: the board file is not UTF-8 text \(byte 0\): save it",
+    ):
         read_board(binary)
     bad_json = tmp_path / "bad.json"
     bad_json.write_text('{"type": "chessboard",\n "inner_x": 9,,\n}')

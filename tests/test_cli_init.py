@@ -294,8 +294,8 @@ def test_errors_are_one_line_naming_the_input(scene, capsys):
     write_camera(CAMERA, root / "camera.yaml")
 
     (root / "board.yaml").write_bytes(b"\x00\xff\xfe binary junk")
-    assert error(_init(root, images)).startswith(
-        f"{root / 'board.yaml'}: cannot read the board file"
+    assert error(_init(root, images)) == (
+        f"{root / 'board.yaml'}: the board file is not UTF-8 text (byte 1): save it as UTF-8"
     )
     write_board(Chessboard(9, 6, 0.03), root / "board.yaml")
     assert error(_init(root, images)) == (

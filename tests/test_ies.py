@@ -340,9 +340,7 @@ def test_empty_and_missing_files(tmp_path):
         == f"{empty}: the file is empty: expected an IES LM-63 file"
     )
     missing = tmp_path / "missing.ies"
-    assert (
-        error_text(lambda: read_ies(missing)) == f"{missing}: cannot read: the file does not exist"
-    )
+    assert error_text(lambda: read_ies(missing)) == f"{missing}: photometric file not found"
 
 
 # --------------------------------------------------------------------------- writing

@@ -299,7 +299,7 @@ def test_read_csv_errors_name_file_and_line(tmp_path, text, line, message):
 
 def test_read_csv_missing_file(tmp_path):
     path = tmp_path / "missing.csv"
-    assert error_text(lambda: read_rid_csv(path)) == f"{path}: cannot read: the file does not exist"
+    assert error_text(lambda: read_rid_csv(path)) == f"{path}: photometric file not found"
 
 
 def test_csv_round_trip_is_exact(tmp_path):

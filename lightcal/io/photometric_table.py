@@ -56,6 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 from lightcal.core.rid import SymmetricTableRID, Table2DRID
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.text_files import read_text
 
 __all__ = [
     "PhotometricTable",
@@ -311,22 +312,14 @@ def table_to_rid(table: PhotometricTable) -> SymmetricTableRID | Table2DRID:
 
 
 def read_text_file(path: Path) -> str:
-    """The text of a photometric file: UTF-8 (BOM tolerated), else Latin-1.
+    """The text of a photometric file: UTF-8 (BOM tolerated), UTF-16 with a BOM, else
+    Latin-1 (`lightcal.io.text_files`).
 
     Raises:
-        InputError: The file does not exist or cannot be read.
+        InputError: The file does not exist, is not a regular file, is too large, or is
+            UTF-16 without a byte-order mark.
     """
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(path, "cannot read: the file does not exist") from None
-    except OSError as error:
-        raise InputError(path, f"cannot read: {error.strerror or error}") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")
-    return text.removeprefix("\ufeff")
+    return read_text(path, "photometric file", latin1=True)
 
 
 def write_text_file_atomic(path: Path, text: str, *, newline: str = "\n") -> None:

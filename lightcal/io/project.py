@@ -286,7 +286,7 @@ class SelectionSpec(_Model):
     n_per_image: int = Field(default=_SELECTION.n_per_image, ge=1)
     grid_step: int = Field(default=_SELECTION.grid_step, ge=1)
     binning: int = Field(default=_SELECTION.binning, ge=1)
-    seed: int = _SELECTION.seed
+    seed: int = Field(default=_SELECTION.seed, ge=0, le=2**32 - 1)
     min_signal: float | None = Field(
         default=_SELECTION.min_signal,
         description="values at or below are dropped; null: 5 read-noise sigmas",
@@ -331,7 +331,7 @@ class SolverSpec(_Model):
     max_iterations: int = Field(default=_SOLVER.max_iterations, ge=1)
     estimate_gains: bool = _SOLVER.estimate_gains
     rid_subsamples: int = Field(default=_SOLVER.rid_subsamples, ge=1, le=16)
-    tolerance: float = Field(default=_SOLVER.tolerance, gt=0)
+    tolerance: float = Field(default=_SOLVER.tolerance, ge=1e-15, le=1.0)
     position_bound_m: float = Field(default=_SOLVER.position_bound_m, gt=0)
     multistart: int = Field(default=0, ge=0, description="extra random starts")
     multistart_position_m: float = Field(default=0.3, gt=0)
@@ -520,6 +520,14 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     `source`'s folder."""
     folder = source.parent
     camera = _build_camera(spec.camera, folder, source)
+    sel = spec.selection
+    if sel.strategy == "all" and sel.binning > min(camera.width, camera.height):
+        raise InputError(
+            source,
+            f"selection.binning: {sel.binning} is larger than the image "
+            f"({camera.width}x{camera.height}); expected at most "
+            f"{min(camera.width, camera.height)}",
+        )
     views: list[View] = []
     image_paths: list[Path] = []
     mask_paths: list[Path | None] = []
@@ -533,6 +541,10 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         names.append(im.name or Path(im.path).stem)
     exposures = _exposure_factors(spec, image_paths, source)
     for i, im in enumerate(spec.images):
+        if not (math.isfinite(exposures[i]) and exposures[i] > 0.0):
+            raise InputError(
+                source, f"images[{i}].exposure: expected a finite value > 0, got {exposures[i]!r}"
+            )
         try:
             views.append(
                 View(im.T_camera_world.rotation(), np.array(im.T_camera_world.t), exposures[i])

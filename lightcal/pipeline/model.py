@@ -78,7 +78,15 @@ def build_model(
             "or off the wall); check the selection and sensor settings",
         )
     unknowns = list(lights) if lights is not None else starting_lights(project, data)
-    return CalibrationModel(data, unknowns, project.solver, project.wall)
+    model = CalibrationModel(data, unknowns, project.solver, project.wall)
+    if model.m <= model.layout.n:
+        raise InputError(
+            project.path,
+            f"selection: {model.m} usable pixels for {model.layout.n} parameters; expected "
+            "more pixels than parameters (more images or pixels per image, a lower binning, "
+            "or fewer parameters to estimate)",
+        )
+    return model
 
 
 def starting_lights(

@@ -249,6 +249,7 @@ def summarise(
                 rid_desc,
             )
         )
+    bound_warnings = _bound_warnings(model, x)
     offset_sigma = None
     if lay.offset_index is not None:
         offset_sigma = math.sqrt(max(cov[lay.offset_index, lay.offset_index], 0.0))
@@ -264,11 +265,13 @@ def summarise(
         nfev=outcome.nfev,
         status=outcome.status,
         message=outcome.message,
-        converged=outcome.success,
+        # A solve stopped by the search box did not find a minimum, whatever trf says.
+        converged=outcome.success and not bound_warnings,
         cost=outcome.cost,
         time_s=outcome.time_s,
         warnings=(
-            dark_light_warnings(model, x)
+            bound_warnings
+            + dark_light_warnings(model, x)
             + variety_warnings(model, cov)
             + [f"misfit: {f}" for f in diagnosis.findings]
             + list(notes or [])
@@ -297,4 +300,27 @@ def _wall_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> di
             sig[name] = s
     out["estimated"] = ["sigma_deg" if n == "sigma" else n for n in lay.wall_unknown.estimate]
     out["sigma"] = sig
+    return out
+
+
+def _bound_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
+    """One line per light whose position ends on the solver's search box."""
+    lo, hi = model.parameter_bounds()
+    out = []
+    for block in model.layout.blocks:
+        s = block.pose.start
+        hits = []
+        for k, axis in enumerate("xyz"):
+            v, a, b = x[s + k], lo[s + k], hi[s + k]
+            tol = 1e-7 * max(1.0, abs(v))
+            if (np.isfinite(a) and v - a <= tol) or (np.isfinite(b) and b - v <= tol):
+                hits.append(f"{axis} = {v:+.4f} m")
+        if hits:
+            out.append(
+                f"light {block.unknown.initial.name}: its position ends on the edge of the "
+                f"solver's search box ({', '.join(hits)}; solver.position_bound_m = "
+                f"{model.options.position_bound_m:g} m, and in front of the wall in every "
+                "view): the solve stopped there, not at a minimum; check the initial guess, "
+                "the camera poses and the bound"
+            )
     return out

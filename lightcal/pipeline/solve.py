@@ -141,7 +141,14 @@ def calibrate(
             return solve_project(project, m, on_iteration=on_iteration, on_start=on_start)
         return run_least_squares(m, x0, on_iteration=on_iteration)
 
-    notes: list[str] = []
+    # Images the selection left without a usable pixel are out of the solve: say which.
+    used = {im.name for im in model.images}
+    notes: list[str] = [
+        f"image {name}: no usable pixels (all saturated, masked, below the noise floor or "
+        "off the wall): left out of the solve"
+        for name in project.names
+        if name not in used
+    ]
     outcome = run(model)
     limit = project.spec.selection.exclude_mirror_deg
     if limit:

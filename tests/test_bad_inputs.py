@@ -1,0 +1,208 @@
+"""A table of bad inputs: each gets one line naming the input and what was expected,
+exit code 2, and leaves every input file as it was."""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from lightcal.cli.main import main
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("bad") / "data"
+    argv = ["synth", str(folder), "--views", "4", "--width", "96", "--height", "72", "--quiet"]
+    assert main(argv) == 0
+    return folder
+
+
+def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
+    """A project edit: set the field at a dotted path (list indices as numbers)."""
+
+    def edit(project: dict[str, Any]) -> None:
+        *parents, last = path.split(".")
+        node: Any = project
+        for key in parents:
+            node = node[int(key)] if key.isdigit() else node[key]
+        node[int(last) if last.isdigit() else last] = value
+
+    return edit
+
+
+# (case, project edit, the message after "<project>: ")
+PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
+    (
+        "negative seed",
+        _set("selection.seed", -1),
+        "selection.seed: Input should be greater than or equal to 0",
+    ),
+    (
+        "seed beyond numpy",
+        _set("selection.seed", 10**24),
+        "selection.seed: Input should be less than or equal to 4294967295",
+    ),
+    (
+        "tolerance below 1e-15",
+        _set("solver.tolerance", 1e-300),
+        "solver.tolerance: Input should be greater than or equal to 0.000000000000001",
+    ),
+    (
+        "binning larger than the image",
+        lambda p: p["selection"].update(strategy="all", binning=5000),
+        "selection.binning: 5000 is larger than the image (96x72); expected at most 72",
+    ),
+    (
+        "exposure 0",
+        _set("images.0.exposure", 0),
+        "images[0].exposure: expected a finite value > 0, got 0.0",
+    ),
+    (
+        "fewer pixels than parameters",
+        lambda p: p["selection"].update(strategy="random", n_per_image=1),
+        "selection: 4 usable pixels for 6 parameters; expected more pixels than parameters "
+        "(more images or pixels per image, a lower binning, or fewer parameters to estimate)",
+    ),
+    (
+        "camera on the wall's far side",
+        _set("images.0.T_camera_world.t", [1e308, 0.0, 0.0]),
+        "images[0].T_camera_world: camera pose: the camera centre is at z = ",
+    ),
+    (
+        "missing image",
+        _set("images.1.path", "images/nope.png"),
+        "images[1].path: image file not found: ",
+    ),
+]
+
+
+def _hashes(folder: Path) -> dict[str, str]:
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.mark.parametrize(
+    ("case", "edit", "expected"), PROJECT_CASES, ids=[c[0] for c in PROJECT_CASES]
+)
+def test_bad_projects(
+    dataset: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    case: str,
+    edit: Callable[[dict[str, Any]], None],
+    expected: str,
+) -> None:
+    project = copy.deepcopy(json.loads((dataset / "project.json").read_text()))
+    edit(project)
+    path = dataset / f"case-{abs(hash(case))}.json"
+    path.write_text(json.dumps(project))
+    before = _hashes(dataset)
+    out = tmp_path / "r.json"
+    try:
+        assert main(["calibrate", str(path), "--out", str(out), "--quiet"]) == 2
+    finally:
+        after = _hashes(dataset)
+        path.unlink()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith(f"lightcal calibrate: error: {path}: {expected}"), err
+    assert after == before
+    assert not out.exists()
+
+
+def _project_file(tmp_path: Path, content: bytes) -> Path:
+    path = tmp_path / "project.json"
+    path.write_bytes(content)
+    return path
+
+
+FILE_CASES: list[tuple[str, Callable[[Path], Path], str]] = [
+    (
+        "a folder",
+        lambda d: (d / "folder.json").mkdir() or d / "folder.json",
+        "is a folder; expected a project file",
+    ),
+    (
+        "a FIFO",
+        lambda d: os.mkfifo(d / "fifo.json") or d / "fifo.json",
+        "is not a regular file (a pipe or a device); expected a project file",
+    ),
+    (
+        "UTF-16 without a byte-order mark",
+        lambda d: _project_file(d, '{"version": 1}'.encode("utf-16-le")),
+        "the project file looks like UTF-16 without a byte-order mark: save it as UTF-8",
+    ),
+    (
+        "Latin-1 bytes",
+        lambda d: _project_file(d, b'{"name": "caf\xe9"}'),
+        "the project file is not UTF-8 text (byte 13): save it as UTF-8",
+    ),
+    (
+        "nested 20,000 deep",
+        lambda d: _project_file(d, b"[" * 20000 + b"]" * 20000),
+        "the project file is nested too deeply to be read",
+    ),
+    (
+        "nested 100 deep",
+        lambda d: _project_file(d, b"[" * 100 + b"]" * 100),
+        "the project file is nested more than 64 levels deep",
+    ),
+]
+
+
+@pytest.mark.parametrize(("case", "make", "expected"), FILE_CASES, ids=[c[0] for c in FILE_CASES])
+def test_bad_project_files(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    case: str,
+    make: Callable[[Path], Path],
+    expected: str,
+) -> None:
+    path = make(tmp_path)
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "r.json"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"lightcal calibrate: error: {path}: {expected}\n"
+
+
+def test_utf16_with_a_byte_order_mark_is_read(dataset: Path) -> None:
+    text = (dataset / "project.json").read_text()
+    project = json.loads(text)
+    path = dataset / "utf16.json"
+    path.write_bytes(json.dumps(project).encode("utf-16"))  # with a BOM
+    from lightcal.io.project import load_project
+
+    try:
+        assert load_project(path).names == load_project(dataset / "project.json").names
+    finally:
+        path.unlink()
+
+
+def test_a_solution_on_the_search_box_is_not_converged(
+    dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    project = json.loads((dataset / "project.json").read_text())
+    project["solver"]["position_bound_m"] = 0.01
+    path = dataset / "bound.json"
+    path.write_text(json.dumps(project))
+    out = tmp_path / "r.json"
+    try:
+        assert main(["calibrate", str(path), "--out", str(out), "--quiet"]) == 1
+    finally:
+        path.unlink()
+    result = json.loads(out.read_text())
+    assert result["converged"] is False
+    assert any(
+        w.startswith("light light: its position ends on the edge of the solver's search box")
+        for w in result["warnings"]
+    )
+    assert "did not converge" in capsys.readouterr().err
