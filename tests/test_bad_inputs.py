@@ -17,11 +17,8 @@ from lightcal.cli.main import main
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("bad") / "data"
-    argv = ["synth", str(folder), "--views", "4", "--width", "96", "--height", "72", "--quiet"]
-    assert main(argv) == 0
-    return folder
+def dataset(tiny_dataset: Path) -> Path:
+    return tiny_dataset
 
 
 def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:

@@ -15,11 +15,8 @@ from lightcal.io.project import load_project
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("outputs") / "data"
-    argv = ["synth", str(folder), "--views", "4", "--width", "96", "--height", "72", "--quiet"]
-    assert main(argv) == 0
-    return folder
+def dataset(tiny_dataset: Path) -> Path:
+    return tiny_dataset
 
 
 def _hashes(folder: Path) -> dict[str, str]:
