@@ -203,3 +203,75 @@ def test_a_solution_on_the_search_box_is_not_converged(
         for w in result["warnings"]
     )
     assert "did not converge" in capsys.readouterr().err
+
+
+def _png_header(width: int, height: int) -> bytes:
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        crc = struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+        return struct.pack(">I", len(data)) + kind + data + crc
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", ihdr)
+        + chunk(b"IDAT", zlib.compress(b"\x00" * 10))
+        + chunk(b"IEND", b"")
+    )
+
+
+IMAGE_CASES: list[tuple[str, str, bytes, str]] = [
+    (
+        "PNG header claiming 100000 x 100000",
+        "huge.png",
+        _png_header(100_000, 100_000),
+        "the image is 100000 x 100000 pixels; at most 65535 a side and 400 megapixels",
+    ),
+    (
+        "text named .npy",
+        "text.npy",
+        b"hello, not an array",
+        "not a NumPy .npy file (no .npy header); expected an (H, W) array",
+    ),
+    ("corrupt PNG", "bad.png", b"\x89PNG\r\n\x1a\nnot really", "not a readable PNG image"),
+]
+
+
+@pytest.mark.parametrize(
+    ("case", "name", "content", "expected"), IMAGE_CASES, ids=[c[0] for c in IMAGE_CASES]
+)
+def test_bad_images(tmp_path: Path, case: str, name: str, content: bytes, expected: str) -> None:
+    from lightcal.errors import InputError
+    from lightcal.io.images import read_image
+
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(InputError) as info:
+        read_image(path, assume_linear=True)
+    assert str(info.value) == f"{path}: {expected}"
+
+
+def test_photometric_counts_beyond_the_data_are_refused_before_allocating(tmp_path: Path) -> None:
+    from lightcal.errors import InputError
+    from lightcal.io.eulumdat import read_ldt
+    from lightcal.io.ies import read_ies
+
+    ies = tmp_path / "big.ies"
+    header = "IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 1000000000000 1 1 1 0 0 0\n"
+    ies.write_text(header + "1 1 100\n0 1 2\n0\n1 1 1\n")
+    with pytest.raises(InputError) as info:
+        read_ies(ies)
+    assert str(info.value) == (
+        f"{ies}: the counts (1 horizontal x 1000000000000 vertical angles) demand "
+        "2000000000001 numbers after the header, found 7"
+    )
+    lines = ["x"] * 42
+    for number, value in {2: "1", 3: "0", 4: "1000000000000", 5: "0", 6: "3", 7: "0"}.items():
+        lines[number - 1] = value  # Ityp 1, Isym 0, Mc 10^12, Dc, Ng 3, Dg
+    lines[23], lines[25] = "1", "0"  # conversion factor, no lamp sets
+    ldt = tmp_path / "big.ldt"
+    ldt.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"the counts \(Mc 1000000000000 C-planes"):
+        read_ldt(ldt)

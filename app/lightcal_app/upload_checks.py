@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
-import struct
 import uuid
 import zipfile
 from collections.abc import Iterable, Iterator
@@ -26,6 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 from lightcal.errors import InputError
+from lightcal.io.image_header import check_image_size
 from lightcal.io.project import ProjectFile
 
 MAX_UNPACKED_BYTES = 500 * 1024 * 1024
@@ -196,96 +196,10 @@ def check_confined(spec: ProjectFile, folder: Path, source: str) -> None:
 # ---------------------------------------------------------------------------- images
 
 
-def header_size(path: Path) -> tuple[int, int] | None:
-    """(width, height) from an image file's header without decoding it; None when the
-    format has no header read here (camera raw files)."""
-    suffix = path.suffix.lower()
-    if suffix == ".npy":
-        return _npy_size(path)
-    if suffix == ".exr":
-        return _exr_size(path)
-    if suffix == ".png":
-        return _png_size(path)
-    if suffix in (".jpg", ".jpeg", ".tif", ".tiff"):
-        from PIL import Image
-
-        Image.MAX_IMAGE_PIXELS = None  # the size is checked below, nothing is decoded
-        try:
-            with Image.open(path) as im:
-                return int(im.size[0]), int(im.size[1])
-        except Exception:
-            return None  # the image reader says what is wrong
-    return None
-
-
-def _png_size(path: Path) -> tuple[int, int] | None:
-    """Width and height of a PNG's IHDR chunk (its first, at byte 8)."""
-    try:
-        with path.open("rb") as f:
-            head = f.read(24)
-    except OSError:
-        return None
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        return None
-    w, h = struct.unpack(">II", head[16:24])
-    return int(w), int(h)
-
-
-def _npy_size(path: Path) -> tuple[int, int] | None:
-    import numpy as np
-
-    try:
-        with path.open("rb") as f:
-            version = np.lib.format.read_magic(f)
-            read = {
-                (1, 0): np.lib.format.read_array_header_1_0,
-                (2, 0): np.lib.format.read_array_header_2_0,
-            }.get(version)
-            if read is None:
-                return None
-            shape, _, _ = read(f)
-    except Exception:
-        return None
-    if len(shape) < 2:
-        return None
-    return int(shape[1]), int(shape[0])
-
-
-def _exr_size(path: Path) -> tuple[int, int] | None:
-    """The dataWindow of an OpenEXR header (attributes: name, type, size, value)."""
-    try:
-        with path.open("rb") as f:
-            head = f.read(1 << 16)
-    except OSError:
-        return None
-    if head[:4] != b"\x76\x2f\x31\x01":
-        return None
-    pos = 8
-    while pos < len(head) and head[pos] != 0:
-        name_end = head.find(b"\0", pos)
-        type_end = head.find(b"\0", name_end + 1)
-        if name_end < 0 or type_end < 0 or type_end + 5 > len(head):
-            return None
-        (size,) = struct.unpack_from("<i", head, type_end + 1)
-        value = type_end + 5
-        if head[pos:name_end] == b"dataWindow" and size == 16 and value + 16 <= len(head):
-            x0, y0, x1, y1 = struct.unpack_from("<4i", head, value)
-            return x1 - x0 + 1, y1 - y0 + 1
-        pos = value + max(size, 0)
-    return None
-
-
 def check_image_headers(paths: Iterable[Path], source: str) -> None:
     """InputError when an image's header declares more pixels than the app decodes."""
     for path in paths:
         with contextlib.suppress(OSError):
-            size = header_size(path)
-            if size is None:
-                continue
-            w, h = size
-            if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
-                raise InputError(
-                    source,
-                    f"{path.name}: the image is {w} x {h} pixels; at most {MAX_IMAGE_SIDE} "
-                    f"a side and {MAX_IMAGE_PIXELS // 1_000_000} megapixels",
-                )
+            check_image_size(
+                path, max_side=MAX_IMAGE_SIDE, max_pixels=MAX_IMAGE_PIXELS, source=source
+            )

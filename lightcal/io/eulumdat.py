@@ -193,6 +193,16 @@ def read_ldt(path: str | Path) -> PhotometricTable:
         n_lamps = f.integer(27, "number of lamps of lamp set 1", None)
         flux = f.number(29, "total luminous flux of lamp set 1 (lm)")
     c_line = 26 + _LINES_PER_LAMP_SET * n_sets + _N_DIRECT_RATIOS + 1
+    # Counts the file cannot hold are refused before anything is allocated by them (a
+    # file that is merely short gets the line-precise message below).
+    stored = {0: mc, 1: 1, 2: mc // 2 + 1, 3: mc // 2 + 1, 4: mc // 4 + 1}[isym]
+    needed = c_line - 1 + mc + ng + stored * ng
+    if needed > max(len(lines), 1_000_000):
+        raise InputError(
+            path,
+            f"the counts (Mc {mc} C-planes, Ng {ng} intensities each, {n_sets} lamp sets) "
+            f"demand {needed} lines, the file has {len(lines)}",
+        )
     c_angles = _read_angles(f, c_line, mc, "C", 0.0, 360.0, upper_open=True)
     g_line = c_line + mc
     gamma = _read_angles(f, g_line, ng, "gamma", 0.0, 180.0, upper_open=False)

@@ -125,6 +125,10 @@ class _Numbers:
         return value
 
 
+_MAX_TABLE_NUMBERS = 1_000_000
+"""Counts beyond the data and beyond this many numbers are refused before allocating."""
+
+
 def read_ies(path: str | Path) -> PhotometricTable:
     """Read an IES LM-63 file (format in the module docstring).
 
@@ -226,6 +230,15 @@ def read_ies(path: str | Path) -> PhotometricTable:
         f" (the counts, {n_h} horizontal x {n_v} vertical angles, demand {total} numbers "
         f"after TILT=NONE, found {len(tokens)})"
     )
+    # Counts the data cannot hold are refused before anything is allocated by them (a
+    # file that is merely short gets the line-precise message below).
+    remaining = len(tokens) - numbers.position
+    if n_v + n_h + n_h * n_v > max(remaining, _MAX_TABLE_NUMBERS):
+        raise InputError(
+            path,
+            f"the counts ({n_h} horizontal x {n_v} vertical angles) demand "
+            f"{n_v + n_h + n_h * n_v} numbers after the header, found {remaining}",
+        )
     vertical, _ = _read_angles(numbers, "vertical", n_v, 180.0)
     horizontal, horizontal_lines = _read_angles(numbers, "horizontal", n_h, 360.0)
     symmetry = _symmetry(path, horizontal, horizontal_lines)

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from lightcal.errors import InputError
 from lightcal.io.exif import Exposure, read_exposure
+from lightcal.io.image_header import check_image_size
 from lightcal.io.linear_image import (
     LUMINANCE_WEIGHTS_RGB,
     LinearImage,
@@ -135,6 +136,7 @@ def read_image(
             user_white=white_level,
         )
 
+    check_image_size(path)  # before decoding: a header may claim 10^10 pixels
     # Colour data is kept in OpenCV's B, G, R order from here on.
     bit_depth: int | None = None
     if suffix in _CV2_EXTENSIONS:
@@ -345,7 +347,10 @@ def _check_dtype(path: Path, data: NDArray[Any]) -> NDArray[Any]:
 
 def _read_cv2(path: Path) -> NDArray[Any]:
     """PNG / JPEG through OpenCV: (H, W) or (H, W, C), B, G, R order."""
-    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:  # OpenCV's own checks (e.g. its pixel limit) raise instead of None
+        data = None
     if data is None:
         raise InputError(path, f"not a readable {path.suffix.lower().lstrip('.').upper()} image")
     return _check_dtype(path, np.asarray(data))
@@ -394,6 +399,10 @@ def _read_tiff(path: Path) -> tuple[NDArray[Any], int | None]:
 
 def _read_npy(path: Path) -> NDArray[Any]:
     """(H, W) float or unsigned integer array; pickles are refused."""
+    with path.open("rb") as f:
+        magic = f.read(6)
+    if magic != b"\x93NUMPY":
+        raise InputError(path, "not a NumPy .npy file (no .npy header); expected an (H, W) array")
     try:
         data = np.load(path, allow_pickle=False)
     except ValueError as error:
