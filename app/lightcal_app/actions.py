@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from lightcal_app.limits import check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
 from lightcal_app.requests import (
     DownloadKind,
@@ -65,12 +66,13 @@ class Actions:
     ) -> None:
         """Change light j's initial guess (what is not given stays as shown now)."""
         st = self.state
+        # Values from a page, checked before they touch the state (InputError: refused).
+        new_pos = None if position_m is None else check_position_m(position_m)
+        new_R = None if R_camera_light is None else check_rotation(R_camera_light)
         with st.lock:
             base = self._base_pose(j)
-            pos = base.position_m if position_m is None else np.asarray(position_m, float)
-            R = base.R_camera_light if R_camera_light is None else np.asarray(R_camera_light, float)
-            if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(R))):
-                return
+            pos = base.position_m if new_pos is None else new_pos
+            R = base.R_camera_light if new_R is None else new_R
             guess = list(st.guess)
             guess[j] = LightGuess(pos.copy(), R.copy())
             st.guess = guess
@@ -90,6 +92,15 @@ class Actions:
 
     def set_selection(self, settings: SelectionSettings, *, image: str | None = None) -> None:
         """Pixel selection settings for every image (image None) or one image."""
+        settings = SelectionSettings(
+            *check_selection(
+                settings.strategy,
+                settings.n_per_image,
+                settings.grid_step,
+                settings.binning,
+                settings.seed,
+            )  # type: ignore[arg-type]
+        )
         st = self.state
         with st.lock:
             if image is None:

@@ -17,6 +17,7 @@ from lightcal.core.solver import CalibrationModel
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal_app.text import md, md_prose
 
 
 def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
@@ -28,7 +29,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         )
     head = "converged" if result.converged else f"not converged ({state})"
     lines = [
-        f"**{head}**: {result.message}  ",
+        f"**{head}**: {md_prose(result.message)}  ",
         f"{result.iterations} iterations, {sum(result.pixels_used)} pixels, cost {result.cost:.6g}",
         "",
     ]
@@ -36,7 +37,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         p, sp = lr.pose.position_m, lr.sigma.position_m
         ax, sax = lr.pose.axis_camera, lr.sigma.axis_camera
         lines += [
-            f"#### {lr.name} ({lr.pose_kind})",
+            f"#### {md(lr.name)} ({lr.pose_kind})",
             "| quantity | value | ± 1 sigma |",
             "|---|---|---|",
         ]
@@ -57,7 +58,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
     lines += _wall_and_fit(result)
     if result.warnings:
         lines.append("#### ⚠ Warnings")
-        lines += [f"- {w}" for w in result.warnings]
+        lines += [f"- {md_prose(w)}" for w in result.warnings]
         lines.append("")
     lines += ["#### Images", "| image | pixels | RMS (pixel values) |", "|---|---|---|"]
     for name, n, rms in zip(

@@ -26,6 +26,13 @@ from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal_app.limits import (
+    MAX_BINNING,
+    MAX_GRID_STEP,
+    MAX_NAME_LENGTH,
+    MAX_PIXELS_PER_IMAGE,
+    MAX_SEED,
+)
 from lightcal_app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
 
 SESSION_FORMAT: Literal["lightcal-app-session"] = "lightcal-app-session"
@@ -40,17 +47,19 @@ class _Model(BaseModel):
 
 
 class GuessModel(_Model):
-    name: str
+    name: str = Field(max_length=MAX_NAME_LENGTH)
     position_m: Vec3
     R_camera_light: Mat3
 
 
 class SelectionModel(_Model):
+    # The ranges of the page's widgets (lightcal_app.limits): a session file can hold
+    # nothing the page refuses.
     strategy: Strategy = "random"
-    n_per_image: int = Field(default=100, ge=1)
-    grid_step: int = Field(default=32, ge=1)
-    binning: int = Field(default=1, ge=1)
-    seed: int = 0
+    n_per_image: int = Field(default=100, ge=1, le=MAX_PIXELS_PER_IMAGE)
+    grid_step: int = Field(default=32, ge=1, le=MAX_GRID_STEP)
+    binning: int = Field(default=1, ge=1, le=MAX_BINNING)
+    seed: int = Field(default=0, ge=0, le=MAX_SEED)
 
 
 class RegionModel(_Model):

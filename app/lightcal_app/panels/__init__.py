@@ -20,6 +20,7 @@ from lightcal_app.panels.result import ResultPanel
 from lightcal_app.panels.solve import SolvePanel
 from lightcal_app.panels.view import ViewPanel
 from lightcal_app.state import Frame
+from lightcal_app.text import md_prose, public
 
 __all__ = ["Panels", "assign", "pose_angles_deg", "rotation_from_angles_deg"]
 
@@ -80,7 +81,11 @@ class Panels:
             self.view.update(frame, legend_vmax=legend_vmax)
             self.solve.update(frame)
             self.result.update(frame)
-            text = "\n".join(f"**{t}**: {b}  " for t, b in messages[-3:]) if messages else ""
+            text = (  # names and paths come from files and users: shown, never rendered
+                "\n".join(f"**{md_prose(t)}**: {md_prose(public(b))}  " for t, b in messages[-3:])
+                if messages
+                else ""
+            )
             if text != self._messages_shown:
                 self._messages_shown = text
                 self.messages_md.content = text

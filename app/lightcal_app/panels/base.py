@@ -17,7 +17,9 @@ from typing import Any
 
 import viser
 
+from lightcal.errors import LightcalError
 from lightcal_app.controller import Controller
+from lightcal_app.text import md_prose
 
 
 def assign(handle: Any, value: Any) -> None:
@@ -70,6 +72,11 @@ class TabPanel:
         def cb(event: Any) -> None:
             if event.client is None and self.flag.active():
                 return
-            fn(event)
+            try:
+                fn(event)
+            except LightcalError as exc:
+                # Refused in the page, with the reason; the widgets show the state again.
+                self.ctl.notify(event.client, "Value refused", md_prose(str(exc)), error=True)
+                self.ctl.state.mark("widgets")
 
         return cb

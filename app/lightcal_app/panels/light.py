@@ -14,6 +14,7 @@ from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel, assign, rounded
 from lightcal_app.state import Frame, LightGuess
+from lightcal_app.text import md
 
 
 def pose_angles_deg(R_camera_light: np.ndarray) -> tuple[float, float, float]:
@@ -146,7 +147,7 @@ class LightPanel(TabPanel):
             ax = np.asarray(pose["axis_camera"]) + 0.0  # no "-0.0000"
             scale = f", scale {light.scale:.4g}" if isinstance(light, Light) else ""
             lines.append(
-                f"**{names[j]}**: axis ({ax[0]:+.4f}, {ax[1]:+.4f}, {ax[2]:+.4f}), "
+                f"**{md(names[j])}**: axis ({ax[0]:+.4f}, {ax[1]:+.4f}, {ax[2]:+.4f}), "
                 f"{pose['axis_angle_from_optical_axis_deg']:.2f}° from the optical axis{scale}"
             )
         source = (

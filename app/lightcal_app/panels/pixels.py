@@ -9,8 +9,10 @@ import viser
 
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
+from lightcal_app.limits import check_selection
 from lightcal_app.panels.base import Programmatic, TabPanel, assign
 from lightcal_app.state import Frame, SelectionSettings
+from lightcal_app.text import md
 
 ALL_IMAGES = "all images"
 RECT_MODES = ("include region", "exclude region")
@@ -57,12 +59,15 @@ class PixelsPanel(TabPanel):
         self._wire()
 
     def _settings(self) -> SelectionSettings:
+        # What the page sent, checked against the widgets' ranges (InputError: refused).
         return SelectionSettings(
-            self.strategy.value,  # type: ignore[arg-type]
-            max(1, int(self.n_per_image.value)),
-            max(1, int(self.grid_step.value)),
-            max(1, int(self.binning.value)),
-            int(self.seed.value),
+            *check_selection(  # type: ignore[arg-type]
+                self.strategy.value,
+                self.n_per_image.value,
+                self.grid_step.value,
+                self.binning.value,
+                self.seed.value,
+            )
         )
 
     def _wire(self) -> None:
@@ -145,7 +150,7 @@ class PixelsPanel(TabPanel):
         total = sum(frame.selection_summary)
         rows = [f"**{total} pixels** selected in {len(names)} images:  "]
         rows.append(
-            ", ".join(f"{n}: {k}" for n, k in zip(names, frame.selection_summary, strict=True))
+            ", ".join(f"{md(n)}: {k}" for n, k in zip(names, frame.selection_summary, strict=True))
         )
         n_regions = sum(len(r) for r in frame.regions)
         n_points = sum(len(p) for p in frame.points)

@@ -1,0 +1,123 @@
+"""Values from a page are checked before they touch the state; names are shown, never
+rendered (issue 10)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from lightcal_app.limits import check_position_m
+from lightcal_app.server import LightcalApp, build_app
+from lightcal_app.session_file import read_session
+from lightcal_app.text import md, md_prose, public
+
+from lightcal.errors import InputError
+from tests.app_fixtures import SyntheticProject, make_project
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory: pytest.TempPathFactory) -> SyntheticProject:
+    return make_project(tmp_path_factory.mktemp("msg"), n_views=4, width=96, height=72)
+
+
+@pytest.fixture
+def app(synthetic: SyntheticProject, tmp_path: Path):
+    a = build_app(
+        synthetic.path,
+        port=0,
+        state_dir=tmp_path / "state",
+        session_path=tmp_path / "s.session.json",
+    )
+    assert a.wait_idle()
+    yield a
+    a.close()
+
+
+def _refusals(a: LightcalApp) -> list[str]:
+    return [body for title, body in a.state.messages if title == "⚠ Value refused"]
+
+
+def test_a_nan_or_a_short_position_is_refused_and_the_guess_kept(app: LightcalApp) -> None:
+    before = [g.position_m.copy() for g in app.state.guess]
+    widget = app.panels.light.light_widgets[0]["position"]
+    widget.value = (float("nan"), 0.0, 0.0)
+    assert app.wait_idle()
+    assert _refusals(app) == [
+        "light position: expected 3 finite numbers within +-10000 mm, got (nan, 0, 0)"
+    ]
+    assert all(
+        np.array_equal(g.position_m, b) for g, b in zip(app.state.guess, before, strict=True)
+    )
+    # The widget shows the kept guess again (in mm).
+    assert np.allclose(widget.value, before[0] * 1e3, atol=0.01)
+    with pytest.raises(InputError, match=r"^light position: expected 3 finite numbers"):
+        app.controller.set_guess(0, position_m=np.array([0.1, 0.2]))
+    with pytest.raises(InputError, match=r"^light position: expected 3 finite numbers"):
+        app.controller.set_guess(0, position_m=np.array([1e308, 0.0, 0.0]))
+
+
+def test_a_24_digit_seed_is_refused_and_never_saved(app: LightcalApp, tmp_path: Path) -> None:
+    before = app.state.selection
+    app.panels.pixels.seed.value = 10**24
+    assert app.wait_idle()
+    assert _refusals(app) == [
+        "seed: expected an integer from 0 to 4294967295, got 1000000000000000000000000"
+    ]
+    assert app.state.selection == before
+    app.controller.files.autosave(force=True)  # whatever is saved must load again
+    session = read_session(tmp_path / "s.session.json")
+    assert session.selection.seed == before.seed
+
+
+def test_session_files_outside_the_widgets_ranges_are_refused(
+    app: LightcalApp, tmp_path: Path
+) -> None:
+    app.controller.files.autosave(force=True)
+    good = json.loads((tmp_path / "s.session.json").read_text())
+    for edit, field in [
+        (lambda d: d["selection"].__setitem__("seed", 10**24), "selection.seed"),
+        (lambda d: d["lights"][0].__setitem__("position_m", [0.1, 0.2]), "lights.0.position_m"),
+        (lambda d: d["lights"][0].__setitem__("position_m", [math.nan, 0, 0]), "position_m"),
+    ]:
+        data = json.loads(json.dumps(good))
+        edit(data)
+        path = tmp_path / "bad.session.json"
+        path.write_text(json.dumps(data).replace("NaN", "NaN"))
+        with pytest.raises(InputError, match=field.split(".")[0]):
+            read_session(path)
+
+
+def test_names_reach_markdown_as_text() -> None:
+    hostile = '<img src="https://evil.example/x.png" onerror=alert(1)>'
+    assert "<img" not in md(hostile) and "&lt;img" in md(hostile)
+    assert "![" not in md("![x](https://evil.example/p.png)")
+    assert "<script" not in md_prose("see `view_01` and <script>alert(1)</script>")
+    assert public("cannot read /srv/data/secret/key.png (denied)") == (
+        "cannot read key.png (denied)"
+    )
+
+
+def test_a_light_named_with_html_is_shown_as_text(
+    synthetic: SyntheticProject, tmp_path: Path
+) -> None:
+    project = json.loads(synthetic.path.read_text())
+    project["lights"][0]["name"] = '<img src="https://evil.example/x.png">'
+    path = synthetic.path.parent / "html-name.json"
+    path.write_text(json.dumps(project))
+    a = build_app(path, port=0, state_dir=tmp_path / "state", session_path=False)
+    try:
+        assert a.wait_idle()
+        text = a.panels.light.light_md.content
+        assert "&lt;img" in text and "<img" not in text
+    finally:
+        a.close()
+        path.unlink()
+
+
+def test_position_limit_is_in_metres() -> None:
+    assert np.array_equal(check_position_m([0.1, -0.2, 9.9]), [0.1, -0.2, 9.9])
+    with pytest.raises(InputError):
+        check_position_m([0.1, -0.2, 10.1])
