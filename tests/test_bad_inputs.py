@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -77,6 +78,231 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         _set("images.1.path", "images/nope.png"),
         "images[1].path: image file not found: ",
     ),
+    # Every field of the project file (generated once from `lightcal synth` data, kept as
+    # the contract: each message names the field and what was expected).
+    (
+        "rotation matrix 2 x 2",
+        _set("images.0.T_camera_world.R", [[1, 0], [0, 1]]),
+        "images[0].T_camera_world.R[0]: List should have at least 3 items after validation, not 2",
+    ),
+    (
+        "rotation scaled",
+        _set("images.0.T_camera_world.R", [[2, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        "images[0].T_camera_world: R_camera_world: expected a rotation matrix (max |R^T R - I| <= 1e-06), got max |R^T R - I| = 3",
+    ),
+    (
+        "camera looking away",
+        _set("images.0.T_camera_world.R", [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        "images[0].T_camera_world: camera pose: the camera centre is at z = -1.147 m, on or behind the wall; expected z > 0 (the wall is z = 0 and cameras look at it from z > 0)",
+    ),
+    (
+        "translation of 2",
+        _set("images.0.T_camera_world.t", [0, 0]),
+        "images[0].T_camera_world.t: List should have at least 3 items after validation, not 2",
+    ),
+    (
+        "translation NaN",
+        _set("images.0.T_camera_world.t", [0, 0, math.nan]),
+        "images[0].T_camera_world.t[2]: Input should be a finite number",
+    ),
+    (
+        "covariance 1 x 1",
+        _set("images.0.T_camera_world.covariance", [[1]]),
+        "images[0].T_camera_world.covariance[0]: List should have at least 6 items after validation, not 1",
+    ),
+    (
+        "covariance not symmetric",
+        _set(
+            "images.0.T_camera_world.covariance",
+            [
+                [-1, 0, 0, 0, 0, 0],
+                [-1, 0, 0, 0, 0, 0],
+                [-1, 0, 0, 0, 0, 0],
+                [-1, 0, 0, 0, 0, 0],
+                [-1, 0, 0, 0, 0, 0],
+                [-1, 0, 0, 0, 0, 0],
+            ],
+        ),
+        "images[0].T_camera_world: covariance: expected a symmetric matrix",
+    ),
+    (
+        "exposure negative",
+        _set("images.0.exposure", -1),
+        "images[0].exposure: expected a finite value > 0, got -1.0",
+    ),
+    (
+        "exposure time 0",
+        _set("images.0.exposure.exposure_time_s", 0),
+        "images[0].exposure.exposure_time_s: Input should be greater than 0",
+    ),
+    (
+        "image path empty",
+        _set("images.0.path", ""),
+        "images[0].path: image file not found: {folder}",
+    ),
+    (
+        "image named twice",
+        _set("images.1.name", "view_00"),
+        "images: two images are named 'view_00'; names must be unique",
+    ),
+    (
+        "no images",
+        _set("images", []),
+        "images: List should have at least 1 item after validation, not 0",
+    ),
+    (
+        "no lights",
+        _set("lights", []),
+        "lights: List should have at least 1 item after validation, not 0",
+    ),
+    (
+        "light behind the wall",
+        _set("lights.0.initial.position_m", [0, 0, 5]),
+        "lights[0].initial.position_m: the light is on or behind the wall in image 'view_00' (world z = -3.65 m); expected it in front (z > 0)",
+    ),
+    (
+        "light position of 2",
+        _set("lights.0.initial.position_m", [0, 0]),
+        "lights[0].initial.position_m: List should have at least 3 items after validation, not 2",
+    ),
+    (
+        "light scale negative",
+        _set("lights.0.initial.scale", -1),
+        "lights[0].initial.scale: Input should be greater than 0",
+    ),
+    (
+        "RID type unknown",
+        _set("lights.0.rid.type", "nonsense"),
+        "lights[0].rid.type: Input should be 'isotropic', 'cos_power', 'gaussian', 'half_angle', 'table', 'ies' or 'ldt'",
+    ),
+    (
+        "cos^m exponent negative",
+        _set("lights.0.rid", {"type": "cos_power", "m": -1}),
+        "lights[0].rid.m: Input should be greater than or equal to 0",
+    ),
+    (
+        "IES without a path",
+        _set("lights.0.rid", {"type": "ies"}),
+        "lights[0].rid: RID type 'ies' needs path",
+    ),
+    (
+        "IES file missing",
+        _set("lights.0.rid", {"type": "ies", "path": "nope.ies"}),
+        "lights[0].rid.path: RID file not found: {folder}/nope.ies",
+    ),
+    (
+        "pose kind unknown",
+        _set("lights.0.pose", "sideways"),
+        "lights[0].pose: Input should be 'auto', 'isotropic', 'symmetric' or 'general'",
+    ),
+    (
+        "one curve knot",
+        _set("lights.0.curve_knots", 1),
+        "lights[0].curve_knots: Input should be greater than or equal to 2",
+    ),
+    (
+        "strategy unknown",
+        _set("selection.strategy", "best"),
+        "selection.strategy: Input should be 'random', 'grid' or 'all'",
+    ),
+    (
+        "no pixels per image",
+        _set("selection.n_per_image", 0),
+        "selection.n_per_image: Input should be greater than or equal to 1",
+    ),
+    (
+        "grid step 0",
+        _set("selection.grid_step", 0),
+        "selection.grid_step: Input should be greater than or equal to 1",
+    ),
+    (
+        "region of one point",
+        _set("selection.regions", [{"kind": "rect", "points": [[0, 0]]}]),
+        "selection.regions[0].points: List should have at least 2 items after validation, not 1",
+    ),
+    (
+        "min_signal NaN",
+        _set("selection.min_signal", math.nan),
+        "selection.min_signal: Input should be a finite number",
+    ),
+    (
+        "map without a file",
+        _set("sensor.model", "map"),
+        "sensor: the 'map' sensor model needs a vignetting file",
+    ),
+    (
+        "black level negative",
+        _set("sensor.black_level", -5),
+        "sensor.black_level: Input should be greater than or equal to 0",
+    ),
+    (
+        "white below black",
+        _set("sensor.white_level", 10),
+        "sensor: white_level 10 must be above black_level 512",
+    ),
+    (
+        "noise gain negative",
+        _set("sensor.noise.gain", -1),
+        "sensor.noise.gain: Input should be greater than or equal to 0",
+    ),
+    (
+        "channel unknown",
+        _set("sensor.channel", "purple"),
+        "sensor.channel: Input should be 'auto', 'green_binned', 'luminance', 'R', 'G', 'G1', 'G2' or 'B'",
+    ),
+    (
+        "loss unknown",
+        _set("solver.loss", "huberish"),
+        "solver.loss: Input should be 'linear', 'huber', 'soft_l1' or 'cauchy'",
+    ),
+    (
+        "no iterations",
+        _set("solver.max_iterations", 0),
+        "solver.max_iterations: Input should be greater than or equal to 1",
+    ),
+    ("f_scale 0", _set("solver.f_scale", 0), "solver.f_scale: Input should be greater than 0"),
+    (
+        "multistart negative",
+        _set("solver.multistart", -1),
+        "solver.multistart: Input should be greater than or equal to 0",
+    ),
+    (
+        "position bound 0",
+        _set("solver.position_bound_m", 0),
+        "solver.position_bound_m: Input should be greater than 0",
+    ),
+    (
+        "RID subsamples 100",
+        _set("solver.rid_subsamples", 100),
+        "solver.rid_subsamples: Input should be less than or equal to 16",
+    ),
+    (
+        "wall model unknown",
+        _set("wall.model", "velvet"),
+        "wall.model: Input should be 'lambertian', 'plastic', 'oren_nayar' or 'auto'",
+    ),
+    (
+        "wall roughness negative",
+        _set("wall", {"model": "plastic", "parameters": {"roughness": -1}}),
+        "wall.parameters: plastic wall: roughness: expected a value in [0.02, 1], got -1",
+    ),
+    (
+        "Lambertian wall estimating",
+        _set("wall", {"model": "lambertian", "estimate": ["roughness"]}),
+        "wall: the lambertian wall takes no parameters and estimates none",
+    ),
+    (
+        "camera file missing",
+        _set("camera.path", "nope.yaml"),
+        "camera.path: camera file not found: {folder}/nope.yaml",
+    ),
+    (
+        "camera half given",
+        _set("camera", {"fx": 100}),
+        "camera: give either path or all of fx, fy, cx, cy, width, height",
+    ),
+    ("version 2", _set("version", 2), "version: this lightcal reads project version 1, got 2"),
+    ("unknown field", _set("extra_field", 1), "extra_field: Extra inputs are not permitted"),
 ]
 
 
@@ -112,6 +338,7 @@ def test_bad_projects(
         path.unlink()
     err = capsys.readouterr().err
     assert err.count("\n") == 1
+    expected = expected.format(folder=dataset)
     assert err.startswith(f"lightcal calibrate: error: {path}: {expected}"), err
     assert after == before
     assert not out.exists()

@@ -185,8 +185,8 @@ class SensorSpec(_Model):
     model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
     vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
     channel: Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"] = "auto"
-    black_level: float | None = Field(default=None, description="subtracted on load")
-    white_level: float | None = None
+    black_level: float | None = Field(default=None, ge=0, description="subtracted on load")
+    white_level: float | None = Field(default=None, gt=0)
     assume_linear: bool = False
     response: str | None = Field(default=None, description="camera response curve file")
     offset: float = Field(
@@ -199,6 +199,14 @@ class SensorSpec(_Model):
     def _map_needs_file(self) -> SensorSpec:
         if self.model == "map" and self.vignetting is None:
             raise ValueError("the 'map' sensor model needs a vignetting file")
+        if (
+            self.black_level is not None
+            and self.white_level is not None
+            and not self.white_level > self.black_level
+        ):
+            raise ValueError(
+                f"white_level {self.white_level:g} must be above black_level {self.black_level:g}"
+            )
         return self
 
 
@@ -393,9 +401,14 @@ class Project:
         return self.path.parent
 
 
+_UNION_BRANCHES = frozenset({"float", "int", "str", "bool", "list", "dict"})
+
+
 def _format_loc(loc: tuple[Any, ...]) -> str:
     out = ""
     for part in loc:
+        if isinstance(part, str) and (part in _UNION_BRANCHES or part.endswith("Spec")):
+            continue  # the name of a union's branch (ExposureSpec, float), not a field
         if isinstance(part, int):
             out += f"[{part}]"
         else:
@@ -416,8 +429,13 @@ def parse_project(data: Any, source: str | Path) -> ProjectFile:
     try:
         return ProjectFile.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
+        errors = exc.errors()
+        # The most specific problem: where a value may take several forms (a number or
+        # exposure settings), the branch that got deepest says what is wrong.
+        err = max(errors, key=lambda e: len(e["loc"]))
+        more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
+        if len({_format_loc(e["loc"][:3]) for e in errors}) == 1:
+            more = ""  # the other problems are the same field's other forms
         msg = err["msg"].removeprefix("Value error, ")
         raise InputError(source, f"{_format_loc(err['loc'])}: {msg}{more}") from exc
 
