@@ -21,6 +21,7 @@ SUBCOMMANDS = (
     "synth",
     "calibrate",
     "render",
+    "export",
     "schema",
     "init",
     "camera",

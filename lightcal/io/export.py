@@ -1,0 +1,413 @@
+"""Export a calibration result (`lightcal.io.result_file`) to other tools' formats.
+
+| format | file | holds |
+|---|---|---|
+| `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, position, axis, sigmas, RID |
+| `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
+| `mitsuba` | Mitsuba 3 scene XML | a sensor at the origin, a spot (point) emitter per light |
+| `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
+| `ldt` | EULUMDAT | the estimated RID of one light (`lightcal.io.eulumdat`) |
+
+All poses are the result's `T_camera_light` (OpenCV camera frame: x right, y down, z
+forward; metres), converted to Blender's and Mitsuba's camera conventions as
+`lightcal.core.camera_frames` documents. A light's RID is known to the result only when
+the calibration estimated it (`rid` in the result, tabulated at `theta_deg`; a 2-D table
+also has `phi_deg` and `values` of shape (n_phi, n_theta)); without it the opencv file
+has no RID table, Blender and Mitsuba get a 180 degree cone, and ies/ldt refuse.
+Photometric files hold the relative RID as candela (1 cd on the axis, absolute
+photometry); azimuths follow docs/conventions.md (C = -phi).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+from xml.sax.saxutils import escape, quoteattr
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lightcal import __version__
+from lightcal.core.camera_frames import (
+    blender_from_opencv,
+    blender_spot_cone,
+    mitsuba_from_opencv,
+    mitsuba_spot_cone,
+    transform_camera_light,
+)
+from lightcal.errors import InputError
+from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
+from lightcal.io.photometric_table import PhotometricTable
+from lightcal.io.result_file import LightResultModel, ResultFile
+
+__all__ = [
+    "FORMATS",
+    "ExportFormat",
+    "LightRID",
+    "export_bytes",
+    "export_result",
+    "light_rid",
+    "light_transform",
+    "rid_photometric_table",
+]
+
+ExportFormat = Literal["opencv", "blender", "mitsuba", "ies", "ldt"]
+FORMATS: tuple[ExportFormat, ...] = ("opencv", "blender", "mitsuba", "ies", "ldt")
+
+FRAME_NOTE = (
+    "OpenCV camera frame: x right, y down, z forward; metres; T_camera_light maps light to camera"
+)
+
+
+@dataclass(frozen=True)
+class LightRID:
+    """A light's RID as the result tabulates it.
+
+    Attributes:
+        model: The estimated model ("cos_power", "curve", ...).
+        theta_rad: (n_t,) angles from the light axis, radians, from 0.
+        values: (n_t,) relative intensities, or (n_p, n_t) for a 2-D table.
+        phi_rad: (n_p,) azimuths in the light frame for a 2-D table, else None.
+        half_angle_rad: The half-intensity angle.
+    """
+
+    model: str
+    theta_rad: NDArray[np.float64]
+    values: NDArray[np.float64]
+    phi_rad: NDArray[np.float64] | None
+    half_angle_rad: float
+
+
+def light_transform(light: LightResultModel) -> NDArray[np.float64]:
+    """(4, 4) `T_camera_light` of a result's light (OpenCV camera frame, metres)."""
+    return transform_camera_light(light.R_camera_light, light.position_m)
+
+
+def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
+    """The light's tabulated RID, or None when the result holds none.
+
+    Raises:
+        InputError: naming `source` and the light: the table is malformed.
+    """
+    rid: dict[str, Any] | None = light.rid
+    if not rid:
+        return None
+    where = f"lights[{light.name}].rid"
+    try:
+        theta = np.radians(np.asarray(rid["theta_deg"], dtype=np.float64))
+        values = np.asarray(rid["values"], dtype=np.float64)
+        phi = np.radians(np.asarray(rid["phi_deg"], dtype=np.float64)) if "phi_deg" in rid else None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(
+            source, f"{where}: expected theta_deg and values (and phi_deg for a 2-D table): {exc}"
+        ) from None
+    shape = (theta.size,) if phi is None else (phi.size, theta.size)
+    if theta.ndim != 1 or theta.size < 2 or values.shape != shape:
+        raise InputError(
+            source, f"{where}: expected values of shape {shape} for {theta.size} angles"
+        )
+    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(theta))):
+        raise InputError(source, f"{where}: expected finite angles and values")
+    if "half_angle_deg" in rid:
+        half = math.radians(float(rid["half_angle_deg"]))
+    else:
+        mean = values if phi is None else values.mean(axis=0)
+        below = np.nonzero(mean <= 0.5 * mean[0])[0]
+        half = float(theta[below[0]]) if below.size else float(theta[-1])
+    return LightRID(str(rid.get("model", "table")), theta, values, phi, half)
+
+
+# ----------------------------------------------------------------------------- opencv
+
+
+def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
+    import cv2
+
+    fs = cv2.FileStorage(
+        "export.yaml",
+        cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML,
+    )
+    fs.write("lightcal_version", result.lightcal_version)
+    fs.write("frame", FRAME_NOTE)
+    fs.write("lights_count", len(result.lights))
+    fs.startWriteStruct("lights", cv2.FileNode_SEQ)
+    for light in result.lights:
+        sigma = light.sigma
+        fs.startWriteStruct("", cv2.FileNode_MAP)
+        fs.write("name", light.name)
+        fs.write("pose_kind", light.pose_kind)
+        fs.write("T_camera_light", light_transform(light))
+        fs.write("position_m", np.array(light.position_m, dtype=np.float64).reshape(3, 1))
+        fs.write("axis_camera", np.array(light.axis_camera, dtype=np.float64).reshape(3, 1))
+        fs.write("scale", float(light.scale))
+        fs.write("sigma_position_m", np.array(sigma.position_m, dtype=np.float64).reshape(3, 1))
+        fs.write("sigma_axis_camera", np.array(sigma.axis_camera, dtype=np.float64).reshape(3, 1))
+        fs.write("sigma_R_camera_light", np.array(sigma.R_camera_light, dtype=np.float64))
+        fs.write("sigma_roll_deg", float(sigma.roll_deg))
+        fs.write("sigma_pitch_deg", float(sigma.pitch_deg))
+        fs.write("sigma_axis_angle_deg", float(sigma.axis_angle_from_optical_axis_deg))
+        fs.write("sigma_scale", float(light.scale_sigma))
+        rid = light_rid(light, source)
+        if rid is not None:
+            fs.write("rid_model", rid.model)
+            fs.write("rid_half_angle_rad", rid.half_angle_rad)
+            if rid.phi_rad is None:
+                # (n, 2): theta_rad, relative intensity
+                fs.write("rid_table", np.column_stack([rid.theta_rad, rid.values]))
+            else:
+                fs.write("rid_theta_rad", rid.theta_rad.reshape(-1, 1))
+                fs.write("rid_phi_rad", rid.phi_rad.reshape(-1, 1))
+                fs.write("rid_grid", rid.values)  # (n_phi, n_theta)
+        fs.endWriteStruct()
+    fs.endWriteStruct()
+    return fs.releaseAndGetString().encode("utf-8")
+
+
+# ---------------------------------------------------------------------------- blender
+
+_BLENDER_TEMPLATE = '''"""Calibrated lights from lightcal {version} for Blender.
+
+Run it in Blender's Python console or Text Editor. Each light is added as a child of
+the camera CAMERA_NAME (the scene's active camera when None), its matrix_local given in
+Blender's camera frame: the camera looks down -Z with +Y up, a spot shines along its -Z.
+That is matrix_local = F @ T_camera_light @ F, F = diag(1, -1, -1, 1), T_camera_light
+the pose lightcal calibrated in the OpenCV camera frame (x right, y down, z forward;
+metres). Without a camera the lights are placed in world coordinates equal to Blender's
+camera frame. Spot size and blend approximate the RID: the blend's middle sits at its
+half-intensity angle.
+"""
+
+import bpy
+from mathutils import Matrix
+
+CAMERA_NAME = None
+
+LIGHTS = {lights}
+
+
+def add_lights(lights=LIGHTS, camera_name=CAMERA_NAME):
+    scene = bpy.context.scene
+    camera = bpy.data.objects[camera_name] if camera_name else scene.camera
+    added = []
+    for spec in lights:
+        data = bpy.data.lights.new(name=spec["name"], type=spec["type"])
+        if spec["type"] == "SPOT":
+            data.spot_size = spec["spot_size"]
+            data.spot_blend = spec["spot_blend"]
+        obj = bpy.data.objects.new(spec["name"], data)
+        scene.collection.objects.link(obj)
+        if camera is not None:
+            obj.parent = camera
+            obj.matrix_parent_inverse = Matrix.Identity(4)
+        obj.matrix_local = Matrix(spec["matrix_blendercam_light"])
+        added.append(obj)
+    return added
+
+
+add_lights()
+'''
+
+
+def _blender_snippet(result: ResultFile, source: str | Path) -> bytes:
+    specs = []
+    for light in result.lights:
+        rid = light_rid(light, source)
+        spec: dict[str, Any] = {
+            "name": light.name,
+            "type": "POINT" if light.pose_kind == "isotropic" else "SPOT",
+        }
+        if spec["type"] == "SPOT":
+            size, blend = blender_spot_cone(rid.half_angle_rad if rid else math.pi / 2)
+            spec["spot_size"] = size
+            spec["spot_blend"] = blend
+        M = blender_from_opencv(light_transform(light))
+        spec["matrix_blendercam_light"] = tuple(tuple(float(v) for v in row) for row in M)
+        specs.append(spec)
+    lights = "[\n" + "".join(f"    {spec!r},\n" for spec in specs) + "]"
+    return _BLENDER_TEMPLATE.format(version=result.lightcal_version, lights=lights).encode()
+
+
+# ---------------------------------------------------------------------------- mitsuba
+
+
+def _matrix_attribute(M: NDArray[np.float64]) -> str:
+    """A Mitsuba `<matrix value=...>`: 16 numbers, row-major, shortest exact text."""
+    return " ".join(repr(float(v)) for v in M.ravel())
+
+
+def _mitsuba_xml(result: ResultFile, source: str | Path) -> bytes:
+    lines = [
+        '<?xml version="1.0" encoding="utf-8"?>',
+        f"<!-- lightcal {escape(result.lightcal_version)}: calibrated lights, camera frame.",
+        "     The sensor sits at the origin in Mitsuba's camera convention (looking down +z,",
+        "     +y up, +x to the image's left); each emitter's to_world is",
+        "     diag(-1, -1, 1, 1) @ T_camera_light (OpenCV frame: x right, y down, z forward;",
+        "     metres). In a scene whose sensor has to_world S, use S @ (the matrix below).",
+        "     Spot cones approximate the RID (half-intensity angle mid-way of the falloff). -->",
+        '<scene version="3.0.0">',
+        '    <sensor type="perspective" id="camera">',
+        '        <transform name="to_world"><matrix value="'
+        + _matrix_attribute(np.eye(4))
+        + '"/></transform>',
+        "    </sensor>",
+    ]
+    for light in result.lights:
+        rid = light_rid(light, source)
+        M = mitsuba_from_opencv(light_transform(light))
+        kind = "point" if light.pose_kind == "isotropic" else "spot"
+        lines.append(f'    <emitter type="{kind}" id={quoteattr(light.name)}>')
+        if kind == "spot":
+            cutoff_deg, beam_deg = mitsuba_spot_cone(rid.half_angle_rad if rid else math.pi / 2)
+            lines.append(f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>')
+            lines.append(f'        <float name="beam_width" value="{beam_deg!r}"/>')
+        lines.append('        <rgb name="intensity" value="1.0"/>')
+        lines.append(
+            '        <transform name="to_world"><matrix value="'
+            + _matrix_attribute(M)
+            + '"/></transform>'
+        )
+        lines.append("    </emitter>")
+    lines.append("</scene>")
+    return ("\n".join(lines) + "\n").encode("utf-8")
+
+
+# ------------------------------------------------------------------------ photometric
+
+
+def rid_photometric_table(light: LightResultModel, source: str | Path) -> PhotometricTable:
+    """The light's estimated RID as a type C table (1 cd on the axis, absolute photometry).
+
+    Raises:
+        InputError: naming `source`: the result holds no RID for this light.
+    """
+    rid = light_rid(light, source)
+    if rid is None:
+        raise InputError(
+            source,
+            f"light {light.name!r} has no estimated RID: expected a result of a calibration "
+            "with estimate_rid (cos_power or curve)",
+        )
+    values = np.clip(rid.values, 0.0, None)
+    theta_deg = np.degrees(rid.theta_rad)
+    if rid.phi_rad is None:
+        return PhotometricTable(
+            theta_deg,
+            np.zeros(1),
+            values[None, :],
+            source=str(source),
+            symmetry="axial",
+            luminaire=light.name,
+        )
+    c_deg = np.mod(-np.degrees(rid.phi_rad), 360.0)  # C = -phi
+    order = np.argsort(c_deg)
+    return PhotometricTable(
+        theta_deg,
+        c_deg[order],
+        values[order],
+        source=str(source),
+        symmetry="none",
+        luminaire=light.name,
+    )
+
+
+def _select_light(result: ResultFile, source: str | Path, name: str | None) -> LightResultModel:
+    if name is not None:
+        for light in result.lights:
+            if light.name == name:
+                return light
+        names = ", ".join(repr(light.name) for light in result.lights)
+        raise InputError(source, f"no light named {name!r}: expected one of {names}")
+    with_rid = [light for light in result.lights if light.rid]
+    if len(result.lights) == 1:
+        return result.lights[0]
+    if len(with_rid) == 1:
+        return with_rid[0]
+    raise InputError(source, f"{len(result.lights)} lights: name the one to export (--light NAME)")
+
+
+def _photometric_bytes(
+    writer: Callable[[Path, PhotometricTable], None], suffix: str
+) -> Callable[[ResultFile, str | Path, str | None], bytes]:
+    def render(result: ResultFile, source: str | Path, light_name: str | None) -> bytes:
+        table = rid_photometric_table(_select_light(result, source, light_name), source)
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / f"light{suffix}"
+            writer(path, table)
+            return path.read_bytes()
+
+    return render
+
+
+def _write_ies(path: Path, table: PhotometricTable) -> None:
+    from lightcal.io.ies import write_ies
+
+    write_ies(path, table, keywords={"TEST": f"lightcal {__version__} estimated RID"})
+
+
+def _write_ldt(path: Path, table: PhotometricTable) -> None:
+    from lightcal.io.eulumdat import write_ldt
+
+    write_ldt(path, table)
+
+
+# ---------------------------------------------------------------------------- entry
+
+
+def export_bytes(
+    result: ResultFile, fmt: str, *, source: str | Path, light_name: str | None = None
+) -> bytes:
+    """The exported file's content.
+
+    Args:
+        result: The result read with `read_result`.
+        fmt: One of `FORMATS`.
+        source: The result's path, for error messages.
+        light_name: The light to export as ies/ldt (needed when several have a RID).
+
+    Raises:
+        InputError: an unknown format, or the result lacks what the format needs.
+    """
+    whole: dict[str, Callable[[ResultFile, str | Path], bytes]] = {
+        "opencv": _opencv_yaml,
+        "blender": _blender_snippet,
+        "mitsuba": _mitsuba_xml,
+    }
+    if fmt in whole:
+        return whole[fmt](result, source)
+    if fmt == "ies":
+        return _photometric_bytes(_write_ies, ".ies")(result, source, light_name)
+    if fmt == "ldt":
+        return _photometric_bytes(_write_ldt, ".ldt")(result, source, light_name)
+    raise InputError("--format", f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
+
+
+def export_result(
+    result: ResultFile,
+    fmt: str,
+    out: str | Path,
+    *,
+    source: str | Path,
+    light_name: str | None = None,
+    force: bool = False,
+) -> None:
+    """Write `export_bytes` to `out` atomically; an existing file only with `force`.
+
+    Raises:
+        InputError: `export_bytes`'s errors; `out` exists (without `force`) or its folder
+            does not.
+    """
+    data = export_bytes(result, fmt, source=source, light_name=light_name)
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise InputError(out, f"cannot write: folder {str(out.parent)!r} does not exist")
+    try:
+        if force:
+            atomic_write_bytes(out, data)
+        else:
+            atomic_create_bytes(out, data)
+    except FileExistsError:
+        raise InputError(out, "the file exists: expected a new path, or --force") from None
