@@ -290,6 +290,13 @@ def test_mitsuba_loads_the_fragment(result, result_path, tmp_path):
     T = opencv_from_mitsuba(to_world)
     # Mitsuba's scalar variants hold single precision
     np.testing.assert_allclose(T, light_transform(result.lights[0]), rtol=0, atol=1e-6)
+    # Mitsuba's own falloff: half the axis intensity at the RID's half angle, 1 m away
+    half = math.radians(result.lights[0].rid["half_angle_deg"])  # type: ignore[index]
+    p_light = np.array([math.sin(half), 0.0, math.cos(half), 1.0])
+    it = mi.Interaction3f()
+    it.p = mi.Point3f(*(to_world @ p_light)[:3])
+    _, weight = emitter.sample_direction(it, mi.Point2f(0.5, 0.5))
+    assert weight[0] == pytest.approx(0.5, abs=1e-4)
     (sensor,) = scene.sensors()
     np.testing.assert_allclose(np.array(mi.traverse(sensor)["to_world"].matrix), np.eye(4), atol=0)
 
@@ -325,6 +332,21 @@ def test_photometric_2d_table_keeps_the_azimuths(result, tmp_path, fmt):
 
 
 # ----------------------------------------------------------------------------- errors
+
+
+def test_cli_formats_match_the_exporter():
+    from lightcal.cli.export import FORMATS as CLI_FORMATS
+    from lightcal.io.export import FORMATS
+
+    assert CLI_FORMATS == FORMATS
+
+
+def test_export_help_does_not_import_the_numerical_stack():
+    from tests.test_cli_startup import HEAVY, run_lightcal
+
+    out, imported = run_lightcal("export", "--help")
+    assert out.startswith("usage: lightcal export")
+    assert not imported & set(HEAVY)
 
 
 def test_export_refuses_to_overwrite_without_force(result_path, tmp_path, capsys):
