@@ -383,3 +383,20 @@ def test_photometric_export_asks_which_light(result, tmp_path, capsys):
     )
     assert code == 2
     assert "no light named 'x'" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- schema
+
+
+def test_result_schema_describes_every_field_and_the_frame(capsys):
+    assert main(["schema", "result"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert "OpenCV frame: x right, y down, z forward" in schema["description"]
+    nodes = [("", schema), *schema["$defs"].items()]
+    missing = [
+        f"{model}.{name}"
+        for model, node in nodes
+        for name, prop in node["properties"].items()
+        if not prop.get("description")
+    ]
+    assert missing == []
