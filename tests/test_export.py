@@ -223,15 +223,21 @@ def _fake_blender(camera: Any) -> tuple[types.ModuleType, types.ModuleType, list
     return bpy, mathutils, created
 
 
+def _run_blender_snippet(path: Path, camera: Any, monkeypatch) -> list[Any]:
+    """Execute an exported snippet against the stand-ins; the objects it created."""
+    bpy, mathutils, created = _fake_blender(camera)
+    monkeypatch.setitem(sys.modules, "bpy", bpy)
+    monkeypatch.setitem(sys.modules, "mathutils", mathutils)
+    exec(compile(path.read_text(), str(path), "exec"), {"__name__": "__main__"})
+    return created
+
+
 @pytest.mark.parametrize("with_camera", [True, False])
 def test_blender_snippet_sets_the_pose(result, tmp_path, monkeypatch, with_camera):
     two = read_result(_two_light_result(result, tmp_path))
     path = _export(tmp_path / "two.json", "blender", tmp_path / "lights.py")
     camera = types.SimpleNamespace(name="Camera") if with_camera else None
-    bpy, mathutils, created = _fake_blender(camera)
-    monkeypatch.setitem(sys.modules, "bpy", bpy)
-    monkeypatch.setitem(sys.modules, "mathutils", mathutils)
-    exec(compile(path.read_text(), str(path), "exec"), {"__name__": "__main__"})
+    created = _run_blender_snippet(path, camera, monkeypatch)
     assert [obj.name for obj in created] == [light.name for light in two.lights]
     for obj, light in zip(created, two.lights, strict=True):
         assert obj.parent is camera
@@ -400,3 +406,26 @@ def test_result_schema_describes_every_field_and_the_frame(capsys):
         if not prop.get("description")
     ]
     assert missing == []
+
+
+def test_export_needs_an_existing_folder(result_path, tmp_path, capsys):
+    out = tmp_path / "missing" / "light.xml"
+    assert main(["export", str(result_path), "--format", "mitsuba", "--out", str(out)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not out.parent.exists()
+
+
+def test_isotropic_light_exports_as_a_point_light(result, tmp_path, monkeypatch):
+    light = result.lights[0].model_copy(update={"pose_kind": "isotropic", "rid": None})
+    point = result.model_copy(update={"lights": [light]})
+    export_result(point, "mitsuba", tmp_path / "p.xml", source="r.json")
+    element = _xml_emitters(tmp_path / "p.xml")[light.name]
+    assert element.get("type") == "point"
+    T = opencv_from_mitsuba(_to_world(element))
+    np.testing.assert_allclose(T, light_transform(light), rtol=0, atol=POSE_TOL)
+    export_result(point, "blender", tmp_path / "p.py", source="r.json")
+    (obj,) = _run_blender_snippet(tmp_path / "p.py", None, monkeypatch)
+    assert obj.data.type == "POINT" and obj.parent is None
+    np.testing.assert_allclose(
+        opencv_from_blender(obj.matrix_local.rows), light_transform(light), rtol=0, atol=POSE_TOL
+    )
