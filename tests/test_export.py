@@ -95,6 +95,11 @@ def _two_light_result(result: ResultFile, tmp_path: Path) -> Path:
     return path
 
 
+def _without_rid(result: ResultFile) -> ResultFile:
+    """The result with its light's RID dropped (a calibration that did not estimate it)."""
+    return result.model_copy(update={"lights": [result.lights[0].model_copy(update={"rid": None})]})
+
+
 def _export(result_path: Path, fmt: str, out: Path, *extra: str) -> Path:
     assert main(["export", str(result_path), "--format", fmt, "--out", str(out), *extra]) == 0
     return out
@@ -429,3 +434,10 @@ def test_isotropic_light_exports_as_a_point_light(result, tmp_path, monkeypatch)
     np.testing.assert_allclose(
         opencv_from_blender(obj.matrix_local.rows), light_transform(light), rtol=0, atol=POSE_TOL
     )
+
+
+def test_cli_notes_a_spot_without_a_rid(result, tmp_path, capsys):
+    bare = result.model_copy(update={"lights": [result.lights[0].model_copy(update={"rid": None})]})
+    write_result(bare, tmp_path / "bare.json")
+    _export(tmp_path / "bare.json", "blender", tmp_path / "b.py")
+    assert "180 degree spot cone" in capsys.readouterr().err

@@ -7,6 +7,7 @@ Formats (`lightcal.io.export`): `opencv` (FileStorage YAML), `blender` (Python s
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 FORMATS = ("opencv", "blender", "mitsuba", "ies", "ldt")
@@ -38,4 +39,11 @@ def run(args: argparse.Namespace) -> int:
         force=args.force,
     )
     print(f"{args.format} export written to {args.out}")
+    coneless = [lr.name for lr in result.lights if lr.pose_kind != "isotropic" and not lr.rid]
+    if args.format in ("blender", "mitsuba") and coneless:
+        print(
+            f"note: no estimated RID for {', '.join(coneless)} in the result: "
+            "a 180 degree spot cone (set its size by hand)",
+            file=sys.stderr,
+        )
     return 0
