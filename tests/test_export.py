@@ -372,7 +372,7 @@ def test_export_refuses_to_overwrite_without_force(result_path, tmp_path, capsys
 
 
 def test_photometric_export_needs_an_estimated_rid(result, tmp_path):
-    bare = result.model_copy(update={"lights": [result.lights[0].model_copy(update={"rid": None})]})
+    bare = _without_rid(result)
     with pytest.raises(InputError, match="no estimated RID"):
         export_result(bare, "ies", tmp_path / "x.ies", source="r.json")
     assert not (tmp_path / "x.ies").exists()
@@ -437,7 +437,7 @@ def test_isotropic_light_exports_as_a_point_light(result, tmp_path, monkeypatch)
 
 
 def test_cli_notes_a_spot_without_a_rid(result, tmp_path, capsys):
-    bare = result.model_copy(update={"lights": [result.lights[0].model_copy(update={"rid": None})]})
+    bare = _without_rid(result)
     write_result(bare, tmp_path / "bare.json")
     _export(tmp_path / "bare.json", "blender", tmp_path / "b.py")
     assert "180 degree spot cone" in capsys.readouterr().err
