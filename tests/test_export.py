@@ -34,7 +34,7 @@ from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.errors import InputError
 from lightcal.io.eulumdat import read_ldt
-from lightcal.io.export import export_result, light_transform
+from lightcal.io.export import export_result, light_rid, light_transform
 from lightcal.io.ies import read_ies
 from lightcal.io.photometric_file import read_rid_file
 from lightcal.io.result_file import ResultFile, read_result, write_result
@@ -319,8 +319,9 @@ def test_photometric_round_trip(result, result_path, tmp_path, fmt, reader):
     assert rid is not None
     table = reader(path)
     assert table.symmetry == "axial"
-    np.testing.assert_array_equal(table.vertical_deg, rid["theta_deg"])
-    np.testing.assert_allclose(table.candela[0], rid["values"], rtol=1e-12, atol=0)
+    # the table ends at 90 degrees as LM-63 asks, the RID 0 there
+    np.testing.assert_array_equal(table.vertical_deg, [*rid["theta_deg"], 90.0])
+    np.testing.assert_allclose(table.candela[0], [*rid["values"], 0.0], rtol=1e-12, atol=0)
     as_rid = read_rid_file(path)
     theta = np.radians(rid["theta_deg"])
     np.testing.assert_allclose(as_rid(theta), rid["values"], rtol=1e-12, atol=1e-15)
@@ -333,6 +334,11 @@ def test_photometric_round_trip(result, result_path, tmp_path, fmt, reader):
 def test_photometric_2d_table_keeps_the_azimuths(result, tmp_path, fmt):
     two = _two_light_result(result, tmp_path)
     light = read_result(two).lights[1]
+    # no half_angle_deg in the table: where the mean over azimuths crosses 1/2
+    lopsided = light_rid(light, two)
+    assert lopsided is not None
+    mean = lopsided.values.mean(axis=0)
+    assert np.interp(lopsided.half_angle_rad, lopsided.theta_rad, mean) == pytest.approx(0.5)
     path = _export(two, fmt, tmp_path / f"lopsided.{fmt}", "--light", "lopsided")
     rid = read_rid_file(path)
     assert light.rid is not None

@@ -112,12 +112,21 @@ def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
         )
     if not (np.all(np.isfinite(values)) and np.all(np.isfinite(theta))):
         raise InputError(source, f"{where}: expected finite angles and values")
+    if theta[0] != 0.0 or np.any(np.diff(theta) <= 0.0) or np.any(values[..., 0] <= 0.0):
+        raise InputError(
+            source, f"{where}: expected increasing angles from 0 and positive values on the axis"
+        )
     if "half_angle_deg" in rid:
         half = math.radians(float(rid["half_angle_deg"]))
     else:
         mean = values if phi is None else values.mean(axis=0)
         below = np.nonzero(mean <= 0.5 * mean[0])[0]
-        half = float(theta[below[0]]) if below.size else float(theta[-1])
+        if below.size == 0:
+            half = float(theta[-1])
+        else:  # linear between the samples either side of the half level
+            k = max(int(below[0]), 1)
+            f0, f1 = mean[k - 1] / mean[0], mean[k] / mean[0]
+            half = float(theta[k - 1] + (theta[k] - theta[k - 1]) * (f0 - 0.5) / (f0 - f1))
     return LightRID(str(rid.get("model", "table")), theta, values, phi, half)
 
 
@@ -292,7 +301,11 @@ def rid_photometric_table(light: LightResultModel, source: str | Path) -> Photom
             "with estimate_rid (cos_power or curve)",
         )
     values = np.clip(rid.values, 0.0, None)
-    theta_deg = np.degrees(rid.theta_rad)
+    written = light.rid or {}
+    theta_deg = np.asarray(written["theta_deg"], dtype=np.float64)  # as written, exactly
+    if theta_deg[-1] < 90.0:  # LM-63 type C tables end at 90 or 180; the RID is 0 beyond
+        theta_deg = np.append(theta_deg, 90.0)
+        values = np.concatenate([values, np.zeros((*values.shape[:-1], 1))], axis=-1)
     if rid.phi_rad is None:
         return PhotometricTable(
             theta_deg,
@@ -302,7 +315,8 @@ def rid_photometric_table(light: LightResultModel, source: str | Path) -> Photom
             symmetry="axial",
             luminaire=light.name,
         )
-    c_deg = np.mod(-np.degrees(rid.phi_rad), 360.0)  # C = -phi
+    phi_deg = np.asarray(written["phi_deg"], dtype=np.float64)
+    c_deg = np.mod(-phi_deg, 360.0)  # C = -phi (docs/conventions.md)
     order = np.argsort(c_deg)
     return PhotometricTable(
         theta_deg,
