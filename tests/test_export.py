@@ -34,7 +34,13 @@ from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.errors import InputError
 from lightcal.io.eulumdat import read_ldt
-from lightcal.io.export import export_result, light_rid, light_transform
+from lightcal.io.export import (
+    TEXTURE_SIZE,
+    export_result,
+    light_rid,
+    light_transform,
+    rid_values,
+)
 from lightcal.io.ies import read_ies
 from lightcal.io.photometric_file import read_rid_file
 from lightcal.io.result_file import ResultFile, read_result, write_result
@@ -278,38 +284,72 @@ def test_mitsuba_fragment_round_trip(result, tmp_path):
     path = _export(tmp_path / "two.json", "mitsuba", tmp_path / "lights.xml")
     emitters = _xml_emitters(path)
     assert list(emitters) == [light.name for light in two.lights]
-    for light in two.lights:
+    for index, light in enumerate(two.lights):
         element = emitters[light.name]
         assert element.get("type") == "spot"
         T = opencv_from_mitsuba(_to_world(element))
         np.testing.assert_allclose(T, light_transform(light), rtol=0, atol=POSE_TOL)
-    first = emitters[two.lights[0].name]
-    cutoff = float(first.find("float[@name='cutoff_angle']").get("value"))  # type: ignore[union-attr, arg-type]
-    assert cutoff == pytest.approx(
-        mitsuba_spot_cone(math.radians(two.lights[0].rid["half_angle_deg"]))[0]  # type: ignore[index]
-    )
+        texture = element.find("texture/string[@name='filename']")
+        assert texture is not None and texture.get("value") == f"lights_rid_{index}.png"
+        image = cv2.imread(str(tmp_path / f"lights_rid_{index}.png"), cv2.IMREAD_UNCHANGED)
+        assert image.dtype == np.uint16 and image.shape == (TEXTURE_SIZE, TEXTURE_SIZE)
+        cutoff = element.find("float[@name='cutoff_angle']")
+        beam = element.find("float[@name='beam_width']")
+        assert cutoff is not None and beam is not None
+        assert cutoff.get("value") == beam.get("value")  # no falloff: the texture is the RID
+
+
+def _mitsuba_emitters(path: Path) -> dict[str, Any]:
+    """Mitsuba 3's emitters of an exported scene by id (scalar_rgb)."""
+    mi = pytest.importorskip("mitsuba")
+    mi.set_variant("scalar_rgb")
+    scene = mi.load_file(str(path))
+    (sensor,) = scene.sensors()
+    np.testing.assert_allclose(np.array(mi.traverse(sensor)["to_world"].matrix), np.eye(4), atol=0)
+    return {e.id(): e for e in scene.emitters()}
+
+
+def _mitsuba_intensity(emitter: Any, to_world: np.ndarray, theta: float, phi: float) -> float:
+    """Mitsuba's radiant intensity 1 m from the light towards (theta, phi) of its frame."""
+    import mitsuba as mi
+
+    d_light = [math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)]
+    it = mi.Interaction3f()
+    it.p = mi.Point3f(*(to_world @ [*d_light, 1.0])[:3])
+    _, weight = emitter.sample_direction(it, mi.Point2f(0.5, 0.5))
+    return float(weight[0])
 
 
 def test_mitsuba_loads_the_fragment(result, result_path, tmp_path):
-    mi = pytest.importorskip("mitsuba")
-    mi.set_variant("scalar_rgb")
     path = _export(result_path, "mitsuba", tmp_path / "light.xml")
-    scene = mi.load_file(str(path))
-    (emitter,) = scene.emitters()
-    params = mi.traverse(emitter)
-    to_world = np.array(params["to_world"].matrix, dtype=np.float64)
-    T = opencv_from_mitsuba(to_world)
+    (emitter,) = _mitsuba_emitters(path).values()
+    import mitsuba as mi
+
+    to_world = np.array(mi.traverse(emitter)["to_world"].matrix, dtype=np.float64)
     # Mitsuba's scalar variants hold single precision
+    T = opencv_from_mitsuba(to_world)
     np.testing.assert_allclose(T, light_transform(result.lights[0]), rtol=0, atol=1e-6)
-    # Mitsuba's own falloff: half the axis intensity at the RID's half angle, 1 m away
+    # Mitsuba's own texture lookup: half the axis intensity at the RID's half angle
     half = math.radians(result.lights[0].rid["half_angle_deg"])  # type: ignore[index]
-    p_light = np.array([math.sin(half), 0.0, math.cos(half), 1.0])
-    it = mi.Interaction3f()
-    it.p = mi.Point3f(*(to_world @ p_light)[:3])
-    _, weight = emitter.sample_direction(it, mi.Point2f(0.5, 0.5))
-    assert weight[0] == pytest.approx(0.5, abs=1e-4)
-    (sensor,) = scene.sensors()
-    np.testing.assert_allclose(np.array(mi.traverse(sensor)["to_world"].matrix), np.eye(4), atol=0)
+    for phi in (0.0, 1.0, 2.5, 4.0):
+        assert _mitsuba_intensity(emitter, to_world, half, phi) == pytest.approx(0.5, abs=2e-3)
+
+
+def test_mitsuba_texture_keeps_the_azimuths_of_a_2d_rid(result, tmp_path):
+    """f = cos(theta)^(3 + cos(phi)): brighter towards phi = 180 deg than towards phi = 0."""
+    two = read_result(_two_light_result(result, tmp_path))
+    path = _export(tmp_path / "two.json", "mitsuba", tmp_path / "lights.xml")
+    emitter = _mitsuba_emitters(path)["lopsided"]
+    to_world = _to_world(_xml_emitters(path)["lopsided"])
+    rid = light_rid(two.lights[1], "two.json")
+    assert rid is not None
+    for theta_deg in (15.0, 35.0, 50.0):
+        for phi_deg in (0.0, 60.0, 90.0, 180.0, 250.0, 300.0):
+            theta, phi = math.radians(theta_deg), math.radians(phi_deg)
+            got = _mitsuba_intensity(emitter, to_world, theta, phi)
+            table = float(rid_values(rid, np.array(theta), np.array(phi)))
+            assert got == pytest.approx(table, abs=3e-3), (theta_deg, phi_deg)
+            assert got == pytest.approx(math.cos(theta) ** (3 + math.cos(phi)), abs=0.03)
 
 
 @pytest.mark.parametrize("fmt, reader", [("ies", read_ies), ("ldt", read_ldt)])
@@ -447,3 +487,13 @@ def test_cli_notes_a_spot_without_a_rid(result, tmp_path, capsys):
     write_result(bare, tmp_path / "bare.json")
     _export(tmp_path / "bare.json", "blender", tmp_path / "b.py")
     assert "180 degree spot cone" in capsys.readouterr().err
+
+
+def test_an_existing_texture_blocks_the_whole_mitsuba_export(result_path, tmp_path, capsys):
+    (tmp_path / "light_rid_0.png").write_bytes(b"keep")
+    out = tmp_path / "light.xml"
+    assert main(["export", str(result_path), "--format", "mitsuba", "--out", str(out)]) == 2
+    assert "light_rid_0.png: the file exists" in capsys.readouterr().err
+    assert not out.exists()
+    _export(result_path, "mitsuba", out, "--force")
+    assert (tmp_path / "light_rid_0.png").read_bytes().startswith(b"\x89PNG")

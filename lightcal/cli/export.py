@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.result_file import read_result
 
     result = read_result(args.result)
-    export_result(
+    written = export_result(
         result,
         args.format,
         args.out,
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         light_name=args.light,
         force=args.force,
     )
-    print(f"{args.format} export written to {args.out}")
+    print(f"{args.format} export written to {', '.join(str(p) for p in written)}")
     coneless = [lr.name for lr in result.lights if lr.pose_kind != "isotropic" and not lr.rid]
     if args.format in ("blender", "mitsuba") and coneless:
         print(

@@ -33,8 +33,9 @@ Mitsuba 3
   `F_m = diag(-1, -1, 1, 1)`. Placing the camera in a scene with sensor `to_world` S, the
   light's `to_world` is `S F_m T_camera_light`.
 - Spot cone: intensity 1 within `beam_width`, falling linearly in angle to 0 at
-  `cutoff_angle`. lightcal puts the ramp's middle on the RID's half angle h:
-  cutoff = min(2 h, 90 degrees), beam_width = 2 h - cutoff.
+  `cutoff_angle`. Without a RID texture lightcal puts the ramp's middle on the RID's half
+  angle h: cutoff = min(2 h, 90 degrees), beam_width = 2 h - cutoff. With a texture
+  (`lightcal.io.export.spot_texture`) beam_width = cutoff and the texture is the RID.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 |---|---|---|
 | `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, position, axis, sigmas, RID |
 | `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
-| `mitsuba` | Mitsuba 3 scene XML | a sensor at the origin, a spot (point) emitter per light |
+| `mitsuba` | Mitsuba 3 scene XML | a sensor, a spot (point) emitter per light, RID textures |
 | `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
 | `ldt` | EULUMDAT | the estimated RID of one light (`lightcal.io.eulumdat`) |
 
@@ -13,7 +13,9 @@ forward; metres), converted to Blender's and Mitsuba's camera conventions as
 `lightcal.core.camera_frames` documents. A light's RID is known to the result only when
 the calibration estimated it (`rid` in the result, tabulated at `theta_deg`; a 2-D table
 also has `phi_deg` and `values` of shape (n_phi, n_theta)); without it the opencv file
-has no RID table, Blender and Mitsuba get a 180 degree cone, and ies/ldt refuse.
+has no RID table, Blender and Mitsuba get a 180 degree cone, and ies/ldt refuse. With
+it, a Mitsuba spot gets the RID as a texture: a 16-bit PNG beside the XML
+(`<stem>_rid_<k>.png`, `spot_texture`), looked up by Mitsuba along each direction.
 Photometric files hold the relative RID as candela (1 cd on the axis, absolute
 photometry); azimuths follow docs/conventions.md (C = -phi).
 """
@@ -48,11 +50,13 @@ __all__ = [
     "FORMATS",
     "ExportFormat",
     "LightRID",
-    "export_bytes",
+    "export_files",
     "export_result",
     "light_rid",
     "light_transform",
     "rid_photometric_table",
+    "rid_values",
+    "spot_texture",
 ]
 
 ExportFormat = Literal["opencv", "blender", "mitsuba", "ies", "ldt"]
@@ -248,7 +252,73 @@ def _matrix_attribute(M: NDArray[np.float64]) -> str:
     return " ".join(repr(float(v)) for v in M.ravel())
 
 
-def _mitsuba_xml(result: ResultFile, source: str | Path) -> bytes:
+TEXTURE_SIZE = 256
+"""Pixels per side of a Mitsuba spot's RID texture."""
+
+_TEXTURE_CUTOFF_LEVEL = 1e-3
+"""The texture's cone ends where the RID stays below this (or where its table ends)."""
+
+_TEXTURE_MAX_CUTOFF_DEG = 80.0
+"""Widest texture cone: the texture is a tangent-plane projection (tan of the angle)."""
+
+
+def rid_values(rid: LightRID, theta_rad: NDArray, phi_rad: NDArray) -> NDArray[np.float64]:
+    """The tabulated RID at directions (any shape), linear between samples, 0 beyond.
+
+    Args:
+        rid: The table.
+        theta_rad: angles from the light axis, radians.
+        phi_rad: azimuths in the light frame (from +x towards +y), radians; same shape.
+    """
+    theta = np.asarray(theta_rad, dtype=np.float64).ravel()
+    if rid.phi_rad is None:
+        out = np.interp(theta, rid.theta_rad, rid.values, right=0.0)
+    else:
+        rows = np.stack([np.interp(theta, rid.theta_rad, v, right=0.0) for v in rid.values])
+        knots = np.append(rid.phi_rad, rid.phi_rad[0] + 2.0 * math.pi)
+        phi = np.mod(np.asarray(phi_rad, dtype=np.float64).ravel() - knots[0], 2.0 * math.pi)
+        phi += knots[0]
+        k = np.clip(np.searchsorted(knots, phi, side="right") - 1, 0, rid.phi_rad.size - 1)
+        w = (phi - knots[k]) / (knots[k + 1] - knots[k])
+        columns = np.arange(theta.size)
+        nxt = (k + 1) % rid.phi_rad.size
+        out = (1.0 - w) * rows[k, columns] + w * rows[nxt, columns]
+    return np.clip(out, 0.0, None).reshape(np.shape(theta_rad))
+
+
+def spot_texture(rid: LightRID, size: int = TEXTURE_SIZE) -> tuple[float, NDArray[np.float64]]:
+    """A Mitsuba spot's cutoff angle and RID texture.
+
+    Mitsuba's `spot` looks its texture up at uv = 1/2 + (x, y) / (2 z tan(cutoff)) for a
+    direction (x, y, z) in its frame (= the light frame), row 0 at v = 0; pixel (i, j)
+    has its centre at uv = ((j + 1/2) / size, (i + 1/2) / size).
+
+    Returns:
+        cutoff_rad: The cone's half angle: where the RID stays below 1e-3 of the axis or
+            its table ends, at most 80 degrees.
+        texture: (size, size) the relative intensity of each pixel's direction.
+    """
+    level = rid.values if rid.phi_rad is None else rid.values.max(axis=0)
+    above = np.nonzero(level >= _TEXTURE_CUTOFF_LEVEL)[0]
+    last = min(int(above[-1]) + 1, rid.theta_rad.size - 1) if above.size else 1
+    cutoff = min(float(rid.theta_rad[last]), math.radians(_TEXTURE_MAX_CUTOFF_DEG))
+    centres = (np.arange(size) + 0.5) / size
+    x = (2.0 * centres[None, :] - 1.0) * math.tan(cutoff)  # x / z, per column
+    y = (2.0 * centres[:, None] - 1.0) * math.tan(cutoff)  # y / z, per row
+    x, y = np.broadcast_arrays(x, y)
+    return cutoff, rid_values(rid, np.arctan(np.hypot(x, y)), np.arctan2(y, x))
+
+
+def _png16(image: NDArray[np.float64]) -> bytes:
+    import cv2
+
+    ok, buffer = cv2.imencode(".png", np.round(np.clip(image, 0, 1) * 65535).astype(np.uint16))
+    assert ok, "PNG encoding failed"
+    return buffer.tobytes()
+
+
+def _mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Path, bytes]:
+    files: dict[Path, bytes] = {}
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {escape(result.lightcal_version)}: calibrated lights, camera frame.",
@@ -256,7 +326,8 @@ def _mitsuba_xml(result: ResultFile, source: str | Path) -> bytes:
         "     +y up, +x to the image's left); each emitter's to_world is",
         "     diag(-1, -1, 1, 1) @ T_camera_light (OpenCV frame: x right, y down, z forward;",
         "     metres). In a scene whose sensor has to_world S, use S @ (the matrix below).",
-        "     Spot cones approximate the RID (half-intensity angle mid-way of the falloff). -->",
+        "     A spot's texture (16-bit PNG beside this file) is its RID over the cone;",
+        "     without one the cone's falloff approximates a 90 degree half angle. -->",
         '<scene version="3.0.0">',
         '    <sensor type="perspective" id="camera">',
         '        <transform name="to_world"><matrix value="'
@@ -264,13 +335,26 @@ def _mitsuba_xml(result: ResultFile, source: str | Path) -> bytes:
         + '"/></transform>',
         "    </sensor>",
     ]
-    for light in result.lights:
+    for index, light in enumerate(result.lights):
         rid = light_rid(light, source)
         M = mitsuba_from_opencv(light_transform(light))
         kind = "point" if light.pose_kind == "isotropic" else "spot"
         lines.append(f'    <emitter type="{kind}" id={quoteattr(light.name)}>')
-        if kind == "spot":
-            cutoff_deg, beam_deg = mitsuba_spot_cone(rid.half_angle_rad if rid else math.pi / 2)
+        if kind == "spot" and rid is not None:
+            cutoff_rad, texture = spot_texture(rid)
+            name = f"{out.stem}_rid_{index}.png"
+            files[out.parent / name] = _png16(texture)
+            cutoff_deg = math.degrees(cutoff_rad)
+            lines += [
+                f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>',
+                f'        <float name="beam_width" value="{cutoff_deg!r}"/>',
+                '        <texture type="bitmap" name="texture">',
+                f'            <string name="filename" value={quoteattr(name)}/>',
+                '            <boolean name="raw" value="true"/>',
+                "        </texture>",
+            ]
+        elif kind == "spot":
+            cutoff_deg, beam_deg = mitsuba_spot_cone(math.pi / 2)
             lines.append(f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>')
             lines.append(f'        <float name="beam_width" value="{beam_deg!r}"/>')
         lines.append('        <rgb name="intensity" value="1.0"/>')
@@ -281,7 +365,7 @@ def _mitsuba_xml(result: ResultFile, source: str | Path) -> bytes:
         )
         lines.append("    </emitter>")
     lines.append("</scene>")
-    return ("\n".join(lines) + "\n").encode("utf-8")
+    return {out: ("\n".join(lines) + "\n").encode("utf-8"), **files}
 
 
 # ------------------------------------------------------------------------ photometric
@@ -371,31 +455,39 @@ def _write_ldt(path: Path, table: PhotometricTable) -> None:
 # ---------------------------------------------------------------------------- entry
 
 
-def export_bytes(
-    result: ResultFile, fmt: str, *, source: str | Path, light_name: str | None = None
-) -> bytes:
-    """The exported file's content.
+def export_files(
+    result: ResultFile,
+    fmt: str,
+    out: str | Path,
+    *,
+    source: str | Path,
+    light_name: str | None = None,
+) -> dict[Path, bytes]:
+    """The exported files' contents: `out` first, then any it refers to (Mitsuba textures).
 
     Args:
         result: The result read with `read_result`.
         fmt: One of `FORMATS`.
+        out: The main file's path (textures go beside it).
         source: The result's path, for error messages.
         light_name: The light to export as ies/ldt (needed when several have a RID).
 
     Raises:
         InputError: an unknown format, or the result lacks what the format needs.
     """
+    out = Path(out)
     whole: dict[str, Callable[[ResultFile, str | Path], bytes]] = {
         "opencv": _opencv_yaml,
         "blender": _blender_snippet,
-        "mitsuba": _mitsuba_xml,
     }
     if fmt in whole:
-        return whole[fmt](result, source)
+        return {out: whole[fmt](result, source)}
+    if fmt == "mitsuba":
+        return _mitsuba_files(result, source, out)
     if fmt == "ies":
-        return _photometric_bytes(_write_ies, ".ies")(result, source, light_name)
+        return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
     if fmt == "ldt":
-        return _photometric_bytes(_write_ldt, ".ldt")(result, source, light_name)
+        return {out: _photometric_bytes(_write_ldt, ".ldt")(result, source, light_name)}
     raise InputError("--format", f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
 
 
@@ -407,21 +499,30 @@ def export_result(
     source: str | Path,
     light_name: str | None = None,
     force: bool = False,
-) -> None:
-    """Write `export_bytes` to `out` atomically; an existing file only with `force`.
+) -> list[Path]:
+    """Write `export_files` atomically, each; existing files only with `force`.
+
+    Returns:
+        The files written, `out` first.
 
     Raises:
-        InputError: `export_bytes`'s errors; `out` exists (without `force`) or its folder
-            does not.
+        InputError: `export_files`' errors; a file exists (without `force`; then nothing
+            is written) or the folder does not.
     """
-    data = export_bytes(result, fmt, source=source, light_name=light_name)
+    files = export_files(result, fmt, out, source=source, light_name=light_name)
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError(out, f"cannot write: folder {str(out.parent)!r} does not exist")
-    try:
-        if force:
-            atomic_write_bytes(out, data)
-        else:
-            atomic_create_bytes(out, data)
-    except FileExistsError:
-        raise InputError(out, "the file exists: expected a new path, or --force") from None
+    if not force:
+        for path in files:
+            if path.exists():
+                raise InputError(path, "the file exists: expected a new path, or --force")
+    for path, data in reversed(files.items()):  # what `out` refers to first
+        try:
+            if force:
+                atomic_write_bytes(path, data)
+            else:
+                atomic_create_bytes(path, data)
+        except FileExistsError:
+            raise InputError(path, "the file exists: expected a new path, or --force") from None
+    return list(files)
