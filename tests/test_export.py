@@ -497,3 +497,19 @@ def test_an_existing_texture_blocks_the_whole_mitsuba_export(result_path, tmp_pa
     assert not out.exists()
     _export(result_path, "mitsuba", out, "--force")
     assert (tmp_path / "light_rid_0.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_mitsuba_texture_of_a_batwing_keeps_its_off_axis_peak(result, tmp_path):
+    """A RID brighter off the axis: the texture is scaled to its peak, the intensity up."""
+    theta_deg = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0]
+    values = [1.0, 1.5, 2.0, 1.5, 0.5, 0.1, 0.0]
+    rid = {"model": "curve", "theta_deg": theta_deg, "values": values}
+    light = result.lights[0].model_copy(update={"rid": rid})
+    write_result(result.model_copy(update={"lights": [light]}), tmp_path / "bat.json")
+    path = _export(tmp_path / "bat.json", "mitsuba", tmp_path / "bat.xml")
+    emitter = _mitsuba_emitters(path)[light.name]
+    to_world = _to_world(_xml_emitters(path)[light.name])
+    for theta in (5.0, 15.0, 25.0, 35.0):  # mid-segment: no kink within a pixel
+        expected = float(np.interp(theta, theta_deg, values))
+        got = _mitsuba_intensity(emitter, to_world, math.radians(theta), 0.7)
+        assert got == pytest.approx(expected, abs=1e-2), theta

@@ -340,10 +340,12 @@ def _mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pa
         M = mitsuba_from_opencv(light_transform(light))
         kind = "point" if light.pose_kind == "isotropic" else "spot"
         lines.append(f'    <emitter type="{kind}" id={quoteattr(light.name)}>')
+        intensity = 1.0
         if kind == "spot" and rid is not None:
             cutoff_rad, texture = spot_texture(rid)
+            intensity = max(float(texture.max()), 1.0)  # a batwing's peak is off the axis
             name = f"{out.stem}_rid_{index}.png"
-            files[out.parent / name] = _png16(texture)
+            files[out.parent / name] = _png16(texture / intensity)
             cutoff_deg = math.degrees(cutoff_rad)
             lines += [
                 f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>',
@@ -357,7 +359,7 @@ def _mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pa
             cutoff_deg, beam_deg = mitsuba_spot_cone(math.pi / 2)
             lines.append(f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>')
             lines.append(f'        <float name="beam_width" value="{beam_deg!r}"/>')
-        lines.append('        <rgb name="intensity" value="1.0"/>')
+        lines.append(f'        <rgb name="intensity" value="{intensity!r}"/>')
         lines.append(
             '        <transform name="to_world"><matrix value="'
             + _matrix_attribute(M)
