@@ -37,9 +37,11 @@ from lightcal.io.eulumdat import read_ldt
 from lightcal.io.export import (
     TEXTURE_SIZE,
     export_result,
+    given_rid_description,
     light_rid,
     light_transform,
     rid_values,
+    with_given_rids,
 )
 from lightcal.io.ies import read_ies
 from lightcal.io.photometric_file import read_rid_file
@@ -513,3 +515,33 @@ def test_mitsuba_texture_of_a_batwing_keeps_its_off_axis_peak(result, tmp_path):
         expected = float(np.interp(theta, theta_deg, values))
         got = _mitsuba_intensity(emitter, to_world, math.radians(theta), 0.7)
         assert got == pytest.approx(expected, abs=1e-2), theta
+
+
+def test_project_supplies_the_rid_the_calibration_did_not_estimate(result, tmp_path, capsys):
+    from lightcal.io.project import load_project
+
+    assert result.project is not None
+    write_result(_without_rid(result), tmp_path / "bare.json")
+    out = tmp_path / "given.ies"
+    _export(tmp_path / "bare.json", "ies", out, "--project", result.project)
+    given = load_project(result.project).lights[0].initial.rid
+    theta = np.radians(np.arange(0.0, 90.0, 5.0))  # on the 1 degree samples: exact
+    np.testing.assert_allclose(read_rid_file(out)(theta), given(theta), rtol=1e-12, atol=1e-15)
+    between = theta + math.radians(0.5)  # the table's cubic between samples
+    np.testing.assert_allclose(read_rid_file(out)(between), given(between), atol=1e-4)
+    _export(tmp_path / "bare.json", "blender", tmp_path / "given.py", "--project", result.project)
+    assert "180 degree" not in capsys.readouterr().err
+
+
+def test_a_given_2d_table_exports_its_own_samples(result, tmp_path):
+    table = cs.general_rid()
+    description = given_rid_description(table)
+    assert description is not None
+    light = result.lights[0].model_copy(update={"name": "general", "rid": None})
+    bare = result.model_copy(update={"lights": [light]})
+    export_result(
+        with_given_rids(bare, {"general": table}), "ldt", tmp_path / "g.ldt", source="r.json"
+    )
+    back = read_rid_file(tmp_path / "g.ldt")
+    tt, pp = np.meshgrid(table.theta_rad[:-1], table.phi_rad)
+    np.testing.assert_allclose(back(tt, pp), table(tt, pp), rtol=1e-9, atol=1e-12)

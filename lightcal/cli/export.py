@@ -21,6 +21,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--format", required=True, choices=FORMATS, help="what to write")
     p.add_argument("--out", type=Path, required=True, help="the file to write")
     p.add_argument("--light", default=None, help="the light to write as ies/ldt")
+    p.add_argument(
+        "--project",
+        type=Path,
+        default=None,
+        help="take the RID of lights the calibration did not estimate from this project",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing file")
     p.set_defaults(func=run)
 
@@ -30,6 +36,15 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.result_file import read_result
 
     result = read_result(args.result)
+    if args.project is not None:
+        from lightcal.cli.progress import ensure_kernels
+        from lightcal.io.export import with_given_rids
+        from lightcal.io.project import load_project
+
+        project = load_project(args.project)
+        ensure_kernels()  # analytic RIDs are sampled with the compiled evaluator
+        rids = {unknown.initial.name: unknown.initial.rid for unknown in project.lights}
+        result = with_given_rids(result, rids)
     written = export_result(
         result,
         args.format,
@@ -43,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if args.format in ("blender", "mitsuba") and coneless:
         print(
             f"note: no estimated RID for {', '.join(coneless)} in the result: "
-            "a 180 degree spot cone (set its size by hand)",
+            "a 180 degree spot cone (--project PROJECT takes the project's RID)",
             file=sys.stderr,
         )
     return 0

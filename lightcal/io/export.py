@@ -13,7 +13,8 @@ forward; metres), converted to Blender's and Mitsuba's camera conventions as
 `lightcal.core.camera_frames` documents. A light's RID is known to the result only when
 the calibration estimated it (`rid` in the result, tabulated at `theta_deg`; a 2-D table
 also has `phi_deg` and `values` of shape (n_phi, n_theta)); without it the opencv file
-has no RID table, Blender and Mitsuba get a 180 degree cone, and ies/ldt refuse. With
+has no RID table, Blender and Mitsuba get a 180 degree cone, and ies/ldt refuse
+(`with_given_rids` fills in a project's given RIDs). With
 it, a Mitsuba spot gets the RID as a texture: a 16-bit PNG beside the XML
 (`<stem>_rid_<k>.png`, `spot_texture`), looked up by Mitsuba along each direction.
 Photometric files hold the relative RID as candela (1 cd on the axis, absolute
@@ -41,6 +42,7 @@ from lightcal.core.camera_frames import (
     mitsuba_spot_cone,
     transform_camera_light,
 )
+from lightcal.core.rid import RID, IsotropicRID, SymmetricTableRID, Table2DRID
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
 from lightcal.io.photometric_table import PhotometricTable
@@ -52,11 +54,13 @@ __all__ = [
     "LightRID",
     "export_files",
     "export_result",
+    "given_rid_description",
     "light_rid",
     "light_transform",
     "rid_photometric_table",
     "rid_values",
     "spot_texture",
+    "with_given_rids",
 ]
 
 ExportFormat = Literal["opencv", "blender", "mitsuba", "ies", "ldt"]
@@ -132,6 +136,43 @@ def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
             f0, f1 = mean[k - 1] / mean[0], mean[k] / mean[0]
             half = float(theta[k - 1] + (theta[k] - theta[k - 1]) * (f0 - 0.5) / (f0 - f1))
     return LightRID(str(rid.get("model", "table")), theta, values, phi, half)
+
+
+def given_rid_description(rid: RID) -> dict[str, Any] | None:
+    """A project's given RID in the result's `rid` form (None for an isotropic light).
+
+    Tables keep their own samples; analytic profiles are sampled every degree to 90.
+    """
+    if isinstance(rid, IsotropicRID):
+        return None
+    phi: NDArray[np.float64] | None = None
+    if isinstance(rid, Table2DRID):
+        theta, phi, values = rid.theta_rad, rid.phi_rad, rid.values
+    elif isinstance(rid, SymmetricTableRID):
+        theta, values = rid.theta_rad, rid.values
+    else:
+        theta = np.radians(np.arange(91.0))
+        values = rid(theta)
+    description: dict[str, Any] = {
+        "model": f"given ({type(rid).__name__})",
+        "theta_deg": np.degrees(theta).tolist(),
+        "values": np.asarray(values).tolist(),
+        "half_angle_deg": math.degrees(rid.half_angle_rad),
+    }
+    if phi is not None:
+        description["phi_deg"] = np.degrees(phi).tolist()
+    return description
+
+
+def with_given_rids(result: ResultFile, rids: dict[str, RID]) -> ResultFile:
+    """`result` with each light that has no estimated RID given the project's, by name."""
+    lights = [
+        light.model_copy(update={"rid": given_rid_description(rids[light.name])})
+        if not light.rid and light.name in rids
+        else light
+        for light in result.lights
+    ]
+    return result.model_copy(update={"lights": lights})
 
 
 # ----------------------------------------------------------------------------- opencv
