@@ -545,3 +545,23 @@ def test_a_given_2d_table_exports_its_own_samples(result, tmp_path):
     back = read_rid_file(tmp_path / "g.ldt")
     tt, pp = np.meshgrid(table.theta_rad[:-1], table.phi_rad)
     np.testing.assert_allclose(back(tt, pp), table(tt, pp), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "rid, expected",
+    [
+        ({"theta_deg": [0.0, 10.0], "values": [1.0]}, "expected values of shape"),
+        ({"theta_deg": [5.0, 10.0], "values": [1.0, 0.5]}, "increasing angles from 0"),
+        ({"values": [1.0, 0.5]}, "expected theta_deg and values"),
+        (
+            {"theta_deg": [0.0, 10.0], "phi_deg": [90.0, 0.0], "values": [[1, 0.5], [1, 0.5]]},
+            "phi_deg increasing",
+        ),
+    ],
+)
+def test_a_malformed_rid_table_names_the_light(result, rid, expected):
+    light = result.lights[0].model_copy(update={"rid": rid})
+    bad = result.model_copy(update={"lights": [light]})
+    with pytest.raises(InputError, match=expected) as info:
+        export_result(bad, "opencv", "unused.yaml", source="r.json")
+    assert str(info.value).startswith(f"r.json: lights[{light.name}].rid: ")

@@ -124,6 +124,10 @@ def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
         raise InputError(
             source, f"{where}: expected increasing angles from 0 and positive values on the axis"
         )
+    if phi is not None and (
+        phi[0] < 0.0 or phi[-1] >= 2.0 * math.pi or np.any(np.diff(phi) <= 0.0)
+    ):
+        raise InputError(source, f"{where}: expected phi_deg increasing within [0, 360)")
     if "half_angle_deg" in rid:
         half = math.radians(float(rid["half_angle_deg"]))
     else:
