@@ -25,6 +25,7 @@ SUBCOMMANDS = (
     "synth",
     "calibrate",
     "render",
+    "export",
     "schema",
     "init",
     "camera",

@@ -33,6 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from lightcal import __version__
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.result_fields import describe_result_schema
 
 RESULT_VERSION = 1
 
@@ -181,4 +182,4 @@ def read_result(path: str | Path) -> ResultFile:
 def result_schema() -> dict[str, Any]:
     schema = ResultFile.model_json_schema()
     schema["title"] = "lightcal result (version 1)"
-    return schema
+    return describe_result_schema(schema)  # field descriptions, frame convention
