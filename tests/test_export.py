@@ -34,15 +34,14 @@ from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.errors import InputError
 from lightcal.io.eulumdat import read_ldt
-from lightcal.io.export import (
-    TEXTURE_SIZE,
-    export_result,
+from lightcal.io.export import export_result
+from lightcal.io.export_lights import (
     given_rid_description,
     light_rid,
     light_transform,
-    rid_values,
     with_given_rids,
 )
+from lightcal.io.export_mitsuba import TEXTURE_SIZE, rid_values
 from lightcal.io.ies import read_ies
 from lightcal.io.photometric_file import read_rid_file
 from lightcal.io.result_file import ResultFile, read_result, write_result

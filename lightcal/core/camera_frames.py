@@ -35,7 +35,7 @@ Mitsuba 3
 - Spot cone: intensity 1 within `beam_width`, falling linearly in angle to 0 at
   `cutoff_angle`. Without a RID texture lightcal puts the ramp's middle on the RID's half
   angle h: cutoff = min(2 h, 90 degrees), beam_width = 2 h - cutoff. With a texture
-  (`lightcal.io.export.spot_texture`) beam_width = cutoff and the texture is the RID.
+  (`lightcal.io.export_mitsuba.spot_texture`) beam_width = cutoff and the texture is the RID.
 """
 
 from __future__ import annotations
