@@ -281,7 +281,7 @@ def test_step_adds_an_iteration_to_the_cost_plot(app: LightcalApp) -> None:
     assert len(app.panels.solve.cost_plot.data[0]) == 3
 
 
-def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
+def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Path) -> None:
     _set(app.panels.solve.run_button, True)
     _idle(app, 120)
     st = app.state
@@ -309,6 +309,26 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp) -> None:
     assert d.name == "project.result.json"
     data = json.loads(d.content)
     np.testing.assert_allclose(data["lights"][0]["position_m"], TRUE_POSITION_M, atol=2e-4)
+    # The same result in other tools' formats (`lightcal export`).
+    _set(app.panels.result.export_format, "opencv")
+    _set(app.panels.result.download_export, True)
+    _idle(app)
+    d = st.downloads[-1]
+    assert d.name == "project.opencv.yaml"
+    import cv2
+
+    yaml_path = tmp_path / d.name
+    yaml_path.write_bytes(d.content)
+    fs = cv2.FileStorage(str(yaml_path), cv2.FILE_STORAGE_READ)
+    T = fs.getNode("lights").at(0).getNode("T_camera_light").mat()
+    fs.release()
+    np.testing.assert_allclose(T[:3, 3], data["lights"][0]["position_m"], atol=1e-12)
+    _set(app.panels.result.export_format, "mitsuba")
+    _set(app.panels.result.download_export, True)
+    _idle(app)
+    d = st.downloads[-1]
+    assert d.name == "project.mitsuba.zip"
+    assert "project.mitsuba.xml" in zipfile.ZipFile(io.BytesIO(d.content)).namelist()
     _set(app.panels.result.download_report, True)
     _idle(app, 120)
     d = st.downloads[-1]

@@ -280,9 +280,12 @@ class Actions:
         self.add_region(region)
         return region
 
-    def request_download(self, what: DownloadKind, client: Any = None) -> None:
-        """Queue a download: "result", "report" or "session"."""
-        self.state.request(PrepareDownload(what, client=client))
+    def request_download(
+        self, what: DownloadKind, client: Any = None, export_format: str | None = None
+    ) -> None:
+        """Queue a download: "result", "report", "session" or "export" (in a format of
+        `lightcal.io.export.FORMATS`)."""
+        self.state.request(PrepareDownload(what, export_format=export_format, client=client))
 
     def save_session(self, client: Any = None) -> None:
         self.state.request(SaveSession(client=client))

@@ -26,7 +26,7 @@ from lightcal_app.requests import (
     SaveSession,
     SwitchProject,
 )
-from lightcal_app.results import report_zip_bytes, result_json_bytes
+from lightcal_app.results import export_download, report_zip_bytes, result_json_bytes
 from lightcal_app.session_file import (
     SessionFile,
     apply_session,
@@ -218,6 +218,9 @@ class FilesService:
             return
         if req.what == "result":
             self._send(client, f"{stem}.result.json", result_json_bytes(result, project))
+        elif req.what == "export":
+            name, content = export_download(result, project, req.export_format or "")
+            self._send(client, name, content)
         elif req.what == "report":
             self.notify(client, "Preparing the report", "Rendering every image at full size...")
             proj = project_with_selection(project, settings, regions)

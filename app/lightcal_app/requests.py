@@ -20,7 +20,7 @@ if TYPE_CHECKING:  # both import `state`, which imports this module
     from lightcal_app.session_file import SessionFile
     from lightcal_app.state import LightGuess
 
-DownloadKind = Literal["result", "report", "session"]
+DownloadKind = Literal["result", "report", "session", "export"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,7 @@ class PrepareDownload(FromBrowser):
     """Prepare a file for the browser: the result, the report or the session."""
 
     what: DownloadKind
+    export_format: str | None = None  # with what="export": one of lightcal.io.export.FORMATS
 
 
 class SaveSession(FromBrowser):

@@ -14,6 +14,7 @@ import zipfile
 from pathlib import Path
 
 from lightcal.core.solver import CalibrationModel
+from lightcal.errors import InputError
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
@@ -98,6 +99,43 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
 def result_json_bytes(result: CalibrationResult, project: Project) -> bytes:
     """The result file (`lightcal calibrate --out` format) as bytes."""
     return (result_to_file(result, project=project.path).model_dump_json(indent=2) + "\n").encode()
+
+
+EXPORT_SUFFIX = {
+    "opencv": ".yaml",
+    "blender": ".py",
+    "mitsuba": ".xml",
+    "ies": ".ies",
+    "ldt": ".ldt",
+}
+"""The file each `lightcal export` format writes (Mitsuba's comes zipped with its textures)."""
+
+
+def export_download(result: CalibrationResult, project: Project, fmt: str) -> tuple[str, bytes]:
+    """(file name, bytes) of `lightcal export --format fmt --project ...` on this result.
+
+    The lights' RIDs come from the result where estimated, else from the project; a
+    Mitsuba scene with its textures comes as a zip.
+    """
+    from lightcal.io.export import FORMATS, export_files
+    from lightcal.io.export_lights import with_given_rids
+    from lightcal.io.result_file import ResultFile
+
+    if fmt not in FORMATS:
+        raise InputError("export format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    stem = project.path.stem
+    result_file = ResultFile.model_validate_json(result_json_bytes(result, project))
+    rids = {u.initial.name: u.initial.rid for u in project.lights}
+    result_file = with_given_rids(result_file, rids)
+    main = Path(f"{stem}.{fmt}{EXPORT_SUFFIX[fmt]}")
+    files = export_files(result_file, fmt, main, source=f"{stem}.result.json")
+    if len(files) == 1:
+        return main.name, files[main]
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path, content in files.items():
+            zf.writestr(path.name, content)
+    return f"{stem}.{fmt}.zip", buf.getvalue()
 
 
 def report_zip_bytes(

@@ -25,6 +25,18 @@ class ResultPanel(TabPanel):
         )
         self.download_result = gui.add_button("Download result (JSON)", icon=viser.Icon.DOWNLOAD)
         self.download_report = gui.add_button("Download report (zip)", icon=viser.Icon.DOWNLOAD)
+        # The result in other tools' formats (`lightcal export`): OpenCV, Blender, ...
+        self.export_format = gui.add_dropdown(
+            "export as",
+            ("opencv", "blender", "mitsuba", "ies", "ldt"),
+            initial_value="opencv",
+            hint="OpenCV FileStorage YAML, a Blender snippet, a Mitsuba 3 scene (zip with "
+            "the RID textures), or the RID as an IES / EULUMDAT file",
+        )
+        self.download_export = gui.add_button("Download export", icon=viser.Icon.DOWNLOAD)
+        self.download_export.on_click(
+            lambda e: ctl.request_download("export", e.client, str(self.export_format.value))
+        )
         self.download_result.on_click(lambda e: ctl.request_download("result", e.client))
         self.download_report.on_click(lambda e: ctl.request_download("report", e.client))
 
