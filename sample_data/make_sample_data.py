@@ -248,9 +248,9 @@ def _exif(exposure_time_s: float, iso: float) -> dict[int, Any]:
 def _view_geometry(view: View) -> dict[str, float]:
     """Distance along the optical axis to the wall and tilt from its normal."""
     axis = view.R_camera_world[2]
-    centre = view.center_world
+    center = view.center_world
     return {
-        "distance_m": float(-centre[2] / axis[2]),
+        "distance_m": float(-center[2] / axis[2]),
         "tilt_deg": math.degrees(math.acos(min(1.0, max(-1.0, float(-axis[2]))))),
     }
 
@@ -333,7 +333,7 @@ def chessboard_views(camera: Camera, n: int, rng: np.random.Generator) -> list[V
     (the distortion is then interpolated, not extrapolated), the whole board in the image."""
     s = CHESSBOARD.square_length_m
     outline = CHESSBOARD.outline_world()[0]
-    centre = np.array([(CHESSBOARD.inner_x - 1) * s / 2, -(CHESSBOARD.inner_y - 1) * s / 2, 0.0])
+    center = np.array([(CHESSBOARD.inner_x - 1) * s / 2, -(CHESSBOARD.inner_y - 1) * s / 2, 0.0])
     margin = camera.width / 60
     places = [(fu, fv) for fv in (0.3, 0.5, 0.7) for fu in (0.28, 0.5, 0.72)]
     views: list[View] = []
@@ -349,7 +349,7 @@ def chessboard_views(camera: Camera, n: int, rng: np.random.Generator) -> list[V
         direction = np.array(
             [math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth), math.cos(tilt)]
         )
-        R, _ = look_at_pose(centre + distance * direction, centre, roll_rad=rng.uniform(-0.4, 0.4))
+        R, _ = look_at_pose(center + distance * direction, center, roll_rad=rng.uniform(-0.4, 0.4))
         # Turn the camera about its centre so that the board's centre appears at `place`.
         fu, fv = places[k % len(places)]
         target_px = [
@@ -358,7 +358,7 @@ def chessboard_views(camera: Camera, n: int, rng: np.random.Generator) -> list[V
         ]
         ray, _ = camera.rays_camera(np.array([target_px]))
         R = rotation_from_axis(ray[0] / np.linalg.norm(ray[0])) @ R
-        view = View(R, -R @ (centre + distance * direction))
+        view = View(R, -R @ (center + distance * direction))
         pixels, valid = camera.project(outline @ R.T + view.t_camera_world)
         inside = (
             valid.all()
@@ -535,9 +535,9 @@ def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
     views = {v["name"]: v for v in truth["views"]}
     for name, view in zip(project.names, project.views, strict=True):
         R = np.array(views[name]["T_camera_world"]["R"])
-        centre = np.array(views[name]["center_world_m"])
+        center = np.array(views[name]["center_world_m"])
         log(
-            f"pose {name}: centre {1e3 * np.linalg.norm(view.center_world - centre):.3f} mm, "
+            f"pose {name}: centre {1e3 * np.linalg.norm(view.center_world - center):.3f} mm, "
             f"rotation {_rotation_angle_deg(view.R_camera_world, R):.4f} deg"
         )
     started = time.perf_counter()

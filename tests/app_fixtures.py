@@ -98,9 +98,9 @@ def make_project(
     for i in range(n_views):
         d = 0.8 + 1.7 * i / max(n_views - 1, 1)
         tilt = rng.uniform(-0.5, 0.5, 2)
-        centre = np.array([d * math.sin(tilt[0]), d * math.sin(tilt[1]), d * math.cos(tilt[0])])
+        center = np.array([d * math.sin(tilt[0]), d * math.sin(tilt[1]), d * math.cos(tilt[0])])
         target = np.array([0.1, 0.0, 0.0]) + np.r_[rng.normal(0.0, 0.1, 2), 0.0]
-        view = View.looking_at(centre, target)
+        view = View.looking_at(center, target)
         views.append(view)
         img = render_image(camera, view, Rig.single(light)).filled(0.0)
         if k is None:

@@ -197,9 +197,9 @@ def test_gizmo_drag_changes_the_rendered_overlay(
     light = view.center_world + R_wc @ app.state.guess[0].position_m
     set_camera(client, light - 0.5 * R_wc[:, 2], light, -R_wc[:, 1])
     size = 10 * app.controller.scene.light_size_m  # the gizmo's scale
-    centre, tip_y = project_to_screen(client, np.array([light, light + size * R_wc[:, 1]]))
-    assert np.allclose(centre, [WIDTH / 2, HEIGHT / 2], atol=2)
-    start = centre + 0.75 * (tip_y - centre)  # on the gizmo's y arrow (camera y: down)
+    center, tip_y = project_to_screen(client, np.array([light, light + size * R_wc[:, 1]]))
+    assert np.allclose(center, [WIDTH / 2, HEIGHT / 2], atol=2)
+    start = center + 0.75 * (tip_y - center)  # on the gizmo's y arrow (camera y: down)
     page.mouse.move(*start)
     page.mouse.down()
     for k in range(1, 11):

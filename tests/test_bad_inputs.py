@@ -303,6 +303,36 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ),
     ("version 2", _set("version", 2), "version: this lightcal reads project version 1, got 2"),
     ("unknown field", _set("extra_field", 1), "extra_field: Extra inputs are not permitted"),
+    (
+        "polygon of two points",
+        _set("selection.regions", [{"kind": "polygon", "points": [[0, 0], [1, 1]]}]),
+        "selection.regions[0]: a polygon needs at least 3 points",
+    ),
+    (
+        "RID estimate unknown",
+        _set("lights.0.estimate_rid", "magic"),
+        "lights[0].estimate_rid: Input should be 'none', 'cos_power' or 'curve'",
+    ),
+    (
+        "tolerance above 1",
+        _set("solver.tolerance", 2),
+        "solver.tolerance: Input should be less than or equal to 1",
+    ),
+    (
+        "binning 0",
+        _set("selection.binning", 0),
+        "selection.binning: Input should be greater than or equal to 1",
+    ),
+    (
+        "curve range 90",
+        _set("lights.0.curve_max_angle_deg", 90),
+        "lights[0].curve_max_angle_deg: Input should be less than or equal to 89",
+    ),
+    (
+        "noise read variance NaN",
+        _set("sensor.noise.read_variance", math.nan),
+        "sensor.noise.read_variance: Input should be a finite number",
+    ),
 ]
 
 
@@ -502,3 +532,435 @@ def test_photometric_counts_beyond_the_data_are_refused_before_allocating(tmp_pa
     ldt.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"the counts \(Mc 1000000000000 C-planes"):
         read_ldt(ldt)
+
+
+# Every command: (case, argv template, expected stderr line). {d}: the dataset folder,
+# {t}: a temporary folder, {r}: a result of calibrating the dataset.
+COMMAND_CASES: list[tuple[str, str, str]] = [
+    (
+        "render: result missing",
+        "render {d}/project.json --result {t}/nope.json --out {t}/rr",
+        "lightcal render: error: {t}/nope.json: result file not found",
+    ),
+    (
+        "render: result without lights",
+        "render {d}/project.json --result {t}/bad.json --out {t}/rr",
+        "lightcal render: error: {t}/bad.json: lights: Field required",
+    ),
+    (
+        "render: result not JSON",
+        "render {d}/project.json --result {t}/bin.json --out {t}/rr",
+        "lightcal render: error: {t}/bin.json:1: not valid JSON: Expecting value",
+    ),
+    (
+        "render: --out a file",
+        "render {d}/project.json --result {r} --out {d}/project.json",
+        "lightcal render: error: {d}/project.json: --out: is a file; expected a folder to write into",
+    ),
+    (
+        "render: --out the images",
+        "render {d}/project.json --result {r} --out {d}/images",
+        "lightcal render: error: {d}/images: --out: holds image view_00, an input of the project; choose another folder",
+    ),
+    (
+        "export: result missing",
+        "export {t}/nope.json --format opencv --out {t}/x.yaml",
+        "lightcal export: error: {t}/nope.json: result file not found",
+    ),
+    (
+        "export: result without lights",
+        "export {t}/bad.json --format opencv --out {t}/x.yaml",
+        "lightcal export: error: {t}/bad.json: lights: Field required",
+    ),
+    (
+        "export: IES without a RID",
+        "export {r} --format ies --out {t}/x.ies",
+        "lightcal export: error: {r}: light 'light' has no estimated RID: expected a result of a calibration with estimate_rid (cos_power or curve)",
+    ),
+    (
+        "export: folder missing",
+        "export {r} --format opencv --out {t}/no/x.yaml",
+        "lightcal export: error: {t}/no/x.yaml: cannot write: folder '{t}/no' does not exist",
+    ),
+    (
+        "export: onto an existing file",
+        "export {r} --format opencv --out {d}/project.json",
+        "lightcal export: error: {d}/project.json: the file exists: expected a new path, or --force",
+    ),
+    (
+        "init: image folder missing",
+        "init {t}/nope --camera {d}/camera.yaml --board {t}/b.yaml --out {t}/p.json",
+        "lightcal init: error: {t}/nope: image folder not found",
+    ),
+    (
+        "init: camera missing",
+        "init {d}/images --camera {t}/nope.yaml --board {t}/b.yaml --out {t}/p.json",
+        "lightcal init: error: {t}/nope.yaml: file not found: expected a camera file",
+    ),
+    (
+        "init: board missing",
+        "init {d}/images --camera {d}/camera.yaml --board {t}/b.yaml --out {t}/p.json",
+        "lightcal init: error: {t}/b.yaml: board file not found",
+    ),
+    (
+        "camera calibrate: board missing",
+        "camera calibrate {t}/nope --board {t}/b.yaml --out {t}/c.yaml",
+        "lightcal camera: error: {t}/b.yaml: board file not found",
+    ),
+    (
+        "camera import: file missing",
+        "camera import {t}/nope.txt --out {t}/c.yaml",
+        "lightcal camera: error: {t}/nope.txt: file not found: expected a camera file",
+    ),
+    (
+        "synth: no views",
+        "synth {t}/s --views 0",
+        "lightcal synth: error: --views: expected an integer >= 1, got 0",
+    ),
+    (
+        "synth: negative width",
+        "synth {t}/s --width -5",
+        "lightcal synth: error: --width/--height: expected > 0, got -5 x 800",
+    ),
+    (
+        "synth: into the dataset",
+        "synth {d} --views 2",
+        "lightcal synth: error: {d}: the folder is not empty: expected a new or empty folder (--force replaces the dataset in it)",
+    ),
+    (
+        "sample: into the dataset",
+        "sample {d}",
+        "lightcal sample: error: {d}: the folder is not empty; choose a new or empty folder, or add --force to write the sample's missing files into it (existing files are never overwritten)",
+    ),
+    (
+        "calibrate: --report a file",
+        "calibrate {d}/project.json --out {t}/r.json --report {d}/project.json",
+        "lightcal calibrate: error: {d}/project.json: --report: is a file; expected a folder to write into",
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def result_file(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("result") / "result.json"
+    assert main(["calibrate", str(dataset / "project.json"), "--out", str(out), "--quiet"]) in (
+        0,
+        3,
+    )
+    return out
+
+
+@pytest.mark.parametrize(
+    ("case", "argv", "expected"), COMMAND_CASES, ids=[c[0] for c in COMMAND_CASES]
+)
+def test_bad_command_lines(
+    dataset: Path,
+    result_file: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    case: str,
+    argv: str,
+    expected: str,
+) -> None:
+    (tmp_path / "bad.json").write_text('{"bad": 1}')
+    (tmp_path / "bin.json").write_bytes(b"\x01\x02")
+    fill = {"d": dataset, "t": tmp_path, "r": result_file}
+    before = _hashes(dataset)
+    capsys.readouterr()
+    assert main(argv.format(**fill).split()) == 2
+    assert capsys.readouterr().err == expected.format(**fill) + "\n"
+    assert _hashes(dataset) == before
+
+
+def _ies() -> str:
+    return (Path(__file__).parent / "data" / "photometry" / "bilateral_0_180_2019.ies").read_text()
+
+
+def _ldt(line: int, value: str) -> str:
+    lines = (Path(__file__).parent / "data" / "photometry" / "isym4_quadrant.ldt").read_text()
+    rows = lines.splitlines()
+    rows[line - 1] = value
+    return "\n".join(rows)
+
+
+def _ldt_first(n: int) -> str:
+    lines = (Path(__file__).parent / "data" / "photometry" / "isym4_quadrant.ldt").read_text()
+    return "\n".join(lines.splitlines()[:n])
+
+
+# Every text reader: (case, reader, suffix, content, expected message after "<file>").
+READER_CASES: list[tuple[str, str, str, Callable[[], str], str]] = [
+    (
+        "ies: no TILT line",
+        "ies",
+        ".ies",
+        lambda: "\n".join(l for l in _ies().splitlines() if not l.startswith("TILT")),
+        ":15: no TILT= line: expected TILT=NONE after the header and keyword lines",
+    ),
+    (
+        "ies: tilt table",
+        "ies",
+        ".ies",
+        lambda: _ies().replace("TILT=NONE", "TILT=INCLUDE"),
+        ":7: TILT=INCLUDE: tilt tables are not supported; expected TILT=NONE",
+    ),
+    (
+        "ies: header only",
+        "ies",
+        ".ies",
+        lambda: "\n".join(_ies().splitlines()[:3]),
+        ":3: no TILT= line: expected TILT=NONE after the header and keyword lines",
+    ),
+    ("ies: empty", "ies", ".ies", lambda: "", ": the file is empty: expected an IES LM-63 file"),
+    (
+        "ies: a word for a number",
+        "ies",
+        ".ies",
+        lambda: _ies().replace(" 0 ", " zero ", 1),
+        ":8: luminous opening width: expected a number, got 'zero'",
+    ),
+    (
+        "ies: nan",
+        "ies",
+        ".ies",
+        lambda: _ies().replace(" 0 ", " nan ", 1),
+        ":8: luminous opening width: expected a finite number, got 'nan'",
+    ),
+    ("ldt: empty", "ldt", ".ldt", lambda: "", ": the file is empty: expected an EULUMDAT file"),
+    (
+        "ldt: Isym 7",
+        "ldt",
+        ".ldt",
+        lambda: _ldt(3, "7"),
+        ":3: symmetry indicator Isym 7: expected 0, 1, 2, 3 or 4",
+    ),
+    (
+        "ldt: no C-planes",
+        "ldt",
+        ".ldt",
+        lambda: _ldt(4, "0"),
+        ":4: number of C-planes Mc 0: expected an integer >= 1",
+    ),
+    (
+        "ldt: one intensity",
+        "ldt",
+        ".ldt",
+        lambda: _ldt(6, "1"),
+        ":6: number of intensities per C-plane Ng 1: expected an integer >= 2",
+    ),
+    (
+        "ldt: truncated",
+        "ldt",
+        ".ldt",
+        lambda: _ldt_first(30),
+        ":30: unexpected end of file: expected line 43, C angle 1 of 8",
+    ),
+    (
+        "ldt: conversion factor 0",
+        "ldt",
+        ".ldt",
+        lambda: _ldt(24, "0"),
+        ":24: conversion factor for luminous intensities 0: expected a value > 0",
+    ),
+    ("camera: empty", "camera", ".yml", lambda: "", ": empty file: expected a mapping of keys"),
+    (
+        "camera: no matrix",
+        "camera",
+        ".yml",
+        lambda: "%YAML:1.0\n---\nimage_width: 10\n",
+        ": camera_matrix: missing key: expected one of camera_matrix, K, cameraMatrix",
+    ),
+    (
+        "camera: JSON cut",
+        "camera",
+        ".json",
+        lambda: "{",
+        ":1: not valid JSON: Expecting property name enclosed in double quotes",
+    ),
+    (
+        "camera: JSON without a matrix",
+        "camera",
+        ".json",
+        lambda: '{"width": 10}',
+        ": camera_matrix: missing key: expected one of camera_matrix, K, cameraMatrix",
+    ),
+    (
+        "csv: empty",
+        "csv",
+        ".csv",
+        lambda: "",
+        ": expected at least 2 data rows (angle in degrees, relative intensity), got 0",
+    ),
+    (
+        "csv: one row",
+        "csv",
+        ".csv",
+        lambda: "theta_deg,value\n0,1\n",
+        ":2: expected at least 2 data rows (angle in degrees, relative intensity), got 1",
+    ),
+    (
+        "csv: a word",
+        "csv",
+        ".csv",
+        lambda: "theta_deg,value\n0,1\n10,x\n",
+        ":3: cell 'x': expected a number",
+    ),
+    (
+        "csv: angles decreasing",
+        "csv",
+        ".csv",
+        lambda: "theta_deg,value\n0,1\n20,0.5\n10,0.7\n",
+        ":4: angle 10 is not greater than the previous angle 20: expected strictly increasing angles",
+    ),
+    (
+        "csv: negative",
+        "csv",
+        ".csv",
+        lambda: "theta_deg,value\n0,1\n10,-0.5\n",
+        ":3: relative intensity -0.5 is negative: expected values >= 0",
+    ),
+    (
+        "csv: beyond 180 degrees",
+        "csv",
+        ".csv",
+        lambda: "theta_deg,value\n0,1\n200,0.5\n",
+        ":3: angle 200 degrees: expected angles <= 180",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("case", "reader", "suffix", "content", "expected"),
+    READER_CASES,
+    ids=[c[0] for c in READER_CASES],
+)
+def test_bad_text_files(
+    tmp_path: Path, case: str, reader: str, suffix: str, content: Callable[[], str], expected: str
+) -> None:
+    from lightcal.errors import InputError
+    from lightcal.io.camera_file import read_camera
+    from lightcal.io.eulumdat import read_ldt
+    from lightcal.io.ies import read_ies
+    from lightcal.io.photometric_table import read_rid_csv
+
+    read = {"ies": read_ies, "ldt": read_ldt, "camera": read_camera, "csv": read_rid_csv}[reader]
+    path = tmp_path / f"case{suffix}"
+    path.write_text(content())
+    before = path.read_bytes()
+    with pytest.raises(InputError) as info:
+        read(path)
+    assert str(info.value) == f"{path}{expected}"
+    assert path.read_bytes() == before
+
+
+def _write_u8_png(path: Path) -> None:
+    import cv2
+    import numpy as np
+
+    cv2.imwrite(str(path), np.full((10, 12), 100, np.uint8))
+
+
+def _write_npy(path: Path, array: Any) -> None:
+    import numpy as np
+
+    np.save(path, array)
+
+
+def _write_nan_tiff(path: Path) -> None:
+    import numpy as np
+    import tifffile
+
+    tifffile.imwrite(path, np.full((10, 12), np.nan, np.float32))
+
+
+# More files: (case, name, writer, reader, expected message after "<file>: ").
+FILE_READER_CASES: list[tuple[str, str, Callable[[Path], Any], str, str]] = [
+    (
+        "8-bit PNG without a response curve",
+        "u8.png",
+        _write_u8_png,
+        "image",
+        "8-bit image values are gamma-encoded by the camera, not proportional to light; supply a camera response curve fitted from an exposure bracket (lightcal.io.response.fit_response_debevec, Debevec & Malik 1997) as response=..., or pass assume_linear=True if the camera really wrote linear values",
+    ),
+    (
+        "3-D array",
+        "f3.npy",
+        lambda p: _write_npy(p, __import__("numpy").zeros((2, 3, 4))),
+        "image",
+        "expected an (H, W) array, got shape (2, 3, 4)",
+    ),
+    (
+        "NaN float TIFF",
+        "nan.tif",
+        _write_nan_tiff,
+        "image",
+        "120 pixel values are NaN or infinite; expected finite linear values",
+    ),
+    (
+        "BMP",
+        "x.bmp",
+        lambda p: p.write_bytes(b"BM"),
+        "image",
+        "unsupported image extension '.bmp'; expected .png, .jpg, .tif, .tiff, .npy, .exr or a camera raw extension such as .dng, .cr2, .nef, .arw",
+    ),
+    (
+        "a folder named .png",
+        "dir.png",
+        lambda p: p.mkdir(),
+        "image",
+        "not a file; expected an image file",
+    ),
+    (
+        "complex array",
+        "c.npy",
+        lambda p: _write_npy(p, __import__("numpy").zeros((4, 4), complex)),
+        "image",
+        "unsupported pixel type complex128; expected unsigned integers or floats",
+    ),
+    (
+        "board of an unknown type",
+        "b.yaml",
+        lambda p: p.write_text("type: hexagon\n"),
+        "board",
+        "type: expected aruco_grid, charuco or chessboard, got 'hexagon'",
+    ),
+    (
+        "vignetting map of another size",
+        "v.npy",
+        lambda p: _write_npy(p, __import__("numpy").zeros((3, 3))),
+        "vignetting",
+        "expected a map of the camera's size 10 x 8 (W x H), got 3 x 3",
+    ),
+    (
+        "vignetting JSON without a format",
+        "v.json",
+        lambda p: p.write_text('{"model": "radial"}'),
+        "vignetting",
+        "field format: Field required",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("case", "name", "write", "reader", "expected"),
+    FILE_READER_CASES,
+    ids=[c[0] for c in FILE_READER_CASES],
+)
+def test_bad_files(
+    tmp_path: Path, case: str, name: str, write: Callable[[Path], Any], reader: str, expected: str
+) -> None:
+    from lightcal.errors import InputError
+    from lightcal.io.board_file import read_board
+    from lightcal.io.images import read_image
+    from lightcal.io.vignetting_file import load_vignetting
+
+    read: dict[str, Callable[[Path], Any]] = {
+        "image": read_image,
+        "board": read_board,
+        "vignetting": lambda p: load_vignetting(p, width=10, height=8),
+    }
+    path = tmp_path / name
+    write(path)
+    with pytest.raises(InputError) as info:
+        read[reader](path)
+    assert str(info.value) == f"{path}: {expected}"

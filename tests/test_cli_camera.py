@@ -37,16 +37,16 @@ def chessboard_views(n_views: int = 10) -> tuple[np.ndarray, ...]:
     rendering = CHESSBOARD.render(2000)
     texture = 0.05 + 0.85 * rendering.image / 255.0
     s = CHESSBOARD.square_length_m
-    centre = np.array([(CHESSBOARD.inner_x - 1) * s / 2, -(CHESSBOARD.inner_y - 1) * s / 2, 0.0])
+    center = np.array([(CHESSBOARD.inner_x - 1) * s / 2, -(CHESSBOARD.inner_y - 1) * s / 2, 0.0])
     images = []
     for k in range(n_views):
         azimuth = 2 * np.pi * k / n_views + rng.uniform(-0.2, 0.2)
         tilt = np.radians(rng.uniform(20.0, 40.0))
         distance = rng.uniform(0.38, 0.5)
         direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
-        target = centre + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
+        target = center + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
         R, t = look_at_pose(
-            centre + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
+            center + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
         )
         image = render_plane_image(
             CAMERA, R, t, texture, rendering.px_per_m, rendering.top_left_world_m

@@ -51,8 +51,8 @@ TILT=NONE
 
 
 def _pose(k: int) -> tuple[np.ndarray, np.ndarray]:
-    centre, target, roll, _ = VIEWS[k]
-    return look_at_pose(centre, target, roll_rad=roll)
+    center, target, roll, _ = VIEWS[k]
+    return look_at_pose(center, target, roll_rad=roll)
 
 
 @functools.cache
@@ -169,10 +169,10 @@ def test_init_writes_a_project_with_poses_masks_and_exposures(scene, capsys):
         assert mask.shape == (HEIGHT, WIDTH) and mask.dtype == np.uint8
         assert set(np.unique(mask)) == {0, 255}
         corners = BOARD.corners_world(BOARD.ids)
-        centres_px, _ = CAMERA.project(corners.mean(axis=1) @ R.T + t)
-        inside = np.all((centres_px >= 0) & (centres_px <= [WIDTH - 1, HEIGHT - 1]), axis=1)
+        centers_px, _ = CAMERA.project(corners.mean(axis=1) @ R.T + t)
+        inside = np.all((centers_px >= 0) & (centers_px <= [WIDTH - 1, HEIGHT - 1]), axis=1)
         assert inside.sum() >= 12
-        u, v = np.rint(centres_px[inside]).astype(int).T
+        u, v = np.rint(centers_px[inside]).astype(int).T
         assert np.all(mask[v, u] == 255)
         gaps_world = corners[:, 1] + np.array([BOARD.separation_m / 2, 0.0, 0.0])  # between
         gaps_px, _ = CAMERA.project(gaps_world @ R.T + t)
@@ -357,7 +357,7 @@ def test_init_writes_how_each_pose_moves_with_the_intrinsics(scene):
         # A longer focal length (fx and fy) puts the camera further back along its axis:
         # about distance / f per pixel.
         axis = pose.R_camera_world[2]
-        distance = float(pose.camera_centre_world[2] / -axis[2])
+        distance = float(pose.camera_center_world[2] / -axis[2])
         assert (D[3:, 0] + D[3:, 1]) @ axis == pytest.approx(-distance / camera.fx, rel=0.2)
     # Without a covariance in the camera file there is nothing to propagate.
     plain = init_project(

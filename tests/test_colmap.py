@@ -44,7 +44,7 @@ def test_hand_made_model() -> None:
     left, right = model.images
     np.testing.assert_allclose(left.R_camera_world, flip, atol=1e-15)
     np.testing.assert_allclose(left.t_camera_world, [0.5, 0.5, 2.5], atol=1e-15)
-    np.testing.assert_allclose(left.centre_world, [-0.5, 0.5, 2.5], atol=1e-15)
+    np.testing.assert_allclose(left.center_world, [-0.5, 0.5, 2.5], atol=1e-15)
     np.testing.assert_allclose(right.R_camera_world, flip, atol=1e-15)
     np.testing.assert_allclose(right.t_camera_world, [0.0, 0.5, 2.5], atol=1e-15)
     assert model.n_inliers == 4
@@ -111,9 +111,9 @@ def test_readers_keep_colmap_values() -> None:
 # --------------------------------------------------------------------------- synthetic model
 
 
-def _look_at(centre: np.ndarray, target: np.ndarray, roll_rad: float) -> np.ndarray:
-    """R_camera_world of a camera at `centre` whose optical axis points at `target`."""
-    z = target - centre
+def _look_at(center: np.ndarray, target: np.ndarray, roll_rad: float) -> np.ndarray:
+    """R_camera_world of a camera at `center` whose optical axis points at `target`."""
+    z = target - center
     z /= np.linalg.norm(z)
     x = np.cross(z, [0.0, 1.0, 0.0])
     x /= np.linalg.norm(x)
@@ -162,11 +162,11 @@ class _Scene:
         self.R: list[np.ndarray] = []
         self.t: list[np.ndarray] = []
         for _ in range(n_images):
-            centre = np.array([*rng.uniform(-0.8, 0.8, 2), rng.uniform(0.7, 1.6)])
+            center = np.array([*rng.uniform(-0.8, 0.8, 2), rng.uniform(0.7, 1.6)])
             target = np.array([*rng.uniform(-0.4, 0.4, 2), 0.0])
-            R = _look_at(centre, target, rng.uniform(-0.5, 0.5))
+            R = _look_at(center, target, rng.uniform(-0.5, 0.5))
             self.R.append(R)
-            self.t.append(-R @ centre)
+            self.t.append(-R @ center)
         # Image ids are not in file order; the lowest id (3) is the 4th image.
         self.image_ids = [7, 9, 12, 3, 20, 15][:n_images]
 
@@ -221,7 +221,7 @@ def test_synthetic_model_recovers_poses_in_our_frame(tmp_path: Path, similarity:
         assert image.camera_id == 1 + k % 2
         np.testing.assert_allclose(image.R_camera_world, R_exp[k], atol=1e-9)
         np.testing.assert_allclose(image.t_camera_world, t_exp[k], atol=1e-6)
-        assert image.centre_world[2] > 0.5
+        assert image.center_world[2] > 0.5
     assert model.transform_world_colmap.scale == pytest.approx(1.0 / scale, rel=1e-9)
     assert model.n_inliers == 80
     assert model.wall_inliers[:80].all() and not model.wall_inliers[80:].any()
@@ -248,8 +248,8 @@ def test_scale_from_camera_baseline(tmp_path: Path) -> None:
     scene = _Scene(seed=3)
     scale, R_sim, t_sim = SIMILARITIES["generic"]
     scene.write_colmap(tmp_path, scale=scale, R_sim=R_sim, t_sim=t_sim)
-    centres = [-R.T @ t for R, t in zip(scene.R, scene.t, strict=True)]
-    baseline = float(np.linalg.norm(centres[0] - centres[4]))
+    centers = [-R.T @ t for R, t in zip(scene.R, scene.t, strict=True)]
+    baseline = float(np.linalg.norm(centers[0] - centers[4]))
     model = read_colmap_model(
         tmp_path,
         scale=camera_baseline("img_007.png", "img_020.png", distance_m=baseline),
@@ -257,14 +257,14 @@ def test_scale_from_camera_baseline(tmp_path: Path) -> None:
     )
     assert model.transform_world_colmap.scale == pytest.approx(1.0 / scale, rel=1e-9)
     a, b = model.image("img_007.png"), model.image("img_020.png")
-    assert np.linalg.norm(a.centre_world - b.centre_world) == pytest.approx(baseline, rel=1e-12)
+    assert np.linalg.norm(a.center_world - b.center_world) == pytest.approx(baseline, rel=1e-12)
 
 
 def test_cameras_on_both_sides_of_the_wall(tmp_path: Path) -> None:
     scene = _Scene(seed=4)
-    centre = np.array([0.2, 0.1, -1.0])  # behind the wall
-    scene.R[2] = _look_at(centre, np.zeros(3), 0.0)
-    scene.t[2] = -scene.R[2] @ centre
+    center = np.array([0.2, 0.1, -1.0])  # behind the wall
+    scene.R[2] = _look_at(center, np.zeros(3), 0.0)
+    scene.t[2] = -scene.R[2] @ center
     scene.write_colmap(tmp_path, scale=1.0, R_sim=np.eye(3), t_sim=np.zeros(3))
     with pytest.raises(
         InputError,

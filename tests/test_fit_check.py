@@ -135,7 +135,7 @@ def _marker_pose(true_camera, told_camera, view):
         np.linspace(10, true_camera.height - 11, 6).round(),
     )
     pixels = np.stack([u.ravel(), v.ravel()], axis=1)
-    world = pixel_footprints(true_camera, view, pixels).centres_world
+    world = pixel_footprints(true_camera, view, pixels).centers_world
     R, t = solve_pose(world, pixels, told_camera)
     return View(R, t, view.exposure), pose_intrinsics_jacobian(world, pixels, told_camera)
 

@@ -29,7 +29,7 @@ CHESSBOARD = Chessboard(9, 6, 0.03)
 CHARUCO = CharucoBoard("DICT_4X4_50", 10, 7, 0.03, 0.022, origin_world_m=(-0.15, 0.105))
 
 
-def _centre(board):
+def _center(board):
     if isinstance(board, Chessboard):
         s = board.square_length_m
         return np.array([(board.inner_x - 1) * s / 2, -(board.inner_y - 1) * s / 2, 0.0])
@@ -39,14 +39,14 @@ def _centre(board):
 
 def _pose(board, k, n_views, rng):
     """(R, t) of view k of `n_views` from all around `board`, tilted 20 - 40 degrees."""
-    centre = _centre(board)
+    center = _center(board)
     azimuth = 2 * np.pi * k / n_views + rng.uniform(-0.2, 0.2)
     tilt = np.radians(rng.uniform(20.0, 40.0))
     distance = rng.uniform(0.35, 0.5)
     direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
-    target = centre + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
+    target = center + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
     return look_at_pose(
-        centre + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
+        center + distance * np.array(direction), target, roll_rad=rng.uniform(-0.5, 0.5)
     )
 
 

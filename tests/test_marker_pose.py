@@ -58,7 +58,7 @@ MAX_POSITION_ERROR_M = 1e-3
 MAX_ANGLE_ERROR_DEG = 0.05
 
 
-def _board_centre_world(board):
+def _board_center_world(board):
     width, height = board.size_m
     x0, y0 = board.origin_world_m
     return np.array([x0 + width / 2, y0 - height / 2, 0.0])
@@ -71,9 +71,9 @@ def scene(name):
     rng = np.random.default_rng(sorted(SCENES).index(name))
     tilt, azimuth = np.radians(tilt_deg), np.radians(azimuth_deg)
     direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
-    target = _board_centre_world(board) + np.r_[rng.uniform(-0.03, 0.03, 2), 0.0]
-    centre = target + distance_m * np.array(direction)
-    R, t = look_at_pose(centre, target, roll_rad=np.radians(roll_deg))
+    target = _board_center_world(board) + np.r_[rng.uniform(-0.03, 0.03, 2), 0.0]
+    center = target + distance_m * np.array(direction)
+    R, t = look_at_pose(center, target, roll_rad=np.radians(roll_deg))
     rendering = board.render(TEXTURE_PX_PER_M)
     texture = BLACK + (WHITE - BLACK) * rendering.image / 255.0
     image = render_plane_image(
@@ -97,11 +97,11 @@ def _pose_error(R_estimate, t_estimate, R, t):
 
 def _errors(pose, R, t):
     """(rotation error deg, |t error| m, |camera centre error| m)."""
-    centre = -R.T @ t
+    center = -R.T @ t
     return (
         _angle_deg(pose.R_camera_world, R),
         float(np.linalg.norm(pose.t_camera_world - t)),
-        float(np.linalg.norm(pose.camera_centre_world - centre)),
+        float(np.linalg.norm(pose.camera_center_world - center)),
     )
 
 
@@ -109,16 +109,16 @@ def _errors(pose, R, t):
 def test_pose_recovered_from_synthetic_image(name):
     board, image, R, t = scene(name)
     pose = estimate_pose(image, CAMERA, board, source=name)
-    angle_deg, t_error_m, centre_error_m = _errors(pose, R, t)
+    angle_deg, t_error_m, center_error_m = _errors(pose, R, t)
     print(
         f"{name}: {pose.n_markers} markers, rms {pose.reprojection_rms_px:.3f} px, "
         f"rotation {angle_deg:.5f} deg, t {t_error_m * 1e3:.4f} mm, "
-        f"centre {centre_error_m * 1e3:.4f} mm"
+        f"centre {center_error_m * 1e3:.4f} mm"
     )
     assert angle_deg < MAX_ANGLE_ERROR_DEG
     assert t_error_m < MAX_POSITION_ERROR_M
-    assert centre_error_m < MAX_POSITION_ERROR_M
-    assert pose.camera_centre_world[2] > 0.5
+    assert center_error_m < MAX_POSITION_ERROR_M
+    assert pose.camera_center_world[2] > 0.5
     assert pose.reprojection_rms_px < 0.2
     assert pose.n_markers >= 40
     assert pose.source == name
@@ -149,14 +149,14 @@ def test_pose_under_blur_and_uneven_light(name):
     spot = 0.15 + np.exp(-((cols - 500.0) ** 2 + (rows - 400.0) ** 2) / (2 * 350.0**2))
     raw = 1000.0 * cv2.GaussianBlur(np.array(image), (0, 0), 1.0) * spot + 30.0
     pose = estimate_pose(raw, CAMERA, board)
-    angle_deg, t_error_m, centre_error_m = _errors(pose, R, t)
+    angle_deg, t_error_m, center_error_m = _errors(pose, R, t)
     print(
         f"{name} blurred, spot: rotation {angle_deg:.5f} deg, t {t_error_m * 1e3:.4f} mm, "
-        f"centre {centre_error_m * 1e3:.4f} mm"
+        f"centre {center_error_m * 1e3:.4f} mm"
     )
     assert angle_deg < MAX_ANGLE_ERROR_DEG
     assert t_error_m < MAX_POSITION_ERROR_M
-    assert centre_error_m < MAX_POSITION_ERROR_M
+    assert center_error_m < MAX_POSITION_ERROR_M
 
 
 def test_refinement_lowers_the_residual():
@@ -179,10 +179,10 @@ def test_linear_float_and_uint8_images_give_the_same_pose():
     np.testing.assert_allclose(from_raw.t_camera_world, reference.t_camera_world, atol=1e-6)
     image_u8 = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
     from_u8 = estimate_pose(image_u8, CAMERA, board)
-    angle_deg, t_error_m, centre_error_m = _errors(from_u8, R, t)
+    angle_deg, t_error_m, center_error_m = _errors(from_u8, R, t)
     assert angle_deg < MAX_ANGLE_ERROR_DEG
     assert t_error_m < MAX_POSITION_ERROR_M
-    assert centre_error_m < MAX_POSITION_ERROR_M
+    assert center_error_m < MAX_POSITION_ERROR_M
 
 
 def _marker_coverage(board, R, t):
@@ -260,7 +260,7 @@ def test_estimate_poses_reports_rejected_images():
     assert results[1].source == "b.png"
     lines = pose_report(results).splitlines()
     assert len(lines) == 2
-    x, y, z = results[0].camera_centre_world
+    x, y, z = results[0].camera_center_world
     assert lines[0] == (
         f"a.png: 48 markers, rms {results[0].reprojection_rms_px:.3f} px, "
         f"camera at ({x:.4f}, {y:.4f}, {z:.4f}) m"
@@ -315,9 +315,9 @@ def _detections(name):
     board, distance_m, tilt_deg, azimuth_deg, roll_deg = SCENES[name]
     tilt, azimuth = np.radians(tilt_deg), np.radians(azimuth_deg)
     direction = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
-    target = _board_centre_world(board)
-    centre = target + distance_m * np.array(direction)
-    R, t = look_at_pose(centre, target, roll_rad=np.radians(roll_deg))
+    target = _board_center_world(board)
+    center = target + distance_m * np.array(direction)
+    R, t = look_at_pose(center, target, roll_rad=np.radians(roll_deg))
     ids = board.ids if isinstance(board, ArucoGridBoard) else board.corner_ids
     points_world = board.corners_world(ids).reshape(-1, 3)
     pixels, valid = CAMERA.project(points_world @ R.T + t)
@@ -330,7 +330,7 @@ def test_pose_jacobian_matches_central_differences(name):
     points_world, _, R, t = _detections(name)
     jacobian = pose_jacobian(CAMERA, R, t, points_world)
     assert jacobian.shape == (2 * len(points_world), 6)
-    centre = -R.T @ t
+    center = -R.T @ t
     numeric = np.empty_like(jacobian)
     for k, step in enumerate([1e-7] * 3 + [1e-7] * 3):
         projected = []
@@ -338,7 +338,7 @@ def test_pose_jacobian_matches_central_differences(name):
             dp = np.zeros(6)
             dp[k] = sign * step
             R_k = matrix_from_rotvec(dp[:3]) @ R
-            pixels, _ = CAMERA.project(points_world @ R_k.T - R_k @ (centre + dp[3:]))
+            pixels, _ = CAMERA.project(points_world @ R_k.T - R_k @ (center + dp[3:]))
             projected.append(pixels.reshape(-1))
         numeric[:, k] = (projected[0] - projected[1]) / (2.0 * step)
     np.testing.assert_allclose(jacobian, numeric, rtol=0, atol=1e-6 * np.abs(jacobian).max())

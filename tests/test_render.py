@@ -89,7 +89,7 @@ def _point_irradiance(rid: RID, L_world: np.ndarray, R_world_light: np.ndarray, 
     return rid(theta, phi) * (L_world[2] / r) / r**2
 
 
-def _pixel_centre_on_wall(camera: Camera, view: View, pixels: np.ndarray) -> np.ndarray:
+def _pixel_center_on_wall(camera: Camera, view: View, pixels: np.ndarray) -> np.ndarray:
     """(N, 3) where the rays through the pixel centres hit the wall."""
     rays, ok = camera.rays_camera(pixels.astype(np.float64))
     assert ok.all()
@@ -540,7 +540,7 @@ def test_tiny_pixels_converge_to_the_point_formula(rid_name: str) -> None:
     camera, view, light = _telephoto_scene(rid)
     rig = Rig.single(light)
     pixels = np.array([[31, 23], [0, 0], [63, 47], [5, 40], [50, 9]])
-    P = _pixel_centre_on_wall(camera, view, pixels)
+    P = _pixel_center_on_wall(camera, view, pixels)
     L = light.position_world(view)
     E = _point_irradiance(rid, L, light.rotation_world(view), P)
     w = (P[0] - L) / np.linalg.norm(P[0] - L)
@@ -574,12 +574,12 @@ def test_one_wall_point_seen_from_two_poses_has_one_radiance(rid_name: str) -> N
     R_world_light = rotation_with_z(np.array([-0.2, 0.5, -2.0])) @ rotation_about((0, 0, 1), 1.0)
     first = View.looking_at(np.array([-0.8, -1.2, 3.5]), X)
     second = View.looking_at(np.array([1.1, 0.9, 2.4]), X, up_world=(1.0, 0.0, 0.0), exposure=1.0)
-    centre_pixel = np.array([[31, 23]])  # the principal point: X is on both optical axes
+    center_pixel = np.array([[31, 23]])  # the principal point: X is on both optical axes
     values = []
     for view in (first, second):
         light = light_fixed_in_world(rid, view, L_world, R_world_light, scale=0.7)
         np.testing.assert_allclose(light.position_world(view), L_world, atol=1e-15)
-        values.append(render_pixels(camera, view, Rig.single(light), centre_pixel).data[0])
+        values.append(render_pixels(camera, view, Rig.single(light), center_pixel).data[0])
     assert values[0] == pytest.approx(values[1], rel=1e-6)
     E = _point_irradiance(rid, L_world, R_world_light, X[None])[0]
     assert values[0] == pytest.approx(0.7 * E, rel=1e-6)
@@ -587,7 +587,7 @@ def test_one_wall_point_seen_from_two_poses_has_one_radiance(rid_name: str) -> N
     # camera centre, 1 / (fx fy), whatever the distance and the viewing angle.
     for view in (first, second):
         light = light_fixed_in_world(rid, view, L_world, R_world_light)
-        paper = render_pixels(camera, view, Rig.single(light), centre_pixel, sensor="paper")
+        paper = render_pixels(camera, view, Rig.single(light), center_pixel, sensor="paper")
         assert paper.data[0] == pytest.approx(E / (camera.fx * camera.fy), rel=1e-6)
 
 

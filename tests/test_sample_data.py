@@ -102,10 +102,10 @@ def test_marker_poses_of_the_committed_images():
     for i, view in enumerate(truth["views"]):
         image = read_image(SAMPLE / view["path"], black_level=512.0)
         R = np.array(view["T_camera_world"]["R"])
-        centre = np.array(view["center_world_m"])
+        center = np.array(view["center_world_m"])
         for kind, camera in cameras.items():
             pose = estimate_pose(image.values, camera, board, source=view["name"])
-            position_error = float(np.linalg.norm(pose.camera_centre_world - centre))
+            position_error = float(np.linalg.norm(pose.camera_center_world - center))
             angle_error = _rotation_angle_deg(pose.R_camera_world, R)
             assert position_error < MAX_POSE_POSITION_M, (view["name"], kind, position_error)
             assert angle_error < MAX_POSE_ANGLE_DEG, (view["name"], kind, angle_error)

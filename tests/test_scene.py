@@ -26,7 +26,7 @@ def _exact(message: str) -> str:
 # ---------------------------------------------------------------- View
 
 
-def test_view_centre_is_minus_r_transpose_t() -> None:
+def test_view_center_is_minus_r_transpose_t() -> None:
     R = rotation_about((0.3, -0.2, 1.0), 0.7) @ np.diag([1.0, -1.0, -1.0])
     center = np.array([0.4, -0.3, 2.2])
     view = View(R, -R @ center, exposure=0.25)

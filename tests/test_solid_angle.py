@@ -194,16 +194,16 @@ def _tiny_triangles(omega_target: float) -> tuple[np.ndarray, np.ndarray, np.nda
     """A viewpoint and 40 wall triangles of about `omega_target` sr, 2.3 to 3.1 m away."""
     rng = np.random.default_rng(3)
     viewpoint = np.array([0.3127, -0.2719, 1.9313])
-    centre = np.array([1.3711, 2.1103, 0.0]) + np.column_stack(
+    center = np.array([1.3711, 2.1103, 0.0]) + np.column_stack(
         [rng.uniform(-0.3, 0.3, (40, 2)), np.zeros(40)]
     )
-    r = np.linalg.norm(centre - viewpoint, axis=1)
+    r = np.linalg.norm(center - viewpoint, axis=1)
     cos_i = viewpoint[2] / r
     size = np.sqrt(2.0 * omega_target * r * r / cos_i)[:, None]
     shape = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])[None] + rng.uniform(
         -0.2, 0.2, (40, 3, 2)
     )
-    p1, p2, p3 = (centre + size * np.column_stack([shape[:, k], np.zeros(40)]) for k in range(3))
+    p1, p2, p3 = (center + size * np.column_stack([shape[:, k], np.zeros(40)]) for k in range(3))
     return viewpoint, p1, p2, p3
 
 

@@ -48,8 +48,8 @@ def test_hand_computed_values() -> None:
     np.testing.assert_allclose(image.ravel(), model.evaluate(np.argwhere(image > -1)[:, ::-1]))
 
 
-def test_centred_model_is_symmetric() -> None:
-    model = RadialVignetting.centred([-0.3, 0.1, -0.02], width=7, height=4)
+def test_centered_model_is_symmetric() -> None:
+    model = RadialVignetting.centered([-0.3, 0.1, -0.02], width=7, height=4)
     np.testing.assert_array_equal(model.center_px, [3.0, 1.5])
     image = model.image()
     np.testing.assert_allclose(image, image[::-1, ::-1], atol=1e-15)
@@ -58,7 +58,7 @@ def test_centred_model_is_symmetric() -> None:
 
 
 def test_image_size_must_match_the_camera() -> None:
-    model = RadialVignetting.centred([-0.3], width=640, height=480)
+    model = RadialVignetting.centered([-0.3], width=640, height=480)
     with pytest.raises(
         InputError,
         match=r"^vignetting: expected a camera of 640 x 480 pixels \(the model's size\), "
@@ -101,7 +101,7 @@ def _flat_fields(
     return [g * falloff * (1.0 + noise * rng.standard_normal(falloff.shape)) for g in gains]
 
 
-def test_fit_recovers_coefficients_and_centre_from_noisy_flat_fields() -> None:
+def test_fit_recovers_coefficients_and_center_from_noisy_flat_fields() -> None:
     rng = np.random.default_rng(0)
     images = _flat_fields(rng, TRUE, (0.5, 0.8, 0.3), noise=0.002)
     # A few saturated pixels (clipped at 0.9 in the brightest image) and hot pixels.
@@ -142,8 +142,8 @@ def test_the_defects_would_bias_a_plain_least_squares_fit() -> None:
     assert np.max(np.abs(plain[5:] - TRUE.coeffs)) > 1e-3
 
 
-def test_fit_noise_free_with_fixed_centre_is_exact() -> None:
-    true = RadialVignetting.centred([-0.4, 0.1], width=64, height=48)
+def test_fit_noise_free_with_fixed_center_is_exact() -> None:
+    true = RadialVignetting.centered([-0.4, 0.1], width=64, height=48)
     images = [0.7 * true.image(), 0.2 * true.image()]
     model, rms = fit_radial_vignetting(images, fit_center=False, n_coeffs=2)
     np.testing.assert_allclose(model.coeffs, true.coeffs, atol=1e-10)
@@ -247,13 +247,13 @@ def test_fit_errors(images: list, kwargs: dict, message: str) -> None:
 # --------------------------------------------------------------------------- maps
 
 
-def test_map_normalised_by_max_or_centre() -> None:
+def test_map_normalised_by_max_or_center() -> None:
     values = np.array([[1.0, 2.0, 2.0, 1.0], [2.0, 4.0, 6.0, 2.0], [1.0, 2.0, 2.0, 8.0]])
     by_max = vignetting_from_map(values, width=4, height=3)
     np.testing.assert_allclose(by_max, values / 8.0)
     # Centre (1.5, 1): the mean of pixels (1, 1) and (2, 1) = 5.
-    by_centre = vignetting_from_map(values, width=4, height=3, normalise="center")
-    np.testing.assert_allclose(by_centre, values / 5.0)
+    by_center = vignetting_from_map(values, width=4, height=3, normalise="center")
+    np.testing.assert_allclose(by_center, values / 5.0)
 
 
 @pytest.mark.parametrize(
@@ -289,7 +289,7 @@ def test_map_bad_normalise() -> None:
 
 def _smooth_map() -> np.ndarray:
     """(24, 32) a fall-off map with maximum 1 (no pixel sits at the centre itself)."""
-    image = RadialVignetting.centred([-0.3, 0.05], width=32, height=24).image()
+    image = RadialVignetting.centered([-0.3, 0.05], width=32, height=24).image()
     return image / image.max()
 
 
@@ -358,7 +358,7 @@ def test_radial_json_round_trip(tmp_path: Path) -> None:
 
 
 def test_radial_json_errors(tmp_path: Path) -> None:
-    model = RadialVignetting.centred([-0.3], width=40, height=30)
+    model = RadialVignetting.centered([-0.3], width=40, height=30)
     path = tmp_path / "falloff.json"
     save_radial_vignetting(path, model)
     with pytest.raises(

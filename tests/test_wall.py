@@ -143,7 +143,7 @@ def test_render_is_lambertian_times_factor(name: str) -> None:
     fp = pixel_footprints(camera, view, px)
     lam = shade(fp, view, rig).values
     glossy = shade(fp, view, rig, wall=wall).values
-    P = fp.centres_world
+    P = fp.centers_world
     L = rig.lights[0].position_world(view)
     l = (L - P) / np.linalg.norm(L - P, axis=1, keepdims=True)
     v = (view.center_world - P) / np.linalg.norm(view.center_world - P, axis=1, keepdims=True)
@@ -202,7 +202,7 @@ def test_shade_gradients_match_differences(name: str) -> None:
 
 
 @pytest.mark.parametrize("roughness", [0.1, 0.3])
-def test_footprint_spread_bounds_the_centre_error(roughness: float) -> None:
+def test_footprint_spread_bounds_the_center_error(roughness: float) -> None:
     """B averaged over each footprint (20 x 20 points per quad) differs from B(centre) by
     what `footprint_spread` estimates."""
     camera, view, rig = _scene()
@@ -210,7 +210,7 @@ def test_footprint_spread_bounds_the_centre_error(roughness: float) -> None:
     px = all_pixels(camera.width // 2, camera.height // 2)[::13]
     fp = pixel_footprints(camera, view, px, binning=2)
     L = rig.lights[0].position_world(view)
-    bound = footprint_spread(fp.corners_world, fp.centres_world, L, view.center_world, wall)
+    bound = footprint_spread(fp.corners_world, fp.centers_world, L, view.center_world, wall)
     assert np.all(bound > 0)
     s = (np.arange(20) + 0.5) / 20
     ss, tt = (a.ravel() for a in np.meshgrid(s, s))
@@ -229,14 +229,14 @@ def test_footprint_spread_bounds_the_centre_error(roughness: float) -> None:
             l /= np.linalg.norm(l, axis=1, keepdims=True)
             v /= np.linalg.norm(v, axis=1, keepdims=True)
             means.append(wall.factor(l, v)[0].mean())
-        c = fp.centres_world[i]
+        c = fp.centers_world[i]
         lc = (L - c) / np.linalg.norm(L - c)
         vc = (view.center_world - c) / np.linalg.norm(view.center_world - c)
-        centre = wall.factor(lc[None], vc[None])[0][0]
-        errors.append(abs(np.mean(means) - centre) / centre)
+        center = wall.factor(lc[None], vc[None])[0][0]
+        errors.append(abs(np.mean(means) - center) / center)
     np.testing.assert_allclose(np.array(errors), bound, rtol=0.05, atol=5e-6)
     np.testing.assert_array_equal(
-        footprint_spread(fp.corners_world, fp.centres_world, L, view.center_world, LAMBERTIAN),
+        footprint_spread(fp.corners_world, fp.centers_world, L, view.center_world, LAMBERTIAN),
         0.0,
     )
 

@@ -85,7 +85,7 @@ def select_image(
     return image_data(p, loaded, index, extra_pixels=clicked)
 
 
-def footprint_centres(data: ImageData) -> np.ndarray:
+def footprint_centers(data: ImageData) -> np.ndarray:
     """(N, 3) mean of each selected pixel's footprint corners on the wall, m."""
     if len(data.footprints) == 0:
         return np.zeros((0, 3))

@@ -183,7 +183,7 @@ class Scene3D:
             color=WALL_RGB,
             side="double",
         )
-        centre = 0.5 * (lo + hi)
+        center = 0.5 * (lo + hi)
         size = float((hi - lo).max())
         scene.add_grid(
             "/wall_grid",
@@ -192,7 +192,7 @@ class Scene3D:
             plane="xy",
             cell_size=0.1,
             section_size=0.5,
-            position=(float(centre[0]), float(centre[1]), 0.001),
+            position=(float(center[0]), float(center[1]), 0.001),
         )
         scene.add_label("/wall_label", "wall (z = 0)", position=(float(lo[0]), float(lo[1]), 0.0))
         fov = cam.fov_y_rad
@@ -239,7 +239,7 @@ class Scene3D:
         self.rays = None
         mid = np.mean([v.center_world for v in project.views], axis=0)
         self.server.initial_camera.position = mid + np.array([0.0, 0.6 * dist, 1.4 * dist])
-        self.server.initial_camera.look_at = (float(centre[0]), float(centre[1]), 0.0)
+        self.server.initial_camera.look_at = (float(center[0]), float(center[1]), 0.0)
         self.server.initial_camera.up = (0.0, -1.0, 0.0)
 
     def _build_lights(self, guess: list[LightGuess]) -> None:

@@ -28,7 +28,7 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
-from lightcal_app.pixel_selection import footprint_centres, select_image
+from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
 from lightcal_app.state import AppState, Display, LightGuess
 
@@ -144,7 +144,7 @@ class SolveService:
             ]
             st.selected_binning = [s.binning if s.strategy == "all" else 1 for s in settings]
             st.selected_wall_points = [
-                footprint_centres(d) if d is not None else np.zeros((0, 3)) for d in datas
+                footprint_centers(d) if d is not None else np.zeros((0, 3)) for d in datas
             ]
             st.mark("selection", "light", "status")
 

@@ -221,7 +221,7 @@ class SfmImage:
     t_camera_world: NDArray[np.float64]
 
     @property
-    def centre_world(self) -> NDArray[np.float64]:
+    def center_world(self) -> NDArray[np.float64]:
         """(3,) camera centre in the world frame, metres: -R^T t."""
         return -self.R_camera_world.T @ self.t_camera_world
 
@@ -266,7 +266,7 @@ def _metres_per_unit(
     *,
     point_ids: NDArray[np.int64],
     points_colmap: NDArray[np.float64],
-    centres_colmap: dict[str, NDArray[np.float64]],
+    centers_colmap: dict[str, NDArray[np.float64]],
     points_path: Path,
     images_path: Path,
 ) -> float:
@@ -289,7 +289,7 @@ def _metres_per_unit(
         length = float(np.linalg.norm(pair[1] - pair[0]))
         source = "scale"
     elif isinstance(scale, CameraBaseline):
-        missing_names = [n for n in (scale.image_a, scale.image_b) if n not in centres_colmap]
+        missing_names = [n for n in (scale.image_a, scale.image_b) if n not in centers_colmap]
         if missing_names:
             raise InputError(
                 "scale",
@@ -297,7 +297,7 @@ def _metres_per_unit(
                 f"got unknown {missing_names}",
             )
         length = float(
-            np.linalg.norm(centres_colmap[scale.image_b] - centres_colmap[scale.image_a])
+            np.linalg.norm(centers_colmap[scale.image_b] - centers_colmap[scale.image_a])
         )
         what = f"the centres of images {scale.image_a!r} and {scale.image_b!r}"
         source = "scale"
@@ -367,7 +367,7 @@ def read_colmap_model(
     cameras, records = text.cameras, text.images
     point_ids, points_colmap = text.point_ids, text.points_colmap
     rotations = [record.R_camera_colmap for record in records]
-    centres = np.array([-R.T @ record.t for R, record in zip(rotations, records, strict=True)])
+    centers = np.array([-R.T @ record.t for R, record in zip(rotations, records, strict=True)])
     if point_ids.size < 3:
         raise InputError(
             points_path, f"expected at least 3 points to fit the wall plane, got {point_ids.size}"
@@ -377,7 +377,7 @@ def read_colmap_model(
         scale,
         point_ids=point_ids,
         points_colmap=points_colmap,
-        centres_colmap={r.name: c for r, c in zip(records, centres, strict=True)},
+        centers_colmap={r.name: c for r, c in zip(records, centers, strict=True)},
         points_path=points_path,
         images_path=images_path,
     )
@@ -387,7 +387,7 @@ def read_colmap_model(
         raise InputError(points_path, f"wall plane: {exc.detail}") from exc
 
     normal, offset = plane.normal, plane.offset
-    heights = centres @ normal + offset
+    heights = centers @ normal + offset
     if np.all(heights < 0.0):
         normal, offset, heights = -normal, -offset, -heights
     if not np.all(heights > 0.0):

@@ -100,8 +100,8 @@ def _detect_charuco(
 def _spans_area(points_world: NDArray[np.float64]) -> bool:
     if points_world.shape[0] < 3:
         return False
-    centred = points_world[:, :2] - points_world[:, :2].mean(axis=0)
-    singular = np.linalg.svd(centred, compute_uv=False)
+    centered = points_world[:, :2] - points_world[:, :2].mean(axis=0)
+    singular = np.linalg.svd(centered, compute_uv=False)
     return bool(singular[1] > 1e-6 * singular[0])
 
 

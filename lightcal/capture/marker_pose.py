@@ -147,7 +147,7 @@ class MarkerPose:
     mask_polygons_world: NDArray[np.float64] = field(repr=False)
 
     @property
-    def camera_centre_world(self) -> NDArray[np.float64]:
+    def camera_center_world(self) -> NDArray[np.float64]:
         """(3,) camera centre C = -R^T t in the world frame, metres (C_z > 0)."""
         return -self.R_camera_world.T @ self.t_camera_world
 
@@ -262,11 +262,11 @@ def estimate_pose(
         )
 
     R, t = solve_pose(points_world, points_image, camera, refine=refine, source=source)
-    centre = -R.T @ t
-    if not centre[2] > 0.0:
+    center = -R.T @ t
+    if not center[2] > 0.0:
         raise InputError(
             source,
-            f"the pose puts the camera at world z = {centre[2]:.4g} m, expected z > 0 "
+            f"the pose puts the camera at world z = {center[2]:.4g} m, expected z > 0 "
             "(in front of the wall)",
         )
     residuals = residuals_px(camera, R, t, points_world, points_image)
@@ -341,7 +341,7 @@ def pose_report(results: Sequence[MarkerPose | InputError]) -> str:
     lines = []
     for result in results:
         if isinstance(result, MarkerPose):
-            x, y, z = result.camera_centre_world
+            x, y, z = result.camera_center_world
             lines.append(
                 f"{result.source}: {result.n_markers} markers, rms "
                 f"{result.reprojection_rms_px:.3f} px, camera at ({x:.4f}, {y:.4f}, {z:.4f}) m"

@@ -22,19 +22,19 @@ _ROWS_PER_CHUNK = 512
 
 
 def look_at_pose(
-    centre_world_m: ArrayLike,
+    center_world_m: ArrayLike,
     target_world_m: ArrayLike,
     *,
     up_world: ArrayLike = (0.0, 1.0, 0.0),
     roll_rad: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The pose of a camera at `centre_world_m` whose optical axis passes through a target.
+    """The pose of a camera at `center_world_m` whose optical axis passes through a target.
 
     The image's "up" (camera -y) is `up_world` projected on the image plane, then the
     camera is rolled by `roll_rad` about its optical axis.
 
     Args:
-        centre_world_m: (3,) camera centre in the world frame, metres.
+        center_world_m: (3,) camera centre in the world frame, metres.
         target_world_m: (3,) world point on the optical axis, metres.
         up_world: (3,) world direction that appears upwards in the image.
         roll_rad: Rotation about the optical axis (camera x towards camera y), radians.
@@ -43,8 +43,8 @@ def look_at_pose(
         R_camera_world: (3, 3).
         t_camera_world: (3,), so that X_c = R_camera_world X_w + t_camera_world.
     """
-    centre = np.asarray(centre_world_m, dtype=np.float64)
-    forward = np.asarray(target_world_m, dtype=np.float64) - centre
+    center = np.asarray(center_world_m, dtype=np.float64)
+    forward = np.asarray(target_world_m, dtype=np.float64) - center
     z_c = forward / np.linalg.norm(forward)
     up = np.asarray(up_world, dtype=np.float64)
     down = -(up - (up @ z_c) * z_c)
@@ -53,7 +53,7 @@ def look_at_pose(
     R = np.stack([x_c, y_c, z_c])
     c, s = np.cos(roll_rad), np.sin(roll_rad)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
-    return R, -R @ centre
+    return R, -R @ center
 
 
 def render_plane_image(
@@ -112,10 +112,10 @@ def render_plane_image(
     # The ray (x, y, 1) of the camera frame, X_w = C + lam R^T (x, y, 1), meets z = 0 at
     # lam = -C_z / d_z with d_z = (R^T (x, y, 1))_z: a homography of (x, y, 1) for the
     # wall point, which lies in front of the camera (lam > 0) where d_z has the sign of -C_z.
-    centre = -R.T @ t
+    center = -R.T @ t
     Rt = R.T
     H_wall = np.stack(
-        [centre[0] * Rt[2] - centre[2] * Rt[0], centre[1] * Rt[2] - centre[2] * Rt[1], Rt[2]]
+        [center[0] * Rt[2] - center[2] * Rt[0], center[1] * Rt[2] - center[2] * Rt[1], Rt[2]]
     )
 
     def texel_maps(px_per_m_x: float, px_per_m_y: float, step: int) -> tuple[Any, Any, Any]:
@@ -135,7 +135,7 @@ def render_plane_image(
             den = h[6] * xs + h[7] * ys + h[8]
             col = (h[0] * xs + h[1] * ys + h[2]) / den
             row = (h[3] * xs + h[4] * ys + h[5]) / den
-        hit = ok & (den * -float(np.sign(centre[2])) > 0.0) & np.isfinite(col) & np.isfinite(row)
+        hit = ok & (den * -float(np.sign(center[2])) > 0.0) & np.isfinite(col) & np.isfinite(row)
         return col, row, hit
 
     # Pre-filter: where a sub-pixel covers more than one texel, point sampling would

@@ -46,8 +46,8 @@ def not_collinear(points_world: NDArray[np.float64]) -> bool:
     """True if the planar points span an area (are not all on one line)."""
     if points_world.shape[0] < 3:
         return False
-    centred = points_world[:, :2] - points_world[:, :2].mean(axis=0)
-    singular = np.linalg.svd(centred, compute_uv=False)
+    centered = points_world[:, :2] - points_world[:, :2].mean(axis=0)
+    singular = np.linalg.svd(centered, compute_uv=False)
     return bool(singular[1] > 1e-6 * max(singular[0], 1e-12))
 
 

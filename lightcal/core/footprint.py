@@ -98,18 +98,18 @@ class Footprints:
         )
 
     @functools.cached_property
-    def centres_world(self) -> np.ndarray:
+    def centers_world(self) -> np.ndarray:
         """(N, 3) footprint centres (the mean of all quad corners), world frame, m.
 
         Where the wall's reflectance is evaluated (`lightcal.core.wall`); NaN if invalid.
-        Kept once computed (the wall models read them every evaluation); `centres_now`
+        Kept once computed (the wall models read them every evaluation); `centers_now`
         gives them without keeping them.
         """
         return quad_corner_means(self.corners_world)
 
-    def centres_now(self) -> np.ndarray:
-        """`centres_world` if already kept, else computed and not kept (N x 24 bytes)."""
-        kept = self.__dict__.get("centres_world")  # functools.cached_property's slot
+    def centers_now(self) -> np.ndarray:
+        """`centers_world` if already kept, else computed and not kept (N x 24 bytes)."""
+        kept = self.__dict__.get("centers_world")  # functools.cached_property's slot
         return kept if kept is not None else quad_corner_means(self.corners_world)
 
 

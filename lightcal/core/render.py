@@ -156,7 +156,7 @@ def _apply_wall(
     d = wall.data()
     want_grad = grad is not None
     apply_wall(
-        footprints.centres_world,
+        footprints.centers_world,
         L_world,
         np.ascontiguousarray(view.center_world),
         d.kind,

@@ -49,14 +49,14 @@ from lightcal.core.scene import View
 
 #: Finite-difference steps of the pose sensitivity: rotation (rad) and centre (m).
 ROTATION_STEP_RAD = 1e-6
-CENTRE_STEP_M = 1e-6
+CENTER_STEP_M = 1e-6
 
 
 def perturbed_view(view: View, dp: np.ndarray) -> View:
     """`view` with its rotation turned by exp(dp[:3]) and its centre moved by dp[3:] (m)."""
     R = matrix_from_rotvec(np.asarray(dp[:3], dtype=np.float64)) @ view.R_camera_world
-    centre = view.center_world + np.asarray(dp[3:], dtype=np.float64)
-    return View(R, -R @ centre, view.exposure)
+    center = view.center_world + np.asarray(dp[3:], dtype=np.float64)
+    return View(R, -R @ center, view.exposure)
 
 
 def _central_differences(
@@ -97,7 +97,7 @@ def pose_sensitivity(
         v = perturbed_view(view, dp)
         return render(v, footprints_at(v))
 
-    steps = np.array([ROTATION_STEP_RAD] * 3 + [CENTRE_STEP_M] * 3)
+    steps = np.array([ROTATION_STEP_RAD] * 3 + [CENTER_STEP_M] * 3)
     return _central_differences(render_at, steps, sigma)
 
 

@@ -79,7 +79,7 @@ class RadialVignetting:
         object.__setattr__(self, "height", height)
 
     @classmethod
-    def centred(cls, coeffs: ArrayLike, *, width: int, height: int) -> RadialVignetting:
+    def centered(cls, coeffs: ArrayLike, *, width: int, height: int) -> RadialVignetting:
         """A model centred on the image centre ((W - 1) / 2, (H - 1) / 2)."""
         w, h = _check_size(width, height)
         return cls(
@@ -367,19 +367,19 @@ def fit_radial_vignetting(
         images, valid_masks, max_samples_per_image=max_samples_per_image
     )
     n_images = len(images)
-    centre0 = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
-    fixed_centre = None if fit_center else centre0
+    center0 = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+    fixed_center = None if fit_center else center0
     n_params = n_images + (2 if fit_center else 0) + n_coeffs
     radius = 0.5 * math.hypot(width, height)
 
     params = np.concatenate(
-        [np.ones(n_images), centre0 if fit_center else np.empty(0), np.zeros(n_coeffs)]
+        [np.ones(n_images), center0 if fit_center else np.empty(0), np.zeros(n_coeffs)]
     )
     full_problem = _FlatFieldProblem(
         samples=samples,
         n_images=n_images,
         n_coeffs=n_coeffs,
-        center_px=fixed_centre,
+        center_px=fixed_center,
         radius=radius,
     )
     keep = np.ones(samples.u.size, dtype=bool)
@@ -401,7 +401,7 @@ def fit_radial_vignetting(
             samples=subset,
             n_images=n_images,
             n_coeffs=n_coeffs,
-            center_px=fixed_centre,
+            center_px=fixed_center,
             radius=radius,
         )
         result = least_squares(
@@ -415,7 +415,7 @@ def fit_radial_vignetting(
             break  # params are the fit to `keep`
         keep = new_keep
 
-    center = params[n_images : n_images + 2] if fit_center else centre0
+    center = params[n_images : n_images + 2] if fit_center else center0
     model = RadialVignetting(
         center_px=center, coeffs=params[-n_coeffs:], width=width, height=height
     )
@@ -486,13 +486,13 @@ def vignetting_from_map(
     if normalise == "max":
         reference = float(array.max())
     elif normalise == "center":
-        reference = _bilinear_centre(array)
+        reference = _bilinear_center(array)
     else:
         raise InputError("normalise", f"expected 'max' or 'center', got {normalise!r}")
     return array / reference
 
 
-def _bilinear_centre(array: NDArray[np.float64]) -> float:
+def _bilinear_center(array: NDArray[np.float64]) -> float:
     """Bilinear value at ((W - 1) / 2, (H - 1) / 2): the mean of the 1, 2 or 4 middle pixels."""
     h, w = array.shape
     rows = [(h - 1) // 2, h // 2]

@@ -33,7 +33,7 @@ Lambertian numbers). Models:
   A = 1 - 0.5 s^2 / (s^2 + 0.33), B_on = 0.45 s^2 / (s^2 + 0.09), s = sigma (radians).
 
 The factor is evaluated once per (super-)pixel with l and v at the centre of its
-footprint (`Footprints.centres_world`); `footprint_spread` bounds the error of that
+footprint (`Footprints.centers_world`); `footprint_spread` bounds the error of that
 approximation per pixel.
 """
 
@@ -438,7 +438,7 @@ def internal_reflectance(alpha: float, eta: float) -> float:
 
 def footprint_spread(
     corners_world: np.ndarray,
-    centres_world: np.ndarray,
+    centers_world: np.ndarray,
     light_world: np.ndarray,
     camera_world: np.ndarray,
     wall: WallReflectance,
@@ -453,7 +453,7 @@ def footprint_spread(
     variation averages out).
 
     Args:
-        corners_world: (N, K, 4, 3) footprint quads; centres_world: (N, 3) their centres.
+        corners_world: (N, K, 4, 3) footprint quads; centers_world: (N, 3) their centres.
         light_world, camera_world: (3,) positions, world frame, m.
         wall: the wall model.
     """
@@ -461,9 +461,9 @@ def footprint_spread(
     if wall.is_lambertian or n == 0:
         return np.zeros(n)
     k = corners_world.shape[1]
-    quad_centres = corners_world.mean(axis=2).reshape(-1, 3)
+    quad_centers = corners_world.mean(axis=2).reshape(-1, 3)
     pts = np.ascontiguousarray(
-        np.concatenate([centres_world, quad_centres, corners_world.reshape(-1, 3)]),
+        np.concatenate([centers_world, quad_centers, corners_world.reshape(-1, 3)]),
         dtype=np.float64,
     )
     d = wall.data()
@@ -477,9 +477,9 @@ def footprint_spread(
         d.tables,
         b,
     )
-    centre = b[:n]
+    center = b[:n]
     at_quads = b[n : n + n * k].reshape(n, k)
     at_corners = b[n + n * k :].reshape(n, k, 4).mean(axis=2)
     mean = ((at_corners + 2.0 * at_quads) / 3.0).mean(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.abs(mean - centre) / centre
+        return np.abs(mean - center) / center

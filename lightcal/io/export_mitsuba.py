@@ -75,9 +75,9 @@ def spot_texture(rid: LightRID, size: int = TEXTURE_SIZE) -> tuple[float, NDArra
     above = np.nonzero(level >= _TEXTURE_CUTOFF_LEVEL)[0]
     last = min(int(above[-1]) + 1, rid.theta_rad.size - 1) if above.size else 1
     cutoff = min(float(rid.theta_rad[last]), math.radians(_TEXTURE_MAX_CUTOFF_DEG))
-    centres = (np.arange(size) + 0.5) / size
-    x = (2.0 * centres[None, :] - 1.0) * math.tan(cutoff)  # x / z, per column
-    y = (2.0 * centres[:, None] - 1.0) * math.tan(cutoff)  # y / z, per row
+    centers = (np.arange(size) + 0.5) / size
+    x = (2.0 * centers[None, :] - 1.0) * math.tan(cutoff)  # x / z, per column
+    y = (2.0 * centers[:, None] - 1.0) * math.tan(cutoff)  # y / z, per row
     x, y = np.broadcast_arrays(x, y)
     return cutoff, rid_values(rid, np.arctan(np.hypot(x, y)), np.arctan2(y, x))
 

@@ -163,7 +163,7 @@ def angle_residual_figure(fit: dict, *, size: tuple[int, int] = (900, 340)) -> n
         p_text = "p < 1e-300" if p_value is None or p_value == 0 else f"p = {p_value:.2g}"
         _text(fig, f"{verdict} ({p_text})", (left, 24), 0.5)
         edges = np.asarray(panel["bin_edges_deg"], dtype=np.float64)
-        centres = 0.5 * (edges[:-1] + edges[1:])
+        centers = 0.5 * (edges[:-1] + edges[1:])
         rel = 100.0 * np.asarray(panel["mean_relative_residual"], dtype=np.float64)
         a_lo, a_hi = float(edges[0]), float(max(edges[-1], edges[0] + 1e-9))
 
@@ -177,7 +177,7 @@ def angle_residual_figure(fit: dict, *, size: tuple[int, int] = (900, 340)) -> n
         for v in (-vmax, vmax):
             _, y = xy(a_lo, v)
             _text(fig, f"{v:+.2g}%", (x0 + 6, y + 4), 0.4)
-        pts = np.array([xy(a, v) for a, v in zip(centres, rel, strict=True)], dtype=np.int32)
+        pts = np.array([xy(a, v) for a, v in zip(centers, rel, strict=True)], dtype=np.int32)
         cv2.polylines(fig, [pts], False, (33, 102, 172), 2, cv2.LINE_AA)
         for p in pts:
             cv2.circle(fig, (int(p[0]), int(p[1])), 4, (178, 24, 43), -1, cv2.LINE_AA)

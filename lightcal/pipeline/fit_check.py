@@ -83,14 +83,14 @@ def pixel_evidence(model: CalibrationModel, x: np.ndarray, meas: Measurements) -
         flux = shade(im.footprints, im.view, rig, wall=wall).flux * scales[:, None] * gains[i]
         brightest = np.argmax(flux, axis=0)
         del flux
-        centres = im.footprints.centres_now()  # not kept: 24 bytes a pixel
+        centers = im.footprints.centers_now()  # not kept: 24 bytes a pixel
         mirror_i = mirror[rows]
         incidence_i = incidence[rows]
         for j, light in enumerate(rig.lights):
             sel = brightest == j
             if sel.any():
                 mirror_i[sel], incidence_i[sel] = pixel_angles(
-                    centres[sel], light.position_world(im.view), im.view.center_world
+                    centers[sel], light.position_world(im.view), im.view.center_world
                 )
     return PixelEvidence(r_noise, relative, mirror, incidence, ratios)
 

@@ -64,7 +64,7 @@ def mirror_angles(model: CalibrationModel, x: np.ndarray) -> list[np.ndarray]:
         angles = np.full(len(im.observed), np.inf)
         for light in rig.lights:
             a, _ = pixel_angles(
-                im.footprints.centres_world, light.position_world(im.view), im.view.center_world
+                im.footprints.centers_world, light.position_world(im.view), im.view.center_world
             )
             angles = np.minimum(angles, a)
         out.append(angles)

@@ -256,7 +256,7 @@ def _write_into(
     vignetting_rel: str | None = None
     vignetting: NDArray[np.float64] | None = None
     if sensor.vignetting_coeffs is not None:
-        model = RadialVignetting.centred(
+        model = RadialVignetting.centered(
             np.array(sensor.vignetting_coeffs), width=camera.width, height=camera.height
         )
         save_radial_vignetting(folder / VIGNETTING_NAME, model)

@@ -144,7 +144,7 @@ def vignetting_image(config: SensorConfig, camera: Camera) -> NDArray[np.float64
     """(H, W) the radial fall-off of the "map" model (centred, 1 at the centre), else None."""
     if config.vignetting_coeffs is None:
         return None
-    model = RadialVignetting.centred(
+    model = RadialVignetting.centered(
         np.array(config.vignetting_coeffs), width=camera.width, height=camera.height
     )
     values = model.image()

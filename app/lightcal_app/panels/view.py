@@ -75,7 +75,7 @@ class ViewPanel(TabPanel):
             view = st.project.views[i]
             fov = st.project.camera.fov_y_rad
         R_wc = view.R_camera_world.T
-        centre = view.center_world
+        center = view.center_world
         clients = (
             [event.client] if event.client is not None else list(self.server.get_clients().values())
         )
@@ -83,8 +83,8 @@ class ViewPanel(TabPanel):
             with client.atomic():
                 client.camera.fov = min(math.radians(100.0), 1.15 * fov)
                 client.camera.up_direction = -R_wc[:, 1]
-                client.camera.position = centre - 0.02 * R_wc[:, 2]
-                client.camera.look_at = centre + float(centre[2]) * R_wc[:, 2]
+                client.camera.position = center - 0.02 * R_wc[:, 2]
+                client.camera.look_at = center + float(center[2]) * R_wc[:, 2]
 
     def set_project(self, project: Project) -> None:
         self.overlay_image.options = list(project.names)
