@@ -121,3 +121,15 @@ def test_position_limit_is_in_metres() -> None:
     assert np.array_equal(check_position_m([0.1, -0.2, 9.9]), [0.1, -0.2, 9.9])
     with pytest.raises(InputError):
         check_position_m([0.1, -0.2, 10.1])
+
+
+def test_a_choice_that_is_not_offered_is_refused(app: LightcalApp) -> None:
+    before = app.state.ref_image
+    app.panels.light.ref_image._impl.value = "../../etc/passwd"  # what a forged message sets
+    for cb in app.panels.light.ref_image._impl.update_cb:
+        from viser._gui_handles import GuiEvent
+
+        cb(GuiEvent(client=None, client_id=None, target=app.panels.light.ref_image))
+    assert app.wait_idle()
+    assert _refusals(app)[-1] == "'../../etc/passwd' is not a value this control takes"
+    assert app.state.ref_image == before

@@ -71,7 +71,8 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
         "camera on the wall's far side",
         _set("images.0.T_camera_world.t", [1e308, 0.0, 0.0]),
-        "images[0].T_camera_world: camera pose: the camera centre is at z = ",
+        "images[0].T_camera_world: t: [1e+308, 0.0, 0.0] m: expected a camera within 10000 m "
+        "of the wall's origin (a translation this large is a unit or sign mistake)",
     ),
     (
         "missing image",

@@ -78,6 +78,12 @@ Mat6 = Annotated[
 ]
 
 
+MAX_DISTANCE_M = 10_000.0
+"""The farthest a camera may be from the wall's origin along any axis, m."""
+MAX_LIGHT_OFFSET_M = 100.0
+"""The farthest a light's initial guess may be from its camera along any axis, m."""
+
+
 class PoseSpec(_Model):
     """World -> camera extrinsics: `R` (3x3) or `rvec` (Rodrigues, radians), and `t` (m).
 
@@ -106,6 +112,11 @@ class PoseSpec(_Model):
     def _one_rotation(self) -> PoseSpec:
         if (self.R is None) == (self.rvec is None):
             raise ValueError("give exactly one of R or rvec")
+        if max(abs(v) for v in self.t) > MAX_DISTANCE_M:
+            raise ValueError(
+                f"t: {list(self.t)} m: expected a camera within {MAX_DISTANCE_M:g} m of the "
+                "wall's origin (a translation this large is a unit or sign mistake)"
+            )
         if self.covariance is not None:
             c = np.array(self.covariance, dtype=np.float64)
             if not np.all(np.isfinite(c)):
@@ -238,7 +249,10 @@ class RIDSpec(_Model):
 class InitialSpec(_Model):
     """Initial guess of a light's pose (camera frame) and scale."""
 
-    position_m: Vec3
+    position_m: Annotated[
+        list[Annotated[float, Field(ge=-MAX_LIGHT_OFFSET_M, le=MAX_LIGHT_OFFSET_M)]],
+        Field(min_length=3, max_length=3),
+    ]
     axis_camera: Vec3 | None = None
     roll_deg: float | None = None
     pitch_deg: float | None = None

@@ -78,5 +78,16 @@ class TabPanel:
                 # Refused in the page, with the reason; the widgets show the state again.
                 self.ctl.notify(event.client, "Value refused", md_prose(str(exc)), error=True)
                 self.ctl.state.mark("widgets")
+            except (ValueError, TypeError, KeyError, IndexError, OverflowError):
+                # A value no widget of this page can send (a choice not offered, a string
+                # for a number): a page speaking for itself. Refused; nothing changed.
+                value = getattr(getattr(event, "target", None), "value", None)
+                self.ctl.notify(
+                    event.client,
+                    "Value refused",
+                    md_prose(f"{str(value)[:60]!r} is not a value this control takes"),
+                    error=True,
+                )
+                self.ctl.state.mark("widgets")
 
         return cb

@@ -79,13 +79,13 @@ class PixelsPanel(TabPanel):
 
         for h in (self.strategy, self.n_per_image, self.grid_step, self.binning, self.seed):
             h.on_update(self.guard(selection_changed))
-        self.sel_target.on_update(lambda e: self.show_settings())
+        self.sel_target.on_update(self.guard(lambda e: self.show_settings()))
 
         def clear_override(event: Any) -> None:
             if self.sel_target.value != ALL_IMAGES:
                 ctl.clear_selection_override(self.sel_target.value)
 
-        self.clear_override.on_click(clear_override)
+        self.clear_override.on_click(self.guard(clear_override))
         self.clear_regions.on_click(lambda e: ctl.clear_regions())
         self.clear_points.on_click(lambda e: ctl.clear_points())
         self.show_selection.on_update(
