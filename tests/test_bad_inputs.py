@@ -549,6 +549,11 @@ COMMAND_CASES: list[tuple[str, str, str]] = [
         "lightcal render: error: {t}/bad.json: lights: Field required",
     ),
     (
+        "render: NaN in the result",
+        "render {d}/project.json --result {t}/nan.json --out {t}/rr",
+        "lightcal render: error: {t}/nan.json: lights.0.position_m.0: Input should be a finite number",
+    ),
+    (
         "render: result not JSON",
         "render {d}/project.json --result {t}/bin.json --out {t}/rr",
         "lightcal render: error: {t}/bin.json:1: not valid JSON: Expecting value",
@@ -664,6 +669,9 @@ def test_bad_command_lines(
     expected: str,
 ) -> None:
     (tmp_path / "bad.json").write_text('{"bad": 1}')
+    broken = json.loads(result_file.read_text())
+    broken["lights"][0]["position_m"][0] = math.nan
+    (tmp_path / "nan.json").write_text(json.dumps(broken))
     (tmp_path / "bin.json").write_bytes(b"\x01\x02")
     fill = {"d": dataset, "t": tmp_path, "r": result_file}
     before = _hashes(dataset)

@@ -53,6 +53,9 @@ class PoseSigma(_Model):
 
 
 class LightResultModel(_Model):
+    # A pose is finite: NaN here is a broken file, named with its field on reading.
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
     name: str
     pose_kind: str
     position_m: list[float] = Field(description="emitter position in the camera frame, m")
