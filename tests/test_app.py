@@ -285,7 +285,7 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Pat
     _set(app.panels.solve.run_button, True)
     _idle(app, 120)
     st = app.state
-    assert st.solver_state == "finished"
+    assert st.solver_state == "converged"
     res = st.result
     assert res is not None and res.converged
     np.testing.assert_allclose(res.lights[0].pose.position_m, TRUE_POSITION_M, atol=2e-4)
@@ -524,7 +524,7 @@ def test_concurrent_clicks_run_one_solve(app: LightcalApp) -> None:
     assert max(solver_threads) == 1
     its = [h.iteration for h in app.state.history]
     assert its == list(range(len(its)))  # one solve, no iteration twice
-    assert app.state.solver_state == "finished"
+    assert app.state.solver_state == "converged"
 
 
 def test_reset_while_running_ends_the_solve(app: LightcalApp) -> None:
@@ -729,7 +729,7 @@ def test_session_keeps_which_iterations_were_reweighted(app: LightcalApp) -> Non
     apply_session(st, parse_session(text, "s.json"))
     assert [h.reweighted for h in st.history] == [False, True]
     assert "re-weighted" in status_text(
-        SimpleNamespace(history=st.history, solver_state="finished", solver_message="")
+        SimpleNamespace(history=st.history, solver_state="converged", solver_message="")
     )
 
 

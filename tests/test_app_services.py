@@ -123,7 +123,7 @@ def test_run_finds_the_true_light_then_reset_returns_to_the_guess(
     state, solve, messages = _service(synthetic)
     solve.start("run")
     _run_requests(solve, state, timeout=120.0)
-    assert state.solver_state == "finished"
+    assert state.solver_state == "converged"
     assert state.result is not None and state.result.converged
     np.testing.assert_allclose(state.result.lights[0].pose.position_m, TRUE_POSITION_M, atol=5e-4)
     solve.start("step")  # after the end: a message, no second solve

@@ -94,7 +94,7 @@ def test_calibrate_stopped_by_max_iterations_exits_1(dataset, tmp_path, capsys):
     assert not result.converged
     assert result.status == 0 and result.iterations == 1
     assert result.message == "stopped after the maximum of 1 iterations"
-    assert "did not converge: stopped after the maximum of 1 iterations" in err
+    assert "not converged: stopped after the maximum of 1 iterations" in err
 
 
 def test_calibrate_reports_every_start(dataset, tmp_path, capsys):

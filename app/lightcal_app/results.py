@@ -18,6 +18,7 @@ from lightcal.errors import InputError
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal.pipeline.results import stop_reason
 from lightcal_app.text import md, md_prose
 
 
@@ -28,9 +29,14 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
             "No result yet. Press **Step** or **Run** in the Solve tab; the estimate with its "
             "uncertainties (1 sigma) appears here when the solver pauses or finishes."
         )
-    head = "converged" if result.converged else f"not converged ({state})"
+    if result.converged:
+        head = "converged"
+    elif state in ("paused", "running"):
+        head = f"not converged ({state}: the estimate so far)"
+    else:
+        head = "not converged"
     lines = [
-        f"**{head}**: {md_prose(result.message)}  ",
+        f"**{head}**: {md_prose(stop_reason(result.status, result.message))}  ",
         f"{result.iterations} iterations, {sum(result.pixels_used)} pixels, cost {result.cost:.6g}",
         "",
     ]

@@ -28,6 +28,7 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
+from lightcal.pipeline.results import stop_reason
 from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
 from lightcal_app.state import AppState, Display, LightGuess
@@ -280,7 +281,7 @@ class SolveService:
         """ "step" (one iteration) or "run" (to convergence)."""
         st = self.state
         with st.lock:
-            done = st.solver_state in ("finished", "stopped", "failed")
+            done = st.solver_state in ("converged", "not converged")
         if done:
             self.notify(client, "The solve has ended", "Press Reset to start again.")
             return
@@ -322,8 +323,12 @@ class SolveService:
             if st.session_gen != gen:
                 return
             st.result = result
-            st.solver_state = "stopped" if outcome.status == -2 else "finished"
-            st.solver_message = message
+            # One vocabulary: idle, running, paused, converged, not converged (with why).
+            converged = result.converged if result is not None else outcome.success
+            st.solver_state = "converged" if converged else "not converged"
+            st.solver_message = stop_reason(outcome.status, outcome.message) + (
+                message.removeprefix(outcome.message)  # e.g. "(uncertainties failed: ...)"
+            )
             self._last_session_state = st.solver_state
             st.mark("result", "status", changed=True)
 
@@ -348,7 +353,7 @@ class SolveService:
             error = session.error
             reason = str(error) if isinstance(error, LightcalError) else type(error).__name__
             with st.lock:
-                st.solver_state = "failed"
+                st.solver_state = "not converged"
                 st.solver_message = f"the solver failed: {reason}"
                 st.mark("status", changed=True)
             log.warning("solver failed: %r", error)

@@ -24,7 +24,8 @@ from lightcal_app.requests import Request, SetupChanged
 
 OverlayKind = Literal["real", "rendered", "residual"]
 OVERLAY_KINDS: tuple[OverlayKind, ...] = ("real", "rendered", "residual")
-SolverState = Literal["idle", "running", "paused", "finished", "stopped", "failed"]
+SolverState = Literal["idle", "running", "paused", "converged", "not converged"]
+"""One vocabulary for the solve (the reason in plain words is `solver_message`)."""
 
 # What a redraw may have to refresh.
 Dirt = Literal["scene", "overlays", "light", "selection", "plots", "status", "result", "widgets"]

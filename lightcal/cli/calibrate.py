@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
+    from lightcal.pipeline.results import stop_reason
 
     project = load_project(args.project)
     # Before any work: a long solve must not end in an unwritable or forbidden path.
@@ -93,8 +94,9 @@ def run(args: argparse.Namespace) -> int:
         with stage_progress(enabled=not args.quiet) as progress:
             write_report(args.report, project, loaded, model, result, progress=progress)
         console.print(f"report written to {args.report}", highlight=False)
-    status = "converged" if result.converged else "did not converge"
-    console.print(f"{status}: {result.message}; result written to {args.out}", highlight=False)
+    status = "converged" if result.converged else "not converged"
+    reason = stop_reason(result.status, result.message)
+    console.print(f"{status}: {reason}; result written to {args.out}", highlight=False)
     if not result.converged:
         return 1
     if not result.fit_adequate:

@@ -324,3 +324,22 @@ def _bound_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
                 "the camera poses and the bound"
             )
     return out
+
+
+_STOP_REASONS = {
+    -2: "stopped before convergence",
+    -1: "the solver could not start (improper input)",
+    0: "the iteration limit was reached before convergence (solver.max_iterations)",
+    1: "the gradient vanished (a minimum)",
+    2: "the cost stopped decreasing (its relative change fell below solver.tolerance)",
+    3: "the parameters stopped changing (their relative step fell below solver.tolerance)",
+    4: "the cost and the parameters stopped changing (below solver.tolerance)",
+}
+
+
+def stop_reason(status: int, message: str = "") -> str:
+    """Why the solve stopped, in plain words (trf's status codes; -2: stopped by the user
+    or the app)."""
+    if status == 0 and message:
+        return message  # lightcal's own words, with the limit that was reached
+    return _STOP_REASONS.get(status, message or f"status {status}")
