@@ -251,3 +251,28 @@ def test_wait_after_pause_returns_when_the_worker_holds(model):
     finally:
         release.set()
         s.stop()
+
+
+def test_time_counts_the_solver_not_its_callbacks(model, monkeypatch) -> None:
+    """A clock that the callback moves by 100 s per iteration (as a paused app waits in
+    it): time_s stays the solver's own."""
+    import lightcal.core.solver as solver_module
+    from lightcal.core.solver import run_least_squares
+
+    now = [0.0]
+
+    def fake_clock() -> float:
+        now[0] += 1e-3  # every reading: 1 ms of solver work
+        return now[0]
+
+    monkeypatch.setattr(solver_module.time, "perf_counter", fake_clock)
+    calls = []
+
+    def waiting(rep: IterationReport) -> None:
+        calls.append(rep.iteration)
+        now[0] += 100.0
+
+    out = run_least_squares(model, on_iteration=waiting)
+    assert len(calls) >= 2
+    # Without the callbacks' 100 s each (a few ms of clock readings remain).
+    assert out.time_s < 1.0

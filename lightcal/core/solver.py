@@ -101,17 +101,24 @@ def run_least_squares(
         model.set_weights_at(None)
     history: list[IterationReport] = []
     t0 = time.perf_counter()
+    # time_s is the solver's: not the callbacks' (the app waits in them while paused).
+    in_callbacks = [0.0]
 
     def emit(rep: IterationReport) -> None:
         history.append(rep)
         if on_iteration is not None:
+            t = time.perf_counter()
             on_iteration(rep)
+            in_callbacks[0] += time.perf_counter() - t
+
+    def solver_time() -> float:
+        return time.perf_counter() - t0 - in_callbacks[0]
 
     try:
         emit(model.report(x_start, 0))
     except StopIteration:
         return SolveOutcome.stopped(
-            history, "stopped before the first iteration", time_s=time.perf_counter() - t0
+            history, "stopped before the first iteration", time_s=solver_time()
         )
     res, hit_limit = _trf(model, x_start, (lo, hi), 0, emit)
     if model.reweights and res.status > 0 and not hit_limit:
@@ -129,7 +136,7 @@ def run_least_squares(
         iterations=iterations,
         nfev=model.nfev,
         cost=float(res.cost),
-        time_s=time.perf_counter() - t0,
+        time_s=solver_time(),
         history=history,
         weights_at=None if model.weights_at is None else model.weights_at.copy(),
     )
