@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from lightcal_app.limits import check_position_m
 from lightcal_app.server import LightcalApp, build_app
 from lightcal_app.session_file import read_session
 from lightcal_app.text import md, md_prose, public
+from viser.infra import ClientId
 
 from lightcal.errors import InputError
 from tests.app_fixtures import SyntheticProject, make_project
@@ -133,3 +135,89 @@ def test_a_choice_that_is_not_offered_is_refused(app: LightcalApp) -> None:
     assert app.wait_idle()
     assert _refusals(app)[-1] == "'../../etc/passwd' is not a value this control takes"
     assert app.state.ref_image == before
+
+
+# ---------------------------------------------------------------- before viser takes them
+
+
+def _send(a: LightcalApp, handle: Any, updates: dict[str, Any]) -> None:
+    """A page's widget message, as the websocket hands it to the server (no browser)."""
+    import asyncio
+
+    from viser import _messages
+
+    ws = a.server._websock_server
+    message = _messages.GuiUpdateMessage(handle._impl.uuid, updates)
+    for handler in list(ws._incoming_handlers[_messages.GuiUpdateMessage]):
+        asyncio.run(handler(ClientId(12345), message))
+
+
+def test_values_are_checked_before_viser_stores_or_broadcasts_them(
+    app: LightcalApp, tmp_path: Path
+) -> None:
+    pixels, light = app.panels.pixels, app.panels.light.light_widgets[0]
+    app.controller.files.autosave(force=True)
+    saved = (tmp_path / "s.session.json").read_bytes()
+    before = (app.state.selection, [g.position_m.copy() for g in app.state.guess])
+    widgets = (pixels.seed.value, light["position"].value, pixels.strategy.value)
+    cases = [
+        (
+            pixels.seed,
+            {"value": 1e24},
+            "seed: expected an integer from 0 to 4.29497e+09, got 1e+24",
+        ),
+        (pixels.seed, {"value": -1}, "seed: expected an integer from 0 to 4.29497e+09, got -1"),
+        (pixels.seed, {"value": 2.5}, "seed: expected an integer from 0 to 4.29497e+09, got 2.5"),
+        (pixels.seed, {"value": "7"}, "seed: expected a number, got '7'"),
+        (
+            pixels.n_per_image,
+            {"value": math.nan},
+            "pixels per image (random): expected an integer from 1 to 1e+06, got nan",
+        ),
+        (
+            light["position"],
+            {"value": [1.0, 2.0]},
+            "position (mm): expected 3 numbers, got [1.0, 2.0]",
+        ),
+        (
+            light["position"],
+            {"value": [math.nan, 0, 0]},
+            "position (mm): expected a number from -10000 to 10000, got nan",
+        ),
+        (
+            light["position"],
+            {"value": [1e308, 0, 0]},
+            "position (mm): expected a number from -10000 to 10000, got 1e+308",
+        ),
+        (
+            light["tilt"],
+            {"value": [math.inf, 0.0]},
+            "axis tilt a, b (deg): expected a number from -179 to 179, got inf",
+        ),
+        (
+            pixels.strategy,
+            {"value": "<img src=x>"},
+            "strategy: expected one of the choices offered, got '<img src=x>'",
+        ),
+        (
+            pixels.show_selection,
+            {"value": 1},
+            "show selection and masks on the images: expected true or false, got '1'",
+        ),
+        (pixels.seed, {"value": 3, "label": "x"}, "seed: only the value may change"),
+    ]
+    for handle, updates, reason in cases:
+        _send(app, handle, updates)
+        assert app.wait_idle()
+        assert _refusals(app)[-1] == reason, updates
+    # Nothing reached viser's widgets, the state or the autosave.
+    assert (pixels.seed.value, light["position"].value, pixels.strategy.value) == widgets
+    assert app.state.selection == before[0]
+    assert all(
+        np.array_equal(g.position_m, p) for g, p in zip(app.state.guess, before[1], strict=True)
+    )
+    app.controller.files.autosave(force=True)
+    assert (tmp_path / "s.session.json").read_bytes() == saved
+    # A value that fits is passed on to viser as the widget's type.
+    _send(app, pixels.seed, {"value": 42.0})
+    assert pixels.seed.value == 42 and isinstance(pixels.seed.value, int)

@@ -26,6 +26,7 @@ from lightcal.resources import sample_project_dir
 from lightcal_app.access import AccessGuard, guard_handshakes
 from lightcal_app.controller import Controller
 from lightcal_app.demo_truth import read_truth_lights, truth_path_for
+from lightcal_app.message_gate import MessageGate
 from lightcal_app.panels import Panels
 from lightcal_app.session_file import SessionFile, default_session_path, read_session
 from lightcal_app.state import AppState
@@ -171,6 +172,11 @@ def build_app(
         )
 
     TransferGuard(server, reject, limit=upload_limit_bytes)
+
+    def refuse(client_id: int, label: str, reason: str) -> None:
+        controller.notify(server.get_clients().get(client_id), "Value refused", reason, error=True)
+
+    MessageGate(server, refuse)
     panels = Panels(server, controller)
     controller.panels = panels
     source = session_file.name if session_file is not None else ""

@@ -12,9 +12,12 @@ from lightcal.core.pose import axis_roll_from_rotation, describe_pose, rotation_
 from lightcal.core.scene import Light
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
+from lightcal_app.limits import POSITION_LIMIT_M, ROLL_LIMIT_DEG, TILT_LIMIT_DEG
 from lightcal_app.panels.base import Programmatic, TabPanel, assign, rounded
 from lightcal_app.state import Frame, LightGuess
 from lightcal_app.text import md
+
+POSITION_LIMIT_MM = POSITION_LIMIT_M * 1e3
 
 
 def pose_angles_deg(R_camera_light: np.ndarray) -> tuple[float, float, float]:
@@ -76,12 +79,16 @@ class LightPanel(TabPanel):
                             "position (mm)",
                             (rounded(t[0], 2), rounded(t[1], 2), rounded(t[2], 2)),
                             step=0.1,
+                            min=(-POSITION_LIMIT_MM,) * 3,
+                            max=(POSITION_LIMIT_MM,) * 3,
                             hint="emitter position in the camera frame: x right, y down, z forward",
                         ),
                         "tilt": gui.add_vector2(
                             "axis tilt a, b (deg)",
                             (rounded(a, 3), rounded(b, 3)),
                             step=0.1,
+                            min=(-TILT_LIMIT_DEG,) * 2,
+                            max=(TILT_LIMIT_DEG,) * 2,
                             hint="angle of the light axis from the optical axis towards +x (a) "
                             "and +y (b); the tilt is hypot(a, b)",
                             visible=u.kind() != "isotropic",
@@ -90,6 +97,8 @@ class LightPanel(TabPanel):
                             "roll about the axis (deg)",
                             rounded(roll, 3),
                             step=0.1,
+                            min=-ROLL_LIMIT_DEG,
+                            max=ROLL_LIMIT_DEG,
                             visible=u.kind() == "general",
                         ),
                     }

@@ -9,7 +9,13 @@ import viser
 
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
-from lightcal_app.limits import check_selection
+from lightcal_app.limits import (
+    MAX_BINNING,
+    MAX_GRID_STEP,
+    MAX_PIXELS_PER_IMAGE,
+    MAX_SEED,
+    check_selection,
+)
 from lightcal_app.panels.base import Programmatic, TabPanel, assign
 from lightcal_app.state import Frame, SelectionSettings
 from lightcal_app.text import md
@@ -36,11 +42,15 @@ class PixelsPanel(TabPanel):
         )
         self.strategy = gui.add_dropdown("strategy", STRATEGIES, initial_value=sel.strategy)
         self.n_per_image = gui.add_number(
-            "pixels per image (random)", sel.n_per_image, min=1, step=1
+            "pixels per image (random)", sel.n_per_image, min=1, max=MAX_PIXELS_PER_IMAGE, step=1
         )
-        self.grid_step = gui.add_number("grid step (grid)", sel.grid_step, min=1, step=1)
-        self.binning = gui.add_number("binning b (all)", sel.binning, min=1, max=64, step=1)
-        self.seed = gui.add_number("seed", sel.seed, min=0, step=1)
+        self.grid_step = gui.add_number(
+            "grid step (grid)", sel.grid_step, min=1, max=MAX_GRID_STEP, step=1
+        )
+        self.binning = gui.add_number(
+            "binning b (all)", sel.binning, min=1, max=MAX_BINNING, step=1
+        )
+        self.seed = gui.add_number("seed", sel.seed, min=0, max=MAX_SEED, step=1)
         self.clear_override = gui.add_button("This image: use the settings of all images")
         gui.add_markdown(
             "**Regions**: hold *Shift* and drag over an image in the 3D view to draw a region "
