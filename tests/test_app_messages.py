@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -221,3 +222,53 @@ def test_values_are_checked_before_viser_stores_or_broadcasts_them(
     # A value that fits is passed on to viser as the widget's type.
     _send(app, pixels.seed, {"value": 42.0})
     assert pixels.seed.value == 42 and isinstance(pixels.seed.value, int)
+
+
+def test_messages_show_no_server_folder(app: LightcalApp, tmp_path: Path) -> None:
+    app.controller.files.upload_image("v00.png", b"\x89PNG\r\n\x1a\n not an image")
+    app.controller.notify(None, "Read failed", f"cannot read {tmp_path}/secret/key.png (denied)")
+    assert app.wait_idle()
+    bodies = [body for _, body in app.state.messages]
+    assert bodies[-1] == "cannot read key.png (denied)"
+    assert bodies[-2].startswith("v00.png") and "/" not in bodies[-2], bodies[-2]
+    assert str(tmp_path) not in app.panels.messages_md.content
+
+
+def test_a_failing_autosave_is_reported_once_and_never_retriggers_itself(
+    app: LightcalApp, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import lightcal_app.files_service as files_service
+
+    app.controller.files.autosave(force=True)
+    path = tmp_path / "s.session.json"
+    good = path.read_bytes()
+    attempts: list[int] = []
+    real = files_service.session_from_state
+
+    def counted(state: Any) -> Any:
+        attempts.append(1)
+        return real(state)
+
+    monkeypatch.setattr(files_service, "session_from_state", counted)
+    monkeypatch.setattr(files_service, "AUTOSAVE_INTERVAL_S", 0.0)
+    st = app.state
+    with st.lock:  # a state no check lets in (a 2-number position), as a bug might leave
+        guess = list(st.guess)
+        guess[0] = type(guess[0])(np.array([0.1, 0.2]), guess[0].R_camera_light)
+        st.guess = guess
+        st.mark("status", changed=True)
+    deadline = time.monotonic() + 2.0  # about 8 turns of the worker's loop
+    while time.monotonic() < deadline:
+        assert app.wait_idle()
+        time.sleep(0.1)
+    failures = [m for m in st.messages if m[0] == "⚠ Autosave failed"]
+    assert len(failures) == 1 and len(attempts) == 1
+    # Each later change tries once more, silently; the last good file stays.
+    for k in range(2):
+        app.controller.set_show_selection(k % 2 == 0)
+        assert app.wait_idle()
+        time.sleep(0.3)
+        assert app.wait_idle()
+    assert len([m for m in st.messages if m[0] == "⚠ Autosave failed"]) == 1
+    assert len(attempts) == 3
+    assert path.read_bytes() == good

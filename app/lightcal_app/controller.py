@@ -24,6 +24,7 @@ from lightcal_app.scene3d import Scene3D
 from lightcal_app.session_file import SessionFile
 from lightcal_app.solve_service import SolveService
 from lightcal_app.state import AppState, LightGuess
+from lightcal_app.text import public
 from lightcal_app.uploads import MAX_UPLOAD_BYTES
 from lightcal_app.worker import Worker
 
@@ -147,7 +148,9 @@ class Controller(Actions):
 
     def notify(self, client: Any, title: str, body: str, *, error: bool = False) -> None:
         """A message in the page: a notification (for `client`, else every browser) and
-        the messages box (everyone)."""
+        the messages box (everyone). Any server folder is cut from the text here, once,
+        for both (notifications show plain text; the box escapes it for markdown)."""
+        title, body = public(title), public(body)
         st = self.state
         with st.lock:
             st.messages = [*st.messages[-5:], (("⚠ " if error else "") + title, body)]

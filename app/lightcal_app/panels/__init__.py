@@ -20,7 +20,7 @@ from lightcal_app.panels.result import ResultPanel
 from lightcal_app.panels.solve import SolvePanel
 from lightcal_app.panels.view import ViewPanel
 from lightcal_app.state import Frame
-from lightcal_app.text import md_prose, public
+from lightcal_app.text import md_prose
 
 __all__ = ["Panels", "assign", "pose_angles_deg", "rotation_from_angles_deg"]
 
@@ -82,7 +82,7 @@ class Panels:
             self.solve.update(frame)
             self.result.update(frame)
             text = (  # names and paths come from files and users: shown, never rendered
-                "\n".join(f"**{md_prose(t)}**: {md_prose(public(b))}  " for t, b in messages[-3:])
+                "\n".join(f"**{md_prose(t)}**: {md_prose(b)}  " for t, b in messages[-3:])
                 if messages
                 else ""
             )

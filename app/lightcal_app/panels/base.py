@@ -19,7 +19,6 @@ import viser
 
 from lightcal.errors import LightcalError
 from lightcal_app.controller import Controller
-from lightcal_app.text import md_prose
 
 
 def assign(handle: Any, value: Any) -> None:
@@ -76,7 +75,7 @@ class TabPanel:
                 fn(event)
             except LightcalError as exc:
                 # Refused in the page, with the reason; the widgets show the state again.
-                self.ctl.notify(event.client, "Value refused", md_prose(str(exc)), error=True)
+                self.ctl.notify(event.client, "Value refused", str(exc), error=True)
                 self.ctl.state.mark("widgets")
             except (ValueError, TypeError, KeyError, IndexError, OverflowError):
                 # A value no widget of this page can send (a choice not offered, a string
@@ -85,7 +84,7 @@ class TabPanel:
                 self.ctl.notify(
                     event.client,
                     "Value refused",
-                    md_prose(f"{str(value)[:60]!r} is not a value this control takes"),
+                    f"{str(value)[:60]!r} is not a value this control takes",
                     error=True,
                 )
                 self.ctl.state.mark("widgets")
