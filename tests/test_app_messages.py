@@ -272,3 +272,41 @@ def test_a_failing_autosave_is_reported_once_and_never_retriggers_itself(
     assert len([m for m in st.messages if m[0] == "⚠ Autosave failed"]) == 1
     assert len(attempts) == 3
     assert path.read_bytes() == good
+
+
+def test_scene_messages_are_checked_before_they_touch_the_state(app: LightcalApp) -> None:
+    ctl, st = app.controller, app.state
+    before = [(g.position_m.copy(), g.R_camera_light.copy()) for g in st.guess]
+    points = dict(st.points)
+    one = np.array([1.0, 0.0, 0.0, 0.0])
+    assert ctl.on_gizmo(0, np.array([math.nan, 0.0, 0.0]), one, None) is None
+    assert ctl.on_gizmo(0, np.array([0.1, 0.2]), one, None) is None
+    assert ctl.on_gizmo(0, np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 0.0]), None) is None
+    ctl.click(np.array([0.0, math.inf, 0.0]), np.array([0.0, 0.0, 1.0]), mode="add")
+    ctl.click(np.zeros(3), np.array([0.0, 1.0]), mode="add")
+    region = ctl.rect(
+        (0.1, math.nan),
+        (0.5, 0.5),
+        camera_position=np.zeros(3),
+        camera_wxyz=one,
+        fov_y_rad=1.0,
+        aspect=1.5,
+        include=True,
+    )
+    assert app.wait_idle()
+    assert region is None and st.regions == [] and st.points == points
+    assert all(
+        np.array_equal(g.position_m, p) and np.array_equal(g.R_camera_light, R)
+        for g, (p, R) in zip(st.guess, before, strict=True)
+    )
+    refusals = _refusals(app)
+    assert len(refusals) == 6
+    assert refusals[0].startswith("light position: expected 3 finite numbers")
+    assert refusals[3].startswith("click ray origin")
+    assert refusals[4].startswith("click ray direction")
+    assert refusals[5].startswith("rectangle corner")
+    # The gizmo is back at the kept guess.
+    np.testing.assert_allclose(ctl.scene.gizmos[0].position, before[0][0])
+    # A good drag is taken.
+    taken = ctl.on_gizmo(0, np.array([0.07, 0.0, 0.01]), one, None)
+    assert taken is not None and np.allclose(st.guess[0].position_m, [0.07, 0.0, 0.01])

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from lightcal.core.rotations import as_finite_array, matrix_from_quaternion_wxyz
+from lightcal.errors import LightcalError
 from lightcal_app.limits import check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
 from lightcal_app.requests import (
@@ -26,6 +28,7 @@ from lightcal_app.solve_service import Notify
 from lightcal_app.state import (
     ALL_DIRT,
     AppState,
+    Dirt,
     LightGuess,
     OverlayKind,
     SelectionSettings,
@@ -228,11 +231,24 @@ class Actions:
     def reset(self, client: Any = None) -> None:
         self.state.request(Reset(client=client))
 
-    def click(self, origin: np.ndarray, direction: np.ndarray, *, mode: str) -> None:
+    def refused(self, client: Any, exc: LightcalError, *dirt: Dirt) -> None:
+        """A value from a page was refused: the page is told why and shows the state again."""
+        self._notify(client, "Value refused", str(exc), error=True)
+        self.state.mark(*dirt)
+
+    def click(
+        self, origin: np.ndarray, direction: np.ndarray, *, mode: str, client: Any = None
+    ) -> None:
         """A click in the 3D view: add or remove a pixel of the image under it."""
         if mode not in ("add", "remove"):
             return
-        hit = pick(self._planes(), np.asarray(origin), np.asarray(direction))
+        try:
+            origin = as_finite_array(origin, (3,), name="click ray origin")
+            direction = as_finite_array(direction, (3,), name="click ray direction")
+        except LightcalError as exc:
+            self.refused(client, exc)
+            return
+        hit = pick(self._planes(), origin, direction)
         if hit is None:
             return
         i, u, v = hit
@@ -254,6 +270,15 @@ class Actions:
         client: Any = None,
     ) -> UserRegion | None:
         """A rectangle dragged in the 3D view: a region on the image under its centre."""
+        try:
+            screen_min = tuple(as_finite_array(screen_min, (2,), name="rectangle corner"))
+            screen_max = tuple(as_finite_array(screen_max, (2,), name="rectangle corner"))
+            camera_position = as_finite_array(camera_position, (3,), name="camera position")
+            camera_wxyz = as_finite_array(camera_wxyz, (4,), name="camera orientation")
+            fov_y_rad, aspect = as_finite_array((fov_y_rad, aspect), (2,), name="camera field")
+        except LightcalError as exc:
+            self.refused(client, exc)
+            return None
         hit = rect_to_polygon(
             self._planes(),
             camera_position,
@@ -293,6 +318,18 @@ class Actions:
     def load_saved_session(self, client: Any = None) -> None:
         self.state.request(LoadSavedSession(client=client))
 
-    def on_gizmo(self, j: int, position_m: np.ndarray, R: np.ndarray, client: Any) -> None:
-        """The light's gizmo was dragged."""
-        self.set_guess(j, position_m=position_m, R_camera_light=R)
+    def on_gizmo(
+        self, j: int, position_m: np.ndarray, wxyz: np.ndarray, client: Any
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The light's gizmo was dragged to `position_m`, `wxyz` (as the page sent them).
+
+        Returns:
+            the pose taken (position, R), or None when refused (the gizmo goes back).
+        """
+        try:
+            R = matrix_from_quaternion_wxyz(wxyz)
+            self.set_guess(j, position_m=position_m, R_camera_light=R)
+        except LightcalError as exc:
+            self.refused(client, exc, "light")
+            return None
+        return np.asarray(position_m, dtype=np.float64), R

@@ -26,7 +26,7 @@ import viser
 
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import RID
-from lightcal.core.rotations import matrix_from_quaternion_wxyz, quaternion_wxyz_from_matrix
+from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.core.scene import Light, Rig
 from lightcal.io.project import Project
 from lightcal_app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
@@ -41,7 +41,8 @@ WALL_RGB = (228, 226, 220)
 MAX_RAYS_PER_IMAGE = 300
 CONE_MAX_ANGLE_RAD = math.radians(85.0)
 
-GizmoCallback = Callable[[int, np.ndarray, np.ndarray, Any], None]
+GizmoCallback = Callable[[int, np.ndarray, np.ndarray, Any], tuple[np.ndarray, np.ndarray] | None]
+"""`on_gizmo(light, position as sent, wxyz as sent, client)`: the pose taken, or None."""
 
 
 def cone_mesh(
@@ -298,10 +299,12 @@ class Scene3D:
 
     def _gizmo_callback(self, j: int) -> Callable[[Any], None]:
         def cb(event: Any) -> None:
-            t = np.asarray(event.target.position, dtype=np.float64)
-            R = matrix_from_quaternion_wxyz(np.asarray(event.target.wxyz, dtype=np.float64))
-            self._gizmo_pose[j] = (t.copy(), R.copy())
-            self.on_gizmo(j, t, R, event.client)
+            # Checked by `on_gizmo`; a refused pose is forgotten, so the next redraw
+            # puts the gizmo back where the state has it.
+            taken = self.on_gizmo(
+                j, np.asarray(event.target.position), np.asarray(event.target.wxyz), event.client
+            )
+            self._gizmo_pose[j] = None if taken is None else (taken[0].copy(), taken[1].copy())
 
         return cb
 

@@ -110,7 +110,7 @@ class PixelsPanel(TabPanel):
                 self.click_mode.value
             )
             if mode is not None:
-                ctl.click(np.array(event.ray_origin), np.array(event.ray_direction), mode=mode)
+                ctl.click(event.ray_origin, event.ray_direction, mode=mode, client=event.client)
 
         @scene.on_rect_select(modifier="shift")
         def _(event: Any) -> None:
