@@ -310,3 +310,87 @@ def test_scene_messages_are_checked_before_they_touch_the_state(app: LightcalApp
     # A good drag is taken.
     taken = ctl.on_gizmo(0, np.array([0.07, 0.0, 0.01]), one, None)
     assert taken is not None and np.allclose(st.guess[0].position_m, [0.07, 0.0, 0.01])
+
+
+def test_session_files_hold_only_what_the_page_accepts(app: LightcalApp, tmp_path: Path) -> None:
+    from lightcal_app.session_file import parse_session
+
+    app.controller.files.autosave(force=True)
+    path = tmp_path / "s.session.json"
+    text = path.read_text()
+    good = json.loads(text)
+    name = next(iter(app.state.project.names))
+    cases = [
+        (
+            ("lights", 0, "position_m"),
+            [11.0, 0.0, 0.0],
+            "lights.0.position_m.0: Input should be less than or equal to 10",
+        ),
+        (
+            ("lights", 0, "R_camera_light"),
+            [[5.0, 0, 0], [0, 1, 0], [0, 0, 1]],
+            "lights.0.R_camera_light.0.0: Input should be less than or equal to 1.000001",
+        ),
+        (
+            ("lights", 0, "name"),
+            "x" * 201,
+            "lights.0.name: String should have at most 200 characters",
+        ),
+        (
+            ("points",),
+            {name: [[2**60, 0]]},
+            f"points.{name}.0.0: Input should be less than or equal to 9007199254740992",
+        ),
+        (
+            ("ref_image",),
+            2**60,
+            "ref_image: Input should be less than or equal to 9007199254740992",
+        ),
+        (
+            ("regions",),
+            [{"kind": "rect", "points": [[0, 0], [1e300, 1]]}],
+            "regions.0.points.1.0: Input should be less than or equal to 9007199254740992",
+        ),
+        (
+            ("selection", "n_per_image"),
+            0,
+            "selection.n_per_image: Input should be greater than or equal to 1",
+        ),
+    ]
+    for where, value, message in cases:
+        data = json.loads(text)
+        target = data
+        for key in where[:-1]:
+            target = target[key]
+        target[where[-1]] = value
+        with pytest.raises(InputError) as exc:
+            parse_session(json.dumps(data), "s.session.json")
+        assert str(exc.value) == f"s.session.json: {message}", where
+    assert parse_session(json.dumps(good), "s.session.json").lights
+    # Nor can one be written: a state no check lets in makes the save fail, the file stays.
+    with app.state.lock:
+        app.state.selection = type(app.state.selection)(seed=10**24)
+        app.state.mark("status", changed=True)
+    app.controller.files.autosave(force=True)
+    assert path.read_text() == text
+    assert [m[0] for m in app.state.messages].count("⚠ Autosave failed") == 1
+
+
+def test_an_image_named_with_html_is_shown_as_text(
+    synthetic: SyntheticProject, tmp_path: Path
+) -> None:
+    project = json.loads(synthetic.path.read_text())
+    hostile = '<img src="https://evil.example/x.png">'
+    project["images"][0]["name"] = hostile
+    path = synthetic.path.parent / "html-image.json"
+    path.write_text(json.dumps(project))
+    a = build_app(path, port=0, state_dir=tmp_path / "state", session_path=False)
+    try:
+        assert a.wait_idle()
+        a.controller.run()
+        assert a.wait_idle(120)
+        for text in (a.panels.pixels.selection_md.content, a.panels.result.result_md.content):
+            assert "&lt;img" in text and "<img" not in text, text
+    finally:
+        a.close()
+        path.unlink()

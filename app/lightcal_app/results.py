@@ -72,7 +72,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         result.image_names, result.pixels_used, result.per_image_rms, strict=True
     ):
         rms_text = f"{rms:.4g}" if math.isfinite(rms) else "-"
-        lines.append(f"| {name} | {n} | {rms_text} |")
+        lines.append(f"| {md(name)} | {n} | {rms_text} |")
     return "\n".join(lines)
 
 

@@ -29,17 +29,29 @@ from lightcal.io.atomic import atomic_write_text
 from lightcal_app.limits import (
     MAX_BINNING,
     MAX_GRID_STEP,
+    MAX_INT,
     MAX_NAME_LENGTH,
     MAX_PIXELS_PER_IMAGE,
     MAX_SEED,
+    POSITION_LIMIT_M,
 )
 from lightcal_app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
 
 SESSION_FORMAT: Literal["lightcal-app-session"] = "lightcal-app-session"
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-Mat3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
-Point2 = Annotated[list[float], Field(min_length=2, max_length=2)]
-Pixel2 = Annotated[list[int], Field(min_length=2, max_length=2)]
+# The ranges of the page's widgets (lightcal_app.limits): a session file can hold
+# nothing the page refuses, so a bad autosave can be neither written nor loaded.
+Metres = Annotated[float, Field(ge=-POSITION_LIMIT_M, le=POSITION_LIMIT_M)]
+Position = Annotated[list[Metres], Field(min_length=3, max_length=3)]
+Unit = Annotated[float, Field(ge=-1.0 - 1e-6, le=1.0 + 1e-6)]
+Mat3 = Annotated[
+    list[Annotated[list[Unit], Field(min_length=3, max_length=3)]],
+    Field(min_length=3, max_length=3),
+]
+Coordinate = Annotated[float, Field(ge=-MAX_INT, le=MAX_INT)]
+Point2 = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
+Count = Annotated[int, Field(ge=0, le=MAX_INT)]
+Pixel2 = Annotated[list[Count], Field(min_length=2, max_length=2)]
+Name = Annotated[str, Field(max_length=MAX_NAME_LENGTH)]
 
 
 class _Model(BaseModel):
@@ -47,14 +59,12 @@ class _Model(BaseModel):
 
 
 class GuessModel(_Model):
-    name: str = Field(max_length=MAX_NAME_LENGTH)
-    position_m: Vec3
+    name: Name
+    position_m: Position
     R_camera_light: Mat3
 
 
 class SelectionModel(_Model):
-    # The ranges of the page's widgets (lightcal_app.limits): a session file can hold
-    # nothing the page refuses.
     strategy: Strategy = "random"
     n_per_image: int = Field(default=100, ge=1, le=MAX_PIXELS_PER_IMAGE)
     grid_step: int = Field(default=32, ge=1, le=MAX_GRID_STEP)
@@ -66,21 +76,21 @@ class RegionModel(_Model):
     kind: Literal["rect", "polygon"]
     points: list[Point2] = Field(min_length=2)
     include: bool = True
-    image: str | None = None
+    image: Name | None = None
 
 
 class IterationModel(_Model):
-    iteration: int = Field(ge=0)
+    iteration: Count
     x: list[float]
     cost: float
     gradient_norm: float
     per_image_rms: list[float | None]
-    nfev: int
+    nfev: Count
     reweighted: bool = False
 
 
 class SolveModel(_Model):
-    parameter_names: list[str]
+    parameter_names: list[Name]
     state: str
     history: list[IterationModel]
 
@@ -94,14 +104,14 @@ class SessionFile(_Model):
     saved_at: str
     lights: list[GuessModel]
     selection: SelectionModel
-    selection_per_image: dict[str, SelectionModel] = Field(default_factory=dict)
+    selection_per_image: dict[Name, SelectionModel] = Field(default_factory=dict)
     regions: list[RegionModel] = Field(default_factory=list)
-    points: dict[str, list[Pixel2]] = Field(default_factory=dict)
+    points: dict[Name, list[Pixel2]] = Field(default_factory=dict)
     overlay_default: OverlayKind = "real"
-    overlay_per_image: dict[str, OverlayKind] = Field(default_factory=dict)
+    overlay_per_image: dict[Name, OverlayKind] = Field(default_factory=dict)
     show_selection: bool = True
-    rays_image: str = "none"
-    ref_image: int = Field(default=0, ge=0)
+    rays_image: Name = "none"
+    ref_image: Count = 0
     solve: SolveModel | None = None
 
 

@@ -11,6 +11,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.text import md
 from lightcal_app.upload_checks import format_size
 
 
@@ -23,7 +24,7 @@ class FilesPanel(TabPanel):
         files = ctl.files
         gui.add_markdown(
             "The session (guess, selection, regions, solve) is **autosaved** after every change"
-            + (f" (as `{files.session_path.name}`)" if files.session_path else "")
+            + (f" (as {md(files.session_path.name)})" if files.session_path else "")
             + " and restored at start."
         )
         self.save_session = gui.add_button("Save session", icon=viser.Icon.DEVICE_FLOPPY)

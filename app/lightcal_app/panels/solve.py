@@ -11,6 +11,7 @@ import viser
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
 from lightcal_app.state import Frame
+from lightcal_app.text import md_prose
 
 COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
 
@@ -18,10 +19,10 @@ COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
 def status_text(frame: Any) -> str:
     """The solve's state, and the last iteration's numbers."""
     if not frame.history:
-        return f"**{frame.solver_state}**: press Step or Run. {frame.solver_message}"
+        return f"**{frame.solver_state}**: press Step or Run. {md_prose(frame.solver_message)}"
     last = frame.history[-1]
     return (
-        f"**{frame.solver_state}** {frame.solver_message}  \n"
+        f"**{frame.solver_state}** {md_prose(frame.solver_message)}  \n"
         f"iteration {last.iteration}, cost {last.cost:.6g}, "
         f"|gradient| {last.gradient_norm:.3g}, "
         f"{last.nfev} evaluations"
