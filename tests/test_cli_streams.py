@@ -81,3 +81,16 @@ def test_ctrl_c_in_a_command_exits_130(
     monkeypatch.setattr(schema_cmd, "run", interrupted)
     assert main(["schema"]) == 130
     assert capsys.readouterr().err == "lightcal schema: interrupted\n"
+
+
+def test_a_file_system_refusal_is_an_input_error_naming_the_file(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def refused(args: object) -> int:
+        raise PermissionError(13, "Permission denied", "/data/out/result.json")
+
+    monkeypatch.setattr(schema_cmd, "run", refused)
+    assert main(["schema"]) == 2
+    assert capsys.readouterr().err == (
+        "lightcal schema: error: /data/out/result.json: Permission denied\n"
+    )

@@ -103,6 +103,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _silence_stdout()
         return 0
+    except OSError as exc:  # the file system said no (permissions, a full disk, ...)
+        where = exc.filename if exc.filename is not None else "a file"
+        _say(f"{command}: error: {where}: {exc.strerror or exc}")
+        return 2
     except Exception as exc:  # an internal error: one line, the traceback on request
         if debug:
             traceback.print_exc()
