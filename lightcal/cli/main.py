@@ -20,6 +20,7 @@ SUBCOMMANDS = (
     "sample",
     "synth",
     "calibrate",
+    "plan",
     "render",
     "schema",
     "init",

@@ -177,10 +177,14 @@ def candidate_image(
     view: View,
     grid: PlanGrid,
     name: str = "candidate",
+    *,
+    peak: float | None = None,
 ) -> ImageData | None:
     """A synthetic selection of `view`'s pixels rendered at the estimate x: about
     `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
-    sigma from the noise model (or the images' median sigma); None when too few are lit."""
+    sigma from the noise model (or the images' median sigma); None when too few are lit.
+    With `peak` the view's exposure is set so that its brightest pixel reads `peak` above
+    the offset (as a photographer exposes each view; `typical_peak`)."""
     side = max(2, math.ceil(math.sqrt(4 * grid.pixels_per_view)))
     us = np.linspace(0, camera.width - 1, side).round()
     vs = np.linspace(0, camera.height - 1, max(2, side * camera.height // camera.width)).round()
@@ -194,8 +198,12 @@ def candidate_image(
     ok = fp.valid & np.isfinite(v)
     if not ok.any():
         return None
-    peak = float(np.max(v[ok]))
-    ok &= v > grid.min_fraction * peak
+    peak_value = float(np.max(v[ok]))
+    ok &= v > grid.min_fraction * peak_value
+    if peak is not None and peak_value > 0.0:
+        ratio = peak / peak_value
+        view = View(view.R_camera_world, view.t_camera_world, view.exposure * ratio)
+        v = v * ratio
     keep = np.nonzero(ok)[0]
     if len(keep) < grid.min_lit_pixels:
         return None
@@ -209,6 +217,12 @@ def candidate_image(
         sigma = np.full(len(keep), float(np.median(np.concatenate(model.sigmas))))
     offset = lay.offset(x)
     return ImageData(name, view, pixel_footprints(camera, view, pix[keep]), signal + offset, sigma)
+
+
+def typical_peak(model: CalibrationModel, x: np.ndarray) -> float:
+    """The median over the images of their brightest selected value above the offset."""
+    offset = model.layout.offset(x)
+    return float(np.median([np.max(im.observed) - offset for im in model.images]))
 
 
 @dataclass(frozen=True)
@@ -277,7 +291,8 @@ class InformationState:
         N = self.N if N is None else N
         cov = self.noise_scale2 * _inverse(N)
         lay = self.model.layout
-        pos, ax = [], []
+        pos: list[float] = []
+        ax: list[float | None] = []
         for b in lay.blocks:
             i = b.pose.start
             pos.append(float(math.sqrt(max(np.trace(cov[i : i + 3, i : i + 3]), 0.0))))
@@ -370,8 +385,9 @@ def plan_views(
     state = InformationState(model, x, noise_scale2, rows)
     exposure = float(np.median([im.view.exposure for im in model.images]))
     pool = candidates(camera, grid, wall_centre([im.view for im in model.images]), exposure)
+    peak = typical_peak(model, state.x)
     images = [
-        candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}")
+        candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak)
         for k, c in enumerate(pool)
     ]
     if not any(im is not None for im in images):
@@ -379,3 +395,62 @@ def plan_views(
             "plan", "no candidate view sees the lit wall within the wall's size; widen the grid"
         )
     return state.sigmas(), greedy_plan(state, images, pool, n)
+
+
+def start_vector(model: CalibrationModel, names: list[str] | None, x: list[float] | None):
+    """(n,) the model's x: a result's parameters matched by name (its `parameters.names`
+    and `x`), or the model's initial vector when no result is given.
+
+    Raises:
+        InputError: the result lacks one of the model's parameters.
+    """
+    if names is None or x is None:
+        return model.layout.x0.copy()
+    values = dict(zip(names, x, strict=True))
+    missing = [nm for nm in model.layout.names if nm not in values]
+    if missing:
+        raise InputError(
+            "result", f"parameters {', '.join(missing)} are not in the result: solve this project"
+        )
+    return np.array([values[nm] for nm in model.layout.names], dtype=np.float64)
+
+
+def _sigmas_dict(s: Sigmas, light_names: list[str]) -> list[dict[str, object]]:
+    return [
+        {"light": nm, "position_sigma_m": p, "axis_sigma_deg": a}
+        for nm, p, a in zip(light_names, s.position_m, s.axis_deg, strict=True)
+    ]
+
+
+def plan_to_dict(
+    current: Sigmas, planned: list[PlannedView], light_names: list[str]
+) -> dict[str, object]:
+    """The plan as JSON-ready data (what `lightcal plan --out` writes)."""
+    views = []
+    for k, pv in enumerate(planned):
+        c = pv.candidate
+        views.append(
+            {
+                "rank": k + 1,
+                "instruction": c.instruction(),
+                "distance_m": c.distance_m,
+                "tilt_deg": c.tilt_deg,
+                "azimuth_deg": c.azimuth_deg,
+                "roll_deg": c.roll_deg,
+                "target_world_m": [float(v) for v in c.target_world],
+                "R_camera_world": c.view.R_camera_world.tolist(),
+                "t_camera_world": c.view.t_camera_world.tolist(),
+                "center_world_m": c.view.center_world.tolist(),
+                "before": _sigmas_dict(pv.before, light_names),
+                "after": _sigmas_dict(pv.after, light_names),
+                "log_det_pose_covariance_after": pv.after.log_det,
+            }
+        )
+    return {
+        "criterion": "D-optimal: minimise log det of the pose block's covariance (greedy)",
+        "frame": "world: wall z = 0, +z towards the cameras; T_camera_world maps world to "
+        "OpenCV camera",
+        "current": _sigmas_dict(current, light_names),
+        "log_det_pose_covariance": current.log_det,
+        "views": views,
+    }
