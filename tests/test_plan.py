@@ -149,3 +149,28 @@ def test_cli_project_without_usable_images(project, tmp_path, capsys):
         f"lightcal plan: error: {dark}: no usable pixels in any image (all saturated, masked, "
         "below the noise floor or off the wall); check the selection and sensor settings\n"
     )
+
+
+def test_cli_plans_from_a_result(project, tmp_path, capsys):
+    from lightcal.cli.main import main
+    from lightcal.io.project import load_project
+    from lightcal.io.result_file import result_to_file, write_result
+    from lightcal.pipeline import calibrate_project
+
+    _, _, cal = calibrate_project(load_project(project))
+    result = tmp_path / "result.json"
+    write_result(result_to_file(cal, project=project), result)
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(project), "--result", str(result), "--n", "1", "--out", str(out)]) == 0
+    plan = json.loads(out.read_text())
+    after = plan["views"][0]["after"][0]
+    assert after["position_sigma_m"] < plan["current"][0]["position_sigma_m"]
+    capsys.readouterr()
+    # A result of another project (its parameters do not match) is refused.
+    doc = json.loads(result.read_text())
+    doc["parameters"]["names"] = ["other." + nm for nm in doc["parameters"]["names"]]
+    result.write_text(json.dumps(doc))
+    assert main(["plan", str(project), "--result", str(result)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"lightcal plan: error: {result}: parameters light.x_m, ")
+    assert err.endswith("are not in the result: solve this project\n")

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     ensure_kernels(quiet=True)
     loaded = load_images(project)
     model = build_model(project, loaded)
-    x0 = start_vector(model, names, x)
+    x0 = start_vector(model, names, x, args.result)
     grid = PlanGrid(wall_size_m=args.wall_size)
     current, planned = plan_views(model, x0, loaded.camera, n=args.n, grid=grid)
     light_names = [u.initial.name for u in model.unknowns]

@@ -397,7 +397,12 @@ def plan_views(
     return state.sigmas(), greedy_plan(state, images, pool, n)
 
 
-def start_vector(model: CalibrationModel, names: list[str] | None, x: list[float] | None):
+def start_vector(
+    model: CalibrationModel,
+    names: list[str] | None,
+    x: list[float] | None,
+    source: object = "result",
+) -> np.ndarray:
     """(n,) the model's x: a result's parameters matched by name (its `parameters.names`
     and `x`), or the model's initial vector when no result is given.
 
@@ -410,7 +415,8 @@ def start_vector(model: CalibrationModel, names: list[str] | None, x: list[float
     missing = [nm for nm in model.layout.names if nm not in values]
     if missing:
         raise InputError(
-            "result", f"parameters {', '.join(missing)} are not in the result: solve this project"
+            str(source),
+            f"parameters {', '.join(missing)} are not in the result: solve this project",
         )
     return np.array([values[nm] for nm in model.layout.names], dtype=np.float64)
 
