@@ -53,7 +53,9 @@ def run(args: argparse.Namespace) -> int:
     model = build_model(project, loaded)
     x0 = start_vector(model, names, x, args.result)
     grid = PlanGrid(wall_size_m=args.wall_size)
-    current, planned = plan_views(model, x0, loaded.camera, n=args.n, grid=grid)
+    # Before a solve the residuals are the guess's misfit, not noise: s^2 = 1 (docstring).
+    s2 = None if args.result is not None else 1.0
+    current, planned = plan_views(model, x0, loaded.camera, n=args.n, grid=grid, noise_scale2=s2)
     light_names = [u.initial.name for u in model.unknowns]
     plan = plan_to_dict(current, planned, light_names)
     console.print(f"now: {_sig(plan['current'])}", highlight=False)  # type: ignore[arg-type]

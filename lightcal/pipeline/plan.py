@@ -27,8 +27,10 @@ axis, tilted by `tilt` from the wall normal towards `azimuth`, rolled about its 
 candidate is kept when its four image corners see the wall inside its extent (the wall's
 size, centred on that point) and at least `min_lit_pixels` of its grid pixels are lit.
 
-Before any solve the estimate is the initial guess (scales fitted) and s^2 = 1: the
-sigmas are then in units of the images' sigma (exact when the noise model is known).
+Before any solve the estimate is the initial guess (scales fitted) and s^2 = 1 (the
+residuals there are the guess's misfit, not noise; `lightcal plan` without --result): the
+sigmas are then in units of the images' sigma, exact when the sensor's noise model is
+known, for sigma = 1 DN otherwise. After a solve s^2 comes from its residuals.
 """
 
 from __future__ import annotations
