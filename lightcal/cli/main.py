@@ -24,6 +24,7 @@ SUBCOMMANDS = (
     "sample",
     "synth",
     "calibrate",
+    "plan",
     "render",
     "export",
     "schema",

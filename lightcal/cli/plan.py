@@ -1,0 +1,72 @@
+"""`lightcal plan PROJECT [--result RESULT] [--n 3] [--out plan.json] [--force]`: the best
+next camera poses (lightcal.pipeline.plan), with the predicted sigmas before and after."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan", help="suggest the next camera poses that shrink the uncertainty")
+    p.add_argument("project", type=Path, help="project file (JSON or YAML)")
+    p.add_argument("--result", type=Path, help="result JSON of a solve (default: initial guess)")
+    p.add_argument("--n", type=int, default=3, help="how many views to suggest (default 3)")
+    p.add_argument("--wall-size", type=float, default=3.0, help="wall width/height, m (3)")
+    p.add_argument("--out", type=Path, help="write the plan as JSON here")
+    p.add_argument("--force", action="store_true", help="replace an existing --out file")
+    p.set_defaults(func=run)
+
+
+def _sig(entries: list[dict]) -> str:
+    parts = []
+    for e in entries:
+        text = f"{e['light']}: position {1000 * e['position_sigma_m']:.2f} mm"
+        if e["axis_sigma_deg"] is not None:
+            text += f", axis {e['axis_sigma_deg']:.3f} deg"
+        parts.append(text)
+    return "; ".join(parts)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from lightcal.cli.progress import console, ensure_kernels
+    from lightcal.errors import InputError
+    from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
+    from lightcal.io.project import load_project
+    from lightcal.io.result_file import read_result
+    from lightcal.pipeline import build_model, load_images
+    from lightcal.pipeline.plan import PlanGrid, plan_to_dict, plan_views, start_vector
+
+    if args.n < 1:
+        raise InputError("--n", f"expected at least 1 view, got {args.n}")
+    if args.out is not None and args.out.exists() and not args.force:
+        raise InputError(args.out, "exists; use --force to replace it")
+    project = load_project(args.project)
+    names = x = None
+    if args.result is not None:
+        res = read_result(args.result)
+        names, x = res.parameters.names, res.parameters.x
+    ensure_kernels(quiet=True)
+    loaded = load_images(project)
+    model = build_model(project, loaded)
+    x0 = start_vector(model, names, x, args.result)
+    grid = PlanGrid(wall_size_m=args.wall_size)
+    # Before a solve the residuals are the guess's misfit, not noise: s^2 = 1 (docstring).
+    s2 = None if args.result is not None else 1.0
+    current, planned = plan_views(model, x0, loaded.camera, n=args.n, grid=grid, noise_scale2=s2)
+    light_names = [u.initial.name for u in model.unknowns]
+    plan = plan_to_dict(current, planned, light_names)
+    console.print(f"now: {_sig(plan['current'])}", highlight=False)  # type: ignore[arg-type]
+    for v in plan["views"]:  # type: ignore[attr-defined]
+        console.print(f"{v['rank']}. {v['instruction']}", highlight=False)
+        console.print(f"   after: {_sig(v['after'])}", highlight=False)
+    if args.out is not None:
+        data = (json.dumps(plan, indent=2) + "\n").encode()
+        try:
+            (atomic_write_bytes if args.force else atomic_create_bytes)(args.out, data)
+        except FileExistsError:
+            raise InputError(args.out, "exists; use --force to replace it") from None
+        console.print(f"plan written to {args.out}", highlight=False)
+    return 0

@@ -1,0 +1,464 @@
+"""Capture planning: which camera poses would shrink the light's uncertainty most.
+
+The criterion (docs/model.md, "Planning the next views"). With the solver's weighted
+Jacobian J (the `CalibrationModel`'s, the same rows trf sees) the pixel-noise covariance of
+the estimate is s^2 N^-1, N = J^T J. A new view v adds the expected information
+J_v^T J_v, J_v its weighted Jacobian on a synthetic selection of its pixels rendered at the
+current estimate, weighted by the noise model (Poisson-Gaussian when the images have one,
+else the images' median sigma), its rows scaled to the pixel count the project's own
+selection gives an image (k rows stand for N_typ pixels: J_v^T J_v N_typ / k). When the
+per-image gains are estimated, the view brings a gain of its own: one more column
+(d r / d log g = -(m - offset) / sigma), marginalised with the rest. So
+
+    Cov_after(v) = s^2 (N (+) 0 + J_v^T J_v)^-1,
+
+and the view chosen minimises the D-optimal criterion on the pose block P (every light's
+position and axis / rotation parameters):
+
+    log det Cov_after(v)[P, P],
+
+the volume of the pose's confidence ellipsoid; scale, gains, offset and wall parameters
+are nuisance parameters, marginalised (not conditioned on). N best views are chosen
+greedily: each chosen view's information is added before the next is chosen.
+
+Candidates are a grid in front of the wall: each camera looks at the wall's centre (the
+mean point where the project's optical axes meet the wall) from a distance d along its
+axis, tilted by `tilt` from the wall normal towards `azimuth`, rolled about its axis. A
+candidate is kept when its four image corners see the wall inside its extent (the wall's
+size, centred on that point) and at least `min_lit_pixels` of its grid pixels are lit.
+
+Before any solve the estimate is the initial guess (scales fitted) and s^2 = 1 (the
+residuals there are the guess's misfit, not noise; `lightcal plan` without --result): the
+sigmas are then in units of the images' sigma, exact when the sensor's noise model is
+known, for sigma = 1 DN otherwise. After a solve s^2 comes from its residuals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lightcal.core.camera import Camera
+from lightcal.core.footprint import pixel_footprints
+from lightcal.core.light_axis import axis_jacobian
+from lightcal.core.problem import ImageData, poisson_gaussian_sigma
+from lightcal.core.render import shade
+from lightcal.core.rotations import matrix_from_rotvec
+from lightcal.core.scene import View
+from lightcal.core.solver import CalibrationModel
+from lightcal.core.uncertainty import noise_inflation
+from lightcal.errors import InputError
+
+#: Candidate grid defaults: distances (m), tilts (deg), azimuths (deg), rolls (deg).
+DISTANCES_M = (0.6, 0.9, 1.3, 1.8, 2.5)
+TILTS_DEG = (0.0, 15.0, 30.0, 45.0)
+AZIMUTHS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
+ROLLS_DEG = (0.0, 90.0)
+#: The wall's size (m, width and height) the cameras must keep their view within.
+WALL_SIZE_M = 3.0
+
+
+@dataclass(frozen=True)
+class PlanGrid:
+    """The candidate camera poses' grid (see the module docstring)."""
+
+    distances_m: tuple[float, ...] = DISTANCES_M
+    tilts_deg: tuple[float, ...] = TILTS_DEG
+    azimuths_deg: tuple[float, ...] = AZIMUTHS_DEG
+    rolls_deg: tuple[float, ...] = ROLLS_DEG
+    wall_size_m: float = WALL_SIZE_M
+    pixels_per_view: int = 200
+    min_lit_pixels: int = 30
+    min_fraction: float = 0.02
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate camera pose: its geometry and its `View` (world-to-camera)."""
+
+    distance_m: float
+    tilt_deg: float
+    azimuth_deg: float
+    roll_deg: float
+    target_world: np.ndarray
+    view: View
+
+    def instruction(self) -> str:
+        """The pose as a plain instruction (directions as you face the wall)."""
+        where = f"{self.distance_m:.2f} m from the wall point ({self.target_world[0]:+.2f}, "
+        where += f"{self.target_world[1]:+.2f}) m, aimed at it"
+        if self.tilt_deg < 0.5:
+            tilt = "square to the wall"
+        else:
+            tilt = f"tilted {self.tilt_deg:.0f} deg, the camera moved {self.side()}"
+        roll = "no roll" if abs(self.roll_deg) < 0.5 else f"rolled {self.roll_deg:+.0f} deg"
+        return f"{where}, {tilt}, {roll}"
+
+    def side(self) -> str:
+        """Where the camera is moved (world +x is the left as you face the wall, +y down)."""
+        a = math.radians(self.azimuth_deg)
+        dx, dy = math.cos(a), math.sin(a)
+        words = []
+        if dy < -0.38:
+            words.append("up")
+        elif dy > 0.38:
+            words.append("down")
+        if dx > 0.38:
+            words.append("left")
+        elif dx < -0.38:
+            words.append("right")
+        return "-".join(words) + " (as you face the wall)"
+
+
+def candidate_view(
+    distance_m: float,
+    tilt_deg: float,
+    azimuth_deg: float,
+    roll_deg: float,
+    target_world: np.ndarray,
+    exposure: float = 1.0,
+) -> Candidate:
+    """The camera looking at `target_world` (3,) from `distance_m` along its axis, tilted
+    `tilt_deg` from the wall normal towards `azimuth_deg`, rolled `roll_deg` about its axis
+    (the construction of `lightcal.synthetic.views.sample_views`)."""
+    a, b = math.radians(tilt_deg), math.radians(azimuth_deg)
+    toward_camera = np.array([math.sin(a) * math.cos(b), math.sin(a) * math.sin(b), math.cos(a)])
+    target = np.asarray(target_world, dtype=np.float64)
+    center = target + distance_m * toward_camera
+    base = View.looking_at(center, target, up_world=(0.0, -1.0, 0.0))
+    R = matrix_from_rotvec(np.array([0.0, 0.0, math.radians(roll_deg)])) @ base.R_camera_world
+    view = View(R, -R @ center, exposure)
+    return Candidate(distance_m, tilt_deg, azimuth_deg, roll_deg, target[:2].copy(), view)
+
+
+def wall_centre(views: list[View]) -> np.ndarray:
+    """(3,) the mean point where the views' optical axes meet the wall z = 0."""
+    hits = []
+    for v in views:
+        axis = v.R_camera_world[2]
+        if axis[2] < -1e-9:
+            c = v.center_world
+            hits.append(c - c[2] / axis[2] * axis)
+    return np.mean(hits, axis=0) if hits else np.zeros(3)
+
+
+def candidates(
+    camera: Camera, grid: PlanGrid, target_world: np.ndarray, exposure: float
+) -> list[Candidate]:
+    """The grid's poses whose image corners see the wall within its extent."""
+    corners = np.array(
+        [
+            [0, 0],
+            [camera.width - 1, 0],
+            [0, camera.height - 1],
+            [camera.width - 1, camera.height - 1],
+        ]
+    )
+    half = grid.wall_size_m / 2.0
+    out = []
+    for d in grid.distances_m:
+        for t in grid.tilts_deg:
+            for az in grid.azimuths_deg if t > 0 else grid.azimuths_deg[:1]:
+                for roll in grid.rolls_deg:
+                    c = candidate_view(d, t, az, roll, target_world, exposure)
+                    fp = pixel_footprints(camera, c.view, corners)
+                    if not np.all(fp.valid):
+                        continue
+                    pts = fp.corners_world.reshape(-1, 3)
+                    if np.all(np.abs(pts[:, :2] - target_world[:2]) <= half):
+                        out.append(c)
+    return out
+
+
+def candidate_image(
+    model: CalibrationModel,
+    x: np.ndarray,
+    camera: Camera,
+    view: View,
+    grid: PlanGrid,
+    name: str = "candidate",
+    *,
+    peak: float | None = None,
+) -> ImageData | None:
+    """A synthetic selection of `view`'s pixels rendered at the estimate x: about
+    `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
+    sigma from the noise model (or the images' median sigma); None when too few are lit.
+    With `peak` the view's exposure is set so that its brightest pixel reads `peak` above
+    the offset (as a photographer exposes each view; `typical_peak`)."""
+    side = max(2, math.ceil(math.sqrt(4 * grid.pixels_per_view)))
+    us = np.linspace(0, camera.width - 1, side).round()
+    vs = np.linspace(0, camera.height - 1, max(2, side * camera.height // camera.width)).round()
+    pix = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2).astype(np.int64)
+    pix = np.unique(pix, axis=0)
+    fp = pixel_footprints(camera, view, pix)
+    lay = model.layout
+    rig, wall = lay.rig(x), lay.wall_of(x)
+    values = shade(fp, view, rig, rid_subsamples=model.options.rid_subsamples, wall=wall)
+    v = values.values.filled(np.nan)
+    ok = fp.valid & np.isfinite(v)
+    if not ok.any():
+        return None
+    peak_value = float(np.max(v[ok]))
+    ok &= v > grid.min_fraction * peak_value
+    if peak is not None and peak_value > 0.0:
+        ratio = peak / peak_value
+        view = View(view.R_camera_world, view.t_camera_world, view.exposure * ratio)
+        v = v * ratio
+    keep = np.nonzero(ok)[0]
+    if len(keep) < grid.min_lit_pixels:
+        return None
+    if len(keep) > grid.pixels_per_view:
+        keep = keep[np.linspace(0, len(keep) - 1, grid.pixels_per_view).round().astype(int)]
+    signal = v[keep]
+    noise = next((im.noise for im in model.images if im.noise is not None), None)
+    if noise is not None:
+        sigma = poisson_gaussian_sigma(signal, noise)
+    else:
+        sigma = np.full(len(keep), float(np.median(np.concatenate(model.sigmas))))
+    offset = lay.offset(x)
+    return ImageData(name, view, pixel_footprints(camera, view, pix[keep]), signal + offset, sigma)
+
+
+def typical_peak(model: CalibrationModel, x: np.ndarray) -> float:
+    """The median over the images of their brightest selected value above the offset."""
+    offset = model.layout.offset(x)
+    return float(np.median([np.max(im.observed) - offset for im in model.images]))
+
+
+@dataclass(frozen=True)
+class Sigmas:
+    """Per light: 1-sigma position (m, root of the trace) and axis (deg) uncertainty, and
+    the D-optimal criterion log det Cov[P, P] of the pose block."""
+
+    position_m: tuple[float, ...]
+    axis_deg: tuple[float | None, ...]
+    log_det: float
+
+
+class InformationState:
+    """The normal matrix N of the views so far (grown by one gain column per added view
+    when gains are estimated) and the map from a candidate's columns into it.
+
+    Args:
+        model: the project's calibration model.
+        x: (n,) the estimate (or the initial vector).
+        noise_scale2: s^2 of the pixel-noise covariance.
+        rows_per_view: the pixel count a real view's selection gives (the candidate's rows
+            are scaled to it); None: each candidate counts as its own rows.
+    """
+
+    def __init__(
+        self,
+        model: CalibrationModel,
+        x: np.ndarray,
+        noise_scale2: float = 1.0,
+        rows_per_view: float | None = None,
+    ) -> None:
+        self.model = model
+        self.x = np.asarray(x, dtype=np.float64)
+        self.noise_scale2 = noise_scale2
+        self.rows_per_view = rows_per_view
+        self.N = model.normal_matrix(self.x)
+        lay = model.layout
+        self.gains = lay.gains.stop > lay.gains.start
+        self.pose = np.concatenate([np.arange(b.pose.start, b.pose.stop) for b in lay.blocks])
+
+    def view_information(self, image: ImageData, N: np.ndarray | None = None) -> np.ndarray:
+        """N (+) 0 + J_v^T J_v for the candidate `image` (rows scaled, see the class)."""
+        N = self.N if N is None else N
+        lay = self.model.layout
+        single = CalibrationModel(
+            [image], self.model.unknowns, self.model.options, lay.wall_unknown
+        )
+        index = [lay.names.index(nm) for nm in single.layout.names]
+        J = single.jacobian(self.x[index])
+        scale = 1.0 if self.rows_per_view is None else self.rows_per_view / len(image.observed)
+        cols = list(index)
+        if self.gains:
+            # d r / d log g of the view's own gain: -(m - offset) / sigma.
+            gain_col = -(image.observed - lay.offset(self.x)) / image.sigma
+            J = np.c_[J, gain_col]
+            cols.append(N.shape[0])
+            out = np.zeros((N.shape[0] + 1, N.shape[0] + 1))
+            out[:-1, :-1] = N
+        else:
+            out = N.copy()
+        out[np.ix_(cols, cols)] += scale * (J.T @ J)
+        return out
+
+    def sigmas(self, N: np.ndarray | None = None) -> Sigmas:
+        """The pose-block sigmas and criterion of s^2 N^-1."""
+        N = self.N if N is None else N
+        cov = self.noise_scale2 * _inverse(N)
+        lay = self.model.layout
+        pos: list[float] = []
+        ax: list[float | None] = []
+        for b in lay.blocks:
+            i = b.pose.start
+            pos.append(float(math.sqrt(max(np.trace(cov[i : i + 3, i : i + 3]), 0.0))))
+            k = b.pose.stop - b.pose.start
+            if k == 5:
+                A = axis_jacobian(float(self.x[i + 3]), float(self.x[i + 4]))
+                c = A @ cov[i + 3 : i + 5, i + 3 : i + 5] @ A.T
+                ax.append(math.degrees(math.sqrt(max(np.trace(c), 0.0))))
+            elif k == 6:
+                c = cov[i + 3 : i + 6, i + 3 : i + 6]
+                ax.append(math.degrees(math.sqrt(max(np.trace(c), 0.0))))
+            else:
+                ax.append(None)
+        P = cov[np.ix_(self.pose, self.pose)]
+        sign, log_det = np.linalg.slogdet(P)
+        return Sigmas(tuple(pos), tuple(ax), float(log_det) if sign > 0 else math.inf)
+
+
+def _inverse(N: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.inv(N)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(N)
+
+
+@dataclass(frozen=True)
+class PlannedView:
+    """One chosen view: the candidate, and the sigmas before and after adding it."""
+
+    candidate: Candidate
+    before: Sigmas
+    after: Sigmas
+    image: ImageData = field(repr=False)
+
+
+def greedy_plan(
+    state: InformationState, images: list[ImageData | None], pool: list[Candidate], n: int
+) -> list[PlannedView]:
+    """The `n` best of `pool` (their synthetic `images`, None: unusable) chosen greedily
+    by the D-optimal criterion, each added to the information before the next."""
+    N = state.N
+    chosen: list[PlannedView] = []
+    used: set[int] = set()
+    for _ in range(n):
+        before = state.sigmas(N)
+        best: tuple[float, int, np.ndarray] | None = None
+        for k, image in enumerate(images):
+            if image is None or k in used:
+                continue
+            N_k = state.view_information(image, N)
+            crit = state.sigmas(N_k).log_det
+            if best is None or crit < best[0]:
+                best = (crit, k, N_k)
+        if best is None:
+            break
+        _, k, N = best
+        used.add(k)
+        image = images[k]
+        assert image is not None
+        chosen.append(PlannedView(pool[k], before, state.sigmas(N), image))
+    return chosen
+
+
+def plan_views(
+    model: CalibrationModel,
+    x: np.ndarray,
+    camera: Camera,
+    *,
+    n: int = 3,
+    grid: PlanGrid | None = None,
+    noise_scale2: float | None = None,
+) -> tuple[Sigmas, list[PlannedView]]:
+    """The current sigmas and the `n` best next views of a calibration model at x.
+
+    Args:
+        model: the views so far (`lightcal.pipeline.build_model`).
+        x: (n,) the estimate, or the initial vector before any solve.
+        camera: the intrinsics of the images.
+        n: how many views to plan.
+        grid: the candidates' grid (default `PlanGrid()`).
+        noise_scale2: s^2 (default: from the residuals at x, `noise_inflation`).
+    """
+    grid = PlanGrid() if grid is None else grid
+    if noise_scale2 is None:
+        r = model.residuals(np.asarray(x, dtype=np.float64))
+        sigma_is_noise = any(im.noise is not None for im in model.images)
+        dof = model.m - model.layout.n
+        noise_scale2 = noise_inflation(float(r @ r), dof, 0.0, sigma_is_noise=sigma_is_noise)
+    rows = float(np.median(model.sizes))
+    state = InformationState(model, x, noise_scale2, rows)
+    exposure = float(np.median([im.view.exposure for im in model.images]))
+    pool = candidates(camera, grid, wall_centre([im.view for im in model.images]), exposure)
+    peak = typical_peak(model, state.x)
+    images = [
+        candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak)
+        for k, c in enumerate(pool)
+    ]
+    if not any(im is not None for im in images):
+        raise InputError(
+            "plan", "no candidate view sees the lit wall within the wall's size; widen the grid"
+        )
+    return state.sigmas(), greedy_plan(state, images, pool, n)
+
+
+def start_vector(
+    model: CalibrationModel,
+    names: list[str] | None,
+    x: list[float] | None,
+    source: object = "result",
+) -> np.ndarray:
+    """(n,) the model's x: a result's parameters matched by name (its `parameters.names`
+    and `x`), or the model's initial vector when no result is given.
+
+    Raises:
+        InputError: the result lacks one of the model's parameters.
+    """
+    if names is None or x is None:
+        return model.layout.x0.copy()
+    values = dict(zip(names, x, strict=True))
+    missing = [nm for nm in model.layout.names if nm not in values]
+    if missing:
+        raise InputError(
+            str(source),
+            f"parameters {', '.join(missing)} are not in the result: solve this project",
+        )
+    return np.array([values[nm] for nm in model.layout.names], dtype=np.float64)
+
+
+def _sigmas_dict(s: Sigmas, light_names: list[str]) -> list[dict[str, object]]:
+    return [
+        {"light": nm, "position_sigma_m": p, "axis_sigma_deg": a}
+        for nm, p, a in zip(light_names, s.position_m, s.axis_deg, strict=True)
+    ]
+
+
+def plan_to_dict(
+    current: Sigmas, planned: list[PlannedView], light_names: list[str]
+) -> dict[str, object]:
+    """The plan as JSON-ready data (what `lightcal plan --out` writes)."""
+    views = []
+    for k, pv in enumerate(planned):
+        c = pv.candidate
+        views.append(
+            {
+                "rank": k + 1,
+                "instruction": c.instruction(),
+                "distance_m": c.distance_m,
+                "tilt_deg": c.tilt_deg,
+                "azimuth_deg": c.azimuth_deg,
+                "roll_deg": c.roll_deg,
+                "target_world_m": [float(v) for v in c.target_world],
+                "R_camera_world": c.view.R_camera_world.tolist(),
+                "t_camera_world": c.view.t_camera_world.tolist(),
+                "center_world_m": c.view.center_world.tolist(),
+                "before": _sigmas_dict(pv.before, light_names),
+                "after": _sigmas_dict(pv.after, light_names),
+                "log_det_pose_covariance_after": pv.after.log_det,
+            }
+        )
+    return {
+        "criterion": "D-optimal: minimise log det of the pose block's covariance (greedy)",
+        "frame": "world: wall z = 0, +z towards the cameras; T_camera_world maps world to "
+        "OpenCV camera",
+        "current": _sigmas_dict(current, light_names),
+        "log_det_pose_covariance": current.log_det,
+        "views": views,
+    }
