@@ -167,6 +167,11 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "lights[0].initial.position_m: List should have at least 3 items after validation, not 2",
     ),
     (
+        "light guess 20 m from the camera",
+        _set("lights.0.initial.position_m", [20.0, 0.0, 0.0]),
+        "lights[0].initial.position_m[0]: Input should be less than or equal to 10",
+    ),
+    (
         "light scale negative",
         _set("lights.0.initial.scale", -1),
         "lights[0].initial.scale: Input should be greater than 0",

@@ -67,8 +67,9 @@ Mat6 = Annotated[
 
 MAX_DISTANCE_M = 10_000.0
 """The farthest a camera may be from the wall's origin along any axis, m."""
-MAX_LIGHT_OFFSET_M = 100.0
-"""The farthest a light's initial guess may be from its camera along any axis, m."""
+MAX_LIGHT_OFFSET_M = 10.0
+"""The farthest a light's initial guess may be from its camera along any axis, m (the
+app's position widget and session file hold the same range)."""
 
 
 class PoseSpec(_Model):
