@@ -785,6 +785,13 @@ READER_CASES: list[tuple[str, str, str, Callable[[], str], str]] = [
         ": camera_matrix: missing key: expected one of camera_matrix, K, cameraMatrix",
     ),
     (
+        "camera: COLMAP width 10^11",
+        "camera",
+        ".txt",
+        lambda: "# Camera list\n1 PINHOLE 100000000000 600 500 500 400 300\n",
+        ":2: WIDTH: expected a positive integer up to 65535, got '100000000000'",
+    ),
+    (
         "camera: JSON cut",
         "camera",
         ".json",

@@ -290,8 +290,14 @@ def test_colmap_camera_selection_errors(tmp_path: Path) -> None:
         ("1 PINHOLE 640 480 500 500 320", "PINHOLE: expected 4 parameters (fx, fy, cx, cy), got 3"),
         ("1 PINHOLE 640", "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS..., got 3 fields"),
         ("x PINHOLE 640 480 500 500 320 240", "CAMERA_ID: expected an integer, got 'x'"),
-        ("1 PINHOLE 640 -480 500 500 320 240", "HEIGHT: expected a positive integer, got '-480'"),
-        ("1 PINHOLE 640.5 480 500 500 320 240", "WIDTH: expected a positive integer, got '640.5'"),
+        (
+            "1 PINHOLE 640 -480 500 500 320 240",
+            "HEIGHT: expected a positive integer up to 65535, got '-480'",
+        ),
+        (
+            "1 PINHOLE 640.5 480 500 500 320 240",
+            "WIDTH: expected a positive integer up to 65535, got '640.5'",
+        ),
         (
             "1 SIMPLE_RADIAL 640 480 500 320 240 abc",
             "SIMPLE_RADIAL k: expected a number, got 'abc'",

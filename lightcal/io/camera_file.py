@@ -49,6 +49,7 @@ from lightcal.io.camera_mapping import (
     build_camera,
     camera_from_mapping,
 )
+from lightcal.io.image_header import MAX_IMAGE_SIDE
 
 OPENCV_SUFFIXES = (".yaml", ".yml", ".xml")
 """Suffixes written with `cv2.FileStorage` by `write_camera`."""
@@ -333,9 +334,11 @@ def _colmap_camera(path: Path, number: int, fields: list[str]) -> Camera:
             size = int(text)
         except ValueError:
             size = 0
-        if size <= 0:
+        if not 0 < size <= MAX_IMAGE_SIDE:
             raise InputError(
-                path, f"{name}: expected a positive integer, got {text!r}", line=number
+                path,
+                f"{name}: expected a positive integer up to {MAX_IMAGE_SIDE}, got {text!r}",
+                line=number,
             )
         sizes.append(size)
     width, height = sizes
