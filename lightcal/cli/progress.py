@@ -27,19 +27,24 @@ class StageProgress:
         self._progress.update(self._tasks[stage], completed=done, total=total)
 
 
-@contextmanager
-def stage_progress(*, enabled: bool = True) -> Iterator[StageProgress]:
-    if not enabled or not sys.stderr.isatty():
-        yield StageProgress(None)
-        return
-    with Progress(
-        TextColumn("{task.description:<18}"),
+def _bar(*, label_width: int) -> Progress:
+    """One transient bar per task on stderr: label, bar, done/total, elapsed time."""
+    return Progress(
+        TextColumn(f"{{task.description:<{label_width}}}"),
         BarColumn(),
         TextColumn("{task.completed}/{task.total}"),
         TimeElapsedColumn(),
         console=console,
         transient=True,
-    ) as progress:
+    )
+
+
+@contextmanager
+def stage_progress(*, enabled: bool = True) -> Iterator[StageProgress]:
+    if not enabled or not sys.stderr.isatty():
+        yield StageProgress(None)
+        return
+    with _bar(label_width=18) as progress:
         yield StageProgress(progress)
 
 
@@ -63,14 +68,7 @@ def ensure_kernels(*, quiet: bool = False) -> None:
         warm_up()
         return
     if sys.stderr.isatty():
-        with Progress(
-            TextColumn("{task.description:<36}"),
-            BarColumn(),
-            TextColumn("{task.completed}/{task.total}"),
-            TimeElapsedColumn(),
-            console=console,
-            transient=True,
-        ) as bar:
+        with _bar(label_width=36) as bar:
             task = bar.add_task("compiling kernels", total=1)
 
             def show(label: str, done: int, total: int) -> None:

@@ -30,12 +30,14 @@ def project_inputs(project: Project) -> dict[Path, str]:
     """Every file `project` reads, resolved, with its role ("image view_03", ...)."""
     spec = project.spec
     folder = project.folder
-    found: dict[Path, str] = {project.path: "the project file"}
+    found: dict[Path, str] = {}
 
     def add(path: str | Path | None, role: str) -> None:
         if path is not None:
             p = Path(path)
             found.setdefault((p if p.is_absolute() else folder / p).resolve(), role)
+
+    add(project.path, "the project file")
 
     for name, path in zip(project.names, project.image_paths, strict=True):
         add(path, f"image {name}")
@@ -46,7 +48,7 @@ def project_inputs(project: Project) -> dict[Path, str]:
     add(spec.sensor.response, "the response curve")
     for light in spec.lights:
         add(getattr(light.rid, "path", None), f"the RID file of light {light.name}")
-    return {p.resolve(): role for p, role in found.items()}
+    return found
 
 
 def _same_file(a: Path, b: Path) -> bool:
