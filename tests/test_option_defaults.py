@@ -47,3 +47,18 @@ def test_multistart_defaults_are_the_solver_spec():
     spec = SolverSpec()
     for name in ("multistart", "multistart_position_m", "multistart_angle_deg"):
         assert params[name].default == getattr(spec, name), name
+
+
+def test_app_selection_defaults_are_the_selection_options():
+    """The app's selection widgets and its session file start from the core defaults."""
+    from lightcal_app.session_file import SelectionModel
+    from lightcal_app.state import SelectionSettings
+
+    core = SelectionOptions()
+    app_fields = [f.name for f in dataclasses.fields(SelectionSettings)]
+    assert app_fields == ["strategy", "n_per_image", "grid_step", "binning", "seed"]
+    settings = SelectionSettings()
+    saved = SelectionModel()
+    for name in app_fields:
+        assert getattr(settings, name) == getattr(core, name), name
+        assert getattr(saved, name) == getattr(core, name), name

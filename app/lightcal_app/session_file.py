@@ -65,11 +65,11 @@ class GuessModel(_Model):
 
 
 class SelectionModel(_Model):
-    strategy: Strategy = "random"
-    n_per_image: int = Field(default=100, ge=1, le=MAX_PIXELS_PER_IMAGE)
-    grid_step: int = Field(default=32, ge=1, le=MAX_GRID_STEP)
-    binning: int = Field(default=1, ge=1, le=MAX_BINNING)
-    seed: int = Field(default=0, ge=0, le=MAX_SEED)
+    strategy: Strategy = SelectionSettings.strategy
+    n_per_image: int = Field(default=SelectionSettings.n_per_image, ge=1, le=MAX_PIXELS_PER_IMAGE)
+    grid_step: int = Field(default=SelectionSettings.grid_step, ge=1, le=MAX_GRID_STEP)
+    binning: int = Field(default=SelectionSettings.binning, ge=1, le=MAX_BINNING)
+    seed: int = Field(default=SelectionSettings.seed, ge=0, le=MAX_SEED)
 
 
 class RegionModel(_Model):

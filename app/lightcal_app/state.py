@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 
 from lightcal.core.scene import Rig
-from lightcal.core.selection import Strategy
+from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
@@ -49,13 +49,13 @@ class LightGuess:
 
 @dataclass(frozen=True)
 class SelectionSettings:
-    """How pixels are chosen (the editable part of `SelectionOptions`)."""
+    """How pixels are chosen (the editable part of `SelectionOptions`, its defaults)."""
 
-    strategy: Strategy = "random"
-    n_per_image: int = 100
-    grid_step: int = 32
-    binning: int = 1
-    seed: int = 0
+    strategy: Strategy = SelectionOptions.strategy
+    n_per_image: int = SelectionOptions.n_per_image
+    grid_step: int = SelectionOptions.grid_step
+    binning: int = SelectionOptions.binning
+    seed: int = SelectionOptions.seed
 
 
 @dataclass(frozen=True)
