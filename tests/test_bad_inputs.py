@@ -606,7 +606,7 @@ COMMAND_CASES: list[tuple[str, str, str]] = [
     (
         "init: camera missing",
         "init {d}/images --camera {t}/nope.yaml --board {t}/b.yaml --out {t}/p.json",
-        "lightcal init: error: {t}/nope.yaml: file not found: expected a camera file",
+        "lightcal init: error: {t}/nope.yaml: camera file not found",
     ),
     (
         "init: board missing",
@@ -621,7 +621,7 @@ COMMAND_CASES: list[tuple[str, str, str]] = [
     (
         "camera import: file missing",
         "camera import {t}/nope.txt --out {t}/c.yaml",
-        "lightcal camera: error: {t}/nope.txt: file not found: expected a camera file",
+        "lightcal camera: error: {t}/nope.txt: camera file not found",
     ),
     (
         "synth: no views",
@@ -985,3 +985,50 @@ def test_bad_files(
     with pytest.raises(InputError) as info:
         read[reader](path)
     assert str(info.value) == f"{path}: {expected}"
+
+
+def _text_readers() -> list[tuple[str, str, Callable[[Path], Any], str]]:
+    """(case, file name, reader, what the messages call the file) of every text reader."""
+    from lightcal.io.camera_file import read_camera
+    from lightcal.io.colmap import read_images_txt
+    from lightcal.io.result_file import read_result
+    from lightcal.io.vignetting_file import load_radial_vignetting
+
+    return [
+        ("camera", "camera.yaml", read_camera, "camera file"),
+        ("COLMAP images.txt", "images.txt", read_images_txt, "COLMAP text model file"),
+        ("radial fall-off", "falloff.json", load_radial_vignetting, "radial fall-off JSON file"),
+        ("result", "result.json", read_result, "result file"),
+    ]
+
+
+@pytest.mark.parametrize("index", range(4), ids=[c[0] for c in _text_readers()])
+def test_every_text_reader_checks_its_file_the_same_way(tmp_path: Path, index: int) -> None:
+    """A folder, a FIFO, UTF-16 without a byte-order mark and bytes that are not UTF-8
+    get the words of `lightcal.io.text_files`, naming the reader's kind of file."""
+    from lightcal.errors import InputError
+
+    _, name, read, what = _text_readers()[index]
+    path = tmp_path / name
+    path.mkdir()
+    with pytest.raises(InputError) as info:
+        read(path)
+    assert str(info.value) == f"{path}: is a folder; expected a {what}"
+    path.rmdir()
+    os.mkfifo(path)
+    with pytest.raises(InputError) as info:
+        read(path)
+    assert (
+        str(info.value) == f"{path}: is not a regular file (a pipe or a device); expected a {what}"
+    )
+    path.unlink()
+    path.write_bytes("K: 1\n".encode("utf-16-le"))
+    with pytest.raises(InputError) as info:
+        read(path)
+    assert str(info.value) == (
+        f"{path}: the {what} looks like UTF-16 without a byte-order mark: save it as UTF-8"
+    )
+    path.write_bytes(b"K: \x80\x81\n")
+    with pytest.raises(InputError) as info:
+        read(path)
+    assert str(info.value) == f"{path}: the {what} is not UTF-8 text (byte 3): save it as UTF-8"

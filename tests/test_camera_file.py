@@ -342,9 +342,9 @@ def test_camera_id_rejected_for_other_formats() -> None:
 
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "missing.yaml"
-    with pytest.raises(InputError, match=_match(path, "file not found: expected a camera file")):
+    with pytest.raises(InputError, match=_match(path, "camera file not found")):
         read_camera(path)
-    with pytest.raises(InputError, match=_match(tmp_path, "not a file: expected a camera file")):
+    with pytest.raises(InputError, match=_match(tmp_path, "is a folder; expected a camera file")):
         read_camera(tmp_path)
 
 
@@ -402,8 +402,11 @@ def test_corrupt_json_and_yaml(tmp_path: Path) -> None:
         InputError, match=_match(path, "expected a mapping of keys at the top level, got list")
     ):
         read_camera(path)
-    path.write_bytes(b"\xff\xfe\x00garbage")
-    with pytest.raises(InputError, match=re.escape(f"{path}: cannot read the file: ")):
+    path.write_bytes(b"K: \x80\x81garbage")
+    with pytest.raises(
+        InputError,
+        match=_match(path, "the camera file is not UTF-8 text (byte 3): save it as UTF-8"),
+    ):
         read_camera(path)
 
 

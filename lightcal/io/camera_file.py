@@ -50,6 +50,7 @@ from lightcal.io.camera_mapping import (
     camera_from_mapping,
 )
 from lightcal.io.image_header import MAX_IMAGE_SIDE
+from lightcal.io.text_files import check_regular_file, read_text
 
 OPENCV_SUFFIXES = (".yaml", ".yml", ".xml")
 """Suffixes written with `cv2.FileStorage` by `write_camera`."""
@@ -107,16 +108,10 @@ def read_camera(path: str | Path, *, camera_id: int | None = None) -> Camera:
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if not path.exists():
-        raise InputError(path, "file not found: expected a camera file")
-    if not path.is_file():
-        raise InputError(path, "not a file: expected a camera file")
+    check_regular_file(path, "camera file")
     if suffix not in (*OPENCV_SUFFIXES, ".json", ".txt"):
         raise InputError(path, f"unsupported file suffix {path.suffix!r}: expected {_SUPPORTED}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(path, f"cannot read the file: {error}") from error
+    text = read_text(path, "camera file")
 
     if suffix == ".txt":
         return _read_colmap(path, text, camera_id)

@@ -27,6 +27,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.rotations import matrix_from_quaternion_wxyz
 from lightcal.errors import InputError
 from lightcal.io.camera_file import read_camera
+from lightcal.io.text_files import read_text
 
 COLMAP_FILES = ("cameras.txt", "images.txt", "points3D.txt")
 """The three files of a COLMAP text model."""
@@ -66,12 +67,7 @@ class ColmapImageRecord:
 
 def _read_lines(path: Path) -> list[str]:
     """All lines of a text file, or InputError if it cannot be read."""
-    try:
-        return path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError as exc:
-        raise InputError(path, "file not found, expected a COLMAP text model file") from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read the file as UTF-8 text: {exc}") from exc
+    return read_text(path, "COLMAP text model file").splitlines()
 
 
 def _parse_int(token: str, *, what: str, path: Path, line: int) -> int:

@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
+from lightcal.io.document import read_document
 
 __all__ = ["RESPONSE_FILE_FORMAT", "ResponseCurve", "fit_response_debevec"]
 
@@ -151,10 +152,7 @@ class ResponseCurve:
             except (ValueError, OSError, EOFError) as error:
                 raise InputError(path, f"not a readable .npy array ({error})") from None
         elif suffix == ".json":
-            try:
-                document = json.loads(path.read_text(encoding="utf-8"))
-            except (ValueError, UnicodeDecodeError) as error:
-                raise InputError(path, f"not valid JSON ({error})") from None
+            document = read_document(path, what="response curve file", as_json=True)
             if not isinstance(document, dict) or document.get("format") != RESPONSE_FILE_FORMAT:
                 raise InputError(
                     path, f'expected a JSON object with "format": "{RESPONSE_FILE_FORMAT}"'

@@ -24,7 +24,6 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from lightcal import __version__
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.document import read_document
 from lightcal.io.result_fields import describe_result_schema
 
 RESULT_VERSION = 1
@@ -166,14 +166,7 @@ def write_result(result_file: ResultFile, path: str | Path) -> None:
 def read_result(path: str | Path) -> ResultFile:
     """Read a result JSON; InputError naming the file on any problem."""
     p = Path(path)
-    if not p.is_file():
-        raise InputError(p, "result file not found")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(p, f"cannot read the result file ({exc})") from exc
-    except json.JSONDecodeError as exc:
-        raise InputError(p, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    data = read_document(p, what="result file", as_json=True)
     try:
         return ResultFile.model_validate(data)
     except ValidationError as exc:

@@ -33,6 +33,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from lightcal.core.vignetting import RadialVignetting, vignetting_from_map
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.text_files import read_text
 
 MAP_SUFFIXES = (".npy", ".png", ".tif", ".tiff")
 """Suffixes of per-pixel fall-off maps."""
@@ -150,12 +151,7 @@ def load_radial_vignetting(path: str | Path) -> RadialVignetting:
             wrongly typed field (named), invalid values.
     """
     file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except FileNotFoundError as exc:
-        raise InputError(file, "file not found: expected a radial fall-off JSON file") from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(file, f"cannot read the file: {exc}") from exc
+    text = read_text(file, "radial fall-off JSON file")
     try:
         json.loads(text)
     except json.JSONDecodeError as exc:
