@@ -29,6 +29,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
+from lightcal.pipeline.results import stop_reason
 
 
 def render_views(
@@ -130,7 +131,8 @@ def _summary_markdown(
     lines = [f"# lightcal report: {project.path.name}", ""]
     status = "converged" if result.converged else "NOT converged"
     lines.append(
-        f"Solver {status} after {result.iterations} iterations ({result.message}); "
+        f"Solver {status} after {result.iterations} iterations: "
+        f"{stop_reason(result.status, result.message)}; "
         f"{sum(result.pixels_used)} pixels; {result.time_s:.2f} s."
     )
     lines.append("")

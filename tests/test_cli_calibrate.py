@@ -18,6 +18,7 @@ from lightcal.core.scene import Light, Rig
 from lightcal.io.project import load_project
 from lightcal.io.result_file import read_result
 from lightcal.pipeline import load_images
+from lightcal.pipeline.results import stop_reason
 from lightcal.synthetic.dataset import SynthConfig, write_dataset
 from lightcal.synthetic.scenes import SceneConfig
 from tests import calib_scenes as cs
@@ -67,6 +68,9 @@ def test_calibrate_with_report(dataset, tmp_path, capsys):
     summary = (report / "summary.md").read_text()
     assert summary.startswith(f"# lightcal report: {dataset.project_path.name}")
     assert "## light (symmetric)" in summary
+    reason = stop_reason(result.status, result.message)
+    assert f"Solver converged after {result.iterations} iterations: {reason}; " in summary
+    assert "termination condition" not in summary  # SciPy's words stay out of the report
     text = " ".join(captured.err.split())  # rich wraps long lines
     assert "iteration 0 cost" in text
     assert "(weights from the rendered values)" in text  # the noise model re-weights

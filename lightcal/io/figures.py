@@ -2,12 +2,18 @@
 
 Drawn with OpenCV (no plotting library); every function returns an RGB uint8 image,
 `write_png` stores one atomically.
+
+Figures are laid out in points and drawn at `scale` pixels per point (default 2): a
+report figure is 1,300-1,800 pixels wide, so that printed across a page (about 17 cm)
+its smallest text is about 2 mm tall (9 points at 2 pixels per point and 150-200 dpi).
+The app passes `scale=1` for its smaller panels.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -18,6 +24,15 @@ from lightcal.io.atomic import atomic_write_bytes
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _INK = (20, 20, 20)
+_GRID = (225, 225, 225)
+_LINE = (33, 102, 172)
+_DOT = (178, 24, 43)
+PRINT_SCALE = 2
+"""Pixels per layout point of the report's figures."""
+_TICK_TEXT = 0.45
+"""Text size of tick labels (OpenCV font scale at one pixel per point; 9-10 points)."""
+_LABEL_TEXT = 0.5
+"""Text size of titles and axis labels."""
 
 
 def write_png(path: str | Path, rgb: np.ndarray) -> None:
@@ -28,164 +43,19 @@ def write_png(path: str | Path, rgb: np.ndarray) -> None:
     atomic_write_bytes(Path(path), buf.tobytes())
 
 
-def _fit_width(rgb: np.ndarray, max_width: int) -> np.ndarray:
-    h, w = rgb.shape[:2]
-    if w <= max_width:
-        return rgb
-    s = max_width / w
-    return cv2.resize(rgb, (max_width, max(1, round(h * s))), interpolation=cv2.INTER_AREA)
+def nice_ticks(lo: float, hi: float, count: int = 5) -> list[float]:
+    """About `count` round values (1, 2 or 5 x 10^k apart) covering [lo, hi], ends included.
 
-
-def _text(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.5) -> None:
-    cv2.putText(img, text, org, _FONT, scale, _INK, 1, cv2.LINE_AA)
-
-
-def _canvas(h: int, w: int) -> np.ndarray:
-    return np.full((h, w, 3), 255, dtype=np.uint8)
-
-
-def residual_figure(
-    residual: np.ndarray, *, title: str, vmax: float | None = None, max_width: int = 900
-) -> np.ndarray:
-    """A residual map (real minus rendered) with a diverging colour bar and its scale.
-
-    Args:
-        residual: (H, W) residuals (masked/NaN where invalid).
-        title: printed above the map.
-        vmax: colour scale magnitude; default the 99th percentile of |residual|.
+    >>> nice_ticks(1.0, 66.0)
+    [0.0, 20.0, 40.0, 60.0, 80.0]
     """
-    vmax = robust_vmax(residual) if vmax is None else vmax
-    body = _fit_width(diverging_rgb(residual, vmax), max_width)
-    h, w = body.shape[:2]
-    bar_w, pad, top = 22, 12, 34
-    fig = _canvas(h + top + pad, w + bar_w + 90 + 2 * pad)
-    fig[top : top + h, pad : pad + w] = body
-    _text(fig, title, (pad, 22))
-    ramp = np.linspace(vmax, -vmax, h)[:, None].repeat(bar_w, axis=1)
-    x0 = pad * 2 + w
-    fig[top : top + h, x0 : x0 + bar_w] = diverging_rgb(ramp, vmax)
-    for frac in (0.0, 0.25, 0.5, 0.75, 1.0):
-        y = top + round(frac * (h - 1))
-        value = vmax * (1 - 2 * frac)
-        cv2.line(fig, (x0 + bar_w, y), (x0 + bar_w + 4, y), _INK, 1)
-        _text(fig, f"{value:+.3g}", (x0 + bar_w + 7, y + 4), 0.4)
-    return fig
-
-
-def image_pair_figure(
-    real: np.ndarray, rendered: np.ndarray, *, title: str, max_width: int = 1200
-) -> np.ndarray:
-    """Real and rendered images side by side on one grey scale."""
-    finite = np.ma.filled(np.ma.asarray(real, dtype=np.float64), np.nan)
-    vmax = float(np.nanpercentile(finite, 99.5)) if np.isfinite(finite).any() else 1.0
-    pair = np.concatenate(
-        [
-            grey_rgb(real, vmax),
-            np.full((real.shape[0], 8, 3), 255, np.uint8),
-            grey_rgb(rendered, vmax),
-        ],
-        axis=1,
-    )
-    body = _fit_width(pair, max_width)
-    fig = _canvas(body.shape[0] + 34, body.shape[1])
-    fig[34:] = body
-    _text(fig, f"{title}   (left: real, right: rendered)", (6, 22))
-    return fig
-
-
-def convergence_figure(
-    costs: Sequence[float], *, title: str = "cost per iteration (log scale)", size=(640, 360)
-) -> np.ndarray:
-    """A log-scale plot of the cost per iteration."""
-    w, h = size
-    fig = _canvas(h, w)
-    left, right, top, bottom = 70, 20, 34, 40
-    _text(fig, title, (left, 22))
-    c = np.asarray([v for v in costs if v > 0 and math.isfinite(v)], dtype=np.float64)
-    cv2.rectangle(fig, (left, top), (w - right, h - bottom), _INK, 1)
-    if c.size == 0:
-        return fig
-    lo = math.floor(math.log10(c.min()))
-    hi = math.ceil(math.log10(c.max()))
-    hi = hi if hi > lo else lo + 1
-    n = max(len(c) - 1, 1)
-
-    def xy(i: int, v: float) -> tuple[int, int]:
-        x = left + (w - left - right) * i / n
-        y = h - bottom - (h - top - bottom) * (math.log10(v) - lo) / (hi - lo)
-        return round(x), round(y)
-
-    step = max(1, (hi - lo) // 8)
-    for e in range(lo, hi + 1, step):
-        _, y = xy(0, 10.0**e)
-        cv2.line(fig, (left - 4, y), (w - right, y), (225, 225, 225), 1)
-        _text(fig, f"1e{e}", (8, y + 4), 0.4)
-    pts = np.array([xy(i, v) for i, v in enumerate(c)], dtype=np.int32)
-    cv2.polylines(fig, [pts], False, (33, 102, 172), 2, cv2.LINE_AA)
-    for p in pts:
-        cv2.circle(fig, tuple(int(t) for t in p), 3, (178, 24, 43), -1, cv2.LINE_AA)
-    _text(fig, "iteration", (w // 2 - 30, h - 12), 0.45)
-    for i in sorted({0, n // 2, n}):
-        x, _ = xy(i, c[0])
-        _text(fig, str(i), (x - 4, h - bottom + 16), 0.4)
-    return fig
-
-
-def angle_residual_figure(fit: dict, *, size: tuple[int, int] = (900, 340)) -> np.ndarray:
-    """Mean relative residual (%) against the mirror and the incidence angle.
-
-    Two panels from a result's ``fit`` (`lightcal.core.misfit.FitDiagnosis.to_dict`): the
-    bins' mean (m_obs - m_render) / m_render, with the F-test's verdict in each title. A
-    glossy wall shows a peak at small mirror angles; a wall fitted with the right model
-    stays flat at 0.
-    """
-    w, h = size
-    fig = _canvas(h, w)
-    panels = [fit.get("mirror"), fit.get("incidence")]
-    labels = ["angle to the mirror direction (deg)", "angle of incidence (deg)"]
-    values = [
-        100.0 * np.asarray(p["mean_relative_residual"], dtype=np.float64)
-        for p in panels
-        if p is not None
-    ]
-    vmax = _nice_ceiling(max([float(np.max(np.abs(v))) for v in values if v.size] + [0.1]))
-    pw = w // 2
-    top, bottom = 40, 44
-    for k, (panel, label) in enumerate(zip(panels, labels, strict=True)):
-        x0 = k * pw
-        left, right = x0 + 62, x0 + pw - 16
-        cv2.rectangle(fig, (left, top), (right, h - bottom), _INK, 1)
-        if panel is None:
-            _text(fig, "too few pixels to test", (left + 10, h // 2), 0.45)
-            continue
-        verdict = "structure" if panel["significant"] else "no structure"
-        p_value = panel["p_value"]
-        p_text = "p < 1e-300" if p_value is None or p_value == 0 else f"p = {p_value:.2g}"
-        _text(fig, f"{verdict} ({p_text})", (left, 24), 0.5)
-        edges = np.asarray(panel["bin_edges_deg"], dtype=np.float64)
-        centers = 0.5 * (edges[:-1] + edges[1:])
-        rel = 100.0 * np.asarray(panel["mean_relative_residual"], dtype=np.float64)
-        a_lo, a_hi = float(edges[0]), float(max(edges[-1], edges[0] + 1e-9))
-
-        def xy(a: float, v: float, lo=a_lo, hi=a_hi, left=left, right=right) -> tuple[int, int]:
-            x = left + (right - left) * (a - lo) / (hi - lo)
-            y = top + (h - bottom - top) * (0.5 - 0.5 * v / vmax)
-            return round(x), round(y)
-
-        _, y0 = xy(a_lo, 0.0)
-        cv2.line(fig, (left, y0), (right, y0), (200, 200, 200), 1)
-        for v in (-vmax, vmax):
-            _, y = xy(a_lo, v)
-            _text(fig, f"{v:+.2g}%", (x0 + 6, y + 4), 0.4)
-        pts = np.array([xy(a, v) for a, v in zip(centers, rel, strict=True)], dtype=np.int32)
-        cv2.polylines(fig, [pts], False, (33, 102, 172), 2, cv2.LINE_AA)
-        for p in pts:
-            cv2.circle(fig, (int(p[0]), int(p[1])), 4, (178, 24, 43), -1, cv2.LINE_AA)
-        for a in (a_lo, a_hi):
-            x, _ = xy(a, 0.0)
-            _text(fig, f"{a:.0f}", (x - 6, h - bottom + 16), 0.4)
-        _text(fig, label, (left + 10, h - 10), 0.45)
-    return fig
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        return [lo]
+    step = _nice_ceiling((hi - lo) / max(count - 1, 1))
+    first = math.floor(lo / step + 1e-9) * step
+    last = math.ceil(hi / step - 1e-9) * step
+    n = round((last - first) / step)
+    return [round(first + k * step, 12) for k in range(n + 1)]
 
 
 def _nice_ceiling(v: float) -> float:
@@ -195,3 +65,273 @@ def _nice_ceiling(v: float) -> float:
         if m * 10.0**e >= v:
             return m * 10.0**e
     return 10.0 ** (e + 1)
+
+
+@dataclass(frozen=True)
+class _Pen:
+    """Drawing at `scale` pixels per layout point."""
+
+    scale: float
+
+    def px(self, points: float) -> int:
+        return round(points * self.scale)
+
+    def thickness(self, points: float = 1.0) -> int:
+        return max(1, round(points * self.scale))
+
+    def text_size(self, text: str, size: float) -> tuple[int, int]:
+        (w, h), _ = cv2.getTextSize(text, _FONT, size * self.scale, self.thickness())
+        return w, h
+
+    def text(
+        self, img: np.ndarray, text: str, org: tuple[int, int], size: float, align: str = "left"
+    ) -> None:
+        """Text with its baseline at org[1]; `align` left, center or right of org[0]."""
+        w, _ = self.text_size(text, size)
+        x = org[0] - {"left": 0, "center": w // 2, "right": w}[align]
+        cv2.putText(
+            img, text, (x, org[1]), _FONT, size * self.scale, _INK, self.thickness(), cv2.LINE_AA
+        )
+
+    def canvas(self, h: int, w: int) -> np.ndarray:
+        return np.full((h, w, 3), 255, dtype=np.uint8)
+
+
+def _fit_width(rgb: np.ndarray, max_width: int) -> np.ndarray:
+    h, w = rgb.shape[:2]
+    if w <= max_width:
+        return rgb
+    s = max_width / w
+    return cv2.resize(rgb, (max_width, max(1, round(h * s))), interpolation=cv2.INTER_AREA)
+
+
+def _fit_to(rgb: np.ndarray, width: int) -> np.ndarray:
+    """`rgb` scaled to `width` pixels (down by area, up by nearest: pixels stay pixels)."""
+    h, w = rgb.shape[:2]
+    if w == width:
+        return rgb
+    interp = cv2.INTER_AREA if w > width else cv2.INTER_NEAREST
+    return cv2.resize(rgb, (width, max(1, round(h * width / w))), interpolation=interp)
+
+
+def residual_figure(
+    residual: np.ndarray,
+    *,
+    title: str,
+    vmax: float | None = None,
+    unit: str = "DN",
+    width_pt: int = 700,
+    scale: float = PRINT_SCALE,
+) -> np.ndarray:
+    """A residual map (real minus rendered) with a diverging colour bar and its scale.
+
+    Args:
+        residual: (H, W) residuals (masked/NaN where invalid; masked pixels are grey).
+        title: printed above the map.
+        vmax: colour scale magnitude; default the 99th percentile of |residual|.
+        unit: unit of the residuals, written on the colour bar.
+        width_pt: width of the map in layout points.
+    """
+    pen = _Pen(scale)
+    vmax = robust_vmax(residual) if vmax is None else vmax
+    body = _fit_to(diverging_rgb(residual, vmax), pen.px(width_pt))
+    h, w = body.shape[:2]
+    bar_w, pad, top = pen.px(16), pen.px(10), pen.px(30)
+    labels = [f"{vmax * (1 - 2 * f):+.3g}" for f in (0.0, 0.25, 0.5, 0.75, 1.0)]
+    label_w = max(pen.text_size(t, _TICK_TEXT)[0] for t in [*labels, unit])
+    fig = pen.canvas(h + top + pad, w + bar_w + label_w + pen.px(8) + 3 * pad)
+    fig[top : top + h, pad : pad + w] = body
+    pen.text(fig, title, (pad, pen.px(20)), _LABEL_TEXT)
+    ramp = np.linspace(vmax, -vmax, h)[:, None].repeat(bar_w, axis=1)
+    x0 = pad * 2 + w
+    fig[top : top + h, x0 : x0 + bar_w] = diverging_rgb(ramp, vmax)
+    pen.text(fig, unit, (x0, top - pen.px(6)), _TICK_TEXT)
+    for frac, label in zip((0.0, 0.25, 0.5, 0.75, 1.0), labels, strict=True):
+        y = top + round(frac * (h - 1))
+        cv2.line(fig, (x0 + bar_w, y), (x0 + bar_w + pen.px(4), y), _INK, pen.thickness())
+        _, th = pen.text_size(label, _TICK_TEXT)
+        y_text = min(max(y + th // 2, top + th), top + h)
+        pen.text(fig, label, (x0 + bar_w + pen.px(7), y_text), _TICK_TEXT)
+    return fig
+
+
+def image_pair_figure(
+    real: np.ndarray,
+    rendered: np.ndarray,
+    *,
+    title: str,
+    width_pt: int = 900,
+    scale: float = PRINT_SCALE,
+) -> np.ndarray:
+    """Real and rendered images side by side on one grey scale (masked pixels dark)."""
+    pen = _Pen(scale)
+    finite = np.ma.filled(np.ma.asarray(real, dtype=np.float64), np.nan)
+    vmax = float(np.nanpercentile(finite, 99.5)) if np.isfinite(finite).any() else 1.0
+    gap = np.full((real.shape[0], max(8, real.shape[1] // 100), 3), 255, np.uint8)
+    pair = np.concatenate([grey_rgb(real, vmax), gap, grey_rgb(rendered, vmax)], axis=1)
+    body = _fit_width(pair, pen.px(width_pt))
+    top = pen.px(30)
+    fig = pen.canvas(body.shape[0] + top, body.shape[1])
+    fig[top:] = body
+    pen.text(fig, f"{title}   (left: real, right: rendered)", (pen.px(6), pen.px(20)), _LABEL_TEXT)
+    return fig
+
+
+@dataclass(frozen=True)
+class _Axes:
+    """A plot box in pixels and the data ranges it shows (y may be log10)."""
+
+    left: int
+    top: int
+    right: int
+    bottom: int
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+
+    def xy(self, x: float, y: float) -> tuple[int, int]:
+        (x0, x1), (y0, y1) = self.x_range, self.y_range
+        px = self.left + (self.right - self.left) * (x - x0) / (x1 - x0)
+        py = self.bottom - (self.bottom - self.top) * (y - y0) / (y1 - y0)
+        return round(px), round(py)
+
+
+def _draw_axes(
+    fig: np.ndarray,
+    pen: _Pen,
+    ax: _Axes,
+    *,
+    x_ticks: Sequence[float],
+    x_format: str,
+    y_ticks: Sequence[tuple[float, str]],
+    x_label: str,
+    y_label: str,
+) -> None:
+    """Grid lines, the frame, tick labels and axis titles of one plot."""
+    for y, _ in y_ticks:
+        _, py = ax.xy(ax.x_range[0], y)
+        cv2.line(fig, (ax.left, py), (ax.right, py), _GRID, pen.thickness())
+    cv2.rectangle(fig, (ax.left, ax.top), (ax.right, ax.bottom), _INK, pen.thickness())
+    for y, text in y_ticks:
+        _, py = ax.xy(ax.x_range[0], y)
+        _, th = pen.text_size(text, _TICK_TEXT)
+        pen.text(fig, text, (ax.left - pen.px(6), py + th // 2), _TICK_TEXT, "right")
+    for x in x_ticks:
+        px, _ = ax.xy(x, ax.y_range[0])
+        cv2.line(fig, (px, ax.bottom), (px, ax.bottom + pen.px(4)), _INK, pen.thickness())
+        pen.text(fig, format(x, x_format), (px, ax.bottom + pen.px(18)), _TICK_TEXT, "center")
+    pen.text(
+        fig, x_label, ((ax.left + ax.right) // 2, ax.bottom + pen.px(38)), _LABEL_TEXT, "center"
+    )
+    # The y title, written sideways beside the tick labels.
+    tw, th = pen.text_size(y_label, _LABEL_TEXT)
+    strip = pen.canvas(th + pen.px(8), tw + pen.px(4))
+    pen.text(strip, y_label, (pen.px(2), th + pen.px(2)), _LABEL_TEXT)
+    strip = np.ascontiguousarray(np.rot90(strip))
+    sh, sw = strip.shape[:2]
+    y0 = max(0, (ax.top + ax.bottom) // 2 - sh // 2)
+    x0 = pen.px(4)
+    region = fig[y0 : y0 + sh, x0 : x0 + sw]
+    np.minimum(region, strip[: region.shape[0], : region.shape[1]], out=region)
+
+
+def _draw_series(
+    fig: np.ndarray, pen: _Pen, ax: _Axes, xs: Sequence[float], ys: Sequence[float]
+) -> None:
+    pts = np.array([ax.xy(x, y) for x, y in zip(xs, ys, strict=True)], dtype=np.int32)
+    cv2.polylines(fig, [pts], False, _LINE, pen.thickness(2), cv2.LINE_AA)
+    for p in pts:
+        cv2.circle(fig, (int(p[0]), int(p[1])), pen.px(3.5), _DOT, -1, cv2.LINE_AA)
+
+
+def convergence_figure(
+    costs: Sequence[float],
+    *,
+    title: str = "cost per iteration",
+    size: tuple[int, int] = (640, 360),
+    scale: float = PRINT_SCALE,
+) -> np.ndarray:
+    """A log-scale plot of the cost per iteration (`size` in layout points)."""
+    pen = _Pen(scale)
+    w, h = pen.px(size[0]), pen.px(size[1])
+    fig = pen.canvas(h, w)
+    pen.text(fig, title, (pen.px(80), pen.px(20)), _LABEL_TEXT)
+    c = np.asarray([v for v in costs if v > 0 and math.isfinite(v)], dtype=np.float64)
+    if c.size == 0:
+        pen.text(fig, "no iterations", (w // 2, h // 2), _LABEL_TEXT, "center")
+        return fig
+    lo = math.floor(math.log10(c.min()))
+    hi = math.ceil(math.log10(c.max()))
+    hi = hi if hi > lo else lo + 1
+    n = max(len(c) - 1, 1)
+    ax = _Axes(pen.px(80), pen.px(32), w - pen.px(20), h - pen.px(50), (0.0, n), (lo, hi))
+    step = max(1, math.ceil((hi - lo) / 8))
+    _draw_axes(
+        fig,
+        pen,
+        ax,
+        x_ticks=[t for t in nice_ticks(0, n, min(n + 1, 6)) if float(t).is_integer() and t <= n],
+        x_format=".0f",
+        y_ticks=[(e, f"1e{e}") for e in range(lo, hi + 1, step)],
+        x_label="iteration",
+        y_label="cost (log)",
+    )
+    _draw_series(fig, pen, ax, range(len(c)), np.log10(c))
+    return fig
+
+
+def angle_residual_figure(
+    fit: dict, *, size: tuple[int, int] = (900, 340), scale: float = PRINT_SCALE
+) -> np.ndarray:
+    """Mean relative residual (%) against the mirror and the incidence angle.
+
+    Two panels from a result's ``fit`` (`lightcal.core.misfit.FitDiagnosis.to_dict`): the
+    bins' mean (m_obs - m_render) / m_render, with the F-test's verdict in each title. A
+    glossy wall shows a peak at small mirror angles; a wall fitted with the right model
+    stays flat at 0. `size` is in layout points.
+    """
+    pen = _Pen(scale)
+    w, h = pen.px(size[0]), pen.px(size[1])
+    fig = pen.canvas(h, w)
+    panels = [fit.get("mirror"), fit.get("incidence")]
+    labels = ["angle to the mirror direction (deg)", "angle of incidence (deg)"]
+    values = [
+        100.0 * np.asarray(p["mean_relative_residual"], dtype=np.float64)
+        for p in panels
+        if p is not None
+    ]
+    vmax = _nice_ceiling(max([float(np.max(np.abs(v))) for v in values if v.size] + [0.1]))
+    y_ticks = [(v, f"{v:+.2g}%" if v else "0") for v in (-vmax, -vmax / 2, 0.0, vmax / 2, vmax)]
+    pw = w // 2
+    for k, (panel, label) in enumerate(zip(panels, labels, strict=True)):
+        x0 = k * pw
+        left, right = x0 + pen.px(80), x0 + pw - pen.px(16)
+        top, bottom = pen.px(34), h - pen.px(52)
+        if panel is None:
+            cv2.rectangle(fig, (left, top), (right, bottom), _INK, pen.thickness())
+            pen.text(fig, "too few pixels to test", (left + pen.px(10), h // 2), _LABEL_TEXT)
+            continue
+        verdict = "structure" if panel["significant"] else "no structure"
+        p_value = panel["p_value"]
+        p_text = "p < 1e-300" if p_value is None or p_value == 0 else f"p = {p_value:.2g}"
+        title = f"{verdict} ({p_text})"
+        edges = np.asarray(panel["bin_edges_deg"], dtype=np.float64)
+        centers = 0.5 * (edges[:-1] + edges[1:])
+        rel = 100.0 * np.asarray(panel["mean_relative_residual"], dtype=np.float64)
+        ticks = nice_ticks(float(edges[0]), float(edges[-1]), 5)
+        x_range = (ticks[0], max(ticks[-1], ticks[0] + 1e-9))
+        panel_fig = pen.canvas(h, pw)  # drawn apart: OpenCV draws on contiguous arrays
+        ax = _Axes(left - x0, top, right - x0, bottom, x_range, (-vmax, vmax))
+        _draw_axes(
+            panel_fig,
+            pen,
+            ax,
+            x_ticks=ticks,
+            x_format="g",
+            y_ticks=y_ticks,
+            x_label=label,
+            y_label="mean residual",
+        )
+        _draw_series(panel_fig, pen, ax, centers, rel)
+        pen.text(panel_fig, title, (left - x0, pen.px(22)), _LABEL_TEXT)
+        fig[:, x0 : x0 + pw] = panel_fig
+    return fig

@@ -46,5 +46,5 @@ class ResultPanel(TabPanel):
         self.result_md.content = result_markdown(frame.result, state=frame.solver_state)
         fit = frame.result.fit if frame.result is not None else None
         if fit:
-            self.fit_plot.image = angle_residual_figure(fit, size=(720, 300))
+            self.fit_plot.image = angle_residual_figure(fit, size=(720, 300), scale=1)
         self.fit_plot.visible = bool(fit)

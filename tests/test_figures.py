@@ -1,0 +1,84 @@
+"""Report figures: round axis ticks, sizes at the print scale, legible text, masks kept."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lightcal.io.figures import (
+    PRINT_SCALE,
+    angle_residual_figure,
+    convergence_figure,
+    image_pair_figure,
+    nice_ticks,
+    residual_figure,
+)
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi", "count", "ticks"),
+    [
+        (1.0, 66.0, 5, [0.0, 20.0, 40.0, 60.0, 80.0]),
+        (0.0, 6.0, 6, [0.0, 2.0, 4.0, 6.0]),
+        (-0.2, 0.2, 5, [-0.2, -0.1, 0.0, 0.1, 0.2]),
+        (3.0, 3.0, 5, [3.0]),
+    ],
+)
+def test_nice_ticks_are_round_and_cover_the_range(lo, hi, count, ticks):
+    assert nice_ticks(lo, hi, count) == ticks
+
+
+def _ink_rows(rgb: np.ndarray, x0: int, x1: int, y0: int, y1: int) -> int:
+    """How many rows of the box hold dark (text) pixels."""
+    box = rgb[y0:y1, x0:x1].min(axis=2)
+    return int(np.count_nonzero((box < 100).any(axis=1)))
+
+
+def test_figures_are_drawn_at_the_print_scale_with_legible_text():
+    assert PRINT_SCALE == 2
+    fig = convergence_figure([1e9, 4e7, 8e5, 7e4, 7e4])
+    assert fig.shape == (360 * PRINT_SCALE, 640 * PRINT_SCALE, 3)
+    # The "iteration" label under the axis: at least 16 pixels tall (9 points at 2 px/pt);
+    # before the print scale the report's text was 9-10 pixels tall.
+    h, w = fig.shape[:2]
+    assert _ink_rows(fig, w // 2 - 80, w // 2 + 80, h - 30 * PRINT_SCALE, h) >= 16
+    small = convergence_figure([1e9, 1e5], scale=1)
+    assert small.shape == (360, 640, 3)
+
+
+def test_convergence_figure_without_costs_says_so():
+    fig = convergence_figure([float("nan"), 0.0])
+    assert fig.shape == (720, 1280, 3)
+    assert (fig < 100).any()  # "no iterations" is written
+
+
+def test_residual_figure_keeps_masked_pixels_grey_and_labels_the_unit():
+    residual = np.ma.masked_array(np.linspace(-5, 5, 200 * 300).reshape(200, 300))
+    residual[50:60, 50:60] = np.ma.masked
+    fig = residual_figure(residual, title="t", vmax=5.0, width_pt=300)
+    top, pad = 30 * PRINT_SCALE, 10 * PRINT_SCALE
+    body = fig[top : top + 400, pad : pad + 600]
+    # The masked square, scaled 2x by nearest neighbour: one grey, not red or blue.
+    square = body[100:120, 100:120].reshape(-1, 3)
+    assert np.all(square == square[0]) and square[0][0] == square[0][2]
+    # The ends of the scale are diverging colours: red at +5 (top right), blue at -5.
+    assert body[-1, -1][0] > body[-1, -1][2] and body[0, 0][2] > body[0, 0][0]
+
+
+def test_image_pair_figure_fits_its_width():
+    real = np.ones((100, 4000))
+    fig = image_pair_figure(real, real, title="x", width_pt=900)
+    assert fig.shape[1] == 900 * PRINT_SCALE
+
+
+def test_angle_figure_without_a_panel_says_too_few_pixels():
+    panel = {
+        "significant": False,
+        "p_value": 0.5,
+        "bin_edges_deg": [1.0, 20.0, 40.0, 66.0],
+        "mean_relative_residual": [0.001, -0.001, 0.0],
+    }
+    fig = angle_residual_figure({"mirror": panel, "incidence": None}, scale=1)
+    assert fig.shape == (340, 900, 3)
+    right = fig[:, 450:]
+    assert (right < 100).any()
