@@ -18,6 +18,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.io.atomic import atomic_write_bytes
@@ -234,10 +235,12 @@ def _draw_axes(
     np.minimum(region, strip[: region.shape[0], : region.shape[1]], out=region)
 
 
-def _draw_series(
-    fig: np.ndarray, pen: _Pen, ax: _Axes, xs: Sequence[float], ys: Sequence[float]
-) -> None:
-    pts = np.array([ax.xy(x, y) for x, y in zip(xs, ys, strict=True)], dtype=np.int32)
+def _draw_series(fig: np.ndarray, pen: _Pen, ax: _Axes, xs: ArrayLike, ys: ArrayLike) -> None:
+    """A line with dots through (xs[i], ys[i]), both (N,)."""
+    x_values = np.asarray(xs, dtype=np.float64)
+    y_values = np.asarray(ys, dtype=np.float64)
+    pairs = zip(x_values.tolist(), y_values.tolist(), strict=True)
+    pts = np.array([ax.xy(x, y) for x, y in pairs], dtype=np.int32)
     cv2.polylines(fig, [pts], False, _LINE, pen.thickness(2), cv2.LINE_AA)
     for p in pts:
         cv2.circle(fig, (int(p[0]), int(p[1])), pen.px(3.5), _DOT, -1, cv2.LINE_AA)
