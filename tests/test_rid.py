@@ -396,3 +396,28 @@ def test_rid_data_arrays_are_c_contiguous() -> None:
         for array in (d.params, d.theta_knots, d.phi_knots, d.values, d.slopes):
             assert array.dtype == np.float64
             assert array.flags.c_contiguous
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 19, 181])
+def test_pchip_slopes_are_scipys(n: int) -> None:
+    """Our PCHIP knot slopes (start-up avoids importing scipy.interpolate) equal SciPy's
+    PchipInterpolator's on uneven knots, for smooth, noisy, flat and stepped profiles."""
+    from scipy.interpolate import PchipInterpolator
+
+    from lightcal.core.rid import pchip_slopes
+
+    rng = np.random.default_rng(n)
+    x = np.cumsum(rng.uniform(0.2, 1.0, n))
+    tables = np.stack(
+        [
+            np.cos(x / x[-1]) ** 3,  # smooth and monotone
+            rng.uniform(0.0, 1.0, n),  # noisy: secants change sign
+            np.ones(n),  # flat: zero secants
+            (x > x[n // 2]).astype(float),  # a step: zeros beside a jump
+        ]
+    )
+    expected = PchipInterpolator(x, tables, axis=-1).derivative()(x)
+    got = pchip_slopes(x, tables)
+    assert got.shape == tables.shape
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(pchip_slopes(x, tables[1]), expected[1], rtol=1e-12, atol=1e-14)

@@ -185,3 +185,26 @@ def test_check_rotation_matrix_accepts_rotation() -> None:
 def test_errors(call: Callable[[], object], message: str) -> None:
     with pytest.raises(InputError, match="^" + re.escape(message)):
         call()
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+@pytest.mark.parametrize("angle", [1e-9, 1e-3, 0.5, 2.0, np.pi - 1e-9, np.pi])
+def test_rotvec_and_quaternion_in_every_branch_agree_with_scipy(axis: int, angle: float) -> None:
+    """Our Shepperd quaternion and SO(3) logarithm (no SciPy import at start-up) against
+    SciPy's, about each axis (each branch of the largest-diagonal choice) and a tilted one,
+    from near identity to the half turn."""
+    rng = np.random.default_rng(axis)
+    for direction in (np.eye(3)[axis], np.eye(3)[axis] + 0.1 * rng.normal(size=3)):
+        rotvec = angle * direction / np.linalg.norm(direction)
+        R = matrix_from_rotvec(rotvec)
+        expected = Rotation.from_matrix(R).as_rotvec()
+        got = rotvec_from_matrix(R)
+        if angle < np.pi - 1e-6:
+            np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
+        else:  # at the half turn +axis and -axis are one rotation
+            np.testing.assert_allclose(matrix_from_rotvec(got), R, atol=1e-14)
+            assert abs(np.linalg.norm(got) - angle) < 1e-12
+        x, y, z, w = Rotation.from_matrix(R).as_quat()
+        q = quaternion_wxyz_from_matrix(R)
+        np.testing.assert_allclose(np.abs(q), np.abs([w, x, y, z]), atol=2e-16 + 1e-15)
+        np.testing.assert_allclose(matrix_from_quaternion_wxyz(q), R, atol=1e-15)

@@ -17,9 +17,10 @@ rotation or a quaternion that is not of unit norm raises `lightcal.errors.InputE
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from lightcal.errors import InputError
 
@@ -140,8 +141,16 @@ def rotvec_from_matrix(R: ArrayLike) -> NDArray[np.float64]:
     Returns:
         rotvec: (3,) with angle `|rotvec|` in [0, pi].
     """
-    matrix = check_rotation_matrix(R, name="R")
-    return np.asarray(Rotation.from_matrix(matrix).as_rotvec(), dtype=np.float64)
+    w, x, y, z = quaternion_wxyz_from_matrix(R)  # w >= 0: angle in [0, pi]
+    vector = np.array([x, y, z])
+    half_sin = float(np.linalg.norm(vector))
+    angle = 2.0 * math.atan2(half_sin, w)
+    if angle <= 1e-3:  # angle / sin(angle / 2) by its series (relative error < 1e-19)
+        a2 = angle * angle
+        scale = 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0
+    else:
+        scale = angle / half_sin
+    return scale * vector
 
 
 def _canonical_quaternion_sign(q_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -161,9 +170,21 @@ def quaternion_wxyz_from_matrix(R: ArrayLike) -> NDArray[np.float64]:
     Returns:
         q_wxyz: (4,) `(w, x, y, z)`, unit norm, `w >= 0`.
     """
-    matrix = check_rotation_matrix(R, name="R")
-    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
-    q = np.array([w, x, y, z], dtype=np.float64)
+    m = check_rotation_matrix(R, name="R")
+    # Shepperd's method: start from the largest of 4w^2, 4x^2, 4y^2, 4z^2 (all from the
+    # diagonal), so that the division below is by a number >= 1 and no precision is lost.
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    k = int(np.argmax([trace, m[0, 0], m[1, 1], m[2, 2]]))
+    if k == 0:
+        q = np.array([1.0 + trace, m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    else:
+        i = k - 1
+        j, l = (i + 1) % 3, (i + 2) % 3
+        q = np.empty(4)
+        q[0] = m[l, j] - m[j, l]
+        q[1 + i] = 1.0 + 2.0 * m[i, i] - trace
+        q[1 + j] = m[j, i] + m[i, j]
+        q[1 + l] = m[l, i] + m[i, l]
     return _canonical_quaternion_sign(q / np.linalg.norm(q))
 
 
