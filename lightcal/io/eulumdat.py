@@ -65,6 +65,7 @@ from lightcal.io.photometric_table import (
     Symmetry,
     expand_full,
     format_number,
+    parse_number,
     read_text_file,
     write_text_file_atomic,
 )
@@ -104,17 +105,7 @@ class _Lines:
     def number(self, number: int, what: str) -> float:
         text = self.text(number, what)
         candidate = text.replace(",", ".") if "," in text and "." not in text else text
-        try:
-            value = float(candidate)
-        except ValueError:
-            raise InputError(
-                self.path, f"{what}: expected a number, got {text!r}", line=number
-            ) from None
-        if not np.isfinite(value):
-            raise InputError(
-                self.path, f"{what}: expected a finite number, got {text!r}", line=number
-            )
-        return value
+        return parse_number(self.path, text, what, number, value=candidate)
 
     def integer(self, number: int, what: str, minimum: int | None) -> int:
         value = self.number(number, what)

@@ -50,6 +50,7 @@ from lightcal.io.photometric_table import (
     PhotometricTable,
     Symmetry,
     format_number,
+    parse_number,
     read_text_file,
     write_text_file_atomic,
 )
@@ -98,17 +99,7 @@ class _Numbers:
             )
         text, line = self.tokens[self.position]
         self.position += 1
-        try:
-            value = float(text)
-        except ValueError:
-            raise InputError(
-                self.path, f"{what}: expected a number, got {text!r}", line=line
-            ) from None
-        if not np.isfinite(value):
-            raise InputError(
-                self.path, f"{what}: expected a finite number, got {text!r}", line=line
-            )
-        return value, line
+        return parse_number(self.path, text, what, line), line
 
     def count(self, what: str, minimum: int) -> int:
         value, line = self.next(what)

@@ -63,6 +63,7 @@ __all__ = [
     "Symmetry",
     "expand_full",
     "format_number",
+    "parse_number",
     "read_rid_csv",
     "read_text_file",
     "table_to_rid",
@@ -320,6 +321,25 @@ def read_text_file(path: Path) -> str:
             UTF-16 without a byte-order mark.
     """
     return read_text(path, "photometric file", latin1=True)
+
+
+def parse_number(path: Path, text: str, what: str, line: int, *, value: str | None = None) -> float:
+    """The finite number a photometric file gives for `what` at `line`.
+
+    Args:
+        text: the token as the file writes it (quoted in messages).
+        value: the token to parse, if it differs from `text` (a decimal comma replaced).
+
+    Raises:
+        InputError: Not a number, or not finite; naming the file, the line and `what`.
+    """
+    try:
+        number = float(text if value is None else value)
+    except ValueError:
+        raise InputError(path, f"{what}: expected a number, got {text!r}", line=line) from None
+    if not np.isfinite(number):
+        raise InputError(path, f"{what}: expected a finite number, got {text!r}", line=line)
+    return number
 
 
 def write_text_file_atomic(path: Path, text: str, *, newline: str = "\n") -> None:
