@@ -62,3 +62,36 @@ def test_app_selection_defaults_are_the_selection_options():
     for name in app_fields:
         assert getattr(settings, name) == getattr(core, name), name
         assert getattr(saved, name) == getattr(core, name), name
+
+
+def test_spec_to_options_copies_every_shared_field():
+    """One method carries the file's sections into the core options: every field the
+    two share arrives, with non-default values, and nothing else is invented."""
+    selection = SelectionSpec(
+        strategy="grid", n_per_image=7, grid_step=9, binning=3, seed=11, min_signal=2.5
+    ).to_options()
+    assert selection == SelectionOptions("grid", 7, 9, 3, 11, 2.5)
+    sensor = SensorSpec(offset=12.0, estimate_offset=True)
+    solver = SolverSpec(
+        loss="cauchy",
+        f_scale=2.0,
+        max_iterations=5,
+        estimate_gains=False,
+        rid_subsamples=3,
+        tolerance=1e-9,
+        position_bound_m=0.5,
+    ).to_options(sensor)
+    expected = SolverOptions(
+        loss="cauchy",
+        f_scale=2.0,
+        max_iterations=5,
+        estimate_gains=False,
+        estimate_offset=True,
+        offset=12.0,
+        rid_subsamples=3,
+        tolerance=1e-9,
+        position_bound_m=0.5,
+    )
+    assert solver == expected
+    assert SelectionSpec().to_options() == SelectionOptions()
+    assert SolverSpec().to_options(SensorSpec()) == SolverOptions()

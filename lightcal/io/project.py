@@ -306,27 +306,8 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     if len({ls.name for ls in spec.lights}) != len(spec.lights):
         raise InputError(source, "lights: light names must be unique")
 
-    sel = spec.selection
-    selection = SelectionOptions(
-        strategy=sel.strategy,
-        n_per_image=sel.n_per_image,
-        grid_step=sel.grid_step,
-        binning=sel.binning,
-        seed=sel.seed,
-        min_signal=sel.min_signal,
-    )
-    so = spec.solver
-    solver = SolverOptions(
-        loss=so.loss,
-        f_scale=so.f_scale,
-        max_iterations=so.max_iterations,
-        estimate_gains=so.estimate_gains,
-        estimate_offset=spec.sensor.estimate_offset,
-        offset=spec.sensor.offset,
-        rid_subsamples=so.rid_subsamples,
-        tolerance=so.tolerance,
-        position_bound_m=so.position_bound_m,
-    )
+    selection = spec.selection.to_options()
+    solver = spec.solver.to_options(spec.sensor)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
         if spec.sensor.vignetting

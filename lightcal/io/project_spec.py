@@ -9,6 +9,7 @@ the first (most specific) problem; `project_schema` is what `lightcal schema` pr
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -291,6 +292,20 @@ class RegionSpec(_Model):
         return self
 
 
+def _options(options_cls: Any, *sections: BaseModel) -> Any:
+    """An options dataclass from the project file's sections: every field of
+    `options_cls` that a section has, taken from the first section that has it; the
+    rest keep their option defaults. One copy for all options, so a field added to both
+    the options and the file flows through without another line."""
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(options_cls):
+        for section in sections:
+            if f.name in type(section).model_fields:
+                values[f.name] = getattr(section, f.name)
+                break
+    return options_cls(**values)
+
+
 class SelectionSpec(_Model):
     strategy: Literal["random", "grid", "all"] = _SELECTION.strategy
     n_per_image: int = Field(default=_SELECTION.n_per_image, ge=1)
@@ -309,6 +324,10 @@ class SelectionSpec(_Model):
         description="drop pixels whose half vector lies within this angle of the wall "
         "normal (re-derived from the estimate after the first convergence); null: keep all",
     )
+
+    def to_options(self) -> SelectionOptions:
+        """The core's selection options (regions and mirror exclusion are applied apart)."""
+        return _options(SelectionOptions, self)
 
 
 WallModelName = Literal["lambertian", "plastic", "oren_nayar", "auto"]
@@ -346,6 +365,10 @@ class SolverSpec(_Model):
     multistart: int = Field(default=0, ge=0, description="extra random starts")
     multistart_position_m: float = Field(default=0.3, gt=0)
     multistart_angle_deg: float = Field(default=30.0, gt=0)
+
+    def to_options(self, sensor: SensorSpec) -> SolverOptions:
+        """The core's solver options (the offset and its estimation from `sensor`)."""
+        return _options(SolverOptions, self, sensor)
 
 
 class ProjectFile(_Model):
