@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import sys
 import tempfile
 import time
@@ -177,21 +178,70 @@ def _calibrate(project_path: Path, report_dir: Path | None) -> None:
         write_report(report_dir, project, loaded, cal.model, cal.result)
 
 
-def warm_up(progress: WarmupProgress | None = None) -> float:
+def _run_family(family: Family, folder: Path) -> int:
+    """Compile one family's kernels by its synthetic calibration; returns the process id."""
+    project_path = _write_dataset(folder / "data", family)
+    _calibrate(project_path, folder / "report" if family.report else None)
+    return os.getpid()
+
+
+def default_jobs() -> int:
+    """Processes that compile at once: one per core, at most two (the first two families
+    take most of the time; more processes would compile the same shared kernels again)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(2, cores or 1))
+
+
+def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None) -> bool:
+    """Compile the families in `jobs` worker processes, the longest first; numba's cache
+    on disk is what they leave behind. False if the workers could not run (then the
+    caller compiles everything itself)."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    total = len(FAMILIES)
+    try:
+        context = multiprocessing.get_context("spawn")  # no fork of a threaded process
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+            pending = {
+                pool.submit(_run_family, family, tmp / f"family{i}"): family
+                for i, family in enumerate(FAMILIES)
+            }
+            done = 0
+            while pending:
+                if progress is not None:
+                    running = [f.label for f in list(pending.values())[:jobs]]
+                    progress(" + ".join(running), done, total)
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    del pending[future]
+                    future.result()
+                    done += 1
+    except Exception:  # no processes here (a sandbox, no /dev/shm): compile in-process
+        return False
+    return True
+
+
+def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) -> float:
     """Compile every kernel family (see the module docstring); returns the seconds taken.
 
-    Writes only in a temporary folder and numba's cache (and the marker beside it).
+    With `jobs` > 1 (default: `default_jobs()`), worker processes compile the families
+    side by side first (269 s -> about 170 s on two cores); then this process runs every
+    family once more, which loads their kernels from numba's cache (a few seconds) and
+    compiles whatever a worker left out. Writes only in a temporary folder and numba's
+    cache (and the marker beside it).
     """
     start = time.perf_counter()
+    jobs = default_jobs() if jobs is None else max(1, jobs)
+    total = len(FAMILIES)
     with tempfile.TemporaryDirectory(prefix="lightcal-warmup-") as tmp:
+        parallel = jobs > 1 and _compile_in_processes(Path(tmp) / "workers", jobs, progress)
         for i, family in enumerate(FAMILIES):
-            if progress is not None:
-                progress(family.label, i, len(FAMILIES))
-            folder = Path(tmp) / f"family{i}"
-            project_path = _write_dataset(folder, family)
-            _calibrate(project_path, Path(tmp) / f"report{i}" if family.report else None)
+            if progress is not None and not parallel:
+                progress(family.label, i, total)
+            _run_family(family, Path(tmp) / f"family{i}")
     if progress is not None:
-        progress("done", len(FAMILIES), len(FAMILIES))
+        progress("done", total, total)
     marker = _marker_path()
     if marker is not None:
         compiled = sorted(name for name, d in _dispatchers().items() if _cached(d))

@@ -131,3 +131,59 @@ def test_ensure_kernels_is_silent_when_cached(
     cli_progress.ensure_kernels()
     assert main(["warmup"]) == 0
     assert capsys.readouterr().err.splitlines() == ["kernels already compiled and cached"]
+
+
+TWO_FAMILIES = (
+    warmup.Family("sparse", size=(32, 24)),
+    warmup.Family("isotropic", size=(32, 24), light_model="isotropic"),
+)
+
+
+def test_warm_up_in_two_processes_reports_both_families_then_done(
+    marker: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two worker processes take the families side by side (the progress names both),
+    then this process runs them again from the cache and writes the marker."""
+    monkeypatch.setattr(warmup, "FAMILIES", TWO_FAMILIES)
+    seen_in_process: list[str] = []
+    run_family = warmup._run_family
+
+    def counting(family: warmup.Family, folder: Path) -> int:
+        seen_in_process.append(family.label)
+        return run_family(family, folder)
+
+    monkeypatch.setattr(warmup, "_run_family", counting)  # the workers use the real one
+    calls: list[tuple[str, int, int]] = []
+    warmup.warm_up(lambda *a: calls.append(a), jobs=2)
+    assert calls[0] == ("sparse + isotropic", 0, 2)
+    assert calls[-1] == ("done", 2, 2)
+    assert [c[1] for c in calls] == sorted(c[1] for c in calls)  # done only grows
+    assert seen_in_process == ["sparse", "isotropic"]  # the in-process pass, from the cache
+    assert (
+        "lightcal.core.kernels.image:render_image_fused"
+        in json.loads(marker.read_text())["kernels"]
+    )
+
+
+def test_warm_up_compiles_in_process_when_workers_cannot_start(
+    marker: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import multiprocessing
+
+    def no_processes(method: str) -> None:
+        raise OSError("no /dev/shm here")
+
+    monkeypatch.setattr(warmup, "FAMILIES", TWO_FAMILIES)
+    monkeypatch.setattr(multiprocessing, "get_context", no_processes)
+    calls: list[tuple[str, int, int]] = []
+    warmup.warm_up(lambda *a: calls.append(a), jobs=2)
+    assert calls == [("sparse", 0, 2), ("isotropic", 1, 2), ("done", 2, 2)]
+    assert marker.is_file()
+
+
+def test_default_jobs_is_one_per_core_at_most_two(monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+
+    for cores, jobs in ((1, 1), (2, 2), (16, 2)):
+        monkeypatch.setattr(os, "sched_getaffinity", lambda pid, n=cores: set(range(n)))
+        assert warmup.default_jobs() == jobs
