@@ -164,18 +164,23 @@ def test_no_pixels_is_a_message_not_a_solve(synthetic: SyntheticProject) -> None
     )
 
 
-def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_path: Path) -> None:
-    state, solve, messages = _service(synthetic)
-    files = FilesService(
+def _files(state: AppState, solve: SolveService, messages: Messages, tmp: Path) -> FilesService:
+    """The files service of `state`, its session beside `tmp`, downloads dropped."""
+    return FilesService(
         state,
         solve,
         notify=messages,
         deliver=lambda c, n, b: None,
         on_switch=lambda p, loaded, t: None,
         truth=None,
-        session_path=tmp_path / "s.session.json",
-        state_dir=tmp_path / "state",
+        session_path=tmp / "s.session.json",
+        state_dir=tmp / "state",
     )
+
+
+def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_path: Path) -> None:
+    state, solve, messages = _service(synthetic)
+    files = _files(state, solve, messages, tmp_path)
     solve.start("step")
     _run_requests(solve, state)
     files.save_session(rq.SaveSession())
@@ -188,6 +193,38 @@ def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_pa
     solve.start("step")
     _run_requests(solve, state)
     assert [h.iteration for h in state.history] == [0, 1, 2]
+
+
+def test_a_reloaded_converged_session_is_still_converged(
+    synthetic: SyntheticProject, tmp_path: Path
+) -> None:
+    """Saved after convergence and reloaded in a fresh app: the same status, reason,
+    solver time and estimate with its uncertainties, not "paused"; Step says it ended."""
+    state, solve, messages = _service(synthetic)
+    files = _files(state, solve, messages, tmp_path)
+    solve.start("run")
+    _run_requests(solve, state, timeout=120.0)
+    assert state.solver_state == "converged" and state.result is not None
+    before = state.result
+    message = state.solver_message
+    files.save_session(rq.SaveSession())
+
+    state2, solve2, messages2 = _service(synthetic)
+    files2 = _files(state2, solve2, messages2, tmp_path)
+    files2.load_saved_session(rq.LoadSavedSession())
+    assert state2.solver_state == "converged"
+    assert state2.solver_message == message
+    after = state2.result
+    assert after is not None and after.converged
+    assert after.status == before.status and after.message == before.message
+    assert after.time_s == before.time_s  # the solver's time, not the reload's
+    assert after.iterations == before.iterations
+    np.testing.assert_allclose(after.x, before.x, rtol=0, atol=0)
+    np.testing.assert_allclose(
+        after.lights[0].sigma.t_camera_light, before.lights[0].sigma.t_camera_light, rtol=1e-9
+    )
+    solve2.start("step")
+    assert messages2.titles()[-1] == "The solve has ended"
 
 
 def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: SyntheticProject) -> None:

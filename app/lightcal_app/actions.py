@@ -80,6 +80,7 @@ class Actions:
             guess[j] = LightGuess(pos.copy(), R.copy())
             st.guess = guess
             st.resume_x = None
+            st.resume_end = None
             st.setup_changed(selection=False)
 
     def reset_guess(self) -> None:
@@ -91,6 +92,7 @@ class Actions:
                 for u in st.project.lights
             ]
             st.resume_x = None
+            st.resume_end = None
             st.setup_changed(selection=False)
 
     def set_selection(self, settings: SelectionSettings, *, image: str | None = None) -> None:
@@ -116,6 +118,7 @@ class Actions:
                     return
                 st.selection_per_image[image] = settings
             st.resume_x = None
+            st.resume_end = None
             st.setup_changed(selection=True)
 
     def clear_selection_override(self, image: str) -> None:
@@ -133,6 +136,7 @@ class Actions:
                 st.image_index(region.image)
             st.regions = [*st.regions, region]
             st.resume_x = None
+            st.resume_end = None
             st.setup_changed(selection=True)
 
     def clear_regions(self, image: str | None = None) -> None:

@@ -257,6 +257,7 @@ class FilesService:
         self.solve.drop()
         st = self.state
         with st.lock:
+            st.resume_end = None
             warnings = apply_session(st, session)
             st.resume_x = st.history[-1].x.copy() if st.history else None
             st.setup_rev += 1

@@ -35,7 +35,14 @@ from lightcal_app.limits import (
     MAX_SEED,
     POSITION_LIMIT_M,
 )
-from lightcal_app.state import AppState, LightGuess, OverlayKind, SelectionSettings, UserRegion
+from lightcal_app.state import (
+    AppState,
+    LightGuess,
+    OverlayKind,
+    SelectionSettings,
+    SolveEnd,
+    UserRegion,
+)
 
 SESSION_FORMAT: Literal["lightcal-app-session"] = "lightcal-app-session"
 # The ranges of the page's widgets (lightcal_app.limits): a session file can hold
@@ -93,6 +100,10 @@ class SolveModel(_Model):
     parameter_names: list[Name]
     state: str
     history: list[IterationModel]
+    # How a finished solve ended (files before these fields: reloaded as paused).
+    status: int | None = Field(default=None, ge=-2, le=4)
+    message: str = Field(default="", max_length=2000)
+    time_s: float = Field(default=0.0, ge=0.0, le=1e7)
 
 
 class SessionFile(_Model):
@@ -150,6 +161,9 @@ def session_from_state(state: AppState) -> SessionFile:
         solve = SolveModel(
             parameter_names=list(state.parameter_names),
             state=state.solver_state,
+            status=state.result.status if state.result is not None else None,
+            message=state.result.message if state.result is not None else "",
+            time_s=state.result.time_s if state.result is not None else 0.0,
             history=[
                 IterationModel(
                     iteration=r.iteration,
@@ -306,4 +320,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             )
             for h in session.solve.history
         ]
+        solve = session.solve
+        if solve.state in ("converged", "not converged") and solve.status is not None:
+            state.resume_end = SolveEnd(solve.state, solve.status, solve.message, solve.time_s)  # type: ignore[arg-type]
     return warnings

@@ -102,6 +102,7 @@ class SolveService:
         """Back to the guess; a restored estimate is forgotten."""
         with self.state.lock:
             self.state.resume_x = None
+            self.state.resume_end = None
             self.state.changed = True
         self.drop()
         self.show_guess()
@@ -370,18 +371,7 @@ class SolveService:
             gen = st.session_gen
         if not history:
             return
-        last = history[-1]
-        outcome = SolveOutcome(
-            last.x.copy(),
-            -2,
-            f"paused after iteration {last.iteration}",
-            False,
-            last.iteration,
-            last.nfev,
-            last.cost,
-            0.0,
-            history,
-        )
+        outcome = SolveOutcome.stopped(history, f"paused after iteration {history[-1].iteration}")
         try:
             result = summarise(model, outcome)
         except Exception:
@@ -404,6 +394,7 @@ class SolveService:
             with st.lock:
                 st.history = []
                 st.resume_x = None
+                st.resume_end = None
                 st.mark("plots", "status")
             self.drop()
             self.show_guess()
@@ -413,7 +404,28 @@ class SolveService:
         with st.lock:
             st.history = history
             st.display = display
-            st.solver_state = "paused"
-            st.solver_message = f"restored at iteration {history[-1].iteration}"
+            end = st.resume_end
+            if end is None:
+                st.solver_state = "paused"
+                st.solver_message = f"restored at iteration {history[-1].iteration}"
             st.mark("plots", "status", "light", "overlays", "widgets")
-        self.interim_result()
+        if end is None:
+            self.interim_result()
+            return
+        # A finished solve: its status, reason, time and full result (fit test and
+        # uncertainties with the images' noise and poses), as when it ended.
+        last = history[-1]
+        outcome = SolveOutcome(
+            x=resume.copy(),
+            status=end.status,
+            message=end.message,
+            success=end.state == "converged",
+            iterations=last.iteration,
+            nfev=last.nfev,
+            cost=last.cost,
+            time_s=end.time_s,
+            history=history,
+        )
+        with st.lock:
+            gen = st.session_gen
+        self.finished(gen, outcome)

@@ -59,6 +59,23 @@ class SelectionSettings:
 
 
 @dataclass(frozen=True)
+class SolveEnd:
+    """How a finished solve ended, kept in a saved session so that a reload shows it.
+
+    Attributes:
+        state: "converged" or "not converged".
+        status: the solver's status code (`SolveOutcome.status`).
+        message: the solver's own message (`stop_reason` puts it in plain words).
+        time_s: the solver's time (pauses excluded), s.
+    """
+
+    state: Literal["converged", "not converged"]
+    status: int
+    message: str
+    time_s: float
+
+
+@dataclass(frozen=True)
 class UserRegion:
     """An include/exclude region drawn in the app.
 
@@ -156,6 +173,7 @@ class AppState:
         self.result: CalibrationResult | None = None
         self.display: Display | None = None
         self.resume_x: np.ndarray | None = None
+        self.resume_end: SolveEnd | None = None  # a restored solve that had finished
         self.drawn: tuple[int, int] = (-1, -1)  # (session_gen, iteration) last drawn
         self.changed = True  # something worth autosaving happened
         self.dirty = set(ALL_DIRT)
