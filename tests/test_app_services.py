@@ -227,6 +227,63 @@ def test_a_reloaded_converged_session_is_still_converged(
     assert messages2.titles()[-1] == "The solve has ended"
 
 
+def test_run_keeps_each_iteration_on_the_page_for_the_chosen_pace(
+    synthetic: SyntheticProject,
+) -> None:
+    """With a page following (a stand-in drawer here), Run leaves at least
+    `min_iteration_s` between iterations; the solver's time excludes those waits."""
+    import time
+
+    state = _state(synthetic)
+    solve = SolveService(state, notify=Messages(), follow_iterations=True)
+    solve.setup_changed()
+    state.min_iteration_s = 0.3
+    shown: dict[int, float] = {}
+    stop = threading.Event()
+
+    def drawer() -> None:  # what the redraw does: mark the newest iteration drawn
+        while not stop.is_set():
+            with state.cond:
+                if state.history:
+                    it = state.history[-1].iteration
+                    shown.setdefault(it, time.monotonic())
+                    state.drawn = (state.session_gen, it)
+                    state.cond.notify_all()
+            stop.wait(0.005)
+
+    thread = threading.Thread(target=drawer, daemon=True)
+    thread.start()
+    start = time.monotonic()
+    try:
+        solve.start("run")
+        _run_requests(solve, state, timeout=120.0)
+    finally:
+        stop.set()
+        thread.join()
+    wall = time.monotonic() - start
+    assert state.solver_state == "converged" and state.result is not None
+    iterations = sorted(shown)
+    assert len(iterations) >= 3
+    gaps = np.diff([shown[i] for i in iterations])
+    assert gaps.min() >= 0.3 - 0.01  # never faster than the pace (slower is allowed)
+    assert state.result.time_s <= wall - 0.3 * (len(iterations) - 2)
+
+
+def test_the_pace_is_bounded_and_must_be_a_number(synthetic: SyntheticProject) -> None:
+    from lightcal_app.actions import Actions
+
+    from lightcal.errors import InputError
+
+    state = _state(synthetic)
+    actions = Actions(state, planes=lambda: [], notify=Messages())
+    actions.set_pace(99.0)
+    assert state.min_iteration_s == 5.0
+    actions.set_pace(-1.0)
+    assert state.min_iteration_s == 0.0
+    with pytest.raises(InputError, match="seconds per iteration: expected a number, got nan"):
+        actions.set_pace(float("nan"))
+
+
 def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: SyntheticProject) -> None:
     state = _state(synthetic)
     handled: list[rq.Request] = []

@@ -6,13 +6,14 @@ worker and the services.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from lightcal.core.rotations import as_finite_array, matrix_from_quaternion_wxyz
-from lightcal.errors import LightcalError
+from lightcal.errors import InputError, LightcalError
 from lightcal_app.limits import check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
 from lightcal_app.requests import (
@@ -27,6 +28,7 @@ from lightcal_app.requests import (
 from lightcal_app.solve_service import Notify
 from lightcal_app.state import (
     ALL_DIRT,
+    MAX_ITERATION_S,
     AppState,
     Dirt,
     LightGuess,
@@ -222,6 +224,15 @@ class Actions:
                 return
             st.ref_image = index
             st.mark(*ALL_DIRT, changed=True)
+
+    def set_pace(self, seconds: float) -> None:
+        """Run's minimum time per iteration in the page (0: as fast as it is drawn)."""
+        value = float(seconds)
+        if not math.isfinite(value):
+            raise InputError("seconds per iteration", f"expected a number, got {seconds!r}")
+        st = self.state
+        with st.lock:
+            st.min_iteration_s = min(max(value, 0.0), MAX_ITERATION_S)
 
     def step(self, client: Any = None) -> None:
         self.state.request(Solve("step", client=client))

@@ -15,6 +15,7 @@ All methods but `on_iteration` run on the worker thread. The solver's own thread
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, Literal
@@ -31,7 +32,7 @@ from lightcal.pipeline import measurements_for, starting_lights, summarise
 from lightcal.pipeline.results import stop_reason
 from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
-from lightcal_app.state import AppState, Display, LightGuess
+from lightcal_app.state import MAX_ITERATION_S, AppState, Display, LightGuess
 
 log = logging.getLogger("lightcal.app")
 
@@ -60,6 +61,7 @@ class SolveService:
         self._selection_done = -1
         self._iteration_offset = 0
         self._last_session_state = "idle"
+        self._shown_at = 0.0  # time.monotonic() when the last iteration was drawn
 
     # ------------------------------------------------------------------ setup
 
@@ -261,6 +263,14 @@ class SolveService:
         st = self.state
         display = self.estimate_display(model, rep.x)
         with st.cond:
+            if self.follow_iterations and st.history:
+                # A readable pace: the page shows the previous iteration at least
+                # min_iteration_s before this one (a reset or closing ends the wait).
+                left = min(st.min_iteration_s, MAX_ITERATION_S) - (
+                    time.monotonic() - self._shown_at
+                )
+                if left > 0:
+                    st.cond.wait_for(lambda: st.session_gen != gen or st.closing, timeout=left)
             if st.session_gen != gen:
                 return
             if self._iteration_offset:
@@ -277,6 +287,7 @@ class SolveService:
                     lambda: st.drawn >= (gen, it) or st.session_gen != gen or st.closing,
                     timeout=self.follow_timeout_s,
                 )
+                self._shown_at = time.monotonic()
 
     def start(self, how: Literal["step", "run"], client: Any = None) -> None:
         """ "step" (one iteration) or "run" (to convergence)."""

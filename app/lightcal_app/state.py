@@ -34,6 +34,12 @@ ALL_DIRT: frozenset[Dirt] = frozenset(
 )
 
 
+DEFAULT_ITERATION_S = 0.5
+"""Run's default pace in the app: at least half a second per iteration, readable."""
+MAX_ITERATION_S = 5.0
+"""The slowest pace the Solve tab offers."""
+
+
 @dataclass(frozen=True)
 class LightGuess:
     """The pose of one light the user set (camera frame).
@@ -174,6 +180,9 @@ class AppState:
         self.display: Display | None = None
         self.resume_x: np.ndarray | None = None
         self.resume_end: SolveEnd | None = None  # a restored solve that had finished
+        # Run's pace in a page: each iteration stays at least this long (0: as fast as
+        # drawn); only a solve followed by a page waits (SolveService.follow_iterations).
+        self.min_iteration_s = DEFAULT_ITERATION_S
         self.drawn: tuple[int, int] = (-1, -1)  # (session_gen, iteration) last drawn
         self.changed = True  # something worth autosaving happened
         self.dirty = set(ALL_DIRT)

@@ -10,7 +10,7 @@ import viser
 
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
-from lightcal_app.state import Frame
+from lightcal_app.state import MAX_ITERATION_S, Frame
 from lightcal_app.text import md_prose
 
 COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
@@ -46,6 +46,15 @@ class SolvePanel(TabPanel):
         self.reset_button = gui.add_button(
             "Reset", icon=viser.Icon.REFRESH, hint="stop and go back to the initial guess"
         )
+        self.pace = gui.add_slider(
+            "seconds per iteration",
+            min=0.0,
+            max=MAX_ITERATION_S,
+            step=0.1,
+            initial_value=ctl.state.min_iteration_s,
+            hint="Run shows each iteration at least this long (0: full speed)",
+        )
+        self.pace.on_update(self.guard(lambda e: ctl.set_pace(self.pace.value)))
         self.status_md = gui.add_markdown("")
         empty = np.zeros(0)
         self.cost_plot = gui.add_uplot(
