@@ -29,6 +29,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
+from lightcal.pipeline.result_text import axis_text, position_text
 from lightcal.pipeline.results import stop_reason
 
 
@@ -137,23 +138,13 @@ def _summary_markdown(
     )
     lines.append("")
     for lr in result.lights:
-        pos = lr.pose.t_camera_light
-        sp = lr.sigma.t_camera_light
         lines.append(f"## {lr.name} ({lr.pose_kind})")
         lines.append("")
-        lines.append(
-            "- position (camera frame): "
-            + ", ".join(f"{v * 1000:.2f} ± {s * 1000:.2f} mm" for v, s in zip(pos, sp, strict=True))
-        )
-        ax = lr.pose.axis_camera
-        lines.append(
-            f"- axis (camera frame): ({ax[0]:.5f}, {ax[1]:.5f}, {ax[2]:.5f}), "
-            f"{lr.pose.axis_angle_from_optical_axis_deg:.3f} deg from the optical axis"
-        )
-        lines.append(
-            f"- roll {lr.pose.roll_deg:.3f} ± {lr.sigma.roll_deg:.3f} deg, "
-            f"pitch {lr.pose.pitch_deg:.3f} ± {lr.sigma.pitch_deg:.3f} deg"
-        )
+        lines.append(f"- position (camera frame): {position_text(lr)}")
+        if axis_text(lr):
+            ax = lr.pose.axis_camera
+            lines.append(f"- axis: {axis_text(lr)}")
+            lines.append(f"- axis vector (camera frame): ({ax[0]:.5f}, {ax[1]:.5f}, {ax[2]:.5f})")
         lines.append(f"- scale {lr.scale:.6g} ± {lr.scale_sigma:.2g}")
         lines.append("")
     lines.extend(_fit_lines(result))

@@ -40,7 +40,7 @@ from viser import _messages
 from viser._gui_handles import GuiEvent, UploadedFile
 from viser.infra import ClientId
 
-from lightcal.core.pose import rotation_from_axis
+from lightcal.core.pose import describe_pose, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
 from lightcal.core.solver import IterationReport
@@ -131,9 +131,17 @@ def test_pose_angles_round_trip() -> None:
         R = matrix_from_rotvec(rng.normal(scale=0.6, size=3))
         a, b, roll = pose_angles_deg(R)
         np.testing.assert_allclose(rotation_from_angles_deg(a, b, roll), R, atol=1e-12)
-    # Hand case: the light tilted by 10 degrees towards +x, no roll.
+    # Hand cases in the paper's angles (as the result file gives them): the axis tilted
+    # by 10 degrees towards +x is a pitch of 10; towards -y, a roll of 10; no spin.
     R = rotation_from_axis(np.array([math.sin(math.radians(10)), 0.0, math.cos(math.radians(10))]))
+    assert pose_angles_deg(R) == pytest.approx((0.0, 10.0, 0.0), abs=1e-9)
+    R = rotation_from_axis(np.array([0.0, -math.sin(math.radians(10)), math.cos(math.radians(10))]))
     assert pose_angles_deg(R) == pytest.approx((10.0, 0.0, 0.0), abs=1e-9)
+    # The same numbers as the result's roll_deg / pitch_deg.
+    R = matrix_from_rotvec(np.array([0.2, -0.1, 0.3]))
+    pose = describe_pose(R, np.zeros(3))
+    roll, pitch, _ = pose_angles_deg(R)
+    assert (roll, pitch) == pytest.approx((pose["roll_deg"], pose["pitch_deg"]), abs=1e-12)
 
 
 def test_cone_lines_outline_the_cone() -> None:
@@ -364,7 +372,7 @@ def test_gizmo_drag_changes_rendered_overlay_and_numbers(app: LightcalApp) -> No
     np.testing.assert_allclose(app.state.guess[0].position_m, [0.12, -0.02, 0.0])
     w = app.panels.light.light_widgets[0]
     assert w["position"].value == pytest.approx((120.0, -20.0, 0.0))
-    assert w["tilt"].value[0] == pytest.approx(math.degrees(math.atan(0.2)), abs=1e-3)
+    assert w["axis"].value[1] == pytest.approx(math.degrees(math.atan(0.2)), abs=1e-3)  # pitch
 
 
 def test_typed_numbers_move_the_gizmo_without_fighting_a_solve(app: LightcalApp) -> None:
@@ -373,10 +381,10 @@ def test_typed_numbers_move_the_gizmo_without_fighting_a_solve(app: LightcalApp)
     _idle(app)
     np.testing.assert_allclose(app.state.guess[0].position_m, [0.08, 0.01, 0.005])
     np.testing.assert_allclose(app.controller.scene.gizmos[0].position, [0.08, 0.01, 0.005])
-    _set(w["tilt"], (5.0, -3.0))
+    _set(w["axis"], (5.0, -3.0))
     _idle(app)
-    a, b, _ = pose_angles_deg(app.state.guess[0].R_camera_light)
-    assert (a, b) == pytest.approx((5.0, -3.0))
+    roll, pitch, _ = pose_angles_deg(app.state.guess[0].R_camera_light)
+    assert (roll, pitch) == pytest.approx((5.0, -3.0))
     # A step writes the estimate into the widgets; those writes are not user edits.
     _set(app.panels.solve.step_button, True)
     _idle(app)

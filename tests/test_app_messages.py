@@ -191,9 +191,14 @@ def test_values_are_checked_before_viser_stores_or_broadcasts_them(
             "position (mm): expected a number from -10000 to 10000, got 1e+308",
         ),
         (
-            light["tilt"],
+            light["axis"],
             {"value": [math.inf, 0.0]},
-            "axis tilt a, b (deg): expected a number from -179 to 179, got inf",
+            "axis roll, pitch (deg): expected a number from -180 to 180, got inf",
+        ),
+        (
+            light["axis"],
+            {"value": [0.0, 91.0]},
+            "axis roll, pitch (deg): expected a number from -90 to 90, got 91",
         ),
         (
             pixels.strategy,

@@ -75,7 +75,8 @@ def test_calibrate_with_report(dataset, tmp_path, capsys):
     assert "iteration 0 cost" in text
     assert "(weights from the rendered values)" in text  # the noise model re-weights
     assert "start 1 of" not in text  # a single start
-    assert "light: position [" in text
+    assert "light (symmetric): position " in text and " mm (camera frame)" in text
+    assert "deg from the optical axis)" in text and " ± " in text
     assert "converged: " in text and "result written to" in text
 
 

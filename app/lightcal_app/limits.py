@@ -19,11 +19,14 @@ MAX_INT = 2**53
 POSITION_LIMIT_M = 10.0
 """A light's position: at most this far from the camera on each axis, m."""
 
-TILT_LIMIT_DEG = 179.0
-"""Axis tilt a, b, deg (the chart ends at 180)."""
+AXIS_ROLL_LIMIT_DEG = 180.0
+"""The paper's roll of the light axis (about the camera x axis), deg."""
 
-ROLL_LIMIT_DEG = 180.0
-"""Roll about the light axis, deg."""
+AXIS_PITCH_LIMIT_DEG = 90.0
+"""The paper's pitch of the light axis (about the camera y axis), deg."""
+
+SPIN_LIMIT_DEG = 180.0
+"""A general light's spin about its own axis, deg."""
 
 MAX_PIXELS_PER_IMAGE = 1_000_000
 MAX_GRID_STEP = 100_000

@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
+    from lightcal.pipeline.result_text import light_lines
     from lightcal.pipeline.results import stop_reason
 
     project = load_project(args.project)
@@ -80,9 +81,8 @@ def run(args: argparse.Namespace) -> int:
     model, result = cal.model, cal.result
     write_result(result_to_file(result, project=project.path), args.out)
     for lr in result.lights:
-        pos = ", ".join(f"{v:+.4f}" for v in lr.pose.position_m)
-        ax = ", ".join(f"{v:+.4f}" for v in lr.pose.axis_camera)
-        console.print(f"{lr.name}: position [{pos}] m, axis [{ax}]", highlight=False)
+        for line in light_lines(lr):
+            console.print(line, highlight=False, soft_wrap=True)
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         console.print(f"wall: {result.wall['model']} ({params})", highlight=False)

@@ -8,11 +8,23 @@ from typing import Any
 import numpy as np
 import viser
 
-from lightcal.core.pose import axis_roll_from_rotation, describe_pose, rotation_from_axis_roll
+from lightcal.core.light_axis import (
+    axis_from_paper_angles,
+    axis_roll_from_rotation,
+    paper_angles_from_axis,
+    rotation_from_axis,
+)
+from lightcal.core.pose import describe_pose
+from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
-from lightcal_app.limits import POSITION_LIMIT_M, ROLL_LIMIT_DEG, TILT_LIMIT_DEG
+from lightcal_app.limits import (
+    AXIS_PITCH_LIMIT_DEG,
+    AXIS_ROLL_LIMIT_DEG,
+    POSITION_LIMIT_M,
+    SPIN_LIMIT_DEG,
+)
 from lightcal_app.panels.base import Programmatic, TabPanel, assign, rounded
 from lightcal_app.state import Frame, LightGuess
 from lightcal_app.text import md
@@ -21,14 +33,21 @@ POSITION_LIMIT_MM = POSITION_LIMIT_M * 1e3
 
 
 def pose_angles_deg(R_camera_light: np.ndarray) -> tuple[float, float, float]:
-    """(a, b, roll) in degrees of a light orientation (`axis_roll_from_rotation`)."""
-    a, b, roll = axis_roll_from_rotation(R_camera_light)
-    return math.degrees(a), math.degrees(b), math.degrees(roll)
+    """(roll, pitch, spin) in degrees of a light orientation: the paper's roll and pitch
+    of the axis (`paper_angles_from_axis`, as the result file and the CLI give them) and
+    the spin about the axis from the minimal rotation off +z (`axis_roll_from_rotation`;
+    only a general light has one)."""
+    R = np.asarray(R_camera_light, dtype=np.float64)
+    roll, pitch = paper_angles_from_axis(R[:, 2])
+    spin = axis_roll_from_rotation(R)[2]
+    return math.degrees(roll), math.degrees(pitch), math.degrees(spin)
 
 
-def rotation_from_angles_deg(a_deg: float, b_deg: float, roll_deg: float) -> np.ndarray:
-    """The inverse of `pose_angles_deg`."""
-    return rotation_from_axis_roll(math.radians(a_deg), math.radians(b_deg), math.radians(roll_deg))
+def rotation_from_angles_deg(roll_deg: float, pitch_deg: float, spin_deg: float) -> np.ndarray:
+    """The inverse of `pose_angles_deg`: R_camera_light (3, 3)."""
+    axis = axis_from_paper_angles(math.radians(roll_deg), math.radians(pitch_deg))
+    spin = matrix_from_rotvec(np.array([0.0, 0.0, math.radians(spin_deg)]))
+    return rotation_from_axis(axis) @ spin
 
 
 class LightPanel(TabPanel):
@@ -73,7 +92,7 @@ class LightPanel(TabPanel):
                 self._folders.append(folder)
                 with folder:
                     t = u.initial.t_camera_light * 1e3
-                    a, b, roll = pose_angles_deg(u.initial.R_camera_light)
+                    roll, pitch, spin = pose_angles_deg(u.initial.R_camera_light)
                     w: dict[str, Any] = {
                         "position": gui.add_vector3(
                             "position (mm)",
@@ -83,22 +102,23 @@ class LightPanel(TabPanel):
                             max=(POSITION_LIMIT_MM,) * 3,
                             hint="emitter position in the camera frame: x right, y down, z forward",
                         ),
-                        "tilt": gui.add_vector2(
-                            "axis tilt a, b (deg)",
-                            (rounded(a, 3), rounded(b, 3)),
+                        "axis": gui.add_vector2(
+                            "axis roll, pitch (deg)",
+                            (rounded(roll, 3), rounded(pitch, 3)),
                             step=0.1,
-                            min=(-TILT_LIMIT_DEG,) * 2,
-                            max=(TILT_LIMIT_DEG,) * 2,
-                            hint="angle of the light axis from the optical axis towards +x (a) "
-                            "and +y (b); the tilt is hypot(a, b)",
+                            min=(-AXIS_ROLL_LIMIT_DEG, -AXIS_PITCH_LIMIT_DEG),
+                            max=(AXIS_ROLL_LIMIT_DEG, AXIS_PITCH_LIMIT_DEG),
+                            hint="the paper's angles, as in the result: the optical axis "
+                            "pitched about the camera y axis (+: towards +x), then rolled "
+                            "about the camera x axis (+: towards -y)",
                             visible=u.kind() != "isotropic",
                         ),
-                        "roll": gui.add_number(
-                            "roll about the axis (deg)",
-                            rounded(roll, 3),
+                        "spin": gui.add_number(
+                            "spin about the axis (deg)",
+                            rounded(spin, 3),
                             step=0.1,
-                            min=-ROLL_LIMIT_DEG,
-                            max=ROLL_LIMIT_DEG,
+                            min=-SPIN_LIMIT_DEG,
+                            max=SPIN_LIMIT_DEG,
                             visible=u.kind() == "general",
                         ),
                     }
@@ -114,12 +134,12 @@ class LightPanel(TabPanel):
             ctl.set_guess(j, position_m=np.array(w["position"].value, dtype=float) / 1e3)
 
         def orientation(event: Any) -> None:
-            a, b = w["tilt"].value
-            R = rotation_from_angles_deg(float(a), float(b), float(w["roll"].value))
+            roll, pitch = w["axis"].value
+            R = rotation_from_angles_deg(float(roll), float(pitch), float(w["spin"].value))
             ctl.set_guess(j, R_camera_light=R)
 
-        w["tilt"].on_update(self.guard(orientation))
-        w["roll"].on_update(self.guard(orientation))
+        w["axis"].on_update(self.guard(orientation))
+        w["spin"].on_update(self.guard(orientation))
 
     def set_project(self, project: Project) -> None:
         """Options that depend on the project (after an upload)."""
@@ -147,11 +167,11 @@ class LightPanel(TabPanel):
                 t, R = light.t_camera_light, light.R_camera_light
             else:
                 t, R = light.position_m, light.R_camera_light
-            a, b, roll = pose_angles_deg(R)
+            roll, pitch, spin = pose_angles_deg(R)
             w = self.light_widgets[j]
             assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
-            assign(w["tilt"], (rounded(a, 3), rounded(b, 3)))
-            assign(w["roll"], rounded(roll, 3))
+            assign(w["axis"], (rounded(roll, 3), rounded(pitch, 3)))
+            assign(w["spin"], rounded(spin, 3))
             pose = describe_pose(R, t)
             ax = np.asarray(pose["axis_camera"]) + 0.0  # no "-0.0000"
             scale = f", scale {light.scale:.4g}" if isinstance(light, Light) else ""

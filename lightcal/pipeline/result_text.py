@@ -1,0 +1,45 @@
+"""A calibrated light in words: one unit per quantity, each with its 1-sigma.
+
+What `lightcal calibrate` prints and the report's summary writes (the app's Result tab
+shows the same quantities in a table): the position in millimetres in the camera frame
+(x right, y down, z forward), the axis by the paper's roll and pitch in degrees with its
+angle from the optical axis, and the scale.
+"""
+
+from __future__ import annotations
+
+from lightcal.pipeline.results import LightResult
+
+
+def position_text(light: LightResult) -> str:
+    """ "+101.97 ± 0.25, -13.72 ± 0.25, +18.41 ± 0.43 mm" (camera frame)."""
+    values = zip(light.pose.t_camera_light, light.sigma.t_camera_light, strict=True)
+    return ", ".join(f"{v * 1e3:+.2f} ± {s * 1e3:.2g}" for v, s in values) + " mm"
+
+
+def axis_text(light: LightResult) -> str:
+    """ "roll -3.988 ± 0.014 deg, pitch -5.992 ± 0.016 deg (7.194 ± 0.02 deg from the
+    optical axis)"; empty for an isotropic light (it has no axis)."""
+    if light.pose_kind == "isotropic":
+        return ""
+    pose, sigma = light.pose, light.sigma
+    return (
+        f"roll {pose.roll_deg:+.3f} ± {sigma.roll_deg:.2g} deg, "
+        f"pitch {pose.pitch_deg:+.3f} ± {sigma.pitch_deg:.2g} deg "
+        f"({pose.axis_angle_from_optical_axis_deg:.3f} ± "
+        f"{sigma.axis_angle_from_optical_axis_deg:.2g} deg from the optical axis)"
+    )
+
+
+def light_lines(light: LightResult) -> list[str]:
+    """The light's name, position, axis and scale, one line each (no axis line for an
+    isotropic light)."""
+    lines = [
+        f"{light.name} ({light.pose_kind}):",
+        f"  position {position_text(light)} (camera frame)",
+    ]
+    axis = axis_text(light)
+    if axis:
+        lines.append(f"  axis     {axis}")
+    lines.append(f"  scale    {light.scale:.6g} ± {light.scale_sigma:.2g}")
+    return lines
