@@ -296,15 +296,17 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Pat
     assert st.solver_state == "converged"
     res = st.result
     assert res is not None and res.converged
-    np.testing.assert_allclose(res.lights[0].pose.position_m, TRUE_POSITION_M, atol=2e-4)
+    np.testing.assert_allclose(res.lights[0].pose.t_camera_light, TRUE_POSITION_M, atol=2e-4)
     md = app.panels.result.result_md.content
     assert md.startswith("**converged**")
     x_mm = re.search(r"\| position x \(mm\) \| ([-+0-9.]+) \| ([0-9.e-]+) \|", md)
     assert x_mm is not None and float(x_mm.group(1)) == pytest.approx(100.0, abs=0.05)
-    assert float(x_mm.group(2)) == pytest.approx(res.lights[0].sigma.position_m[0] * 1e3, rel=0.03)
+    assert float(x_mm.group(2)) == pytest.approx(
+        res.lights[0].sigma.t_camera_light[0] * 1e3, rel=0.03
+    )
     # The gizmo followed the estimate.
     np.testing.assert_allclose(
-        app.controller.scene.gizmos[0].position, res.lights[0].pose.position_m, atol=1e-6
+        app.controller.scene.gizmos[0].position, res.lights[0].pose.t_camera_light, atol=1e-6
     )
     # Step after the end asks for a reset instead of starting a second solve.
     _set(app.panels.solve.step_button, True)

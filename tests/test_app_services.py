@@ -125,7 +125,9 @@ def test_run_finds_the_true_light_then_reset_returns_to_the_guess(
     _run_requests(solve, state, timeout=120.0)
     assert state.solver_state == "converged"
     assert state.result is not None and state.result.converged
-    np.testing.assert_allclose(state.result.lights[0].pose.position_m, TRUE_POSITION_M, atol=5e-4)
+    np.testing.assert_allclose(
+        state.result.lights[0].pose.t_camera_light, TRUE_POSITION_M, atol=5e-4
+    )
     solve.start("step")  # after the end: a message, no second solve
     assert messages.titles()[-1] == "The solve has ended"
     solve.reset()

@@ -41,7 +41,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
         "",
     ]
     for lr in result.lights:
-        p, sp = lr.pose.position_m, lr.sigma.position_m
+        p, sp = lr.pose.t_camera_light, lr.sigma.t_camera_light
         ax, sax = lr.pose.axis_camera, lr.sigma.axis_camera
         lines += [
             f"#### {md(lr.name)} ({lr.pose_kind})",

@@ -75,12 +75,6 @@ class PoseSummary:
         """The description of the pose (R_camera_light, t_camera_light)."""
         return cls.from_dict(describe_pose(R_camera_light, t_camera_light))
 
-    @property
-    def position_m(self) -> np.ndarray:
-        """`t_camera_light` under the result file's name (for callers not yet moved to
-        `t_camera_light`; to be removed)."""
-        return self.t_camera_light
-
     def to_vector(self) -> np.ndarray:
         """(22,) the fields in declaration order, arrays flattened row by row."""
         return np.concatenate([np.ravel(getattr(self, name)) for name in self.SHAPES])
