@@ -131,7 +131,13 @@ def test_cli_writes_plan_and_refuses_to_overwrite(project, tmp_path, capsys):
     before = out.read_text()
     assert main(["plan", str(project), "--n", "1", "--out", str(out)]) == 2
     assert capsys.readouterr().err == (
-        f"lightcal plan: error: {out}: exists; use --force to replace it\n"
+        f"lightcal plan: error: {out}: --out: exists; use --force to replace it\n"
+    )
+    # Never over an input of the project (the common output checks of every command).
+    assert main(["plan", str(project), "--out", str(project), "--force"]) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal plan: error: {project}: --out: is the project file, an input of the "
+        "project; write elsewhere\n"
     )
     assert out.read_text() == before
     assert main(["plan", str(project), "--n", "1", "--out", str(out), "--force"]) == 0
@@ -174,3 +180,29 @@ def test_cli_plans_from_a_result(project, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"lightcal plan: error: {result}: parameters light.x_m, ")
     assert err.endswith("are not in the result: solve this project\n")
+
+
+def test_sigmas_before_a_solve_are_in_mm_from_the_images_noise(tmp_path, capsys):
+    """Before any solve the plan weighs the pixels by the noise each image shows (a synth
+    dataset with Poisson-Gaussian noise): its sigma is within 20 % of the one the solved
+    estimate gives, in mm and deg (not in units of a 1-DN pixel noise)."""
+    from lightcal.cli.main import main
+
+    folder = tmp_path / "data"
+    argv = ["synth", str(folder), "--views", "6", "--width", "160", "--height", "120"]
+    assert main([*argv, "--quiet"]) == 0
+    project = folder / "project.json"
+    doc = json.loads(project.read_text())
+    del doc["sensor"]["noise"]  # unknown sensor: the noise is estimated from the images
+    project.write_text(json.dumps(doc))
+    before, after, result = tmp_path / "before.json", tmp_path / "after.json", tmp_path / "r.json"
+    assert main(["plan", str(project), "--n", "1", "--out", str(before)]) == 0
+    assert "noise: estimated from each image" in capsys.readouterr().err
+    assert main(["calibrate", str(project), "--out", str(result), "--quiet"]) == 0
+    assert (
+        main(["plan", str(project), "--result", str(result), "--n", "1", "--out", str(after)]) == 0
+    )
+    pre = json.loads(before.read_text())["current"][0]
+    post = json.loads(after.read_text())["current"][0]
+    assert 0.8 < pre["position_sigma_m"] / post["position_sigma_m"] < 1.25
+    assert 0.8 < pre["axis_sigma_deg"] / post["axis_sigma_deg"] < 1.25

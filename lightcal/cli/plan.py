@@ -18,6 +18,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+_NOISE_WORDS = {
+    "model": "the sensor's noise model (sensor.noise of the project)",
+    "image": "estimated from each image (Poisson-Gaussian); sigmas in mm and deg",
+}
+
+
 def _sig(entries: list[dict]) -> str:
     parts = []
     for e in entries:
@@ -31,31 +37,58 @@ def _sig(entries: list[dict]) -> str:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    from lightcal.cli.progress import console, ensure_kernels
+    from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
+    from lightcal.io.outputs import check_output_file, project_inputs
     from lightcal.io.project import load_project
     from lightcal.io.result_file import read_result
-    from lightcal.pipeline import build_model, load_images
-    from lightcal.pipeline.plan import PlanGrid, plan_to_dict, plan_views, start_vector
+    from lightcal.pipeline import build_model, load_images, measurements_for
+    from lightcal.pipeline.plan import (
+        PlanGrid,
+        noise_variance,
+        plan_to_dict,
+        plan_views,
+        start_vector,
+    )
 
     if args.n < 1:
         raise InputError("--n", f"expected at least 1 view, got {args.n}")
-    if args.out is not None and args.out.exists() and not args.force:
-        raise InputError(args.out, "exists; use --force to replace it")
     project = load_project(args.project)
+    if args.out is not None:
+        inputs = project_inputs(project)
+        if args.result is not None:
+            inputs[args.result.resolve()] = "the result file"
+        check_output_file(args.out, option="--out", inputs=inputs, force=args.force)
     names = x = None
     if args.result is not None:
         res = read_result(args.result)
         names, x = res.parameters.names, res.parameters.x
-    ensure_kernels(quiet=True)
-    loaded = load_images(project)
-    model = build_model(project, loaded)
-    x0 = start_vector(model, names, x, args.result)
-    grid = PlanGrid(wall_size_m=args.wall_size)
-    # Before a solve the residuals are the guess's misfit, not noise: s^2 = 1 (docstring).
-    s2 = None if args.result is not None else 1.0
-    current, planned = plan_views(model, x0, loaded.camera, n=args.n, grid=grid, noise_scale2=s2)
+    ensure_kernels()
+    with stage_progress() as progress:
+        loaded = load_images(project, progress=progress)
+        model = build_model(project, loaded, progress=progress)
+        x0 = start_vector(model, names, x, args.result)
+        grid = PlanGrid(wall_size_m=args.wall_size)
+        s2 = None
+        if args.result is None:
+            # Before a solve the residuals are the guess's misfit, not noise: s^2 is
+            # the pixels' mean noise variance from their noise models (pipeline.plan).
+            meas = measurements_for(project, loaded, model)
+            s2 = noise_variance(model, meas.noise)
+            if s2 is not None:
+                console.print(f"noise: {_NOISE_WORDS[meas.noise_source]}", highlight=False)
+            else:
+                s2 = 1.0
+                console.print(
+                    "noise: no noise model (the sensor's or estimated from the images): "
+                    "the sigmas are for a pixel noise of 1 (image units)",
+                    style="yellow",
+                    highlight=False,
+                )
+        current, planned = plan_views(
+            model, x0, loaded.camera, n=args.n, grid=grid, noise_scale2=s2, progress=progress
+        )
     light_names = [u.initial.name for u in model.unknowns]
     plan = plan_to_dict(current, planned, light_names)
     console.print(f"now: {_sig(plan['current'])}", highlight=False)  # type: ignore[arg-type]
@@ -66,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         data = (json.dumps(plan, indent=2) + "\n").encode()
         try:
             (atomic_write_bytes if args.force else atomic_create_bytes)(args.out, data)
-        except FileExistsError:
-            raise InputError(args.out, "exists; use --force to replace it") from None
+        except FileExistsError:  # appeared while planning
+            raise InputError(args.out, "--out: exists; use --force to replace it") from None
         console.print(f"plan written to {args.out}", highlight=False)
     return 0

@@ -28,14 +28,19 @@ candidate is kept when its four image corners see the wall inside its extent (th
 size, centred on that point) and at least `min_lit_pixels` of its grid pixels are lit.
 
 Before any solve the estimate is the initial guess (scales fitted) and s^2 = 1 (the
-residuals there are the guess's misfit, not noise; `lightcal plan` without --result): the
-sigmas are then in units of the images' sigma, exact when the sensor's noise model is
-known, for sigma = 1 DN otherwise. After a solve s^2 comes from its residuals.
+residuals there are the guess's misfit, not noise; `lightcal plan` without --result):
+s^2 is the mean noise variance of the pixels (`noise_variance`: the sensor's noise model
+when the project gives one, else each image's estimated from the image itself, as the
+fit test does), what a solve's residuals estimate when the model fits: the sigmas are
+in metres and degrees before the solve as after it. Only when no noise model exists
+are they for a pixel noise of 1, and `lightcal plan` says so. After a solve s^2 comes
+from its residuals.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -221,6 +226,29 @@ def candidate_image(
     return ImageData(name, view, pixel_footprints(camera, view, pix[keep]), signal + offset, sigma)
 
 
+def noise_variance(
+    model: CalibrationModel, noise: list[tuple[float, float] | None]
+) -> float | None:
+    """s^2 before any solve: the mean noise variance of the model's pixels (image units^2).
+
+    Each image's noise model (gain, read_variance) (model order) gives its pixels the
+    variance gain * (observed - offset) + read_variance; their mean is what the residuals
+    of a solve estimate s^2 to be when the model fits (the solver weighs the pixels
+    alike), so the sigmas come out in metres and degrees before the solve as after it.
+    None when an image has no noise model.
+    """
+    if not noise or any(n is None for n in noise):
+        return None
+    offset = model.layout.offset(model.layout.x0)
+    total, count = 0.0, 0
+    for im, sigma_im, n in zip(model.images, model.sigmas, noise, strict=True):
+        assert n is not None
+        variance = poisson_gaussian_sigma(im.observed - offset, n) ** 2 / sigma_im**2
+        total += float(np.sum(variance))
+        count += variance.size
+    return total / count if count else None
+
+
 def typical_peak(model: CalibrationModel, x: np.ndarray) -> float:
     """The median over the images of their brightest selected value above the offset."""
     offset = model.layout.offset(x)
@@ -366,6 +394,7 @@ def plan_views(
     n: int = 3,
     grid: PlanGrid | None = None,
     noise_scale2: float | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> tuple[Sigmas, list[PlannedView]]:
     """The current sigmas and the `n` best next views of a calibration model at x.
 
@@ -376,6 +405,8 @@ def plan_views(
         n: how many views to plan.
         grid: the candidates' grid (default `PlanGrid()`).
         noise_scale2: s^2 (default: from the residuals at x, `noise_inflation`).
+        progress: progress("rendering candidates", done, total) as the candidate views
+            are rendered (the long part).
     """
     grid = PlanGrid() if grid is None else grid
     if noise_scale2 is None:
@@ -388,10 +419,15 @@ def plan_views(
     exposure = float(np.median([im.view.exposure for im in model.images]))
     pool = candidates(camera, grid, wall_centre([im.view for im in model.images]), exposure)
     peak = typical_peak(model, state.x)
-    images = [
-        candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak)
-        for k, c in enumerate(pool)
-    ]
+    images = []
+    for k, c in enumerate(pool):
+        if progress is not None:
+            progress("rendering candidates", k, len(pool))
+        images.append(
+            candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak)
+        )
+    if progress is not None:
+        progress("rendering candidates", len(pool), len(pool))
     if not any(im is not None for im in images):
         raise InputError(
             "plan", "no candidate view sees the lit wall within the wall's size; widen the grid"
