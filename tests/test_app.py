@@ -36,6 +36,7 @@ from lightcal_app.session_file import (
     session_json,
 )
 from lightcal_app.state import Display
+from lightcal_app.text import md
 from viser import _messages
 from viser._gui_handles import GuiEvent, UploadedFile
 from viser.infra import ClientId
@@ -343,6 +344,10 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Pat
     _idle(app, 120)
     d = st.downloads[-1]
     assert d.name == "project.report.zip"
+    # "Preparing the report" is replaced when it is done, with the file's size.
+    assert st.messages[-2][0] == "Preparing the report"
+    assert st.messages[-1][0] == "Report ready"
+    assert st.messages[-1][1].startswith("project.report.zip (")
     names = zipfile.ZipFile(io.BytesIO(d.content)).namelist()
     assert "report/summary.md" in names and "report/result.json" in names
     assert sum(n.startswith("report/residual_") for n in names) == 4
@@ -645,6 +650,11 @@ def test_project_and_rid_uploads_switch_the_project(
     assert st.project.path.is_relative_to(app.controller.files.upload_root)
     assert st.messages[-1][0] == "Project updated"
     assert len(app.controller.scene.frusta) == 4
+    # The Files tab names the new project's autosave, not the old one's.
+    autosave = app.controller.files.session_path
+    assert autosave is not None and autosave.name == "project.session.json"
+    assert f"(as {md(autosave.name)})" in app.panels.files.autosave_md.content
+    assert "autosave" not in app.panels.files.autosave_md.content.split("(as ")[1]
     # An IES file becomes the light's RID; the guess is kept.
     _set(app.panels.light.light_widgets[0]["position"], (70.0, 0.0, 0.0))
     _idle(app)

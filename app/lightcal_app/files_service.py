@@ -40,7 +40,7 @@ from lightcal_app.session_file import (
 )
 from lightcal_app.solve_service import Notify, SolveService
 from lightcal_app.state import ALL_DIRT, AppState, Download, LightGuess
-from lightcal_app.upload_checks import project_paths
+from lightcal_app.upload_checks import format_size, project_paths
 from lightcal_app.uploads import (
     MAX_UPLOAD_BYTES,
     Place,
@@ -224,7 +224,16 @@ class FilesService:
         elif req.what == "report":
             self.notify(client, "Preparing the report", "Rendering every image at full size...")
             proj = project_with_selection(project, settings, regions)
-            self._send(client, f"{stem}.report.zip", report_zip_bytes(proj, loaded, model, result))
+            name = f"{stem}.report.zip"
+            try:
+                content = report_zip_bytes(proj, loaded, model, result)
+            except Exception as exc:  # said in place of "Preparing the report"
+                log.warning("report failed", exc_info=True)
+                self.notify(client, "Report failed", f"{type(exc).__name__}: {exc}", error=True)
+                return
+            self._send(client, name, content)
+            size = format_size(len(content))
+            self.notify(client, "Report ready", f"{name} ({size}) sent as a download.")
 
     # ------------------------------------------------------------------ sessions
 

@@ -4,6 +4,7 @@ a light's RID file. The files themselves are handled by `FilesService`."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import viser
@@ -15,6 +16,16 @@ from lightcal_app.text import md
 from lightcal_app.upload_checks import format_size
 
 
+def autosave_text(session_path: Path | None) -> str:
+    """What the Files tab says of the autosave (its file name, never its folder)."""
+    if session_path is None:
+        return "The session is **not autosaved** (no writable place for it)."
+    return (
+        "The session (guess, selection, regions, solve) is **autosaved** after every change "
+        f"(as {md(session_path.name)}) and restored at start."
+    )
+
+
 class FilesPanel(TabPanel):
     """The Files tab (built in the current GUI container)."""
 
@@ -22,11 +33,7 @@ class FilesPanel(TabPanel):
         super().__init__(server, ctl, flag)
         gui = self.gui
         files = ctl.files
-        gui.add_markdown(
-            "The session (guess, selection, regions, solve) is **autosaved** after every change"
-            + (f" (as {md(files.session_path.name)})" if files.session_path else "")
-            + " and restored at start."
-        )
+        self.autosave_md = gui.add_markdown(autosave_text(files.session_path))
         self.save_session = gui.add_button("Save session", icon=viser.Icon.DEVICE_FLOPPY)
         self.reload_session = gui.add_button("Reload saved session")
         self.upload_session = gui.add_upload_button("Load a session file", mime_type=".json")
@@ -68,3 +75,5 @@ class FilesPanel(TabPanel):
 
     def set_project(self, project: Project) -> None:
         self.rid_light.options = [u.initial.name for u in project.lights]
+        # Another project autosaves elsewhere: name the file it saves to now.
+        self.autosave_md.content = autosave_text(self.ctl.files.session_path)
