@@ -356,6 +356,18 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Pat
     _idle(app)
     assert st.history == [] and st.result is None and st.solver_state == "idle"
     np.testing.assert_allclose(app.controller.scene.gizmos[0].position, [0.05, 0.0, 0.0])
+    # The converged result is kept, shown in the Result tab, and one click restores it.
+    panel = app.panels.result
+    assert panel.restore_previous.visible and panel.previous_md.visible
+    assert panel.previous_md.content.startswith("**Previous result** (converged, ")
+    x_solved = res.x.copy()
+    _set(panel.restore_previous, True)
+    _idle(app, 60)
+    assert st.solver_state == "converged" and st.result is not None
+    np.testing.assert_array_equal(st.result.x, x_solved)
+    assert not panel.restore_previous.visible
+    _set(app.panels.solve.reset_button, True)
+    _idle(app)
 
 
 def test_gizmo_drag_changes_rendered_overlay_and_numbers(app: LightcalApp) -> None:

@@ -197,16 +197,22 @@ def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_pa
     assert [h.iteration for h in state.history] == [0, 1, 2]
 
 
+def _converged(synthetic: SyntheticProject, tmp: Path):
+    """A service solved to convergence, with its files service."""
+    state, solve, messages = _service(synthetic)
+    files = _files(state, solve, messages, tmp)
+    solve.start("run")
+    _run_requests(solve, state, timeout=120.0)
+    assert state.solver_state == "converged" and state.result is not None
+    return state, solve, messages, files
+
+
 def test_a_reloaded_converged_session_is_still_converged(
     synthetic: SyntheticProject, tmp_path: Path
 ) -> None:
     """Saved after convergence and reloaded in a fresh app: the same status, reason,
     solver time and estimate with its uncertainties, not "paused"; Step says it ended."""
-    state, solve, messages = _service(synthetic)
-    files = _files(state, solve, messages, tmp_path)
-    solve.start("run")
-    _run_requests(solve, state, timeout=120.0)
-    assert state.solver_state == "converged" and state.result is not None
+    state, _, _, files = _converged(synthetic, tmp_path)
     before = state.result
     message = state.solver_message
     files.save_session(rq.SaveSession())
@@ -227,6 +233,42 @@ def test_a_reloaded_converged_session_is_still_converged(
     )
     solve2.start("step")
     assert messages2.titles()[-1] == "The solve has ended"
+
+
+def test_an_edit_after_a_solve_keeps_the_result_and_undo_brings_it_back(
+    synthetic: SyntheticProject, tmp_path: Path
+) -> None:
+    """A converged result is not lost when the user edits the guess: it becomes the
+    previous result (shown, with its settings), and Restore brings back result, status,
+    guess and selection; the draft that had not finished is not kept in turn."""
+    state, solve, messages, files = _converged(synthetic, tmp_path)
+    solved = state.result
+    guess_before = state.guess[0].position_m.copy()
+    selection_before = state.selection
+    # The user types a new position: a new draft starts from it.
+    with state.lock:
+        state.guess = [LightGuess(np.array([0.05, 0.01, 0.0]), state.guess[0].R_camera_light)]
+        state.selection = SelectionSettings("grid", 60, 16, 1, 0)
+        state.selection_rev += 1
+    solve.setup_changed()
+    assert state.solver_state == "idle" and state.result is None
+    assert state.previous is not None and state.previous.result is solved
+    assert state.previous.state == "converged"
+    # Undo.
+    files.restore_previous(rq.RestorePrevious())
+    assert messages.titles()[-1] == "Previous result restored"
+    assert state.solver_state == "converged"
+    assert state.result is not None
+    np.testing.assert_array_equal(state.result.x, solved.x)
+    np.testing.assert_array_equal(state.guess[0].position_m, guess_before)
+    assert state.selection == selection_before  # the settings it was solved with
+    assert state.previous is None  # the unfinished draft is not kept
+    # A reset keeps a finished result too; nothing left after a second undo.
+    solve.reset()
+    assert state.previous is not None and state.previous.state == "converged"
+    files.restore_previous(rq.RestorePrevious())
+    files.restore_previous(rq.RestorePrevious())
+    assert messages.titles()[-1] == "Nothing to restore"
 
 
 def test_run_keeps_each_iteration_on_the_page_for_the_chosen_pace(

@@ -22,6 +22,7 @@ from lightcal_app.requests import (
     Pause,
     PrepareDownload,
     Reset,
+    RestorePrevious,
     SaveSession,
     Solve,
 )
@@ -332,6 +333,9 @@ class Actions:
 
     def load_saved_session(self, client: Any = None) -> None:
         self.state.request(LoadSavedSession(client=client))
+
+    def restore_previous(self, client: Any = None) -> None:
+        self.state.request(RestorePrevious(client=client))
 
     def on_gizmo(
         self, j: int, position_m: np.ndarray, wxyz: np.ndarray, client: Any

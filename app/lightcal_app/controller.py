@@ -87,6 +87,7 @@ class Controller(Actions):
                 rq.PrepareDownload: files.download,
                 rq.SaveSession: files.save_session,
                 rq.LoadSavedSession: files.load_saved_session,
+                rq.RestorePrevious: files.restore_previous,
                 rq.ApplySession: files.apply_session,
                 rq.SwitchProject: files.switch_project,
             },

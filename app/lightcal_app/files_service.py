@@ -23,6 +23,7 @@ from lightcal_app.requests import (
     ApplySession,
     LoadSavedSession,
     PrepareDownload,
+    RestorePrevious,
     SaveSession,
     SwitchProject,
 )
@@ -261,7 +262,21 @@ class FilesService:
     def apply_session(self, req: ApplySession) -> None:
         self.restore(req.session, req.client, req.source)
 
-    def restore(self, session: SessionFile, client: Any, source: str) -> list[str]:
+    def restore_previous(self, req: RestorePrevious) -> None:
+        """Undo: the finished result an edit replaced, with the settings it had. The
+        draft it replaces becomes the previous result in turn only if it had finished."""
+        with self.state.lock:
+            previous, self.state.previous = self.state.previous, None
+        if previous is None:
+            self.notify(req.client, "Nothing to restore", "No earlier result is kept.")
+            return
+        self.restore(
+            previous.session, req.client, "the previous result", title="Previous result restored"
+        )
+
+    def restore(
+        self, session: SessionFile, client: Any, source: str, *, title: str = "Session restored"
+    ) -> list[str]:
         """Put a session into the state and continue its solve where it stopped."""
         self.solve.drop()
         st = self.state
@@ -276,7 +291,7 @@ class FilesService:
         self.solve.show_guess()
         self.solve.restore_estimate()
         body = f"Restored from {source}." + "".join(f"\n- {w}" for w in warnings)
-        self.notify(client, "Session restored", body)
+        self.notify(client, title, body)
         return warnings
 
     def autosave(self, *, force: bool = False) -> None:

@@ -82,6 +82,10 @@ class LoadSavedSession(FromBrowser):
     """Restore the session written by `SaveSession`."""
 
 
+class RestorePrevious(FromBrowser):
+    """Bring back the finished result an edit replaced, with its settings (undo)."""
+
+
 @dataclass(frozen=True)
 class SwitchProject(FromBrowser):
     """Show another project (an upload); `keep` keeps the guess and the selection."""
@@ -102,6 +106,7 @@ Request = (
     | PrepareDownload
     | SaveSession
     | LoadSavedSession
+    | RestorePrevious
     | ApplySession
     | SwitchProject
 )

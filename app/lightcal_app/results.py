@@ -18,8 +18,24 @@ from lightcal.errors import InputError
 from lightcal.io.project import Project
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal.pipeline.result_text import axis_text, position_text
 from lightcal.pipeline.results import stop_reason
+from lightcal_app.state import PreviousResult
 from lightcal_app.text import md, md_prose
+
+
+def previous_markdown(previous: PreviousResult) -> str:
+    """What the Result tab says of a finished result an edit replaced (kept for undo)."""
+    result = previous.result
+    lines = [
+        f"**Previous result** ({previous.state}, {result.iterations} iterations), kept when "
+        "the setup changed; **Restore** brings it back with its settings.  "
+    ]
+    for lr in result.lights:
+        lines.append(f"{md(lr.name)}: position {md_prose(position_text(lr))}  ")
+        if axis_text(lr):
+            lines.append(f"axis {md_prose(axis_text(lr))}  ")
+    return "\n".join(lines)
 
 
 def result_markdown(result: CalibrationResult | None, *, state: str) -> str:

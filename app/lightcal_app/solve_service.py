@@ -32,7 +32,8 @@ from lightcal.pipeline import measurements_for, starting_lights, summarise
 from lightcal.pipeline.results import stop_reason
 from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
-from lightcal_app.state import MAX_ITERATION_S, AppState, Display, LightGuess
+from lightcal_app.session_file import session_from_state
+from lightcal_app.state import MAX_ITERATION_S, AppState, Display, LightGuess, PreviousResult
 
 log = logging.getLogger("lightcal.app")
 
@@ -88,6 +89,14 @@ class SolveService:
         """Throw the solve away (its thread ends)."""
         st = self.state
         with st.cond:
+            if (
+                st.solver_state in ("converged", "not converged")
+                and st.result is not None
+                and st.finished_snapshot is not None
+            ):
+                # Kept, not lost: the page shows it and can bring it back (undo).
+                st.previous = PreviousResult(st.finished_snapshot, st.result, st.solver_state)
+            st.finished_snapshot = None
             session, self.session, self.model = self.session, None, None
             st.session_gen += 1
             st.history = []
@@ -342,6 +351,7 @@ class SolveService:
                 message.removeprefix(outcome.message)  # e.g. "(uncertainties failed: ...)"
             )
             self._last_session_state = st.solver_state
+            st.finished_snapshot = session_from_state(st) if result is not None else None
             st.mark("result", "status", changed=True)
 
     def poll(self) -> None:

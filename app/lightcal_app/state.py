@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -21,6 +21,9 @@ from lightcal.core.solver import IterationReport
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal_app.requests import Request, SetupChanged
+
+if TYPE_CHECKING:  # session_file imports this module
+    from lightcal_app.session_file import SessionFile
 
 OverlayKind = Literal["real", "rendered", "residual"]
 OVERLAY_KINDS: tuple[OverlayKind, ...] = ("real", "rendered", "residual")
@@ -79,6 +82,22 @@ class SolveEnd:
     status: int
     message: str
     time_s: float
+
+
+@dataclass(frozen=True)
+class PreviousResult:
+    """A finished result the user's edits replaced by a new draft, kept for undo.
+
+    Attributes:
+        session: the settings and the solve as they were when it finished (restoring it
+            brings back both).
+        result: the result, for the page to show.
+        state: "converged" or "not converged".
+    """
+
+    session: SessionFile
+    result: CalibrationResult
+    state: SolverState
 
 
 @dataclass(frozen=True)
@@ -180,6 +199,10 @@ class AppState:
         self.display: Display | None = None
         self.resume_x: np.ndarray | None = None
         self.resume_end: SolveEnd | None = None  # a restored solve that had finished
+        # The settings and solve at the end of the last finished solve (a SessionFile),
+        # and the finished result an edit or a reset replaced (kept, with undo).
+        self.finished_snapshot: SessionFile | None = None
+        self.previous: PreviousResult | None = None
         # Run's pace in a page: each iteration stays at least this long (0: as fast as
         # drawn); only a solve followed by a page waits (SolveService.follow_iterations).
         self.min_iteration_s = DEFAULT_ITERATION_S
@@ -273,6 +296,7 @@ class Frame:
     parameter_names: tuple[str, ...]
     result: CalibrationResult | None
     selection_summary: tuple[int, ...] = field(default=())
+    previous: PreviousResult | None = None
 
 
 def take_frame(state: AppState) -> Frame:
@@ -297,6 +321,7 @@ def take_frame(state: AppState) -> Frame:
         ref_image=state.ref_image,
         solver_state=state.solver_state,
         solver_message=state.solver_message,
+        previous=state.previous,
         history=tuple(state.history),
         parameter_names=tuple(state.parameter_names),
         result=state.result,

@@ -8,7 +8,7 @@ import viser
 from lightcal.io.figures import angle_residual_figure
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
-from lightcal_app.results import result_markdown
+from lightcal_app.results import previous_markdown, result_markdown
 from lightcal_app.state import Frame
 
 
@@ -19,6 +19,12 @@ class ResultPanel(TabPanel):
         super().__init__(server, ctl, flag)
         gui = self.gui
         self.result_md = gui.add_markdown("")
+        # A finished result the user's edits replaced: shown, and one click brings it back.
+        self.previous_md = gui.add_markdown("", visible=False)
+        self.restore_previous = gui.add_button(
+            "Restore previous result", icon=viser.Icon.ARROW_BACK_UP, visible=False
+        )
+        self.restore_previous.on_click(lambda e: ctl.restore_previous(e.client))
         # Residuals against the mirror / incidence angle (the fit test's picture).
         self.fit_plot = gui.add_image(
             np.full((8, 8, 3), 255, dtype=np.uint8), label="residuals vs angle", visible=False
@@ -44,6 +50,9 @@ class ResultPanel(TabPanel):
         if not frame.dirty & {"result", "scene"}:
             return
         self.result_md.content = result_markdown(frame.result, state=frame.solver_state)
+        previous = frame.previous
+        self.previous_md.content = previous_markdown(previous) if previous is not None else ""
+        self.previous_md.visible = self.restore_previous.visible = previous is not None
         fit = frame.result.fit if frame.result is not None else None
         if fit:
             self.fit_plot.image = angle_residual_figure(fit, size=(720, 300), scale=1)
