@@ -57,12 +57,14 @@ class SolvePanel(TabPanel):
         self.pace.on_update(self.guard(lambda e: ctl.set_pace(self.pace.value)))
         self.status_md = gui.add_markdown("")
         empty = np.zeros(0)
+        # log10 of the cost on a linear axis: whole-number ticks that fit the axis (a
+        # log-scale axis wrote 1,000,000,000 into 100 pixels and drew every minor tick).
         self.cost_plot = gui.add_uplot(
             (empty, empty),
-            ({"label": "iteration"}, {"label": "cost", "stroke": "#d9480f", "width": 2}),
-            title="cost (log scale)",
-            axes=({}, {"size": 100}),
-            scales={"x": {"time": False, "range": (None, None)}, "y": {"distr": 3, "log": 10}},
+            ({"label": "iteration"}, {"label": "log10 cost", "stroke": "#d9480f", "width": 2}),
+            title="cost per iteration (log10)",
+            axes=({}, {"size": 48}),
+            scales={"x": {"time": False, "range": (None, None)}},
             aspect=1.6,
         )
         self.position_plot = self._parameter_plot("position (mm, camera frame)")
@@ -96,18 +98,17 @@ class SolvePanel(TabPanel):
         hist = frame.history
         it = np.array([h.iteration for h in hist], dtype=np.float64)
         x_range = (0.0, float(max(it.max(), 1.0))) if hist else (0.0, 1.0)
-        cost = np.array([max(h.cost, 1e-300) for h in hist], dtype=np.float64)
+        log_cost = np.log10([max(h.cost, 1e-300) for h in hist]) if hist else np.zeros(0)
         if hist:
-            lo = 10.0 ** math.floor(math.log10(cost.min()))
-            hi = 10.0 ** math.ceil(math.log10(cost.max()))
-            cost_range = (lo, hi if hi > lo else 10 * lo)
+            lo, hi = math.floor(log_cost.min()), math.ceil(log_cost.max())
+            cost_range = (float(lo), float(hi if hi > lo else lo + 1))
         else:
-            cost_range = (1.0, 10.0)
+            cost_range = (0.0, 1.0)
         self.cost_plot.scales = {
             "x": {"time": False, "range": x_range},
-            "y": {"distr": 3, "log": 10, "range": cost_range},
+            "y": {"range": cost_range},
         }
-        self.cost_plot.data = (it, cost)
+        self.cost_plot.data = (it, log_cost)
         names = list(frame.parameter_names)
         xs = np.array([h.x for h in hist]) if hist else np.zeros((0, len(names)))
         for plot, suffix, factor in (
