@@ -22,7 +22,13 @@ from typing import Any
 import numpy as np
 import pytest
 from lightcal_app.demo_truth import read_truth_lights
-from lightcal_app.overlays import OverlayImages, display_geometry, full_to_display, legend_picture
+from lightcal_app.overlays import (
+    OUTLINE_FRACTION,
+    OverlayImages,
+    display_geometry,
+    full_to_display,
+    legend_picture,
+)
 from lightcal_app.panels.light import pose_angles_deg, rotation_from_angles_deg
 from lightcal_app.panels.solve import status_text
 from lightcal_app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
@@ -199,6 +205,33 @@ def test_rendered_overlay_matches_the_real_image_at_the_true_light(
         gain = float(np.sum(real[ok] * r[ok]) / np.sum(r[ok] ** 2))
         rel = np.abs(real[ok] - gain * r[ok]) / real[ok].max()
         assert rel.max() < 5e-3  # rounding to 16 bits and the binned-camera approximation
+
+
+def test_a_dense_selection_is_drawn_as_an_outline_over_the_picture(
+    synthetic: SyntheticProject,
+) -> None:
+    """Every pixel selected (`all`): only the selection's outline is green, the picture
+    inside it is untouched; a sparse selection is drawn as dots."""
+    from lightcal.io.project import load_project
+    from lightcal.pipeline import load_images
+
+    project = load_project(synthetic.path)
+    ov = OverlayImages(project, load_images(project), render_side=40)
+    h, w = ov.geo.camera.height, ov.geo.camera.width
+    v, u = np.mgrid[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4]
+    dense = np.stack([u.ravel(), v.ravel()], axis=1)
+    base = np.full((ov.geo.height, ov.geo.width, 3), 128, np.uint8)
+    rgb = ov.draw_selection(base.copy(), 0, selected=dense, binning=1, regions=(), points=())
+    mask = ov.mask_display[0]
+    green = (rgb[..., 1] > 180) & (rgb[..., 0] < 100) & ~mask
+    H, W = ov.geo.height, ov.geo.width
+    centre = (slice(H // 2 - 2, H // 2 + 3), slice(W // 2 - 2, W // 2 + 3))
+    assert not green[centre].any() and (rgb[centre][~mask[centre]] == 128).all()
+    assert green.any() and green.mean() < 0.5 * (dense.shape[0] / (h * w))
+    sparse = dense[:: max(1, len(dense) // 50)]
+    rgb = ov.draw_selection(base.copy(), 0, selected=sparse, binning=1, regions=(), points=())
+    dots = (rgb[..., 1] > 180) & (rgb[..., 0] < 100) & ~mask
+    assert 0 < dots.mean() < OUTLINE_FRACTION
 
 
 def test_legend_picture_shows_both_ends() -> None:
@@ -888,3 +921,25 @@ def test_app_shows_the_misfit_and_the_wall_model(satin: Path, tmp_path: Path) ->
     assert rough is not None and float(rough.group(1)) == pytest.approx(0.2, abs=0.02)
     assert "| ior | 1.5 | fixed |" in md
     assert "Fit: **explained by the noise**" in md
+
+
+def test_the_view_tab_explains_every_mark_of_the_scene(app: LightcalApp) -> None:
+    from lightcal_app.panels.view import SCENE_LEGEND
+
+    text = app.panels.view.scene_legend.content
+    assert text == SCENE_LEGEND
+    for mark in (
+        "**wall**",
+        "**camera's frustum**",
+        "carries the light\n  gizmo",
+        "**light**",
+        "**cones**",
+        "**gizmo**",
+        "**rays**",
+        "**true light**",
+        "**selected pixels**",
+        "**masked**",
+        "**regions**",
+        "clicked pixels",
+    ):
+        assert mark in text, mark

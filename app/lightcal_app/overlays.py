@@ -31,6 +31,8 @@ EXCLUDE_RGB = (235, 40, 40)
 SELECTED_RGB = (40, 230, 90)
 POINT_RGB = (255, 215, 0)
 MASK_RGB = np.array([200, 0, 200], dtype=np.float64)
+OUTLINE_FRACTION = 0.05
+"""A selection covering more of a picture than this is drawn as its outline."""
 
 
 @dataclass(frozen=True)
@@ -221,8 +223,14 @@ class OverlayImages:
             if len(selected) < 4000:
                 radius = max(radius, 2)
             kernel = np.ones((2 * radius - 1, 2 * radius - 1), np.uint8)
-            hit = cv2.dilate(marks, kernel) > 0
-            _blend_where(rgb, hit, self._selected_colour, 0.65)
+            hit = cv2.dilate(marks, kernel)
+            if hit.mean() > OUTLINE_FRACTION:
+                # A dense selection (`all`, a fine grid) would paint the picture over:
+                # its outline only, so that the residuals under it stay visible.
+                inner = cv2.erode(hit, np.ones((5, 5), np.uint8), borderType=cv2.BORDER_REPLICATE)
+                _blend_where(rgb, (hit > 0) & (inner == 0), self._selected_colour, 0.9)
+            else:
+                _blend_where(rgb, hit > 0, self._selected_colour, 0.65)
         for u, v in points:
             x, y = np.round(full_to_display(np.array([[u, v]]), geo)[0]).astype(int)
             cv2.drawMarker(rgb, (int(x), int(y)), POINT_RGB, cv2.MARKER_CROSS, 9, 2)

@@ -15,6 +15,23 @@ from lightcal_app.state import OVERLAY_KINDS, Frame
 
 AS_ALL = "(as all images)"
 
+SCENE_LEGEND = """**In the scene**
+- *light grey*: the **wall** (its plane, z = 0 of the world); each image on its
+  **camera's frustum** (*dark* frame; *orange* frame: the camera that carries the light
+  gizmo)
+- *orange*: the **light** (bulb) at its pose in each camera, with its **cones** (the
+  RID's half-intensity and cut-off angles) and, on the gizmo's camera, the draggable
+  **gizmo** (arrows move it, rings turn it)
+- *yellow*: **rays** from the light to the selected pixels' spots on the wall (rays for)
+- *green* bulb: the **true light** (demo data only): where the solve should end
+
+**On the images**
+- *green*: **selected pixels** (dots; a dense selection as its outline)
+- *magenta*: **masked** pixels: markers, stray light, saturation (never fitted)
+- *green* / *red* lines: include / exclude **regions**; *yellow* crosses: clicked pixels"""
+"""What every mark of the 3-D scene and the pictures means (the colours of
+`lightcal_app.scene3d` and `lightcal_app.overlays`)."""
+
 
 class ViewPanel(TabPanel):
     """The View tab (built in the current GUI container)."""
@@ -38,6 +55,7 @@ class ViewPanel(TabPanel):
         self.rays = gui.add_dropdown(
             "rays from the light for", ["none", "all", *names], initial_value=st.rays_image
         )
+        self.scene_legend = gui.add_markdown(SCENE_LEGEND)
         self.legend_md = gui.add_markdown(
             "**Residual colours** (shown when an image shows *residual*):"
         )
