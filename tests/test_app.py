@@ -943,3 +943,29 @@ def test_the_view_tab_explains_every_mark_of_the_scene(app: LightcalApp) -> None
         "clicked pixels",
     ):
         assert mark in text, mark
+
+
+def test_the_page_says_it_is_loading_until_the_scene_is_drawn(
+    synthetic: SyntheticProject, tmp_path: Path
+) -> None:
+    """Built but not yet drawn: a loading message names the work; the first redraw of
+    the scene hides it. The terminal is told each step (`say`)."""
+    said: list[str] = []
+    a = build_app(
+        synthetic.path,
+        port=0,
+        session_path=False,
+        state_dir=tmp_path / "state",
+        say=said.append,
+    )
+    try:
+        assert said[0] == f"reading the 4 images of {synthetic.path.name}"
+        assert said[1].startswith("images read (") and said[1].endswith("building the scene")
+        assert said[2].endswith("the first pictures render now")
+        assert a.wait_idle()
+        assert not a.panels.loading_md.visible
+        assert a.panels.loading_md.content.startswith(
+            "**Loading**: rendering the pictures of the 4"
+        )
+    finally:
+        a.close()

@@ -12,6 +12,7 @@ import io
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,6 +103,7 @@ def build_app(
     state_dir: Path | None = None,
     follow_iterations: bool = True,
     upload_limit_bytes: int = MAX_UPLOAD_BYTES,
+    say: Callable[[str], None] | None = None,
 ) -> LightcalApp:
     """Load a project and start the app's server.
 
@@ -116,13 +118,18 @@ def build_app(
         state_dir: folder for uploads (default `default_state_dir()`).
         follow_iterations: the solver waits for each iteration to be drawn.
         upload_limit_bytes: the per-file upload cap.
+        say: told each step of the start in a few words (the terminal's progress).
 
     Raises:
         InputError: the project, its images or the truth file cannot be read.
     """
     path = Path(project_path).resolve()
+    tell = say if say is not None else (lambda text: None)
+    start = time.perf_counter()
     project = load_project(path)
+    tell(f"reading the {len(project.names)} images of {path.name}")
     loaded = load_images(project)
+    tell(f"images read ({time.perf_counter() - start:.1f} s); building the scene")
     truth = None
     if demo:
         truth = read_truth_lights(truth_path_for(path))
@@ -190,6 +197,7 @@ def build_app(
             )
         )
     controller.startup_notes = notes
+    tell(f"scene built ({time.perf_counter() - start:.1f} s); the first pictures render now")
 
     @server.on_client_connect
     def _(client: Any) -> None:

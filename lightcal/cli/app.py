@@ -113,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         session_path=args.session if args.session is not None else True,
         restore=not args.fresh,
         state_dir=args.state_dir,
+        say=lambda text: print(f"lightcal app: {text}", flush=True),
     )
 
     def announce() -> None:

@@ -45,6 +45,12 @@ class Panels:
         )
         gui.set_panel_label("lightcal: light pose calibration")
         flag = self.flag
+        # Until the first redraw has put the scene in place: never an empty view unexplained.
+        n = len(controller.state.project.names)
+        self.loading_md = gui.add_markdown(
+            f"**Loading**: rendering the pictures of the {n} images and building the "
+            "scene (a few seconds)..."
+        )
         self.tabs = gui.add_tab_group()
         light_tab = self.tabs.add_tab("Light", viser.Icon.BULB)
         self.light = LightPanel(server, controller, flag, light_tab)
@@ -76,6 +82,8 @@ class Panels:
     ) -> None:
         """Write the frame into the widgets (called by the redraw, in `server.atomic()`)."""
         with self.flag.writing():
+            if self.loading_md.visible and "scene" in frame.dirty:
+                self.loading_md.visible = False
             self.light.update(frame)
             self.pixels.update(frame)
             self.view.update(frame, legend_vmax=legend_vmax)
