@@ -355,6 +355,41 @@ def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: Synthetic
         worker.stop()
 
 
+def test_worker_says_what_it_does_while_it_does_it(synthetic: SyntheticProject) -> None:
+    """The busy line names the work before it runs (a slow report, a reselection, the
+    pictures) and is cleared when the worker is idle."""
+    state = _state(synthetic)
+    shown: list[str] = []
+    seen_during: list[str] = []
+
+    def slow(request: rq.Request) -> None:
+        seen_during.append(shown[-1])  # what the page said while this ran
+
+    worker = Worker(
+        state,
+        handlers={rq.SetupChanged: slow, rq.PrepareDownload: slow},
+        redraw=lambda frame: None,
+        notify=Messages(),
+        show_work=shown.append,
+    )
+    worker.start()
+    try:
+        assert worker.wait_idle(10)
+        assert shown == ["drawing the pictures", ""]  # the first round draws everything
+        state.request(rq.PrepareDownload("report"))
+        assert worker.wait_idle(10)
+        assert seen_during == ["building the report (every image rendered at full size)"]
+        with state.lock:
+            state.request(rq.SetupChanged())
+            state.mark("overlays")
+        assert worker.wait_idle(10)
+        assert seen_during[-1] == "selecting the pixels for the new setup; drawing the pictures"
+        assert shown[-1] == ""
+    finally:
+        worker.stop()
+    assert rq.work_of(rq.PrepareDownload("result")) == "preparing the result download"
+
+
 def test_worker_shows_a_repeated_error_once(synthetic: SyntheticProject) -> None:
     state = _state(synthetic)
     messages = Messages()

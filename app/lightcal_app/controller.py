@@ -96,6 +96,7 @@ class Controller(Actions):
             poll=solve.poll,
             after=files.autosave,
             running=solve.running,
+            show_work=self._show_work,
         )
 
     @property
@@ -144,6 +145,12 @@ class Controller(Actions):
         """Block until no request is queued, nothing is dirty and the solve is not running
         (tests and benchmarks). True if that happened within `timeout`."""
         return self.worker.wait_idle(timeout)
+
+    def _show_work(self, text: str) -> None:
+        """The page's busy line (set from the worker; nothing before the GUI exists)."""
+        panels = self.redrawer.panels
+        if panels is not None:
+            panels.show_work(text)
 
     # ------------------------------------------------------------------ messages
 

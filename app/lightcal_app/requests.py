@@ -132,3 +132,26 @@ def merge(requests: list[Request]) -> list[Request]:
 def client_of(request: Request) -> Any:
     """The browser that asked (None when none did)."""
     return getattr(request, "client", None)
+
+
+_WORK: dict[type, str] = {
+    SetupChanged: "selecting the pixels for the new setup",
+    Solve: "solving",
+    Pause: "pausing the solve",
+    Reset: "going back to the initial guess",
+    Finished: "testing the fit and computing the uncertainties",
+    SaveSession: "saving the session",
+    LoadSavedSession: "restoring the saved session",
+    RestorePrevious: "restoring the previous result",
+    ApplySession: "restoring the session",
+    SwitchProject: "loading the project",
+}
+
+
+def work_of(request: Request) -> str:
+    """What the worker does for `request`, in a few words (the page's busy line)."""
+    if isinstance(request, PrepareDownload):
+        if request.what == "report":
+            return "building the report (every image rendered at full size)"
+        return f"preparing the {request.what} download"
+    return _WORK.get(type(request), "working")

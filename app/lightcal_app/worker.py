@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from lightcal.errors import LightcalError
-from lightcal_app.requests import Request, client_of, merge
+from lightcal_app.requests import Request, client_of, merge, work_of
 from lightcal_app.state import AppState, Frame, take_frame
 
 log = logging.getLogger("lightcal.app")
@@ -40,6 +40,8 @@ class Worker:
         poll: called after the requests of each round (the solve's state).
         after: called at the end of each round (the autosave).
         running: True while a solve runs (for `wait_idle`).
+        show_work: shows what the worker is doing ("" when it is idle), called from
+            the worker before the work, so that the page says it while it lasts.
     """
 
     def __init__(
@@ -52,6 +54,7 @@ class Worker:
         poll: Callable[[], None] = lambda: None,
         after: Callable[[], None] = lambda: None,
         running: Callable[[], bool] = lambda: False,
+        show_work: Callable[[str], None] = lambda text: None,
     ) -> None:
         self.state = state
         self.handlers = dict(handlers)
@@ -60,6 +63,8 @@ class Worker:
         self.poll = poll
         self.after = after
         self.running = running
+        self.show_work = show_work
+        self._shown_work = ""
         self.busy = False  # handling requests or drawing
         self._reported: dict[str, float] = {}  # internal error -> when last shown
         self._thread = threading.Thread(target=self._loop, name="lightcal-app-worker", daemon=True)
@@ -120,10 +125,26 @@ class Worker:
                     self.busy = False
                     st.cond.notify_all()
 
+    def _say(self, text: str) -> None:
+        if text != self._shown_work:
+            self._shown_work = text
+            try:
+                self.show_work(text)
+            except Exception:  # the busy line is a courtesy: never stop the work for it
+                log.debug("busy line failed", exc_info=True)
+
     def _round(self, requests: list[Request]) -> None:
         st = self.state
+        merged = merge(requests)
+        with st.lock:
+            drawing = bool(st.dirty & {"overlays", "selection", "scene"})
+        work = list(dict.fromkeys(work_of(r) for r in merged))
+        if drawing:
+            work.append("drawing the pictures")
+        if work:
+            self._say("; ".join(work))
         try:
-            for request in merge(requests):
+            for request in merged:
                 self.handle(request)
             self.poll()
             with st.lock:
@@ -136,6 +157,10 @@ class Worker:
             self.after()
         except Exception as exc:
             self._internal_error(exc)
+        with st.lock:
+            idle = not st.requests and not st.dirty
+        if idle:
+            self._say("solving" if self.running() else "")
 
     def _internal_error(self, exc: Exception) -> None:
         """Log it; show it in the page unless the same error was shown in the last

@@ -51,6 +51,8 @@ class Panels:
             f"**Loading**: rendering the pictures of the {n} images and building the "
             "scene (a few seconds)..."
         )
+        # What the server is doing right now (set by the worker before the work starts).
+        self.work_md = gui.add_markdown("", visible=False)
         self.tabs = gui.add_tab_group()
         light_tab = self.tabs.add_tab("Light", viser.Icon.BULB)
         self.light = LightPanel(server, controller, flag, light_tab)
@@ -68,6 +70,12 @@ class Panels:
             add_explanation(gui)
         self.messages_md = gui.add_markdown("")
         self._messages_shown: str | None = None
+
+    def show_work(self, text: str) -> None:
+        """The busy line: "Working: <text>..." while the server works, hidden when idle."""
+        if text:
+            self.work_md.content = f"**Working**: {md_prose(text)}..."
+        self.work_md.visible = bool(text)
 
     def set_project(self, project: Project) -> None:
         """Options that depend on the project (after an upload)."""
