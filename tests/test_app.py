@@ -7,6 +7,7 @@ project (`tests/app_fixtures.py`) and waits for its worker to finish (`wait_idle
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import math
@@ -712,9 +713,12 @@ def test_project_and_rid_uploads_switch_the_project(
         "axial",
     )
     write_ies(tmp_path / "lamp.ies", table)
+    figure_before = app.panels.rid_figure.image.copy()
     _upload(app.panels.files.upload_rid, "lamp.ies", (tmp_path / "lamp.ies").read_bytes())
     _idle(app)
     assert st.project.spec.lights[0].rid.type == "ies"
+    # The Explain tab's RID figure is the project's light, redrawn with its new RID.
+    assert not np.array_equal(app.panels.rid_figure.image, figure_before)
     np.testing.assert_allclose(st.guess[0].position_m, [0.07, 0.0, 0.0])
     assert "now uses the RID of lamp.ies" in st.messages[-1][1]
 
@@ -969,3 +973,34 @@ def test_the_page_says_it_is_loading_until_the_scene_is_drawn(
         )
     finally:
         a.close()
+
+
+def test_the_explain_tab_draws_the_projects_own_lights(synthetic: SyntheticProject) -> None:
+    import math
+
+    from lightcal_app.explain import project_rid_figure, rid_curves
+
+    from lightcal.core.rid import Table2DRID
+    from lightcal.core.scene import Light
+    from lightcal.io.project import load_project
+
+    project = load_project(synthetic.path)
+    rid = project.lights[0].initial.rid
+    ((label, angles, values),) = rid_curves(project)
+    half = math.degrees(rid.half_angle_rad)
+    assert label == f"{project.lights[0].initial.name} (half at {half:.1f} deg)"
+    np.testing.assert_array_equal(values, rid(np.radians(angles)))
+    assert angles[0] == 0.0 and angles[-1] == 90.0
+    fig = project_rid_figure(project)
+    assert fig.shape == (420, 600, 3)  # 300 x 210 points at 2 px per point
+    # A light without rotational symmetry: its profile at two azimuths.
+    theta = np.radians([0.0, 30.0, 60.0, 90.0])
+    phi = np.radians([0.0, 90.0, 180.0, 270.0])
+    table = Table2DRID(theta, phi, np.array([[1.0, 0.8, 0.3, 0.0], [1.0, 0.5, 0.1, 0.0]] * 2))
+    u = project.lights[0]
+    light = Light(table, u.initial.t_camera_light, u.initial.R_camera_light, scale=1.0)
+    other = dataclasses.replace(
+        project, lights=[dataclasses.replace(u, initial=light.replace(name="spot"))]
+    )
+    labels = [c[0] for c in rid_curves(other)]
+    assert labels == ["spot, azimuth 0 deg", "spot, azimuth 90 deg"]

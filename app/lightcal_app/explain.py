@@ -7,11 +7,14 @@ line saying how to draw it.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import cv2
 import numpy as np
 
+from lightcal.io.figures import profile_figure
+from lightcal.io.project import Project
 from lightcal.resources import data_folder
 
 STATIC_DIR = data_folder("lightcal_app", "static")  # installed: package data; checkout: static/
@@ -70,23 +73,53 @@ def load_figure(name: str) -> np.ndarray | None:
     return np.ascontiguousarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
 
 
-def add_explanation(gui: Any) -> list[str]:
-    """Add the explanation's folders to the current GUI container.
+def rid_curves(project: Project) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The project's lights' profiles for `profile_figure`: (label, angles 0-90 deg,
+    relative intensity); a light without rotational symmetry gives two azimuths."""
+    theta_deg = np.linspace(0.0, 90.0, 181)
+    theta = np.radians(theta_deg)
+    curves = []
+    for u in project.lights:
+        rid = u.initial.rid
+        name = u.initial.name
+        if rid.symmetric:
+            half_deg = math.degrees(rid.half_angle_rad)
+            half = f" (half at {half_deg:.1f} deg)" if half_deg < 90.0 else " (isotropic)"
+            curves.append((f"{name}{half}", theta_deg, rid(theta)))
+        else:
+            for phi_deg in (0.0, 90.0):
+                phi = np.full_like(theta, math.radians(phi_deg))
+                curves.append((f"{name}, azimuth {phi_deg:.0f} deg", theta_deg, rid(theta, phi)))
+    return curves
+
+
+def project_rid_figure(project: Project) -> np.ndarray:
+    """(H, W, 3) the project's RIDs, laid out for the panel's width: 600 pixels shown
+    in about 360, so that the text is about 12 pixels tall on the page."""
+    return profile_figure(
+        rid_curves(project), title="this project's lights", size=(300, 210), scale=2
+    )
+
+
+def add_explanation(gui: Any, project: Project | None = None) -> Any:
+    """Add the explanation's folders to the current GUI container; with `project`, the
+    RID section shows that project's lights (`project_rid_figure`).
 
     Returns:
-        names of the pictures that were missing.
+        the RID section's image handle (None without a project), for `set_project`.
     """
-    missing = []
+    rid_image = None
     for k, (title, body, figure) in enumerate(SECTIONS):
         with gui.add_folder(title, expand_by_default=k == 0):
             gui.add_markdown(body)
-            if figure is not None:
+            if figure == "rid.png" and project is not None:
+                rid_image = gui.add_image(project_rid_figure(project), format="png")
+            elif figure is not None:
                 rgb = load_figure(figure)
                 if rgb is None:
-                    missing.append(figure)
                     gui.add_markdown(
                         f"*(picture {figure} missing: run `python static/make_figures.py`)*"
                     )
                 else:
                     gui.add_image(rgb, format="png")
-    return missing
+    return rid_image

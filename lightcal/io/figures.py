@@ -338,3 +338,60 @@ def angle_residual_figure(
         pen.text(panel_fig, title, (left - x0, pen.px(22)), _LABEL_TEXT)
         fig[:, x0 : x0 + pw] = panel_fig
     return fig
+
+
+_CURVE_COLOURS = ((33, 102, 172), (230, 120, 0), (47, 158, 68), (174, 62, 201), (12, 133, 153))
+
+
+def profile_figure(
+    curves: Sequence[tuple[str, ArrayLike, ArrayLike]],
+    *,
+    title: str = "the light's relative intensity",
+    size: tuple[int, int] = (480, 300),
+    scale: float = PRINT_SCALE,
+) -> np.ndarray:
+    """Relative intensity against the angle from the light's axis, one line per curve.
+
+    Args:
+        curves: (label, angles (N,) in degrees, values (N,) relative to the axis).
+        size: layout points; text stays 9-10 points whatever the size.
+    """
+    pen = _Pen(scale)
+    w, h = pen.px(size[0]), pen.px(size[1])
+    fig = pen.canvas(h, w)
+    pen.text(fig, title, (pen.px(70), pen.px(20)), _LABEL_TEXT)
+    angles = [np.asarray(a, dtype=np.float64) for _, a, _ in curves]
+    top = max([float(a.max()) for a in angles if a.size] + [1.0])
+    ticks = nice_ticks(0.0, top, 5)
+    ax = _Axes(pen.px(70), pen.px(32), w - pen.px(16), h - pen.px(50), (0.0, ticks[-1]), (0.0, 1.0))
+    y_ticks = [(v, f"{v:g}") for v in (0.0, 0.25, 0.5, 0.75, 1.0)]
+    _draw_axes(
+        fig,
+        pen,
+        ax,
+        x_ticks=ticks,
+        x_format="g",
+        y_ticks=y_ticks,
+        x_label="angle from the light's axis (deg)",
+        y_label="relative intensity",
+    )
+    for k, (label, _, v) in enumerate(curves):
+        colour = _CURVE_COLOURS[k % len(_CURVE_COLOURS)]
+        values = np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0)
+        pts = np.array(
+            [ax.xy(x, y) for x, y in zip(angles[k].tolist(), values.tolist(), strict=True)],
+            dtype=np.int32,
+        )
+        cv2.polylines(fig, [pts], False, colour, pen.thickness(2), cv2.LINE_AA)
+        y = pen.px(50 + 16 * k)
+        x = w - pen.px(20)
+        tw, th = pen.text_size(label, _TICK_TEXT)
+        cv2.line(
+            fig,
+            (x - tw - pen.px(26), y - th // 2),
+            (x - tw - pen.px(6), y - th // 2),
+            colour,
+            pen.thickness(2),
+        )
+        pen.text(fig, label, (x, y), _TICK_TEXT, "right")
+    return fig
