@@ -1004,3 +1004,18 @@ def test_the_explain_tab_draws_the_projects_own_lights(synthetic: SyntheticProje
     )
     labels = [c[0] for c in rid_curves(other)]
     assert labels == ["spot, azimuth 0 deg", "spot, azimuth 90 deg"]
+
+
+def test_each_picture_carries_its_images_name(app: LightcalApp) -> None:
+    """The names are written on the pictures (labels floating beside the frusta
+    collided): a white box with dark text in the top-left corner of each frustum."""
+    from lightcal_app.overlays import draw_name
+
+    blank = np.full((240, 320, 3), 128, np.uint8)
+    named = draw_name(blank.copy(), "view_00")
+    box = named[:6, :40]
+    assert (box == 255).all(axis=-1).mean() > 0.5  # the white box
+    assert (named[:20, :80] < 60).any()  # dark ink
+    assert (named[120:] == 128).all()  # the rest untouched
+    frame = app.controller.scene.frusta[0].image
+    assert (frame[:4, :30] == 255).all(axis=-1).mean() > 0.5

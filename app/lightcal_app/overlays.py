@@ -237,6 +237,21 @@ class OverlayImages:
         return rgb
 
 
+def draw_name(rgb: np.ndarray, name: str) -> np.ndarray:
+    """The image's name in its top-left corner, dark on a white box, about 12 % of the
+    picture's height (in place, returned). On the picture itself, names of neighbouring
+    cameras never overlap, as labels floating in the scene did."""
+    h = rgb.shape[0]
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    scale = max(0.4, 0.12 * h / 22.0)
+    thickness = max(1, round(scale * 1.5))
+    (tw, th), base = cv2.getTextSize(name, font, scale, thickness)
+    pad = max(2, th // 3)
+    cv2.rectangle(rgb, (0, 0), (tw + 2 * pad, th + base + 2 * pad), (255, 255, 255), -1)
+    cv2.putText(rgb, name, (pad, pad + th), font, scale, (20, 20, 20), thickness, cv2.LINE_AA)
+    return rgb
+
+
 def _blend_where(rgb: np.ndarray, where: np.ndarray, colour: np.ndarray, alpha: float) -> None:
     """rgb = (1 - alpha) rgb + alpha colour where `where` (H, W) is True, in place."""
     mixed = cv2.addWeighted(rgb, 1.0 - alpha, colour, alpha, 0.0)

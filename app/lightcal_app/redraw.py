@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from lightcal.core.scene import Light
-from lightcal_app.overlays import OverlayImages, shared_vmax
+from lightcal_app.overlays import OverlayImages, draw_name, shared_vmax
 from lightcal_app.scene3d import Scene3D
 from lightcal_app.state import AppState, Display, Frame, LightGuess
 
@@ -48,6 +48,7 @@ class Redrawer:
 
     def pictures(self, frame: Frame) -> dict[int, np.ndarray]:
         ov = self.overlays
+        names = ov.project.names
         display = frame.display
         rendered: dict[int, np.ma.MaskedArray] = {}
         for i, kind in enumerate(frame.overlay):
@@ -76,7 +77,7 @@ class Redrawer:
                     regions=frame.regions[i],
                     points=frame.points[i],
                 )
-            out[i] = rgb
+            out[i] = draw_name(rgb, names[i])
         return out
 
     def redraw(self, frame: Frame) -> None:

@@ -228,11 +228,6 @@ class Scene3D:
                     height_px=cam.height,
                 )
             )
-            scene.add_label(
-                f"/cameras/{i}/name",
-                project.names[i],
-                position=(0.0, -1.15 * self.planes[i].half_height_m, self.planes[i].depth_m),
-            )
         self.ref_image = ref_image
         self._build_lights(guess)
         if truth:
@@ -254,8 +249,8 @@ class Scene3D:
             t, R = _pose(g)
             gizmo = scene.add_transform_controls(
                 f"/cameras/{self.ref_image}/light{j}",
-                scale=2.5 * self.light_size_m * 4,
-                line_width=2.0,
+                scale=20.0 * self.light_size_m,  # a quarter of the camera-wall distance
+                line_width=3.0,
                 depth_test=False,
                 wxyz=quaternion_wxyz_from_matrix(R),
                 position=t,
