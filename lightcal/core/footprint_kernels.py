@@ -124,6 +124,35 @@ def pairwise_sum(a: np.ndarray, start: int, n: int) -> float:
     return partial[0]
 
 
+@numba.njit(cache=True, inline="always")
+def _write_quad(
+    out: np.ndarray,
+    p: int,
+    m: int,
+    x1: float,
+    y1: float,
+    x2: float,
+    y2: float,
+    x3: float,
+    y3: float,
+    x4: float,
+    y4: float,
+) -> None:
+    """out[p, m] (4, 3) = the wall quad P1..P4 (z = 0)."""
+    out[p, m, 0, 0] = x1
+    out[p, m, 0, 1] = y1
+    out[p, m, 0, 2] = 0.0
+    out[p, m, 1, 0] = x2
+    out[p, m, 1, 1] = y2
+    out[p, m, 1, 2] = 0.0
+    out[p, m, 2, 0] = x3
+    out[p, m, 2, 1] = y3
+    out[p, m, 2, 2] = 0.0
+    out[p, m, 3, 0] = x4
+    out[p, m, 3, 1] = y4
+    out[p, m, 3, 2] = 0.0
+
+
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _pixel_footprint(
     p: int,
@@ -138,13 +167,15 @@ def _pixel_footprint(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     scratch: np.ndarray,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
     out_valid: np.ndarray,
     out_area: np.ndarray,
 ) -> None:
-    """Write the outputs of (super-)pixel p (arguments: `pixel_footprints_parallel`).
+    """Write the outputs of (super-)pixel p (arguments: `pixel_footprints_parallel`);
+    out_corners only when `write_corners`.
 
     scratch: (6, (b+1)^2) work space: the lattice's wall x, y and undistorted x, y, then
     the members' quad areas and sensor terms.
@@ -189,9 +220,10 @@ def _pixel_footprint(
     if not valid:
         for m in range(k):
             out_weights[p, m] = 0.0
-            for q in range(4):
-                for d in range(3):
-                    out_corners[p, m, q, d] = np.nan
+            if write_corners:
+                for q in range(4):
+                    for d in range(3):
+                        out_corners[p, m, q, d] = np.nan
         out_area[p] = np.nan
         return
     for m in range(k):
@@ -208,18 +240,8 @@ def _pixel_footprint(
         y3 = wall_y[i3]
         x4 = wall_x[i4]
         y4 = wall_y[i4]
-        out_corners[p, m, 0, 0] = x1
-        out_corners[p, m, 0, 1] = y1
-        out_corners[p, m, 0, 2] = 0.0
-        out_corners[p, m, 1, 0] = x2
-        out_corners[p, m, 1, 1] = y2
-        out_corners[p, m, 1, 2] = 0.0
-        out_corners[p, m, 2, 0] = x3
-        out_corners[p, m, 2, 1] = y3
-        out_corners[p, m, 2, 2] = 0.0
-        out_corners[p, m, 3, 0] = x4
-        out_corners[p, m, 3, 1] = y4
-        out_corners[p, m, 3, 2] = 0.0
+        if write_corners:
+            _write_quad(out_corners, p, m, x1, y1, x2, y2, x3, y3, x4, y4)
         areas[m] = quad_area(x1, y1, x2, y2, x3, y3, x4, y4)
         if sensor == SENSOR_PAPER:
             out_weights[p, m] = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view) / k
@@ -254,6 +276,7 @@ def pixel_footprints_parallel(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     chunk_pixels: int,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
@@ -276,6 +299,9 @@ def pixel_footprints_parallel(
         center_world: (3,) the camera centre, m (z > 0).
         sensor: SENSOR_* code of `kernels.sensor`.
         vignetting: (H, W) fall-off map for SENSOR_MAP; any shape otherwise.
+        write_corners: write out_corners (else it is not touched: any shape). A dense
+            selection's footprints read their corners from the grid when they need them
+            (`grid_quads`) instead of keeping 96 bytes a quad.
         chunk_pixels: pixels per parallel work item (>= 1).
         out_corners: (N, b^2, 4, 3) written: quads P1..P4 of each member, world frame, m;
             NaN for invalid pixels.
@@ -302,6 +328,7 @@ def pixel_footprints_parallel(
                 center_world,
                 sensor,
                 vignetting,
+                write_corners,
                 scratch,
                 out_corners,
                 out_weights,
@@ -323,6 +350,7 @@ def pixel_footprints_serial(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
     out_valid: np.ndarray,
@@ -345,9 +373,128 @@ def pixel_footprints_serial(
             center_world,
             sensor,
             vignetting,
+            write_corners,
             scratch,
             out_corners,
             out_weights,
             out_valid,
             out_area,
         )
+
+
+# ---------------------------------------------------------------------------------------
+# Quads read from the corner grid when they are needed (footprints without kept corners).
+# ---------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _grid_wall_point(
+    grid_xy: np.ndarray, grid_ok: np.ndarray, row: int, col: int, view: tuple[float, ...]
+) -> tuple[float, float, bool]:
+    """Where corner (row, col) of the grid meets the wall (as `_pixel_footprint`)."""
+    return wall_point(grid_xy[row, col, 0], grid_xy[row, col, 1], grid_ok[row, col], view, True)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def grid_quads(
+    p: int,
+    pixels: np.ndarray,
+    binning: int,
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    view: tuple[float, ...],
+    out: np.ndarray,
+    row: int,
+) -> None:
+    """Write the b^2 quads of (super-)pixel p into out[row] (b^2, 4, 3): the numbers
+    `pixel_footprints_parallel` writes from the same grid, bit for bit (NaN if invalid).
+
+    Args:
+        p: the pixel's row in `pixels` (N, 2) (u, v) of the image binned by `binning`.
+        grid_xy, grid_ok: the camera's corner grid (`corner_grid`).
+        view: `view_scalars` of the view.
+        out: (M, b^2, 4, 3) written at `row`.
+    """
+    b = binning
+    u0 = pixels[p, 0] * b
+    v0 = pixels[p, 1] * b
+    valid = True
+    for m in range(b * b):
+        jj = m // b
+        r = v0 + jj
+        c = u0 + m - jj * b
+        x1, y1, h1 = _grid_wall_point(grid_xy, grid_ok, r, c, view)
+        x2, y2, h2 = _grid_wall_point(grid_xy, grid_ok, r, c + 1, view)
+        x3, y3, h3 = _grid_wall_point(grid_xy, grid_ok, r + 1, c + 1, view)
+        x4, y4, h4 = _grid_wall_point(grid_xy, grid_ok, r + 1, c, view)
+        valid = valid & h1 & h2 & h3 & h4
+        _write_quad(out, row, m, x1, y1, x2, y2, x3, y3, x4, y4)
+    if not valid:
+        for m in range(b * b):
+            for q in range(4):
+                for d in range(3):
+                    out[row, m, q, d] = np.nan
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def grid_corners_parallel(
+    pixels: np.ndarray,
+    binning: int,
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    R_camera_world: np.ndarray,
+    center_world: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """The quads (N, b^2, 4, 3) of `pixels` read from the corner grid (`grid_quads`)."""
+    view = view_scalars(R_camera_world, center_world)
+    for p in numba.prange(pixels.shape[0]):
+        grid_quads(p, pixels, binning, grid_xy, grid_ok, view, out, p)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def grid_corners_serial(
+    pixels: np.ndarray,
+    binning: int,
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    R_camera_world: np.ndarray,
+    center_world: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """`grid_corners_parallel` on the calling thread (a few pixels)."""
+    view = view_scalars(R_camera_world, center_world)
+    for p in range(pixels.shape[0]):
+        grid_quads(p, pixels, binning, grid_xy, grid_ok, view, out, p)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def grid_centers_parallel(
+    pixels: np.ndarray,
+    binning: int,
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    R_camera_world: np.ndarray,
+    center_world: np.ndarray,
+    chunk_pixels: int,
+    out: np.ndarray,
+) -> None:
+    """(N, 3) means of the 4 b^2 corners of each pixel's quads, read from the grid.
+
+    The numbers of `footprint.quad_corner_means` of the kept corners, bit for bit (a
+    running sum in the same order, then one division); NaN for invalid pixels.
+    """
+    n = pixels.shape[0]
+    k = binning * binning
+    count = float(4 * k)
+    view = view_scalars(R_camera_world, center_world)
+    n_chunks = (n + chunk_pixels - 1) // chunk_pixels
+    for chunk in numba.prange(n_chunks):
+        quads = np.empty((1, k, 4, 3))
+        for p in range(chunk * chunk_pixels, min(n, (chunk + 1) * chunk_pixels)):
+            grid_quads(p, pixels, binning, grid_xy, grid_ok, view, quads, 0)
+            for d in range(3):
+                total = quads[0, 0, 0, d]
+                for j in range(1, 4 * k):
+                    total += quads[0, j // 4, j % 4, d]
+                out[p, d] = total / count
