@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from lightcal.core.footprint_kernels import grid_corners_serial, grid_quads
+from lightcal.core.footprint_kernels import grid_corners_serial, grid_quads_range
 from lightcal.core.kernels.quad_flux import pixel_flux
 from lightcal.core.kernels.sensor import view_scalars
 from lightcal.core.kernels.wall_gradients import wall_grad_range
@@ -202,7 +202,7 @@ def flux_pixels(
 
 #: Pixels (of one quad each) per block of `flux_pixels_grid_parallel`: the block's quads
 #: (96 bytes a quad) and outputs stay in the L2 cache.
-GRID_BLOCK_QUADS = 512
+GRID_BLOCK_QUADS = 2048
 
 
 @numba.njit(cache=True, parallel=True)
@@ -226,7 +226,7 @@ def flux_pixels_grid_parallel(
 ) -> None:
     """`flux_pixels` of footprints whose quads come from the corner grid, on all threads.
 
-    Per block of `block_pixels`: the quads by `grid_quads`, the weights and validity
+    Per block of `block_pixels`: the quads by `grid_quads_range`, the weights and validity
     copied alongside, `flux_range` on the block, its outputs copied out.
     """
     n = pixels.shape[0]
@@ -240,9 +240,9 @@ def flux_pixels_grid_parallel(
         w = np.empty((nb, k))
         ok = np.empty(nb, dtype=np.bool_)
         flux = np.empty(nb)
-        grad = np.zeros((nb if want_grad else 1, 6))
+        grad = np.empty((nb if want_grad else 1, 6))
+        grid_quads_range(i0, i0 + nb, pixels, binning, grid_xy, grid_ok, view, quads)
         for i in range(nb):
-            grid_quads(i0 + i, pixels, binning, grid_xy, grid_ok, view, quads, i)
             ok[i] = valid[i0 + i]
             for m in range(k):
                 w[i, m] = weights[i0 + i, m]
