@@ -430,10 +430,7 @@ def grid_quads(
         valid = valid & h1 & h2 & h3 & h4
         _write_quad(out, row, m, x1, y1, x2, y2, x3, y3, x4, y4)
     if not valid:
-        for m in range(b * b):
-            for q in range(4):
-                for d in range(3):
-                    out[row, m, q, d] = np.nan
+        out[row] = np.nan
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -477,9 +474,7 @@ def grid_quads_range(
         if h1 & h2 & h3 & h4:
             _write_quad(out, r, 0, x1, y1, x2, y2, x3, y3, x4, y4)
         else:
-            for q in range(4):
-                for d in range(3):
-                    out[r, 0, q, d] = np.nan
+            out[r] = np.nan
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
