@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lightcal.core import calibration_model
-from lightcal.core.calibration_model import _economic_r, _stack_r_factors
+from lightcal.core.calibration_model import economic_r, stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
@@ -441,17 +441,17 @@ def test_robust_losses_use_the_full_problem(noisy_problem):
 def test_stacked_r_factors_equal_the_r_factor_of_the_stack():
     rng = np.random.default_rng(3)
     blocks = [rng.normal(size=(k, 4)) for k in (50, 2, 7)]
-    tops = [_economic_r(np.asfortranarray(b)) for b in blocks]
+    tops = [economic_r(np.asfortranarray(b)) for b in blocks]
     assert [t.shape for t in tops] == [(4, 4), (2, 4), (4, 4)]
-    R = _stack_r_factors(tops, 4)
+    R = stack_r_factors(tops, 4)
     whole = np.linalg.qr(np.concatenate(blocks), mode="r")
     # Unique up to the sign of each row.
     np.testing.assert_allclose(np.abs(R), np.abs(whole), atol=1e-12)
     np.testing.assert_allclose(R.T @ R, whole.T @ whole, atol=1e-10)
     # Fewer rows than columns in all: zero rows pad the factor.
-    assert _stack_r_factors([tops[1]], 4)[2:].tolist() == [[0.0] * 4] * 2
+    assert stack_r_factors([tops[1]], 4)[2:].tolist() == [[0.0] * 4] * 2
     # A block with non-finite residuals makes the whole problem NaN (trf: a failed step).
-    assert np.all(np.isnan(_stack_r_factors([tops[0], None], 4)))
+    assert np.all(np.isnan(stack_r_factors([tops[0], None], 4)))
 
 
 # ------------------------------------------------------------------ re-weighting
