@@ -141,6 +141,7 @@ def pixel_evidence(
             middle[:] += (J_i * (1.0 / ratio**2)[:, None]).T @ J_i
 
     model.evaluate_visiting(x, visit)
+    model.release_buffers()  # not needed by the checks that follow
     return PixelEvidence(r_noise, relative, mirror, incidence, subsets, middle, shares[0])
 
 
