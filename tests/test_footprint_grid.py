@@ -146,7 +146,7 @@ def test_subsets_share_the_grid_and_keep_no_quads() -> None:
     assert sub.grid is fp.grid and sub.stored_corners is None
     np.testing.assert_array_equal(sub.corners_world, fp.corners_world[rows])
     kept_bytes = sum(getattr(fp, name).nbytes for name in ("pixels", "weights", "valid", "area_m2"))
-    assert kept_bytes == len(fp) * 33  # 16 + 8 + 1 + 8 bytes a pixel, no 96-byte quad
+    assert kept_bytes == len(fp) * 25  # 8 + 8 + 1 + 8 bytes a pixel, no 96-byte quad
 
 
 def test_footprints_need_exactly_one_source_of_quads() -> None:

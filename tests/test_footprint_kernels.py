@@ -351,7 +351,7 @@ def test_no_temporaries_beyond_the_outputs() -> None:
     # A dense selection does not keep its quads (96 bytes each): only these outputs.
     assert fp.stored_corners is None and fp.grid is not None
     outputs = sum(getattr(fp, name).nbytes for name in ("pixels", "weights", "valid", "area_m2"))
-    assert outputs == len(pixels) * (16 + 8 + 1 + 8)
+    assert outputs == len(pixels) * (8 + 8 + 1 + 8)
     assert outputs < peak < outputs + 100_000
 
 

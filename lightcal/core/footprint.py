@@ -117,7 +117,7 @@ class Footprints:
     pixels share corners; the solver's kernels read them from there).
 
     Attributes:
-        pixels: (N, 2) int64 pixel indices (u, v) in the (binned) image.
+        pixels: (N, 2) int32 pixel indices (u, v) in the (binned) image.
         stored_corners: (N, K, 4, 3) the K = b^2 footprint quads of each pixel, world
             frame, m (NaN for invalid pixels), or None when `grid` gives them.
         weights: (N, K) sensor weight of each quad (0 for invalid pixels).
@@ -249,7 +249,8 @@ def pixel_footprints(
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     b = int(binning)
-    p = np.ascontiguousarray(check_pixels(pixels, camera.width // b, camera.height // b))
+    # int32: 8 bytes a pixel less than check_pixels' int64 (images are < 2^31 pixels wide).
+    p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else _NO_MAP
     n = p.shape[0]
     k = b * b

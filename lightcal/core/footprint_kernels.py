@@ -286,7 +286,7 @@ def pixel_footprints_parallel(
     """Footprint quads, validity, areas and sensor weights of N (super-)pixels.
 
     Args:
-        pixels: (N, 2) int64 (u, v) indices in the image binned by `binning`, in range.
+        pixels: (N, 2) int32 (u, v) indices in the image binned by `binning`, in range.
         binning: b >= 1; super-pixel (u, v) has the b^2 members (u b + i, v b + j),
             member index j b + i.
         use_grid: read corners from `grid_xy` / `grid_ok`, else undistort them here.

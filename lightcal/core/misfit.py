@@ -158,11 +158,9 @@ def angle_trend(
     count = np.zeros(k)
     sums = np.zeros(k)
     rel_sums = np.zeros(k)
-    angles = np.ascontiguousarray(angles_deg, dtype=np.float64)
+    angles = np.ascontiguousarray(angles_deg)  # float64 or float32 (not copied)
     r = np.ascontiguousarray(r, dtype=np.float64)
-    _bin_sums(
-        edges, angles, r, np.ascontiguousarray(relative, dtype=np.float64), count, sums, rel_sums
-    )
+    _bin_sums(edges, angles, r, np.ascontiguousarray(relative), count, sums, rel_sums)
     means = sums / np.maximum(count, 1.0)
     rel = rel_sums / np.maximum(count, 1.0)
     grand = float(r.mean())

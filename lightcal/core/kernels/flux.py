@@ -286,7 +286,7 @@ def flux_pixels_grid(
     """`flux_pixels` of footprints whose quads are read from the camera's corner grid.
 
     Args:
-        pixels: (N, 2) int64 (u, v) in the image binned by `binning`.
+        pixels: (N, 2) int32 (u, v) in the image binned by `binning`.
         binning: b, the super-pixel side.
         grid: (grid_xy (H+1, W+1, 2), grid_ok (H+1, W+1), R_camera_world (3, 3),
             center_world (3,)): the corner grid and the view (`footprint.GridCorners`).
