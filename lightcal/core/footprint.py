@@ -152,8 +152,9 @@ class Footprints:
         assert self.grid is not None
         return self.grid.quads(self.pixels)
 
-    def subset(self, rows: np.ndarray) -> Footprints:
-        """The footprints of rows (k,) (indices or a boolean mask) of these pixels."""
+    def subset(self, rows: np.ndarray | slice) -> Footprints:
+        """The footprints of rows (k,) (indices, a boolean mask or a slice: views) of these
+        pixels."""
         return Footprints(
             self.pixels[rows],
             None if self.stored_corners is None else self.stored_corners[rows],

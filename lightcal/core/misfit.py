@@ -184,7 +184,7 @@ def angle_trend(
 def _bin_of(edges: np.ndarray, angle: float) -> int:
     """The quantile bin of `angle` among the k = len(edges) - 1 bins (NumPy's
     clip(searchsorted(edges, angle, side="right") - 1, 0, k - 1), NaN in the last)."""
-    b = np.searchsorted(edges, angle, side="right") - 1
+    b = int(np.searchsorted(edges, angle, side="right")) - 1
     return min(max(b, 0), edges.size - 2)
 
 
