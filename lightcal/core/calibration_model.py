@@ -154,25 +154,15 @@ class CalibrationModel:
         return J_s.T @ J_s
 
     def evaluate_visiting(self, x: np.ndarray, visit: ImageVisitor) -> None:
-        """Evaluate at x (as the solver does: the residuals and the compressed problem or
-        Jacobian are then cached at x) and show `visit` each image's system on the way.
-
-        What a check after the solve needs of every pixel (the Jacobian's rows, each
-        light's flux) comes out of the same pass over the images as the residuals and
-        J^T J, instead of rendering them all again per question.
-
-        Args:
-            x: the parameters.
-            visit: called once per image, in order, as visit(i, A, fluxes): A (N_i, n + 1)
-                [J_i r_i] (a shared buffer, overwritten after the call: copy what is
-                kept), fluxes (L, N_i) each light's flux per unit scale (`light_flux`).
-        """
+        """Evaluate at x as the solver does (residuals and J^T J then cached at x) and call
+        visit(i, A, fluxes) per image on the way: A (N_i, n + 1) its [J_i r_i] (a shared
+        buffer: copy what is kept), fluxes (L, N_i) each light's flux per unit scale. The
+        checks after a solve take what they need of every pixel from this one pass."""
         with self._evaluating, single_threaded_blas():  # one at a time: shared buffers
             self._evaluate_blas_limited(x, full_jacobian=not self.compressed, visit=visit)
 
     def release_buffers(self) -> None:
-        """Free the work arrays of the image systems (~90 bytes a pixel of the largest
-        image); the next evaluation makes them again."""
+        """Free the image systems' work arrays (the next evaluation makes them again)."""
         with self._evaluating:
             self._buffers = _Buffers()
 
@@ -185,8 +175,7 @@ class CalibrationModel:
         self, x: np.ndarray, *, full_jacobian: bool, visit: ImageVisitor | None = None
     ) -> None:
         n = self.layout.n
-        # The previous residuals are dropped first (76 MB for 9.5 M pixels: held beside
-        # the new ones they set the solve's peak memory).
+        # The previous residuals dropped first: beside the new ones they set the peak.
         self._cache_x = None
         self._cache_r = None
         r = np.empty(self.m)

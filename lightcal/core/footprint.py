@@ -37,6 +37,7 @@ from typing import Literal
 import numba
 import numpy as np
 
+from lightcal.core import footprint_grid_kernels as gk
 from lightcal.core import footprint_kernels as fk
 from lightcal.core.camera import Camera
 from lightcal.core.corner_grid import GRID_CACHE, CornerGrid
@@ -72,7 +73,7 @@ _NO_MAP = np.ones((1, 1))
 class GridCorners:
     """Where the corners of a view's footprints come from when they are not kept: the
     camera's undistorted corner grid and the view's pose (the quads are recomputed from
-    them, bit for bit, by the kernels that need them; `footprint_kernels.grid_quads`).
+    them, bit for bit, by the kernels that need them; `footprint_grid_kernels`).
 
     Attributes:
         grid_xy: (H+1, W+1, 2) the camera's corner grid, undistorted normalised
@@ -92,7 +93,7 @@ class GridCorners:
     def quads(self, pixels: np.ndarray) -> np.ndarray:
         """(N, b^2, 4, 3) the footprint quads of `pixels` (N, 2), world frame, m."""
         out = np.empty((pixels.shape[0], self.binning**2, 4, 3))
-        kernel = fk.grid_corners_parallel if len(pixels) > 4096 else fk.grid_corners_serial
+        kernel = gk.grid_corners_parallel if len(pixels) > 4096 else gk.grid_corners_serial
         kernel(pixels, self.binning, *self._args(), out)
         return out
 
@@ -101,7 +102,7 @@ class GridCorners:
         out = np.empty((pixels.shape[0], 3))
         chunk = max(1, fk.CHUNK_CORNERS // (4 * self.binning**2))
         with numba.parallel_chunksize(1):
-            fk.grid_centers_parallel(pixels, self.binning, *self._args(), chunk, out)
+            gk.grid_centers_parallel(pixels, self.binning, *self._args(), chunk, out)
         return out
 
     def _args(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

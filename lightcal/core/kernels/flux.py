@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from lightcal.core.footprint_kernels import grid_corners_serial, grid_quads_range
+from lightcal.core.footprint_grid_kernels import grid_corners_serial, grid_quads_range
 from lightcal.core.kernels.quad_flux import pixel_flux
 from lightcal.core.kernels.sensor import view_scalars
 from lightcal.core.kernels.wall_gradients import wall_grad_range
