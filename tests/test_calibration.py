@@ -63,6 +63,26 @@ def test_fit_scales_at_the_true_poses():
     )
 
 
+def test_fit_scales_on_the_reduced_system_match_nnls_of_every_pixel():
+    # Noisy data and a start off the truth: the scales are those of NNLS on all rows.
+    from scipy.optimize import nnls
+
+    from lightcal.core.render import shade
+
+    rig = cs.two_light_rig()
+    clean_images = cs.observe(
+        CAMERA, cs.views(5), rig, n_per_image=80, rng=np.random.default_rng(3)
+    )
+    images = cs.add_noise(clean_images, NOISE, np.random.default_rng(4))
+    unknowns = [LightUnknown(cs.start_near(light)) for light in rig.lights]
+    start = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
+    A = np.concatenate([(shade(i.footprints, i.view, start).flux / i.sigma).T for i in images])
+    y = np.concatenate([(i.observed - 2.0) / i.sigma for i in images])
+    expected, _ = nnls(A, y)
+    assert np.all(expected > 0.0)
+    np.testing.assert_allclose(fit_scales(images, unknowns, 2.0), expected, rtol=1e-12)
+
+
 def test_fit_scales_stay_positive(clean):
     light, images = clean
     dark = [ImageData(i.name, i.view, i.footprints, -i.observed, i.sigma) for i in images]

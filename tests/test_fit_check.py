@@ -184,7 +184,7 @@ def _intrinsics_seed(seed: int):
         list(jacobians),
         footprints_with,
     )
-    _, unc = check_fit(model, outcome.x, meas)
+    unc = check_fit(model, outcome.x, meas).uncertainty
     assert unc.intrinsics is not None
     position = np.arange(model.layout.n)[model.layout.blocks[0].pose][:3]
     light = model.layout.rig(outcome.x).lights[0]

@@ -79,6 +79,39 @@ def test_level_without_structure() -> None:
     assert math.isnan(d.p_value)
 
 
+def _numpy_bins(
+    angles: np.ndarray, r: np.ndarray, relative: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(count, means, mean relative, within) by NumPy, as `angle_trend` computed them."""
+    edges = np.unique(np.quantile(angles, np.linspace(0.0, 1.0, 9)))
+    k = edges.size - 1
+    idx = np.clip(np.searchsorted(edges, angles, side="right") - 1, 0, k - 1)
+    count = np.bincount(idx, minlength=k).astype(np.float64)
+    means = np.bincount(idx, weights=r, minlength=k) / np.maximum(count, 1.0)
+    rel = np.bincount(idx, weights=relative, minlength=k) / np.maximum(count, 1.0)
+    return count, means, rel, float(np.sum((r - means[idx]) ** 2))
+
+
+def test_angle_trend_bins_as_numpy_bit_for_bit() -> None:
+    rng = np.random.default_rng(8)
+    m = 50_000
+    angles = np.round(rng.uniform(0.0, 30.0, m), 1)  # ties, and values on the edges
+    angles[:20] = np.nan
+    r = rng.normal(size=m) + 0.01 * angles
+    relative = 0.02 * rng.normal(size=m)
+    t = angle_trend("incidence", angles[20:], r[20:], relative[20:])
+    assert t is not None
+    count, means, rel, within = _numpy_bins(angles[20:], r[20:], relative[20:])
+    np.testing.assert_array_equal(t.count, count)
+    np.testing.assert_array_equal(t.mean_residual, means)
+    np.testing.assert_array_equal(t.mean_relative, rel)
+    sd = math.sqrt(within / (m - 20 - count.size))
+    grand = float(r[20:].mean())
+    assert t.effect == float(np.sqrt(np.sum(count * (means - grand) ** 2) / (m - 20))) / sd
+    # A NaN angle makes every quantile NaN: no bins, no test (as before).
+    assert angle_trend("mirror", angles, r, relative) is None
+
+
 def test_angle_trend_needs_pixels() -> None:
     assert angle_trend("mirror", np.arange(50.0), np.zeros(50), np.zeros(50)) is None
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lightcal.core import calibration_model
-from lightcal.core.calibration_model import _economic_r, _stack_r_factors
+from lightcal.core.calibration_model import economic_r, stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
@@ -441,17 +441,17 @@ def test_robust_losses_use_the_full_problem(noisy_problem):
 def test_stacked_r_factors_equal_the_r_factor_of_the_stack():
     rng = np.random.default_rng(3)
     blocks = [rng.normal(size=(k, 4)) for k in (50, 2, 7)]
-    tops = [_economic_r(np.asfortranarray(b)) for b in blocks]
+    tops = [economic_r(np.asfortranarray(b)) for b in blocks]
     assert [t.shape for t in tops] == [(4, 4), (2, 4), (4, 4)]
-    R = _stack_r_factors(tops, 4)
+    R = stack_r_factors(tops, 4)
     whole = np.linalg.qr(np.concatenate(blocks), mode="r")
     # Unique up to the sign of each row.
     np.testing.assert_allclose(np.abs(R), np.abs(whole), atol=1e-12)
     np.testing.assert_allclose(R.T @ R, whole.T @ whole, atol=1e-10)
     # Fewer rows than columns in all: zero rows pad the factor.
-    assert _stack_r_factors([tops[1]], 4)[2:].tolist() == [[0.0] * 4] * 2
+    assert stack_r_factors([tops[1]], 4)[2:].tolist() == [[0.0] * 4] * 2
     # A block with non-finite residuals makes the whole problem NaN (trf: a failed step).
-    assert np.all(np.isnan(_stack_r_factors([tops[0], None], 4)))
+    assert np.all(np.isnan(stack_r_factors([tops[0], None], 4)))
 
 
 # ------------------------------------------------------------------ re-weighting
@@ -550,3 +550,38 @@ def test_reweighting_removes_the_bias_of_weights_from_noisy_values():
     standard_error = np.linalg.norm(np.std(errors[True], axis=0)) / np.sqrt(30) * 1e3
     assert bias[False] > 2.5 * standard_error  # the bias is real (measured 3.2 mm vs 0.96) ...
     assert bias[True] < standard_error  # ... and gone (measured 0.49 mm)
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_evaluate_visiting_shows_each_image_system_and_caches_the_evaluation(
+    compress: bool,
+) -> None:
+    rig = cs.two_light_rig()
+    images = cs.observe(
+        cs.small_camera(), cs.views(4), rig, n_per_image=50, rng=np.random.default_rng(2)
+    )
+    images = cs.add_noise(images, (0.5, 4.0), np.random.default_rng(3))
+    starts = [cs.start_near(light) for light in rig.lights]
+    x = cs.model_of(images, starts).layout.x0 + 1e-3
+    reference = cs.model_of(images, starts, compress=compress)
+    r, J = reference.residuals(x).copy(), reference.jacobian(x).copy()
+    normal = reference.normal_matrix(x)
+    model = cs.model_of(images, starts, compress=compress)
+    seen: list[int] = []
+    lay = model.layout
+
+    def visit(i: int, A: np.ndarray, fluxes: np.ndarray) -> None:
+        rows = slice(model.bounds[i], model.bounds[i + 1])
+        np.testing.assert_array_equal(A[:, lay.n], r[rows])
+        np.testing.assert_array_equal(A[:, : lay.n], J[rows])
+        unit = Rig(tuple(light.replace(scale=1.0) for light in lay.rig(x).lights))
+        expected = shade(images[i].footprints, images[i].view, unit).flux
+        np.testing.assert_array_equal(fluxes, expected)
+        seen.append(i)
+
+    model.evaluate_visiting(x, visit)
+    assert seen == list(range(len(images)))
+    nfev = model.nfev
+    np.testing.assert_array_equal(model.residuals(x), r)  # cached: no new evaluation
+    np.testing.assert_array_equal(model.normal_matrix(x), normal)
+    assert model.nfev == nfev

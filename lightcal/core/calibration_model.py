@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,6 +33,9 @@ from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
 from lightcal.core.wall import WallReflectance
+
+ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
+"""visit(i, A (N_i, n + 1), fluxes (L, N_i)): see `CalibrationModel.evaluate_visiting`."""
 
 # Pixels from which the QR-compressed problem pays (SolverOptions.compress None); measured:
 # 12 x 100 px solve 27 ms compressed vs 21.5 ms full; 12 x 375,000 px 5 s vs 18 s.
@@ -150,13 +153,31 @@ class CalibrationModel:
         J_s = self.solver_jacobian(x)
         return J_s.T @ J_s
 
+    def evaluate_visiting(self, x: np.ndarray, visit: ImageVisitor) -> None:
+        """Evaluate at x as the solver does (residuals and J^T J then cached at x) and call
+        visit(i, A, fluxes) per image on the way: A (N_i, n + 1) its [J_i r_i] (a shared
+        buffer: copy what is kept), fluxes (L, N_i) each light's flux per unit scale. The
+        checks after a solve take what they need of every pixel from this one pass."""
+        with self._evaluating, single_threaded_blas():  # one at a time: shared buffers
+            self._evaluate_blas_limited(x, full_jacobian=not self.compressed, visit=visit)
+
+    def release_buffers(self) -> None:
+        """Free the image systems' work arrays (the next evaluation makes them again)."""
+        with self._evaluating:
+            self._buffers = _Buffers()
+
     def _evaluate(self, x: np.ndarray, *, full_jacobian: bool) -> None:
         """Residuals, the QR-compressed problem and optionally the full Jacobian at x."""
         with self._evaluating, single_threaded_blas():  # one at a time: shared buffers
             self._evaluate_blas_limited(x, full_jacobian=full_jacobian)
 
-    def _evaluate_blas_limited(self, x: np.ndarray, *, full_jacobian: bool) -> None:
+    def _evaluate_blas_limited(
+        self, x: np.ndarray, *, full_jacobian: bool, visit: ImageVisitor | None = None
+    ) -> None:
         n = self.layout.n
+        # The previous residuals dropped first: beside the new ones they set the peak.
+        self._cache_x = None
+        self._cache_r = None
         r = np.empty(self.m)
         J = np.empty((self.m, n)) if full_jacobian else None
         tops = []
@@ -166,14 +187,18 @@ class CalibrationModel:
         )
         for i in range(len(self.images)):
             rows = slice(self.bounds[i], self.bounds[i + 1])
-            A = self._image_system(x, i, at_x)
+            fluxes: list[np.ndarray] | None = None if visit is None else []
+            A = self._image_system(x, i, at_x, fluxes)
             r[rows] = A[:, n]
             if J is not None:
                 J[rows] = A[:, :n]
+            if visit is not None:
+                assert fluxes is not None
+                visit(i, A, fluxes[0][None] if len(fluxes) == 1 else np.stack(fluxes))
             if self.compressed and A.shape[0]:
-                tops.append(_economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
+                tops.append(economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
         if self.compressed:
-            self._cache_R = _stack_r_factors(tops, n + 1)
+            self._cache_R = stack_r_factors(tops, n + 1)
         self._cache_x = x.copy()
         self._cache_r = r
         if J is not None:
@@ -197,11 +222,14 @@ class CalibrationModel:
             maps.append(M)
         return maps
 
-    def _image_system(self, x: np.ndarray, i: int, at_x: _StateAtX) -> np.ndarray:
+    def _image_system(
+        self, x: np.ndarray, i: int, at_x: _StateAtX, fluxes: list[np.ndarray] | None = None
+    ) -> np.ndarray:
         """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals.
 
         One render with gradients per light; the world-frame gradients go to the pose
-        columns through one (N, 6) x (6, k) product per light.
+        columns through one (N, 6) x (6, k) product per light. `fluxes`, when given,
+        receives each light's flux (N_i,) per unit scale.
         """
         lay = self.layout
         im = self.images[i]
@@ -237,6 +265,8 @@ class CalibrationModel:
                 wall_grad_out=wall_grad,
             )
             assert grad_world is not None
+            if fluxes is not None:
+                fluxes.append(flux)
             value_per_flux = g * light.scale
             sk.add_light_columns(
                 A,
@@ -344,21 +374,6 @@ class CalibrationModel:
             self.weights_at is not None,
         )
 
-    def image_jacobians(self, x: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
-        """(i, J_i (N_i, n)) per image: rows of the weighted Jacobian d r / d x at x.
-
-        One image at a time (a copy each), so no (m, n) matrix is held: what the
-        uncertainty terms need for dense problems too.
-        """
-        lay = self.layout
-        at_x = _StateAtX(
-            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
-        )
-        for i in range(len(self.images)):
-            with self._evaluating, single_threaded_blas():  # shared buffers
-                J_i = self._image_system(x, i, at_x)[:, : lay.n].copy()
-            yield i, J_i
-
     # -- bounds -------------------------------------------------------------------------
 
     def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -410,7 +425,7 @@ class CalibrationModel:
         return lo, hi
 
 
-def _economic_r(A: np.ndarray) -> np.ndarray:
+def economic_r(A: np.ndarray) -> np.ndarray:
     """R (min(N, k), k) of the thin QR of A (N, k); A (Fortran order) is overwritten."""
     qr, _, _, info = scipy.linalg.lapack.dgeqrf(A, overwrite_a=True)
     if info != 0:
@@ -418,7 +433,7 @@ def _economic_r(A: np.ndarray) -> np.ndarray:
     return np.triu(qr[: min(A.shape)])
 
 
-def _stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
+def stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
     """R factor (width, width) of the row-stack of matrices whose R factors are `tops`.
 
     QR of the stacked (k, width) upper-triangular factors is that of the stack of the
@@ -430,7 +445,7 @@ def _stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
     out = np.zeros((width, width))
     if tops:
         stack = np.concatenate([t for t in tops if t is not None])
-        top = _economic_r(np.asfortranarray(stack))
+        top = economic_r(np.asfortranarray(stack))
         out[: top.shape[0]] = top
     return out
 

@@ -22,7 +22,10 @@ the value of one big pixel. `paper` values of a super-pixel are the mean of its 
 The work is one parallel compiled pass (`footprint_kernels`) that writes the outputs
 directly. A dense selection reads its corners from the camera's cached corner grid
 (`corner_grid`, built once per camera); a sparse one undistorts its own corners. Both give
-the same numbers, bit for bit.
+the same numbers, bit for bit. A sparse selection keeps its quads (96 bytes each); a dense
+one does not (for 9.5 M pixels that was 0.9 GB): its `Footprints` hold the grid and the
+view (`GridCorners`), and the kernels that need the quads recompute them from there per
+block of pixels (a wall intersection per corner, cheap beside the flux it feeds).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from typing import Literal
 import numba
 import numpy as np
 
+from lightcal.core import footprint_grid_kernels as gk
 from lightcal.core import footprint_kernels as fk
 from lightcal.core.camera import Camera
 from lightcal.core.corner_grid import GRID_CACHE, CornerGrid
@@ -66,35 +70,99 @@ _NO_MAP = np.ones((1, 1))
 
 
 @dataclass(frozen=True, eq=False)
+class GridCorners:
+    """Where the corners of a view's footprints come from when they are not kept: the
+    camera's undistorted corner grid and the view's pose (the quads are recomputed from
+    them, bit for bit, by the kernels that need them; `footprint_grid_kernels`).
+
+    Attributes:
+        grid_xy: (H+1, W+1, 2) the camera's corner grid, undistorted normalised
+            coordinates (`corner_grid`; shared, read-only by convention).
+        grid_ok: (H+1, W+1) its validity.
+        R_camera_world: (3, 3) the view's rotation.
+        center_world: (3,) the camera centre, m.
+        binning: b, the super-pixel side of the footprints' pixels.
+    """
+
+    grid_xy: np.ndarray
+    grid_ok: np.ndarray
+    R_camera_world: np.ndarray
+    center_world: np.ndarray
+    binning: int
+
+    def quads(self, pixels: np.ndarray) -> np.ndarray:
+        """(N, b^2, 4, 3) the footprint quads of `pixels` (N, 2), world frame, m."""
+        out = np.empty((pixels.shape[0], self.binning**2, 4, 3))
+        kernel = gk.grid_corners_parallel if len(pixels) > 4096 else gk.grid_corners_serial
+        kernel(pixels, self.binning, *self._args(), out)
+        return out
+
+    def centers(self, pixels: np.ndarray) -> np.ndarray:
+        """(N, 3) the means of the quads' corners of `pixels` (`quad_corner_means`)."""
+        out = np.empty((pixels.shape[0], 3))
+        chunk = max(1, fk.CHUNK_CORNERS // (4 * self.binning**2))
+        with numba.parallel_chunksize(1):
+            gk.grid_centers_parallel(pixels, self.binning, *self._args(), chunk, out)
+        return out
+
+    def _args(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self.grid_xy, self.grid_ok, self.R_camera_world, self.center_world
+
+
+@dataclass(frozen=True, eq=False)
 class Footprints:
     """Footprints of N (super-)pixels of one view.
 
+    The quads are either kept (`stored_corners`, 96 bytes a quad: a sparse selection) or
+    read from the camera's corner grid when needed (`grid`: a dense selection, whose
+    pixels share corners; the solver's kernels read them from there).
+
     Attributes:
-        pixels: (N, 2) pixel indices (u, v) in the (binned) image.
-        corners_world: (N, K, 4, 3) the K = b^2 footprint quads of each pixel, world frame, m
-            (NaN for invalid pixels).
+        pixels: (N, 2) int32 pixel indices (u, v) in the (binned) image.
+        stored_corners: (N, K, 4, 3) the K = b^2 footprint quads of each pixel, world
+            frame, m (NaN for invalid pixels), or None when `grid` gives them.
         weights: (N, K) sensor weight of each quad (0 for invalid pixels).
         valid: (N,) pixels whose every corner ray hits the wall in front of the camera.
         area_m2: (N,) footprint area (the union's), m^2.
+        grid: where the quads come from when they are not kept, else None.
     """
 
     pixels: np.ndarray
-    corners_world: np.ndarray
+    stored_corners: np.ndarray | None
     weights: np.ndarray
     valid: np.ndarray
     area_m2: np.ndarray
+    grid: GridCorners | None = None
+
+    def __post_init__(self) -> None:
+        if (self.stored_corners is None) == (self.grid is None):
+            raise ValueError("footprints: expected either stored corners or a corner grid")
 
     def __len__(self) -> int:
         return int(self.pixels.shape[0])
 
-    def subset(self, rows: np.ndarray) -> Footprints:
-        """The footprints of rows (k,) (indices or a boolean mask) of these pixels."""
+    @property
+    def corners_world(self) -> np.ndarray:
+        """(N, K, 4, 3) the footprint quads, world frame, m (NaN for invalid pixels).
+
+        Kept ones as they are; otherwise computed from the corner grid on each access
+        (N K x 96 bytes): the solver's kernels do not need them.
+        """
+        if self.stored_corners is not None:
+            return self.stored_corners
+        assert self.grid is not None
+        return self.grid.quads(self.pixels)
+
+    def subset(self, rows: np.ndarray | slice) -> Footprints:
+        """The footprints of rows (k,) (indices, a boolean mask or a slice: views) of these
+        pixels."""
         return Footprints(
             self.pixels[rows],
-            self.corners_world[rows],
+            None if self.stored_corners is None else self.stored_corners[rows],
             self.weights[rows],
             self.valid[rows],
             self.area_m2[rows],
+            self.grid,
         )
 
     @functools.cached_property
@@ -105,12 +173,18 @@ class Footprints:
         Kept once computed (the wall models read them every evaluation); `centers_now`
         gives them without keeping them.
         """
-        return quad_corner_means(self.corners_world)
+        return self._centers()
 
     def centers_now(self) -> np.ndarray:
         """`centers_world` if already kept, else computed and not kept (N x 24 bytes)."""
         kept = self.__dict__.get("centers_world")  # functools.cached_property's slot
-        return kept if kept is not None else quad_corner_means(self.corners_world)
+        return kept if kept is not None else self._centers()
+
+    def _centers(self) -> np.ndarray:
+        if self.stored_corners is not None:
+            return quad_corner_means(self.stored_corners)
+        assert self.grid is not None
+        return self.grid.centers(self.pixels)
 
 
 def quad_corner_means(corners_world: np.ndarray) -> np.ndarray:
@@ -177,30 +251,35 @@ def pixel_footprints(
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     b = int(binning)
-    p = np.ascontiguousarray(check_pixels(pixels, camera.width // b, camera.height // b))
+    # int32: 8 bytes a pixel less than check_pixels' int64 (images are < 2^31 pixels wide).
+    p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else _NO_MAP
     n = p.shape[0]
     k = b * b
     grid = _corner_grid_for(camera, n, b)
     grid_xy, grid_ok = _NO_GRID if grid is None else grid
-    corners = np.empty((n, k, 4, 3))
+    # With the grid the quads are not kept: the kernels that need them read the grid.
+    corners = np.empty((n, k, 4, 3) if grid is None else (1, 1, 4, 3))
     weights = np.empty((n, k))
     valid = np.empty(n, dtype=np.bool_)
     area = np.empty(n)
+    # Writable copies (a few numbers): numba compiles once per read-only flag, and
+    # cameras and views hold read-only or writable arrays depending on their origin.
+    R_camera_world = np.array(view.R_camera_world, dtype=np.float64)
+    center_world = np.array(view.center_world, dtype=np.float64)
     args = (
         p,
         b,
         grid is not None,
         grid_xy,
         grid_ok,
-        # Writable copies (a few numbers): numba compiles once per read-only flag, and
-        # cameras and views hold read-only or writable arrays depending on their origin.
         np.array(camera.K, dtype=np.float64),
         np.array(camera.dist, dtype=np.float64),
-        np.array(view.R_camera_world, dtype=np.float64),
-        np.array(view.center_world, dtype=np.float64),
+        R_camera_world,
+        center_world,
         SENSOR_CODES[sensor],
         vmap,
+        grid is None,
     )
     outputs = (corners, weights, valid, area)
     chunk_pixels = max(1, fk.CHUNK_CORNERS // (b + 1) ** 2)
@@ -210,7 +289,10 @@ def pixel_footprints(
         # Dynamic scheduling of the chunks: the machine's cores may be shared.
         with numba.parallel_chunksize(1):
             fk.pixel_footprints_parallel(*args, chunk_pixels, *outputs)
-    return Footprints(p, corners, weights, valid, area)
+    if grid is None:
+        return Footprints(p, corners, weights, valid, area)
+    source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, b)
+    return Footprints(p, None, weights, valid, area, source)
 
 
 def _corner_grid_for(camera: Camera, n_pixels: int, binning: int) -> CornerGrid | None:

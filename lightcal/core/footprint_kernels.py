@@ -20,6 +20,9 @@ OpenBLAS; the order of a sum or an FMA only ever moves the last bit):
 - sums over a super-pixel's b^2 quads in NumPy's pairwise order (`pairwise_sum`), sums
   over a quad's 4 corners left to right, the squared length of a 3-vector as
   `numpy.einsum` evaluates it, (o_x^2 + o_z^2) + o_y^2.
+
+Footprints read from the grid keep no quads (`footprint.GridCorners`):
+`footprint_grid_kernels` recomputes them from the grid when they are needed.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import numba
 import numpy as np
 
 from lightcal.core.distortion import undistort_normalized
+from lightcal.core.footprint_grid_kernels import write_quad
 from lightcal.core.kernels.sensor import (
     SENSOR_COS4,
     SENSOR_MAP,
@@ -138,13 +142,15 @@ def _pixel_footprint(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     scratch: np.ndarray,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
     out_valid: np.ndarray,
     out_area: np.ndarray,
 ) -> None:
-    """Write the outputs of (super-)pixel p (arguments: `pixel_footprints_parallel`).
+    """Write the outputs of (super-)pixel p (arguments: `pixel_footprints_parallel`);
+    out_corners only when `write_corners`.
 
     scratch: (6, (b+1)^2) work space: the lattice's wall x, y and undistorted x, y, then
     the members' quad areas and sensor terms.
@@ -189,9 +195,10 @@ def _pixel_footprint(
     if not valid:
         for m in range(k):
             out_weights[p, m] = 0.0
-            for q in range(4):
-                for d in range(3):
-                    out_corners[p, m, q, d] = np.nan
+            if write_corners:
+                for q in range(4):
+                    for d in range(3):
+                        out_corners[p, m, q, d] = np.nan
         out_area[p] = np.nan
         return
     for m in range(k):
@@ -208,18 +215,8 @@ def _pixel_footprint(
         y3 = wall_y[i3]
         x4 = wall_x[i4]
         y4 = wall_y[i4]
-        out_corners[p, m, 0, 0] = x1
-        out_corners[p, m, 0, 1] = y1
-        out_corners[p, m, 0, 2] = 0.0
-        out_corners[p, m, 1, 0] = x2
-        out_corners[p, m, 1, 1] = y2
-        out_corners[p, m, 1, 2] = 0.0
-        out_corners[p, m, 2, 0] = x3
-        out_corners[p, m, 2, 1] = y3
-        out_corners[p, m, 2, 2] = 0.0
-        out_corners[p, m, 3, 0] = x4
-        out_corners[p, m, 3, 1] = y4
-        out_corners[p, m, 3, 2] = 0.0
+        if write_corners:
+            write_quad(out_corners, p, m, x1, y1, x2, y2, x3, y3, x4, y4)
         areas[m] = quad_area(x1, y1, x2, y2, x3, y3, x4, y4)
         if sensor == SENSOR_PAPER:
             out_weights[p, m] = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view) / k
@@ -254,6 +251,7 @@ def pixel_footprints_parallel(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     chunk_pixels: int,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
@@ -263,7 +261,7 @@ def pixel_footprints_parallel(
     """Footprint quads, validity, areas and sensor weights of N (super-)pixels.
 
     Args:
-        pixels: (N, 2) int64 (u, v) indices in the image binned by `binning`, in range.
+        pixels: (N, 2) int32 (u, v) indices in the image binned by `binning`, in range.
         binning: b >= 1; super-pixel (u, v) has the b^2 members (u b + i, v b + j),
             member index j b + i.
         use_grid: read corners from `grid_xy` / `grid_ok`, else undistort them here.
@@ -276,6 +274,9 @@ def pixel_footprints_parallel(
         center_world: (3,) the camera centre, m (z > 0).
         sensor: SENSOR_* code of `kernels.sensor`.
         vignetting: (H, W) fall-off map for SENSOR_MAP; any shape otherwise.
+        write_corners: write out_corners (else it is not touched: any shape). A dense
+            selection's footprints read their corners from the grid when they need them
+            (`grid_quads`) instead of keeping 96 bytes a quad.
         chunk_pixels: pixels per parallel work item (>= 1).
         out_corners: (N, b^2, 4, 3) written: quads P1..P4 of each member, world frame, m;
             NaN for invalid pixels.
@@ -302,6 +303,7 @@ def pixel_footprints_parallel(
                 center_world,
                 sensor,
                 vignetting,
+                write_corners,
                 scratch,
                 out_corners,
                 out_weights,
@@ -323,6 +325,7 @@ def pixel_footprints_serial(
     center_world: np.ndarray,
     sensor: int,
     vignetting: np.ndarray,
+    write_corners: bool,
     out_corners: np.ndarray,
     out_weights: np.ndarray,
     out_valid: np.ndarray,
@@ -345,6 +348,7 @@ def pixel_footprints_serial(
             center_world,
             sensor,
             vignetting,
+            write_corners,
             scratch,
             out_corners,
             out_weights,

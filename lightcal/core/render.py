@@ -31,7 +31,7 @@ from lightcal.core.footprint import (
     check_vignetting,
     pixel_footprints,
 )
-from lightcal.core.kernels.flux import flux_pixels
+from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.image import render_image_fused
 from lightcal.core.kernels.wall import apply_wall
 from lightcal.core.rid_eval import stack_rid_data
@@ -119,18 +119,24 @@ def light_flux(
         if wall_grad_out is not None:
             wall_grad_out.fill(0.0)
         return flux, grad
-    flux_pixels(
-        footprints.corners_world,
-        footprints.weights,
-        footprints.valid,
-        L_world,
-        np.ascontiguousarray(R_world_light),
-        light.rid.data(),
-        n_sub,
-        want_grad,
-        flux,
-        grad if grad is not None else np.zeros((1, 6)),
-    )
+    outputs = (flux, grad if grad is not None else np.zeros((1, 6)))
+    light_args = (L_world, np.ascontiguousarray(R_world_light), light.rid.data(), n_sub, want_grad)
+    source = footprints.grid
+    if source is None:
+        flux_pixels(
+            footprints.corners_world, footprints.weights, footprints.valid, *light_args, *outputs
+        )
+    else:
+        grid = (source.grid_xy, source.grid_ok, source.R_camera_world, source.center_world)
+        flux_pixels_grid(
+            footprints.pixels,
+            source.binning,
+            grid,
+            footprints.weights,
+            footprints.valid,
+            *light_args,
+            *outputs,
+        )
     flux *= view.exposure
     if grad is not None:
         grad *= view.exposure

@@ -124,6 +124,7 @@ def run_least_squares(
     if model.reweights and res.status > 0 and not hit_limit:
         model.set_weights_at(np.asarray(res.x))
         res, hit_limit = _trf(model, np.asarray(res.x), (lo, hi), history[-1].iteration, emit)
+    model.release_buffers()  # until the next solve or check: the peak memory is later
     iterations = history[-1].iteration
     status, message = int(res.status), str(res.message)
     if hit_limit:

@@ -94,7 +94,8 @@ class IterationReport:
 
 def robust_cost(r: np.ndarray, loss: Loss, f_scale: float) -> float:
     """least_squares' cost 0.5 C^2 sum rho((r / C)^2) of residuals r (m,)."""
-    z = (r / f_scale) ** 2
+    z = r / f_scale
+    np.square(z, out=z)  # in place: one temporary of r's size, not two
     if loss == "linear":
         rho = z
     elif loss == "huber":

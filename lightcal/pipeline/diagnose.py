@@ -70,13 +70,38 @@ def variety_warnings(model: CalibrationModel, cov: np.ndarray) -> list[str]:
     return warnings
 
 
-def dark_light_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
+def dark_light_warnings(
+    model: CalibrationModel, x: np.ndarray, light_shares: np.ndarray | None = None
+) -> list[str]:
     """Warnings for lights that light (almost) none of the selected pixels at x.
 
     Such a light's pose is not determined by the data: the solver may have parked it
     pointing away or behind the wall while another light explains the images (two
     similar beams close together invite this).
+
+    Args:
+        model: the model.
+        x: the solution.
+        light_shares: (L,) each light's share of the rendered values summed over the
+            pixels, if already known (`lightcal.pipeline.fit_check.FitCheck`); else
+            rendered here.
     """
+    rig = model.layout.rig(x)
+    share = light_shares if light_shares is not None else _light_shares(model, x)
+    total = float(share.sum())
+    out = []
+    for light, s in zip(rig.lights, share, strict=True):
+        if not (total > 0.0 and s > 1e-6 * total):
+            out.append(
+                f"light '{light.name}' lights none of the selected pixels at the solution "
+                "(it points away or sits behind the wall): its pose is not determined; "
+                "start it nearer its true pose, or calibrate the lights one at a time"
+            )
+    return out
+
+
+def _light_shares(model: CalibrationModel, x: np.ndarray) -> np.ndarray:
+    """(L,) sum over pixels of gain * scale * flux of each light at x."""
     rig = model.layout.rig(x)
     gains = model.layout.gain_factors(x)
     share = np.zeros(len(rig.lights))
@@ -89,13 +114,4 @@ def dark_light_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
             wall=model.layout.wall_of(x),
         )
         share += gains[i] * np.array([light.scale for light in rig.lights]) * sh.flux.sum(axis=1)
-    total = float(share.sum())
-    out = []
-    for light, s in zip(rig.lights, share, strict=True):
-        if not (total > 0.0 and s > 1e-6 * total):
-            out.append(
-                f"light '{light.name}' lights none of the selected pixels at the solution "
-                "(it points away or sits behind the wall): its pose is not determined; "
-                "start it nearer its true pose, or calibrate the lights one at a time"
-            )
-    return out
+    return share

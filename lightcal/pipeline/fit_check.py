@@ -10,7 +10,7 @@ camera poses' and intrinsics' covariances and the misfit into the parameter cova
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +19,7 @@ from lightcal.core.footprint import Footprints
 from lightcal.core.misfit import FitDiagnosis, diagnose, pixel_angles
 from lightcal.core.problem import poisson_gaussian_sigma
 from lightcal.core.render import shade
-from lightcal.core.scene import View
+from lightcal.core.scene import Light, View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.uncertainty import (
     IntrinsicsBlock,
@@ -41,71 +41,151 @@ POSE_ROWS = 3000
 
 
 @dataclass(frozen=True)
+class ImageRows:
+    """One image's seeded subset of rows (at most `POSE_ROWS`), where the camera-pose and
+    intrinsics sensitivities are computed.
+
+    Attributes:
+        image: the image's index in the model.
+        rows: (k,) sorted row indices into the image's pixels.
+        J: (k, n) those rows of the weighted Jacobian d r / d x at the solution.
+        noise_ratio: (k,) their solver sigma / noise sigma.
+        row_scale: N_i / k (sums over the subset are scaled by it).
+    """
+
+    image: int
+    rows: np.ndarray
+    J: np.ndarray
+    noise_ratio: np.ndarray
+    row_scale: float
+
+
+@dataclass(frozen=True)
 class PixelEvidence:
-    """Per selected pixel of every image, at the solution (model image order, concatenated).
+    """Per selected pixel of every image, at the solution (model image order, concatenated),
+    and what the uncertainty needs of every pixel, all from one pass over the images.
 
     Attributes:
         r_noise: (m,) residuals in noise units (solver units when the noise is unknown).
-        relative: (m,) (m_obs - m_render) / m_render.
-        mirror_deg, incidence_deg: (m,) angles of the brightest light at each pixel.
-        noise_ratio: per image (N_i,) solver sigma / noise sigma.
+        relative: (m,) float32 (m_obs - m_render) / m_render.
+        mirror_deg, incidence_deg: (m,) float32 angles of the brightest light at each
+            pixel, degrees.
+        subsets: per image, the rows of the pose and intrinsics sensitivities.
+        noise_middle: (n, n) sum_i J_i^T W_i J_i with W_i = 1 / noise_ratio^2 (the
+            noise covariance's sandwich when the solver's weights are not the noise),
+            or None when not asked for.
+        light_shares: (L,) each light's share of the rendered values, summed over the
+            pixels (`dark_light_warnings`).
     """
 
     r_noise: np.ndarray
     relative: np.ndarray
     mirror_deg: np.ndarray
     incidence_deg: np.ndarray
-    noise_ratio: list[np.ndarray]
+    subsets: list[ImageRows]
+    noise_middle: np.ndarray | None
+    light_shares: np.ndarray
 
 
-def pixel_evidence(model: CalibrationModel, x: np.ndarray, meas: Measurements) -> PixelEvidence:
-    """The residuals and angles `check_fit` tests (see `PixelEvidence`)."""
+def pixel_evidence(
+    model: CalibrationModel,
+    x: np.ndarray,
+    meas: Measurements,
+    *,
+    noise_middle: bool = False,
+    seed: int = 0,
+) -> PixelEvidence:
+    """The residuals and angles `check_fit` tests and the rows the sensitivities use (see
+    `PixelEvidence`), in one evaluation at x (`CalibrationModel.evaluate_visiting`): the
+    residuals, J^T J, each pixel's Jacobian row and each light's flux are rendered once.
+
+    Args:
+        noise_middle: also sum J_i^T W_i J_i (`PixelEvidence.noise_middle`).
+        seed: seeds each image's row subset.
+    """
     lay = model.layout
-    r_w = model.residuals(x)
-    rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
+    n = lay.n
+    rig, gains, offset = lay.rig(x), lay.gain_factors(x), lay.offset(x)
     scales = np.array([light.scale for light in rig.lights])
     # Filled image by image (lists of parts and their concatenation held every figure
-    # twice: 0.6 GB for a dense 9.5 M pixel problem).
-    r_noise, relative, mirror, incidence = (np.empty(model.m) for _ in range(4))
-    ratios = []
-    for i, im in enumerate(model.images):
+    # twice: 0.6 GB for a dense 9.5 M pixel problem). The angles and relative residuals
+    # only choose and fill the diagnosis' bins: float32 (angles to 4e-6 degrees, relative
+    # residuals to 6e-8 of their value) saves 12 bytes a pixel; r_noise enters chi^2.
+    r_noise = np.empty(model.m)
+    relative, mirror, incidence = (np.empty(model.m, dtype=np.float32) for _ in range(3))
+    subsets: list[ImageRows] = []
+    middle = np.zeros((n, n)) if noise_middle else None
+    shares = [np.zeros(len(rig.lights))]
+
+    def visit(i: int, A: np.ndarray, fluxes: np.ndarray) -> None:
+        im = model.images[i]
         rows = slice(model.bounds[i], model.bounds[i + 1])
-        d = r_w[rows] * model.sigmas[i]
+        d = A[:, n] * model.sigmas[i]
         rendered = im.observed - d
         noise = meas.noise[i]
         sigma_n = (
             model.sigmas[i] if noise is None else poisson_gaussian_sigma(rendered - offset, noise)
         )
-        ratios.append(model.sigmas[i] / sigma_n)
+        ratio = model.sigmas[i] / sigma_n
         r_noise[rows] = d / sigma_n
         with np.errstate(divide="ignore", invalid="ignore"):
             relative[rows] = np.where(rendered - offset > 0, d / (rendered - offset), 0.0)
-        flux = shade(im.footprints, im.view, rig, wall=wall).flux * scales[:, None] * gains[i]
-        brightest = np.argmax(flux, axis=0)
-        del flux
-        centers = im.footprints.centers_now()  # not kept: 24 bytes a pixel
-        mirror_i = mirror[rows]
-        incidence_i = incidence[rows]
-        for j, light in enumerate(rig.lights):
+        del d, rendered, sigma_n
+        shares[0] = shares[0] + gains[i] * scales * fluxes.sum(axis=1)
+        lit = fluxes * scales[:, None] * gains[i]
+        _angles(model, i, rig.lights, lit, mirror[rows], incidence[rows])
+        n_i = A.shape[0]
+        subset = np.arange(n_i)
+        if n_i > POSE_ROWS:
+            rng = np.random.default_rng([seed, i])
+            subset = np.sort(rng.choice(n_i, POSE_ROWS, replace=False))
+        subsets.append(ImageRows(i, subset, A[subset, :n], ratio[subset], n_i / subset.size))
+        if middle is not None:
+            w = 1.0 / ratio**2
+            for c in _chunks(n_i):
+                J_c = np.ascontiguousarray(A[c, :n])
+                middle[:] += (J_c * w[c, None]).T @ J_c
+
+    model.evaluate_visiting(x, visit)
+    model.release_buffers()  # not needed by the checks that follow
+    return PixelEvidence(r_noise, relative, mirror, incidence, subsets, middle, shares[0])
+
+
+def _angles(
+    model: CalibrationModel,
+    i: int,
+    lights: tuple[Light, ...],
+    lit: np.ndarray,
+    mirror: np.ndarray,
+    incidence: np.ndarray,
+) -> None:
+    """Write the mirror and incidence angles (N_i,) of image i's pixels, each for the
+    light that gives it the most of its value (lit (L, N_i))."""
+    im = model.images[i]
+    camera_world = im.view.center_world
+    lights_world = [light.position_world(im.view) for light in lights]
+    for c in _chunks(len(im.footprints)):  # pixel by pixel: chunks bound the temporaries
+        centers = im.footprints.subset(c).centers_now()
+        if len(lights) == 1:
+            mirror[c], incidence[c] = pixel_angles(centers, lights_world[0], camera_world)
+            continue
+        brightest = np.argmax(lit[:, c], axis=0)
+        mirror_c, incidence_c = mirror[c], incidence[c]
+        for j, light_world in enumerate(lights_world):
             sel = brightest == j
             if sel.any():
-                mirror_i[sel], incidence_i[sel] = pixel_angles(
-                    centers[sel], light.position_world(im.view), im.view.center_world
+                mirror_c[sel], incidence_c[sel] = pixel_angles(
+                    centers[sel], light_world, camera_world
                 )
-    return PixelEvidence(r_noise, relative, mirror, incidence, ratios)
 
 
-def _image_subsets(
-    model: CalibrationModel, x: np.ndarray, seed: int
-) -> Iterator[tuple[int, np.ndarray, np.ndarray, float]]:
-    """Per image: (i, J_i, rows, row_scale), rows the seeded subset (at most `POSE_ROWS`)
-    the sensitivities use and row_scale = N_i / len(rows)."""
-    for i, J_i in model.image_jacobians(x):
-        n_i = len(model.images[i].observed)
-        rows = np.arange(n_i)
-        if n_i > POSE_ROWS:
-            rows = np.sort(np.random.default_rng([seed, i]).choice(n_i, POSE_ROWS, replace=False))
-        yield i, J_i, rows, n_i / rows.size
+#: Pixels per chunk of the checks' per-pixel work (its temporaries: a few MB each).
+CHUNK_PIXELS = 1 << 16
+
+
+def _chunks(n: int) -> list[slice]:
+    """Slices of at most CHUNK_PIXELS covering range(n)."""
+    return [slice(k, min(n, k + CHUNK_PIXELS)) for k in range(0, n, CHUNK_PIXELS)]
 
 
 def _renderer(
@@ -127,18 +207,18 @@ def pose_uncertainty(
     model: CalibrationModel,
     x: np.ndarray,
     meas: Measurements,
-    ratios: list[np.ndarray],
+    subsets: list[ImageRows],
     normal_inverse: np.ndarray,
-    *,
-    seed: int = 0,
 ) -> PoseTerms | None:
-    """The camera poses' share of the covariance and of chi^2 (None without covariances)."""
+    """The camera poses' share of the covariance and of chi^2 (None without covariances),
+    on each image's rows `subsets` (`pixel_evidence`)."""
     if meas.footprints_at is None or all(c is None for c in meas.pose_covariances):
         return None
     render = _renderer(model, x)
     footprints_at = meas.footprints_at
     blocks = []
-    for i, J_i, rows, row_scale in _image_subsets(model, x, seed):
+    for sub in subsets:
+        i, rows = sub.image, sub.rows
         cov = meas.pose_covariances[i]
         if cov is None:
             continue
@@ -151,7 +231,7 @@ def pose_uncertainty(
 
         S = pose_sensitivity(model.images[i].view, render_i, footprints, model.sigmas[i][rows])
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels a perturbed pose pushes off the wall
-        blocks.append(PoseBlock(J_i[rows], S, cov, ratios[i][rows], row_scale))
+        blocks.append(PoseBlock(sub.J, S, cov, sub.noise_ratio, sub.row_scale))
     return pose_terms(normal_inverse, blocks)
 
 
@@ -159,14 +239,13 @@ def intrinsics_uncertainty(
     model: CalibrationModel,
     x: np.ndarray,
     meas: Measurements,
-    ratios: list[np.ndarray],
+    subsets: list[ImageRows],
     normal_inverse: np.ndarray,
-    *,
-    seed: int = 0,
 ) -> IntrinsicsTerms | None:
     """The camera intrinsics' share of the covariance and of chi^2 (None without their
     covariance): S_K by central differences, one sigma of each parameter, with the camera
-    and every pose (by its d_pose_d_intrinsics) moved and the footprints rebuilt."""
+    and every pose (by its d_pose_d_intrinsics) moved and the footprints rebuilt, on each
+    image's rows `subsets` (`pixel_evidence`)."""
     cov_K = meas.intrinsics_covariance
     footprints_with = meas.footprints_with
     if cov_K is None or footprints_with is None:
@@ -177,7 +256,8 @@ def intrinsics_uncertainty(
     render = _renderer(model, x)
     blocks = []
     moved = 0
-    for i, J_i, rows, row_scale in _image_subsets(model, x, seed):
+    for sub in subsets:
+        i, rows = sub.image, sub.rows
         D = jacobians[i]
         moved += D is not None
         D_i = np.zeros((6, p)) if D is None else D
@@ -190,7 +270,7 @@ def intrinsics_uncertainty(
 
         S = intrinsics_sensitivity(render_at, steps, model.sigmas[i][rows])
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels pushed off the wall
-        blocks.append(IntrinsicsBlock(J_i[rows], S, ratios[i][rows], row_scale))
+        blocks.append(IntrinsicsBlock(sub.J, S, sub.noise_ratio, sub.row_scale))
     return intrinsics_terms(normal_inverse, cov_K, blocks, poses_moved=moved)
 
 
@@ -221,16 +301,34 @@ def _inverse(A: np.ndarray) -> np.ndarray:
         return np.linalg.pinv(A)
 
 
-def check_fit(
-    model: CalibrationModel, x: np.ndarray, meas: Measurements
-) -> tuple[FitDiagnosis, Uncertainty]:
-    """The fit diagnosis and the parameter covariance at the solution x."""
-    ev = pixel_evidence(model, x, meas)
+@dataclass(frozen=True)
+class FitCheck:
+    """What `check_fit` finds at a solution.
+
+    Attributes:
+        diagnosis: the fit test.
+        uncertainty: the parameter covariance and its terms.
+        light_shares: (L,) each light's share of the rendered values over every pixel
+            (`lightcal.pipeline.diagnose.dark_light_warnings`).
+    """
+
+    diagnosis: FitDiagnosis
+    uncertainty: Uncertainty
+    light_shares: np.ndarray
+
+
+def check_fit(model: CalibrationModel, x: np.ndarray, meas: Measurements) -> FitCheck:
+    """The fit diagnosis and the parameter covariance at the solution x.
+
+    Every pixel is rendered once (`pixel_evidence`); the pose and intrinsics
+    sensitivities then render their rows under perturbed cameras.
+    """
+    ev = pixel_evidence(model, x, meas, noise_middle=meas.noise_source == "image")
     n = model.layout.n
     dof = model.m - n
-    N = _inverse(model.normal_matrix(x))
-    pose = pose_uncertainty(model, x, meas, ev.noise_ratio, N)
-    intrinsics = intrinsics_uncertainty(model, x, meas, ev.noise_ratio, N)
+    N = _inverse(model.normal_matrix(x))  # cached at x by the pass above
+    pose = pose_uncertainty(model, x, meas, ev.subsets, N)
+    intrinsics = intrinsics_uncertainty(model, x, meas, ev.subsets, N)
     extra = pose.expected_chi2_extra if pose is not None else 0.0
     extra += intrinsics.expected_chi2_extra if intrinsics is not None else 0.0
     chi2 = float(ev.r_noise @ ev.r_noise)
@@ -252,11 +350,8 @@ def check_fit(
         terms.append("pixel noise (the sensor's noise model)")
     elif meas.noise_source == "image":
         # The solver's weights are not the noise: the sandwich N J^T W J N, W = 1 / ratio^2.
-        middle = np.zeros((n, n))
-        for i, J_i in model.image_jacobians(x):
-            w = 1.0 / ev.noise_ratio[i] ** 2
-            middle += (J_i * w[:, None]).T @ J_i
-        noise_cov = N @ middle @ N
+        assert ev.noise_middle is not None
+        noise_cov = N @ ev.noise_middle @ N
         terms.append("pixel noise (estimated from the images)")
     else:
         noise_cov = N
@@ -273,4 +368,5 @@ def check_fit(
         )
     if known and math.sqrt(s2) >= 1.005:
         terms.append(f"misfit: the noise term inflated x{math.sqrt(s2):.2f} in sigma")
-    return diagnosis, Uncertainty(0.5 * (cov + cov.T), terms, s2, pose, intrinsics)
+    unc = Uncertainty(0.5 * (cov + cov.T), terms, s2, pose, intrinsics)
+    return FitCheck(diagnosis, unc, ev.light_shares)

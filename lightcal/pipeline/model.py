@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import nnls
 
+from lightcal.core.calibration_model import economic_r, stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
@@ -25,23 +26,41 @@ def fit_scales(
     offset: float,
     wall: WallReflectance = LAMBERTIAN,
 ) -> list[float]:
-    """Linear least-squares scales of the lights at their initial poses (positive)."""
+    """Linear least-squares scales of the lights at their initial poses (positive).
+
+    The weighted system [A y] (one row a pixel, one column a light, then the values) is
+    reduced image by image to its R factor (`stack_r_factors`), so no (m, L) matrix is
+    held; the non-negative least squares then runs on that (L + 1, L + 1) system, whose
+    solutions are those of the full one.
+    """
     rig = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
-    cols = []
-    rhs = []
+    n_l = len(unknowns)
+    tops: list[np.ndarray | None] = []
+    sum_abs_y = 0.0
+    sum_rows = 0.0
+    m = 0
     for im in images:
         sh = shade(im.footprints, im.view, rig, wall=wall)
-        cols.append((sh.flux / im.sigma).T)
-        rhs.append((im.observed - offset) / im.sigma)
-    A = np.concatenate(cols)
-    y = np.concatenate(rhs)
-    s, _ = nnls(A, y)
+        Ay = np.empty((len(im.observed), n_l + 1), order="F")
+        Ay[:, :n_l] = (sh.flux / im.sigma).T
+        Ay[:, n_l] = (im.observed - offset) / im.sigma
+        del sh
+        sum_abs_y += float(np.abs(Ay[:, n_l]).sum())
+        sum_rows += float(Ay[:, :n_l].sum())
+        m += Ay.shape[0]
+        if Ay.shape[0]:
+            tops.append(economic_r(Ay) if np.all(np.isfinite(Ay)) else None)
+    R = stack_r_factors(tops, n_l + 1)
+    s = np.zeros(n_l)
+    if np.all(np.isfinite(R)):
+        s, _ = nnls(R[:n_l, :n_l], R[:n_l, n_l])
     largest = float(s.max())
     if not largest > 0.0:
         # The start explains none of the light (aimed away, or data below the offset):
         # the ratio of mean magnitudes gives the solver a scale to start from.
-        largest = float(np.abs(y).mean() / max(float(A.sum(axis=1).mean()), 1e-300)) or 1.0
-        s = np.full(A.shape[1], largest)
+        mean_row = sum_rows / max(m, 1)
+        largest = float((sum_abs_y / max(m, 1)) / max(mean_row, 1e-300)) or 1.0
+        s = np.full(n_l, largest)
     # A light the start leaves dark keeps a scale it can grow from.
     return [float(max(v, 1e-3 * largest)) for v in s]
 

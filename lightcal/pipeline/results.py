@@ -209,7 +209,8 @@ def summarise(
         notes: extra lines for the result's warnings (e.g. what `auto` chose).
     """
     x = outcome.x
-    diagnosis, unc = check_fit(model, x, measurements or model_only(model))
+    fit = check_fit(model, x, measurements or model_only(model))
+    diagnosis, unc = fit.diagnosis, fit.uncertainty
     cov = unc.covariance
     lay = model.layout
     lights = []
@@ -265,7 +266,7 @@ def summarise(
         time_s=outcome.time_s,
         warnings=(
             bound_warnings
-            + dark_light_warnings(model, x)
+            + dark_light_warnings(model, x, fit.light_shares)
             + variety_warnings(model, cov)
             + [f"misfit: {f}" for f in diagnosis.findings]
             + list(notes or [])

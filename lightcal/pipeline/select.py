@@ -96,7 +96,8 @@ def image_data(
         rng = np.random.default_rng([sel.seed, index, 1])
         chosen = rng.permutation(keep[~is_extra])[: sel.n_per_image]
         keep = np.sort(np.concatenate([chosen, keep[is_extra]]))
-    fp = fp.subset(keep)
+    if keep.size < len(fp):  # else every pixel is kept: no copy
+        fp = fp.subset(keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
     noise = project.spec.sensor.noise
