@@ -50,6 +50,7 @@ class Family:
     wall: dict[str, Any] | None = None
     selection: dict[str, Any] | None = None
     report: bool = False
+    parallel: bool = False  # every flux call on the thread pool, however small
 
 
 # Beyond the kinds of light and wall, numba compiles a kernel once per combination of
@@ -64,7 +65,11 @@ FAMILIES: tuple[Family, ...] = (
         selection={"strategy": "all", "binning": 1},
         report=True,
     ),
-    Family("binned pixels", size=_DENSE, selection={"strategy": "all", "binning": 2}),
+    # The parallel flux kernel on stored quads: what the intrinsics' uncertainty renders
+    # (perturbed cameras) on a large project; here every flux call goes parallel.
+    Family(
+        "binned pixels", size=_DENSE, selection={"strategy": "all", "binning": 2}, parallel=True
+    ),
     Family("measured tables (IES, LDT, CSV)", light_model="ies"),
     Family("2-D tables, two lights", light_model="table2d", n_lights=2),
     Family("Gaussian lights", light_model="gaussian"),
@@ -163,6 +168,26 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     return dataset.project_path
 
 
+def _shade_stored_quads(project_path: Path) -> None:
+    """The flux of super-pixels whose footprints keep their quads (a sparse binned
+    `pixel_footprints`), as the intrinsics' uncertainty renders its perturbed cameras."""
+    import numpy as np
+
+    from lightcal.core.footprint import pixel_footprints
+    from lightcal.core.render import light_flux
+    from lightcal.io.project import load_project
+
+    project = load_project(project_path)
+    camera, view = project.camera, project.views[0]
+    # A sparse set of super-pixels: read directly, not from the camera's corner grid.
+    v, u = np.mgrid[0 : camera.height // 2 : 8, 0 : camera.width // 2 : 8]
+    pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.int64)
+    moved = camera.with_intrinsic_params(camera.intrinsic_params * (1.0 + 1e-7))  # no grid
+    footprints = pixel_footprints(moved, view, pixels, binning=2)
+    for unknown in project.lights:
+        light_flux(footprints, view, unknown.initial)
+
+
 def _calibrate(project_path: Path, report_dir: Path | None) -> None:
     """The pipeline of `lightcal calibrate` on one project (and its report)."""
     from lightcal.io.project import load_project
@@ -181,7 +206,17 @@ def _calibrate(project_path: Path, report_dir: Path | None) -> None:
 def _run_family(family: Family, folder: Path) -> int:
     """Compile one family's kernels by its synthetic calibration; returns the process id."""
     project_path = _write_dataset(folder / "data", family)
-    _calibrate(project_path, folder / "report" if family.report else None)
+    from lightcal.core.kernels import flux
+
+    serial_work = flux.SERIAL_WORK
+    if family.parallel:
+        flux.SERIAL_WORK = 0
+    try:
+        _calibrate(project_path, folder / "report" if family.report else None)
+        if family.parallel:
+            _shade_stored_quads(project_path)
+    finally:
+        flux.SERIAL_WORK = serial_work
     return os.getpid()
 
 

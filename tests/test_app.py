@@ -1019,3 +1019,13 @@ def test_each_picture_carries_its_images_name(app: LightcalApp) -> None:
     assert (named[120:] == 128).all()  # the rest untouched
     frame = app.controller.scene.frusta[0].image
     assert (frame[:4, :30] == 255).all(axis=-1).mean() > 0.5
+
+
+def test_looking_through_an_image_turns_the_rays_off(app: LightcalApp) -> None:
+    _set(app.panels.view.rays, "all")
+    _idle(app)
+    assert app.state.rays_image == "all"
+    _set(app.panels.view.look_through, True)
+    _idle(app)
+    assert app.state.rays_image == "none"
+    assert app.panels.view.rays.value == "none"

@@ -94,6 +94,9 @@ class ViewPanel(TabPanel):
             fov = st.project.camera.fov_y_rad
         R_wc = view.R_camera_world.T
         center = view.center_world
+        # Looking through an image, the rays' bands would cover it: they are turned off
+        # (the "rays from the light for" menu turns them on again).
+        self.ctl.set_rays("none")
         clients = (
             [event.client] if event.client is not None else list(self.server.get_clients().values())
         )
