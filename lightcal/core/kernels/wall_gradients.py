@@ -38,6 +38,8 @@ from lightcal.core.rid_eval import (
     AXIS_EPS,
     AXIS_RHO,
     KIND_COS_POWER,
+    KIND_GRID_1D,
+    KIND_GRID_2D,
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
     KIND_TABLE_2D,
@@ -46,6 +48,7 @@ from lightcal.core.rid_eval import (
     rid_value_grad_direction,
     table2d_value_grad,
 )
+from lightcal.core.rid_grid import grid1d_value_grad, grid2d_value_grad
 
 #: Pixels per block of the fast gradient path (its scratch rows stay in the L1 cache).
 GRAD_BLOCK = 128
@@ -228,6 +231,8 @@ def wall_grad_block(
                 if bad[i] and on_wall[i] and valid[p]:
                     so[i] = wall_quad_omega_signed(corners_world, p, k, lx, ly, lz)
         # The RID and its gradient with respect to the world direction w.
+        grid = rid.grid  # the grid kinds' nodes and (1 / h, s_max, s_back)
+        inv_h, s_max, s_back = rid.params[2], rid.params[3], rid.params[4]
         if rid.kind == KIND_ISOTROPIC:
             for i in range(nb):
                 fs[i] = 1.0
@@ -309,6 +314,42 @@ def wall_grad_block(
                 gux = a * uz * ux - b * uy
                 guy = a * uz * uy + b * ux
                 guz = 0.0 if axis else -gwz[i] * rho
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
+                gwy[i] = (r10 * gux + r11 * guy + r12 * guz) if ok else 0.0
+                gwz[i] = (r20 * gux + r21 * guy + r22 * guz) if ok else 0.0
+        elif rid.kind == KIND_GRID_1D:
+            # cos(theta) and the gradient g (R e_z - uz w) vectorised (as cos^m), the
+            # grid's (f, g = df/duz) in a scalar pass.
+            for i in range(nb):
+                fs[i] = r02 * wxs[i] + r12 * wys[i] + r22 * wzs[i]
+            for i in range(nb):
+                fs[i], gwz[i] = grid1d_value_grad(fs[i], grid, inv_h, s_max, s_back)
+            for i in range(nb):
+                wx = wxs[i]
+                wy = wys[i]
+                wz = wzs[i]
+                uz = r02 * wx + r12 * wy + r22 * wz
+                g = gwz[i]
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = g * (r02 - uz * wx) if ok else 0.0
+                gwy[i] = g * (r12 - uz * wy) if ok else 0.0
+                gwz[i] = g * (r22 - uz * wz) if ok else 0.0
+        elif rid.kind == KIND_GRID_2D:
+            # The light-frame direction and the gradient's rotation vectorised, the
+            # grid's (f, gradient) in a scalar pass.
+            for i in range(nb):
+                gwx[i], gwy[i], gwz[i] = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+            for i in range(nb):
+                fs[i], gwx[i], gwy[i], gwz[i] = grid2d_value_grad(
+                    gwx[i], gwy[i], gwz[i], grid, inv_h, s_max, s_back
+                )
+            for i in range(nb):
+                gux = gwx[i]
+                guy = gwy[i]
+                guz = gwz[i]
                 ok = on_wall[i] & valid[i0 + i]
                 fs[i] = fs[i] if ok else 0.0
                 gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
