@@ -60,7 +60,7 @@ from lightcal.core.rid_eval import (
     rid_value_direction,
     table2d_value_grad,
 )
-from lightcal.core.rid_grid import grid1d_value_grad, grid2d_value_grad
+from lightcal.core.rid_grid import grid1d_coord, grid1d_interp, grid2d_coords, grid2d_interp
 from lightcal.core.rid_stack import RIDStack, light_rid
 
 
@@ -195,8 +195,8 @@ def _flux_row(
     """Add scale * Phi / I0 of one light to acc_row (w,) for the pixels of a row.
 
     Only pixels with ok_row set are guaranteed; the others may receive any value.
-    f_rows: (3, w) scratch (the RID per pixel; the azimuth of 2-D tables, the direction
-    for the grids).
+    f_rows: (2, w) scratch (the RID per pixel; the azimuth of 2-D tables or the row of
+    their grid).
     """
     w = acc_row.shape[0]
     f_row = f_rows[0]
@@ -291,22 +291,21 @@ def _flux_row(
             for u in range(w):
                 f_row[u] = table2d_value_grad(f_row[u], phi_row[u], rid)[0]
         elif kind == KIND_GRID_1D:
-            # cos(theta) vectorised, the grid's gathers in a scalar pass.
+            # The grid coordinate vectorised, the grid's gathers in a scalar pass.
+            n = grid.shape[1] - 1
             for u in range(w):
-                f_row[u] = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)[2]
+                uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)[2]
+                f_row[u] = grid1d_coord(uz, n, inv_h, s_max, s_back)
             for u in range(w):
-                f_row[u] = grid1d_value_grad(f_row[u], grid, inv_h, s_max, s_back)[0]
+                f_row[u] = grid1d_interp(f_row[u], grid, inv_h)[0]
         elif kind == KIND_GRID_2D:
-            uy_row = f_rows[1]
-            uz_row = f_rows[2]
+            y_row = f_rows[1]
+            n = grid.shape[1]
             for u in range(w):
-                f_row[u], uy_row[u], uz_row[u] = _centroid_dir_light(
-                    tpx, tpy, bpx, bpy, u, lx, ly, az, R9
-                )
+                ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
+                f_row[u], y_row[u] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
             for u in range(w):
-                f_row[u] = grid2d_value_grad(
-                    f_row[u], uy_row[u], uz_row[u], grid, inv_h, s_max, s_back
-                )[0]
+                f_row[u] = grid2d_interp(f_row[u], y_row[u], grid, inv_h)[0]
         else:
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
@@ -428,7 +427,7 @@ def render_image_fused(
         area_row = np.empty(w)
         v_row = np.empty(w)
         om_row = np.empty(w)
-        f_rows = np.empty((3, w))
+        f_rows = np.empty((2, w))
         bad_row = np.empty(w, dtype=np.bool_)
         acc_row = np.empty(w)
         total_row = np.empty(w)

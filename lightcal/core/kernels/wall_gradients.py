@@ -48,7 +48,13 @@ from lightcal.core.rid_eval import (
     rid_value_grad_direction,
     table2d_value_grad,
 )
-from lightcal.core.rid_grid import grid1d_value_grad, grid2d_value_grad
+from lightcal.core.rid_grid import (
+    grid1d_coord,
+    grid1d_interp,
+    grid2d_coords,
+    grid2d_gradient,
+    grid2d_interp,
+)
 
 #: Pixels per block of the fast gradient path (its scratch rows stay in the L1 cache).
 GRAD_BLOCK = 128
@@ -320,12 +326,14 @@ def wall_grad_block(
                 gwy[i] = (r10 * gux + r11 * guy + r12 * guz) if ok else 0.0
                 gwz[i] = (r20 * gux + r21 * guy + r22 * guz) if ok else 0.0
         elif rid.kind == KIND_GRID_1D:
-            # cos(theta) and the gradient g (R e_z - uz w) vectorised (as cos^m), the
-            # grid's (f, g = df/duz) in a scalar pass.
+            # The grid coordinate and the gradient g (R e_z - uz w) vectorised (as cos^m),
+            # the grid's (f, g = df/duz) in a scalar pass.
+            n = grid.shape[1] - 1
             for i in range(nb):
-                fs[i] = r02 * wxs[i] + r12 * wys[i] + r22 * wzs[i]
+                uz = r02 * wxs[i] + r12 * wys[i] + r22 * wzs[i]
+                fs[i] = grid1d_coord(uz, n, inv_h, s_max, s_back)
             for i in range(nb):
-                fs[i], gwz[i] = grid1d_value_grad(fs[i], grid, inv_h, s_max, s_back)
+                fs[i], gwz[i] = grid1d_interp(fs[i], grid, inv_h)
             for i in range(nb):
                 wx = wxs[i]
                 wy = wys[i]
@@ -338,18 +346,17 @@ def wall_grad_block(
                 gwy[i] = g * (r12 - uz * wy) if ok else 0.0
                 gwz[i] = g * (r22 - uz * wz) if ok else 0.0
         elif rid.kind == KIND_GRID_2D:
-            # The light-frame direction and the gradient's rotation vectorised, the
-            # grid's (f, gradient) in a scalar pass.
+            # The grid coordinates and the gradient (`grid2d_gradient`, rotated to the
+            # world) vectorised, the grid's (f, df/dpx, df/dpy) in a scalar pass.
+            n = grid.shape[1]
             for i in range(nb):
-                gwx[i], gwy[i], gwz[i] = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                gwx[i], gwy[i] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
             for i in range(nb):
-                fs[i], gwx[i], gwy[i], gwz[i] = grid2d_value_grad(
-                    gwx[i], gwy[i], gwz[i], grid, inv_h, s_max, s_back
-                )
+                fs[i], gwx[i], gwy[i] = grid2d_interp(gwx[i], gwy[i], grid, inv_h)
             for i in range(nb):
-                gux = gwx[i]
-                guy = gwy[i]
-                guz = gwz[i]
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                gux, guy, guz = grid2d_gradient(gwx[i], gwy[i], ux, uy, uz)
                 ok = on_wall[i] & valid[i0 + i]
                 fs[i] = fs[i] if ok else 0.0
                 gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
