@@ -49,12 +49,48 @@ FULL_SIZE = (6000, 4000)
 QUICK_SIZE = (600, 400)
 PIXEL_COUNTS = (1_200, 4_500_000)
 QUICK_PIXEL_COUNTS = (1_200, 45_000)
-RIDS = ("cos_power", "table_1d")
+RIDS = ("cos_power", "table_1d", "table_2d")
 
 
 # ---------------------------------------------------------------------------------------
 # The scene (built inside each subprocess).
 # ---------------------------------------------------------------------------------------
+
+
+def exact_table(table: Any) -> Any:
+    """`table` rendered by its exact knot interpolation (`RID.exact_data`), not its grid:
+    the "before" of the grid resampling, measured in the same run."""
+    from lightcal.core.rid import RID
+
+    class ExactTableRID(RID):
+        symmetric = table.symmetric
+
+        def data(self) -> Any:
+            return table.exact_data()
+
+    return ExactTableRID()
+
+
+def make_rid(rid_name: str) -> Any:
+    """The benchmark's light profiles: cos^m (35 degree half angle), a symmetric table
+    (18 angles to 85 degrees), a 2-D table (18 angles x 24 azimuths, lopsided), and the
+    two tables evaluated exactly (`table_1d_exact`, `table_2d_exact`)."""
+    from lightcal.core.rid import CosPowerRID, SymmetricTableRID, Table2DRID
+
+    if rid_name == "cos_power":
+        return CosPowerRID.from_half_angle(math.radians(35.0))
+    theta = np.linspace(0.0, math.radians(85.0), 18)
+    if rid_name.startswith("table_1d"):
+        rid: Any = SymmetricTableRID(theta, np.cos(theta) ** 2.5 + 0.02)
+    elif rid_name.startswith("table_2d"):
+        phi = np.radians(np.arange(0.0, 360.0, 15.0))
+        tt, pp = np.meshgrid(theta, phi)
+        rid = Table2DRID(
+            theta, phi, np.cos(tt) ** 2.5 * (1.0 + 0.4 * np.sin(tt) * np.cos(pp)) + 0.02
+        )
+    else:
+        raise ValueError(f"rid_name: expected one of {RIDS}, got {rid_name!r}")
+    return exact_table(rid) if rid_name.endswith("_exact") else rid
 
 
 def make_scene(width: int, height: int, rid_name: str) -> tuple[Any, Any, Any]:
@@ -64,7 +100,6 @@ def make_scene(width: int, height: int, rid_name: str) -> tuple[Any, Any, Any]:
         (camera, view, rig).
     """
     from lightcal.core.camera import Camera
-    from lightcal.core.rid import CosPowerRID, SymmetricTableRID
     from lightcal.core.scene import Light, Rig, View
 
     focal_px = 0.9 * width
@@ -78,11 +113,7 @@ def make_scene(width: int, height: int, rid_name: str) -> tuple[Any, Any, Any]:
         dist=(-0.12, 0.05, 0.001, -0.0005, -0.01),
     )
     view = View.looking_at(np.array([0.25, -0.15, 1.6]), np.array([0.0, 0.1, 0.0]))
-    if rid_name == "cos_power":
-        rid: Any = CosPowerRID.from_half_angle(math.radians(35.0))
-    else:
-        theta = np.linspace(0.0, math.radians(85.0), 18)
-        rid = SymmetricTableRID(theta, np.cos(theta) ** 2.5 + 0.02)
+    rid = make_rid(rid_name)
     tilt = 0.12
     R_camera_light = np.array(
         [

@@ -12,6 +12,10 @@ runs unchanged on any version. The cases cover every kernel path: the fused full
 high-resolution crop whose footprints are ~5000 times smaller than their distance from
 the origin) and `flux_pixels` (values without and with gradients, n = 1 and 2, binning,
 a light near the wall).
+
+The tables are recorded with their exact knot interpolation; since the renderer resamples
+them on grids (`lightcal.core.rid_tabulate`), `cases(exact_tables=True)` renders them
+that way (`RID.exact_data`) for the 1e-12 comparison, and `cases()` on the grids.
 """
 
 from __future__ import annotations
@@ -45,17 +49,32 @@ def _rotation(rx: float, ry: float) -> np.ndarray:
     )
 
 
-def _rids() -> dict[str, RID]:
+class _ExactTable(RID):
+    """A table RID rendered by its exact knot interpolation, not its grid."""
+
+    def __init__(self, table: RID) -> None:
+        self.table = table
+        self.symmetric = table.symmetric
+
+    def data(self):  # type: ignore[no-untyped-def]
+        return self.table.exact_data()
+
+
+def _rids(exact_tables: bool) -> dict[str, RID]:
     theta = np.linspace(0.0, 1.4, 8)
     phi = np.linspace(0.0, 2 * math.pi, 6, endpoint=False)
     values = np.cos(theta)[None, :] ** 2 * (1.0 + 0.3 * np.cos(phi)[:, None]) + 0.05
     knots = np.linspace(0.0, 1.5, 9)
+    table_1d: RID = SymmetricTableRID(knots, np.cos(knots) + 0.1)
+    table_2d: RID = Table2DRID(theta, phi, values)
+    if exact_tables:
+        table_1d, table_2d = _ExactTable(table_1d), _ExactTable(table_2d)
     return {
         "isotropic": IsotropicRID(),
         "cos_power": CosPowerRID(3.7),
         "gaussian": GaussianRID(0.6),
-        "table_1d": SymmetricTableRID(knots, np.cos(knots) + 0.1),
-        "table_2d": Table2DRID(theta, phi, values),
+        "table_1d": table_1d,
+        "table_2d": table_2d,
     }
 
 
@@ -88,8 +107,8 @@ def _light_at_world(rid: RID, view: View, p_world: np.ndarray, R_world_light: np
     return Light(rid, R @ p_world + view.t_camera_world, R @ R_world_light)
 
 
-def _images() -> Iterator[tuple[str, np.ndarray]]:
-    rids = _rids()
+def _images(exact_tables: bool) -> Iterator[tuple[str, np.ndarray]]:
+    rids = _rids(exact_tables)
     for name, rid in rids.items():
         yield (
             f"image__{name}",
@@ -125,8 +144,8 @@ def _axis_down(tilt_x: float, tilt_y: float) -> np.ndarray:
     return _rotation(math.pi - tilt_x, tilt_y)
 
 
-def _shadings() -> Iterator[tuple[str, np.ndarray]]:
-    rids = _rids()
+def _shadings(exact_tables: bool) -> Iterator[tuple[str, np.ndarray]]:
+    rids = _rids(exact_tables)
     poses = {
         "above": (np.array([0.12, -0.05, 0.8]), _axis_down(0.2, -0.1)),
         "near_wall": (np.array([0.05, 0.1, 0.003]), _axis_down(1.2, 0.3)),
@@ -163,15 +182,18 @@ def _shade(
     )
 
 
-def cases() -> Iterator[tuple[str, np.ndarray]]:
-    """(key, array) of every recorded output; images as float arrays with NaN where masked."""
-    for key, img in _images():
+def cases(*, exact_tables: bool = False) -> Iterator[tuple[str, np.ndarray]]:
+    """(key, array) of every recorded output; images as float arrays with NaN where masked.
+
+    exact_tables: render the table RIDs by their knot interpolation (as recorded).
+    """
+    for key, img in _images(exact_tables):
         yield key, np.ma.filled(img.astype(np.float64), np.nan)
-    yield from _shadings()
+    yield from _shadings(exact_tables)
 
 
 def main() -> int:
-    data = dict(cases())
+    data = dict(cases(exact_tables=True))
     PATH.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(PATH, **data)
     print(f"{PATH}: {len(data)} arrays, {PATH.stat().st_size:,} bytes")

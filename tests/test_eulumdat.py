@@ -21,8 +21,10 @@ EIGHT_PLANES = [0, 45, 90, 135, 180, 225, 270, 315]
 
 
 def f(rid, theta_deg, c_deg=0.0) -> float:
-    """The RID at vertical angle gamma = theta and horizontal angle C (phi = -C)."""
-    return float(rid(np.array(math.radians(theta_deg)), np.array(math.radians(-c_deg))))
+    """The RID at vertical angle gamma = theta and horizontal angle C (phi = -C): the
+    table's exact interpolation (the renderer's grid: tests/test_rid_grid.py)."""
+    theta, phi = np.array(math.radians(theta_deg)), np.array(math.radians(-c_deg))
+    return float(rid.value_and_derivatives(theta, phi, exact=True)[0])
 
 
 def error_text(call) -> str:

@@ -26,7 +26,9 @@ from lightcal.core.kernels.quad_flux import wall_quad_flux
 from lightcal.core.kernels.wall_gradients import GRAD_BLOCK
 from lightcal.core.render_reference import flux_reference, render_image_reference
 from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID, SymmetricTableRID, Table2DRID
-from lightcal.core.rid_eval import rid_tuple, stack_rid_data
+from lightcal.core.rid_eval import rid_tuple
+from lightcal.core.rid_stack import stack_rid_data
+from lightcal.core.rid_tabulate import GRID_CELLS_1D, GRID_NODES_2D
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.solid_angle import quad_solid_angle
 from tests.kernel_reference import flux_image, flux_pixels_plain, geometry_image
@@ -543,8 +545,13 @@ def test_render_image_light_behind_the_wall_gives_the_offset() -> None:
 
 def test_stack_rid_data_pads_tables() -> None:
     datas = [RIDS["cos_power"].data(), RIDS["table_2d"].data(), RIDS["table_1d"].data()]
-    kind, params, theta, n_theta, phi, n_phi, values, slopes = stack_rid_data(datas)
+    kind, params, theta, n_theta, phi, n_phi, values, slopes, grid, n_grid = stack_rid_data(datas)
     assert kind.tolist() == [d.kind for d in datas]
+    n = GRID_NODES_2D
+    assert n_grid.tolist() == [[1, 1], [2 * n, n], [2, GRID_CELLS_1D + 1]]
+    assert grid.shape == (3, 2 * n, GRID_CELLS_1D + 1, 4)
+    np.testing.assert_array_equal(grid[1, :, :n], datas[1].grid)
+    np.testing.assert_array_equal(grid[2, :2, : GRID_CELLS_1D + 1, :2], datas[2].grid)
     assert n_theta.tolist() == [1, 8, 9] and n_phi.tolist() == [1, 6, 1]
     assert values.shape == (3, 6, 9) and slopes.shape == (3, 6, 9)
     np.testing.assert_array_equal(values[1, :6, :8], datas[1].values)

@@ -175,9 +175,10 @@ def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:
 
 
 def curve_params_from_rid(rid: RID, theta_max_rad: float, k: int) -> np.ndarray:
-    """Initial "curve" parameters (K,) that follow `rid` at the knots."""
+    """Initial "curve" parameters (K,) that follow `rid` at the knots (a table's exact
+    interpolation, not its rendering grid: a curve's own parameters come back exactly)."""
     theta = np.linspace(0.0, theta_max_rad, k + 1)
-    f = np.clip(np.asarray(rid(theta), dtype=np.float64), 1e-6, None)
+    f = np.clip(rid.value_and_derivatives(theta, exact=True)[0], 1e-6, None)
     f = np.minimum.accumulate(f)
     ratio = np.clip(f[1:] / f[:-1], 1e-12, 1.0 - 1e-6)
     return np.log(-np.log(ratio))

@@ -34,7 +34,7 @@ from lightcal.core.footprint import (
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.image import render_image_fused
 from lightcal.core.kernels.wall import apply_wall
-from lightcal.core.rid_eval import stack_rid_data
+from lightcal.core.rid_stack import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 

@@ -15,7 +15,9 @@ in radians. Models:
 - `Table2DRID`: a measured f(theta, phi) without rotational symmetry.
 
 Every model evaluates through the compiled functions of `lightcal.core.rid_eval`, so the
-renderer and Python callers agree exactly.
+renderer and Python callers agree exactly. The tables render from a uniform grid filled
+from their interpolation when they are made (`lightcal.core.rid_tabulate`: no angle and
+no knot search per pixel); `RID.exact_data` keeps the knot interpolation itself.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from scipy.optimize import brentq
 
 from lightcal.core import rid_eval
 from lightcal.core.rid_eval import RIDData
+from lightcal.core.rid_tabulate import tabulate_1d, tabulate_2d
 
 __all__ = [
     "RID",
@@ -48,7 +51,12 @@ class RID(ABC):
 
     @abstractmethod
     def data(self) -> RIDData:
-        """The arrays the compiled evaluators use."""
+        """The arrays the compiled evaluators use (a table RID's uniform grid)."""
+
+    def exact_data(self) -> RIDData:
+        """The arrays of the exact model: a table RID's knot interpolation, which `data`
+        resamples on a grid (`lightcal.core.rid_tabulate`); the other models' `data`."""
+        return rid_eval.exact_rid_data(self.data())
 
     def __call__(self, theta_rad: np.ndarray, phi_rad: np.ndarray | None = None) -> np.ndarray:
         """Evaluate f.
@@ -63,13 +71,17 @@ class RID(ABC):
         return self.value_and_derivatives(theta_rad, phi_rad)[0]
 
     def value_and_derivatives(
-        self, theta_rad: np.ndarray, phi_rad: np.ndarray | None = None
+        self, theta_rad: np.ndarray, phi_rad: np.ndarray | None = None, *, exact: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """f, df/dtheta and df/dphi at (...) directions."""
+        """f, df/dtheta and df/dphi at (...) directions.
+
+        exact: evaluate `exact_data` (a table's knot interpolation) instead of `data`
+        (what the renderer uses: a table's grid, within `rid_tabulate`'s accuracy).
+        """
         theta = np.asarray(theta_rad, dtype=np.float64)
         phi = np.zeros_like(theta) if phi_rad is None else np.asarray(phi_rad, dtype=np.float64)
         theta, phi = np.broadcast_arrays(theta, phi)
-        d = self.data()
+        d = self.exact_data() if exact else self.data()
         f, ft, fp = rid_eval.rid_eval_many(
             np.ascontiguousarray(theta.ravel()), np.ascontiguousarray(phi.ravel()), d
         )
@@ -108,11 +120,12 @@ class RID(ABC):
 def _scalar_data(kind: int, param: float) -> RIDData:
     return RIDData(
         kind,
-        np.array([param, 0.0]),
+        np.array([param, 0.0, 0.0, 0.0, 0.0]),
         np.zeros(1),
         np.zeros(1),
         np.ones((1, 1)),
         np.zeros((1, 1)),
+        rid_eval.NO_GRID,
     )
 
 
@@ -278,13 +291,16 @@ class SymmetricTableRID(RID):
         object.__setattr__(
             self,
             "_data",
-            RIDData(
-                rid_eval.KIND_TABLE_1D,
-                rid_eval.table_params(theta),
-                theta,
-                np.zeros(1),
-                values[None, :].copy(),
-                slopes[None, :].copy(),
+            tabulate_1d(
+                RIDData(
+                    rid_eval.KIND_TABLE_1D,
+                    rid_eval.table_params(theta),
+                    theta,
+                    np.zeros(1),
+                    values[None, :].copy(),
+                    slopes[None, :].copy(),
+                    rid_eval.NO_GRID,
+                )
             ),
         )
 
@@ -343,13 +359,16 @@ class Table2DRID(RID):
         object.__setattr__(
             self,
             "_data",
-            RIDData(
-                rid_eval.KIND_TABLE_2D,
-                rid_eval.table_params(theta, phi),
-                theta,
-                phi,
-                values,
-                slopes,
+            tabulate_2d(
+                RIDData(
+                    rid_eval.KIND_TABLE_2D,
+                    rid_eval.table_params(theta, phi),
+                    theta,
+                    phi,
+                    values,
+                    slopes,
+                    rid_eval.NO_GRID,
+                )
             ),
         )
 

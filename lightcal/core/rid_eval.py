@@ -11,13 +11,17 @@ Python-level `RID.__call__` share one implementation:
   ``values[0]`` and ``slopes[0]``; 0 beyond the last knot (``params``: `table_params`);
 - ``kind`` 4 2-D table: cubic Hermite in theta on each azimuth row (rows at
   ``phi_knots``, periodic over 2 pi), then cubic Hermite in phi through the rows with
-  centred finite-difference slopes (C1 everywhere off the pole).
+  centred finite-difference slopes (C1 everywhere off the pole);
+- ``kind`` 5 and 6: the tables of kinds 3 and 4 resampled on a uniform grid
+  (`lightcal.core.rid_grid`, filled by `lightcal.core.rid_tabulate`): ``grid`` holds
+  the nodes, ``params[2:5]`` = (1 / h, s_max, s_back); the knot arrays and ``params[0:2]`` are
+  the table's, so `exact_rid_data` gives the table back. What the table RIDs render with.
 
 Angles: theta from the light's +z axis, phi the azimuth from +x towards +y (radians).
 
 The kernels pass a RID around as one record, the `RIDData` named tuple (numba types it
-as a heterogeneous tuple); `stack_rid_data` pads the RIDs of several lights into one
-`RIDStack` and `light_rid` takes one light's `RIDData` back out of it in a kernel.
+as a heterogeneous tuple); `lightcal.core.rid_stack` pads the RIDs of several lights
+into one record for the fused image kernel.
 """
 
 from __future__ import annotations
@@ -29,12 +33,15 @@ import numba
 import numpy as np
 
 from lightcal.core.kernels.fastmath import cos_power
+from lightcal.core.rid_grid import grid1d_value_grad, grid2d_value_grad
 
 KIND_ISOTROPIC = 0
 KIND_COS_POWER = 1
 KIND_GAUSSIAN = 2
 KIND_TABLE_1D = 3
 KIND_TABLE_2D = 4
+KIND_GRID_1D = 5
+KIND_GRID_2D = 6
 
 TWO_PI = 2.0 * math.pi
 #: Directions with sin(theta) below AXIS_RHO count as on the axis, where the RID's
@@ -48,11 +55,12 @@ class RIDData(NamedTuple):
 
     Attributes:
         kind: One of the ``KIND_*`` constants.
-        params: (2,) model parameters (see module docstring).
+        params: (5,) model parameters (see module docstring; unused entries 0).
         theta_knots: (n_t,) increasing knot angles from the axis, radians; theta_knots[0] = 0.
         phi_knots: (n_p,) increasing azimuths in [0, 2 pi), radians ((1,) for symmetric RIDs).
         values: (n_p, n_t) relative intensity at the knots.
         slopes: (n_p, n_t) d values / d theta at the knots.
+        grid: (a, b, c) nodes of the grid kinds (`rid_grid`); (1, 1, 1) zeros otherwise.
     """
 
     kind: int
@@ -61,9 +69,10 @@ class RIDData(NamedTuple):
     phi_knots: np.ndarray
     values: np.ndarray
     slopes: np.ndarray
+    grid: np.ndarray
 
 
-RIDTuple = tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+RIDTuple = tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """The fields of a `RIDData` as a plain tuple (how kernels called from Python take it)."""
 
 
@@ -74,7 +83,28 @@ def rid_tuple(rid: RIDData) -> RIDTuple:
     call (~1 % of the solver's call of `flux_pixels` on 1,000 pixels). The kernels
     rebuild the record inside, `RIDData(*rid)`.
     """
-    return (int(rid.kind), rid.params, rid.theta_knots, rid.phi_knots, rid.values, rid.slopes)
+    return (
+        int(rid.kind),
+        rid.params,
+        rid.theta_knots,
+        rid.phi_knots,
+        rid.values,
+        rid.slopes,
+        rid.grid,
+    )
+
+
+#: `RIDData.grid` of the kinds without a grid.
+NO_GRID = np.zeros((1, 1, 1))
+
+
+def exact_rid_data(rid: RIDData) -> RIDData:
+    """The exactly interpolated table of a grid kind (kinds 5, 6 -> 3, 4); others as given."""
+    if rid.kind == KIND_GRID_1D:
+        return rid._replace(kind=KIND_TABLE_1D, grid=NO_GRID)
+    if rid.kind == KIND_GRID_2D:
+        return rid._replace(kind=KIND_TABLE_2D, grid=NO_GRID)
+    return rid
 
 
 def _uniform_step(knots: np.ndarray, start: float, span: float) -> float:
@@ -90,7 +120,8 @@ def _uniform_step(knots: np.ndarray, start: float, span: float) -> float:
 
 
 def table_params(theta_knots: np.ndarray, phi_knots: np.ndarray | None = None) -> np.ndarray:
-    """`RIDData.params` of a table RID: (1 / h_theta, 1 / h_phi), each 0 where not uniform.
+    """`RIDData.params` of a table RID: (1 / h_theta, 1 / h_phi, 0, 0, 0), each 0 where
+    not uniform.
 
     1 / h_theta > 0 when the theta knots are 0, h, 2h, ... (to 1e-9 h: IES and EULUMDAT
     files); 1 / h_phi > 0 when the azimuths of a 2-D table are phi_0 + k 2 pi / n_p, the
@@ -104,7 +135,7 @@ def table_params(theta_knots: np.ndarray, phi_knots: np.ndarray | None = None) -
     if phi_knots is not None:
         p = np.asarray(phi_knots, dtype=np.float64)
         inv_p = _uniform_step(p, float(p[0]), TWO_PI) if p.shape[0] >= 2 else 0.0
-    return np.array([inv_t, inv_p])
+    return np.array([inv_t, inv_p, 0.0, 0.0, 0.0])
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -185,7 +216,7 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
     Returns:
         (f, df/dtheta, df/dphi).
     """
-    kind, params, theta_knots, _, values, slopes = rid
+    kind, params, theta_knots, _, values, slopes, _ = rid
     if kind == KIND_ISOTROPIC:
         return 1.0, 0.0, 0.0
     if kind == KIND_COS_POWER:
@@ -202,8 +233,20 @@ def rid_value_grad(theta: float, phi: float, rid: RIDData) -> tuple[float, float
     if kind == KIND_TABLE_1D:
         f, df = hermite(theta, theta_knots, values[0], slopes[0], params[0])
         return f, df, 0.0
-    # KIND_TABLE_2D: periodic rows in phi.
-    return table2d_value_grad(theta, phi, rid)
+    if kind == KIND_TABLE_2D:  # periodic rows in phi
+        return table2d_value_grad(theta, phi, rid)
+    # The grids: at u(theta, phi); df/dtheta = g . e_theta, df/dphi = sin(theta) g . e_phi.
+    st = math.sin(theta)
+    ct = math.cos(theta)
+    sp = math.sin(phi)
+    cp = math.cos(phi)
+    if kind == KIND_GRID_1D:
+        f, g = grid1d_value_grad(ct, rid.grid, params[2], params[3], params[4])
+        return f, -g * st, 0.0
+    f, gx, gy, gz = grid2d_value_grad(
+        st * cp, st * sp, ct, rid.grid, params[2], params[3], params[4]
+    )
+    return f, ct * (gx * cp + gy * sp) - gz * st, st * (gy * cp - gx * sp)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -351,6 +394,11 @@ def rid_value_grad_direction(
     kind = rid.kind
     if kind == KIND_ISOTROPIC:
         return 1.0, 0.0, 0.0, 0.0
+    if kind == KIND_GRID_1D:
+        f, g = grid1d_value_grad(uz, rid.grid, rid.params[2], rid.params[3], rid.params[4])
+        return f, -g * uz * ux, -g * uz * uy, g * (1.0 - uz * uz)
+    if kind == KIND_GRID_2D:
+        return grid2d_value_grad(ux, uy, uz, rid.grid, rid.params[2], rid.params[3], rid.params[4])
     rho = math.sqrt(ux * ux + uy * uy)
     theta = math.atan2(rho, uz)
     # Only 2-D tables depend on the azimuth (an atan2 saved for the symmetric kinds).
@@ -382,6 +430,12 @@ def rid_value_direction(ux: float, uy: float, uz: float, rid: RIDData) -> float:
         return 1.0
     if kind == KIND_COS_POWER:
         return cos_power(uz, rid.params[0])
+    if kind == KIND_GRID_1D:
+        return grid1d_value_grad(uz, rid.grid, rid.params[2], rid.params[3], rid.params[4])[0]
+    if kind == KIND_GRID_2D:
+        return grid2d_value_grad(ux, uy, uz, rid.grid, rid.params[2], rid.params[3], rid.params[4])[
+            0
+        ]
     rho = math.sqrt(ux * ux + uy * uy)
     theta = math.atan2(rho, uz)
     if kind == KIND_GAUSSIAN:
@@ -404,65 +458,3 @@ def rid_eval_many(
     for i in range(n):
         f[i], ft[i], fp[i] = rid_value_grad(theta[i], phi[i], rid)
     return f, ft, fp
-
-
-class RIDStack(NamedTuple):
-    """The `RIDData` of L lights padded into arrays (`stack_rid_data`), one record.
-
-    Light l uses theta_knots[l, :n_theta[l]], phi_knots[l, :n_phi[l]] and
-    values[l, :n_phi[l], :n_theta[l]] (`light_rid`).
-
-    Attributes:
-        kind: (L,) int64; params: (L, 2); theta_knots: (L, NT); n_theta: (L,) int64;
-        phi_knots: (L, NP); n_phi: (L,) int64; values, slopes: (L, NP, NT).
-    """
-
-    kind: np.ndarray
-    params: np.ndarray
-    theta_knots: np.ndarray
-    n_theta: np.ndarray
-    phi_knots: np.ndarray
-    n_phi: np.ndarray
-    values: np.ndarray
-    slopes: np.ndarray
-
-
-def stack_rid_data(rids: list[RIDData]) -> RIDStack:
-    """Stack the `RIDData` of L lights into padded arrays (for `kernels.image`)."""
-    n_l = len(rids)
-    nt = max([1, *(d.theta_knots.shape[0] for d in rids)])
-    n_p = max([1, *(d.phi_knots.shape[0] for d in rids)])
-    kind = np.array([d.kind for d in rids], dtype=np.int64)
-    params = np.zeros((n_l, 2))
-    theta = np.zeros((n_l, nt))
-    phi = np.zeros((n_l, n_p))
-    values = np.zeros((n_l, n_p, nt))
-    slopes = np.zeros((n_l, n_p, nt))
-    n_theta = np.zeros(n_l, dtype=np.int64)
-    n_phi = np.zeros(n_l, dtype=np.int64)
-    for i, d in enumerate(rids):
-        k_t = d.theta_knots.shape[0]
-        k_p = d.phi_knots.shape[0]
-        params[i, : d.params.shape[0]] = d.params
-        theta[i, :k_t] = d.theta_knots
-        phi[i, :k_p] = d.phi_knots
-        values[i, :k_p, :k_t] = d.values
-        slopes[i, :k_p, :k_t] = d.slopes
-        n_theta[i] = k_t
-        n_phi[i] = k_p
-    return RIDStack(kind, params, theta, n_theta, phi, n_phi, values, slopes)
-
-
-@numba.njit(cache=True, inline="always")
-def light_rid(stack: RIDStack, li: int) -> RIDData:
-    """The `RIDData` of light li of a `RIDStack` (views of its arrays)."""
-    nt = stack.n_theta[li]
-    n_p = stack.n_phi[li]
-    return RIDData(
-        stack.kind[li],
-        stack.params[li],
-        stack.theta_knots[li, :nt],
-        stack.phi_knots[li, :n_p],
-        stack.values[li, :n_p, :nt],
-        stack.slopes[li, :n_p, :nt],
-    )

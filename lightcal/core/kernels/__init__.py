@@ -14,7 +14,7 @@
   chain rule on a light's flux and gradients, and on whole images.
 
 The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
-one `rid_eval.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
+one `rid_stack.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
 implementation of the same model that the tests compare these kernels against;
 `tests/kernel_reference.py` holds the plain compiled versions of the fast paths.
 """

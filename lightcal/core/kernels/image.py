@@ -50,16 +50,18 @@ from lightcal.core.kernels.solid_angle import omega_series, quad_omega, quad_ter
 from lightcal.core.kernels.wall import KIND_LAMBERTIAN, add_factor_row, point_factor
 from lightcal.core.rid_eval import (
     KIND_COS_POWER,
+    KIND_GRID_1D,
+    KIND_GRID_2D,
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
     KIND_TABLE_2D,
     RIDData,
-    RIDStack,
     hermite,
-    light_rid,
     rid_value_direction,
     table2d_value_grad,
 )
+from lightcal.core.rid_grid import grid1d_coord, grid1d_interp, grid2d_coords, grid2d_interp
+from lightcal.core.rid_stack import RIDStack, light_rid
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -193,7 +195,8 @@ def _flux_row(
     """Add scale * Phi / I0 of one light to acc_row (w,) for the pixels of a row.
 
     Only pixels with ok_row set are guaranteed; the others may receive any value.
-    f_rows: (2, w) scratch (the RID per pixel; the azimuth of 2-D tables).
+    f_rows: (2, w) scratch (the RID per pixel; the azimuth of 2-D tables or the row of
+    their grid).
     """
     w = acc_row.shape[0]
     f_row = f_rows[0]
@@ -262,6 +265,8 @@ def _flux_row(
             R_world_light[0, 1], R_world_light[1, 1], R_world_light[2, 1],
             r02, r12, r22,
         )  # fmt: skip
+        grid = rid.grid  # the grid kinds' nodes and (1 / h, s_max, s_back)
+        inv_h, s_max, s_back = rid.params[2], rid.params[3], rid.params[4]
         if kind == KIND_TABLE_1D:
             # The angle from the axis (branch-free atan2, vectorised); the table reads
             # are gathers, which LLVM does not vectorise: a loop of their own.
@@ -285,6 +290,22 @@ def _flux_row(
                 phi_row[u] = -a if uy < 0.0 else a
             for u in range(w):
                 f_row[u] = table2d_value_grad(f_row[u], phi_row[u], rid)[0]
+        elif kind == KIND_GRID_1D:
+            # The grid coordinate vectorised, the grid's gathers in a scalar pass.
+            n = grid.shape[1] - 1
+            for u in range(w):
+                uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)[2]
+                f_row[u] = grid1d_coord(uz, n, inv_h, s_max, s_back)
+            for u in range(w):
+                f_row[u] = grid1d_interp(f_row[u], grid, inv_h)[0]
+        elif kind == KIND_GRID_2D:
+            y_row = f_rows[1]
+            n = grid.shape[1]
+            for u in range(w):
+                ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
+                f_row[u], y_row[u] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
+            for u in range(w):
+                f_row[u] = grid2d_interp(f_row[u], y_row[u], grid, inv_h)[0]
         else:
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)

@@ -38,6 +38,8 @@ from lightcal.core.rid_eval import (
     AXIS_EPS,
     AXIS_RHO,
     KIND_COS_POWER,
+    KIND_GRID_1D,
+    KIND_GRID_2D,
     KIND_ISOTROPIC,
     KIND_TABLE_1D,
     KIND_TABLE_2D,
@@ -45,6 +47,13 @@ from lightcal.core.rid_eval import (
     hermite,
     rid_value_grad_direction,
     table2d_value_grad,
+)
+from lightcal.core.rid_grid import (
+    grid1d_coord,
+    grid1d_interp,
+    grid2d_coords,
+    grid2d_gradient,
+    grid2d_interp,
 )
 
 #: Pixels per block of the fast gradient path (its scratch rows stay in the L1 cache).
@@ -228,6 +237,8 @@ def wall_grad_block(
                 if bad[i] and on_wall[i] and valid[p]:
                     so[i] = wall_quad_omega_signed(corners_world, p, k, lx, ly, lz)
         # The RID and its gradient with respect to the world direction w.
+        grid = rid.grid  # the grid kinds' nodes and (1 / h, s_max, s_back)
+        inv_h, s_max, s_back = rid.params[2], rid.params[3], rid.params[4]
         if rid.kind == KIND_ISOTROPIC:
             for i in range(nb):
                 fs[i] = 1.0
@@ -309,6 +320,43 @@ def wall_grad_block(
                 gux = a * uz * ux - b * uy
                 guy = a * uz * uy + b * ux
                 guz = 0.0 if axis else -gwz[i] * rho
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
+                gwy[i] = (r10 * gux + r11 * guy + r12 * guz) if ok else 0.0
+                gwz[i] = (r20 * gux + r21 * guy + r22 * guz) if ok else 0.0
+        elif rid.kind == KIND_GRID_1D:
+            # The grid coordinate and the gradient g (R e_z - uz w) vectorised (as cos^m),
+            # the grid's (f, g = df/duz) in a scalar pass.
+            n = grid.shape[1] - 1
+            for i in range(nb):
+                uz = r02 * wxs[i] + r12 * wys[i] + r22 * wzs[i]
+                fs[i] = grid1d_coord(uz, n, inv_h, s_max, s_back)
+            for i in range(nb):
+                fs[i], gwz[i] = grid1d_interp(fs[i], grid, inv_h)
+            for i in range(nb):
+                wx = wxs[i]
+                wy = wys[i]
+                wz = wzs[i]
+                uz = r02 * wx + r12 * wy + r22 * wz
+                g = gwz[i]
+                ok = on_wall[i] & valid[i0 + i]
+                fs[i] = fs[i] if ok else 0.0
+                gwx[i] = g * (r02 - uz * wx) if ok else 0.0
+                gwy[i] = g * (r12 - uz * wy) if ok else 0.0
+                gwz[i] = g * (r22 - uz * wz) if ok else 0.0
+        elif rid.kind == KIND_GRID_2D:
+            # The grid coordinates and the gradient (`grid2d_gradient`, rotated to the
+            # world) vectorised, the grid's (f, df/dpx, df/dpy) in a scalar pass.
+            n = grid.shape[1]
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                gwx[i], gwy[i] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
+            for i in range(nb):
+                fs[i], gwx[i], gwy[i] = grid2d_interp(gwx[i], gwy[i], grid, inv_h)
+            for i in range(nb):
+                ux, uy, uz = rotate_transposed(wxs[i], wys[i], wzs[i], R9)
+                gux, guy, guz = grid2d_gradient(gwx[i], gwy[i], ux, uy, uz)
                 ok = on_wall[i] & valid[i0 + i]
                 fs[i] = fs[i] if ok else 0.0
                 gwx[i] = (r00 * gux + r01 * guy + r02 * guz) if ok else 0.0
