@@ -144,18 +144,22 @@ def test_symmetric_profile_halves_at_the_half_angle():
     assert theta_deg[0] == 0.0 and theta_deg[-1] == 90.0 and values[0] == 1.0
     assert values[-1] == 0.0
     rid = SymmetricTableRID(np.radians(theta_deg), values)
-    assert float(rid(np.array(math.radians(30.0)))) == pytest.approx(0.5, abs=1e-12)
+    exact = rid.value_and_derivatives(np.array(math.radians(30.0)), exact=True)[0]
+    assert float(exact) == pytest.approx(0.5, abs=1e-12)  # the table's own interpolation
     assert rid.half_angle_rad == pytest.approx(math.radians(30.0), abs=1e-9)
 
 
 def test_elliptical_beam_half_angles_and_lopsidedness():
     theta_deg, phi_deg, values = elliptical_beam_table(30.0, aspect=0.5, skew=0.0)
     rid = Table2DRID(np.radians(theta_deg), np.radians(phi_deg), values)
+
     # cos^m with m from the half angle: 0.5 at 30 deg along phi = 0, at 15 deg along 90.
-    assert float(rid(np.array(math.radians(30.0)), np.array(0.0))) == pytest.approx(0.5, abs=1e-9)
-    assert float(rid(np.array(math.radians(15.0)), np.array(math.pi / 2))) == pytest.approx(
-        0.5, abs=1e-9
-    )
+    def exact(theta_deg: float, phi_rad: float) -> float:  # the table, not the grid
+        theta = np.array(math.radians(theta_deg))
+        return float(rid.value_and_derivatives(theta, np.array(phi_rad), exact=True)[0])
+
+    assert exact(30.0, 0.0) == pytest.approx(0.5, abs=1e-9)
+    assert exact(15.0, math.pi / 2) == pytest.approx(0.5, abs=1e-9)
     _, _, lopsided = elliptical_beam_table(30.0, aspect=0.5, skew=0.25)
     i_180 = int(np.argmin(np.abs(phi_deg - 180.0)))
     j = int(np.argmin(np.abs(theta_deg - 20.0)))

@@ -92,13 +92,18 @@ class RID(ABC):
 
         Used for the half-intensity angle (level 0.5) and the cone drawn in the viewer
         (a cut-off level such as 0.01). Returns pi for a light that never drops that low.
+        A table is read exactly (its knot interpolation), not on the renderer's grid.
         """
         if not 0.0 < level < 1.0:
             raise ValueError(f"level: expected a value in (0, 1), got {level}")
         theta = np.linspace(0.0, math.pi, 3601)
         phi = np.linspace(0.0, 2 * math.pi, 1 if self.symmetric else 73, endpoint=False)
         tt, pp = np.meshgrid(theta, phi)
-        fmax = self(tt, pp).max(axis=0)
+
+        def f(t: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+            return self.value_and_derivatives(t, p, exact=True)[0]  # a table's own knots
+
+        fmax = f(tt, pp).max(axis=0)
         above = np.nonzero(fmax >= level)[0]
         if above.size == 0:
             return 0.0
@@ -106,7 +111,7 @@ class RID(ABC):
         if i == theta.size - 1:
             return math.pi
         if self.symmetric:
-            return float(brentq(lambda t: float(self(np.array(t))) - level, theta[i], theta[i + 1]))
+            return float(brentq(lambda t: float(f(np.array(t))) - level, theta[i], theta[i + 1]))
         return float(
             theta[i] + (theta[i + 1] - theta[i]) * (fmax[i] - level) / (fmax[i] - fmax[i + 1])
         )
