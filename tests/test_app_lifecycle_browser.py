@@ -7,15 +7,23 @@ screenshots land in test-artifacts/ for a person to look at.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
-from lightcal_app.server import LightcalApp, build_app
+from lightcal_app.server import LightcalApp
 
-from tests.app_fixtures import make_project
-from tests.test_app_browser import CHROMIUM, FLAGS, SLOW_S, open_page, shot, wait_for
+# The app (a 4-view synthetic project, demo mode) and the browser, one of each for this
+# module: the fixtures of tests/test_app_browser.py.
+from tests.test_app_browser import (  # noqa: F401 - fixtures
+    CHROMIUM,
+    SLOW_S,
+    app,
+    browser,
+    open_page,
+    shot,
+    wait_for,
+)
 
 pytestmark = [
     pytest.mark.browser,
@@ -28,29 +36,11 @@ pytestmark = [
 SIZES = [(1280, 800), (1920, 1080)]
 
 
-@pytest.fixture(scope="module")
-def app(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LightcalApp]:
-    folder = tmp_path_factory.mktemp("lifecycle")
-    project = make_project(folder / "proj", n_views=4, width=320, height=240)
-    a = build_app(project.path, port=0, demo=True, session_path=False, state_dir=folder / "state")
-    assert a.wait_idle()
-    yield a
-    a.close()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS)
-        yield b
-        b.close()
-
-
 @pytest.mark.parametrize("size", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
 def test_run_is_watchable_and_an_edit_keeps_the_result(
-    app: LightcalApp, browser: Any, size: tuple[int, int]
+    app: LightcalApp,  # noqa: F811 - the fixture imported above
+    browser: Any,  # noqa: F811 - the fixture imported above
+    size: tuple[int, int],
 ) -> None:
     app.controller.reset()
     app.controller.reset_guess()
