@@ -37,13 +37,19 @@ FLAGS = [
 WIDTH, HEIGHT = 960, 600
 SLOW_S = 120.0  # software WebGL on a busy machine is slow
 
-pytestmark = [
+BROWSER_MARKS = [
     pytest.mark.browser,
     pytest.mark.skipif(
         not CHROMIUM.exists(),
         reason="needs Debian's chromium at /usr/bin/chromium (scripts/setup.sh --browser)",
     ),
 ]
+"""The marks of every browser test module (`pytestmark = BROWSER_MARKS`)."""
+pytestmark = BROWSER_MARKS
+
+SCREEN_SIZES = [(1280, 800), (1920, 1080)]
+"""The page sizes whose screenshots a person looks at."""
+SIZE_IDS = [f"{w}x{h}" for w, h in SCREEN_SIZES]
 
 
 def wait_for(condition: Callable[[], Any], what: str, timeout: float = SLOW_S) -> Any:

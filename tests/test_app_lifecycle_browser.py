@@ -16,7 +16,9 @@ from lightcal_app.server import LightcalApp
 # The app (a 4-view synthetic project, demo mode) and the browser, one of each for this
 # module: the fixtures of tests/test_app_browser.py.
 from tests.test_app_browser import (  # noqa: F401 - fixtures
-    CHROMIUM,
+    BROWSER_MARKS,
+    SCREEN_SIZES,
+    SIZE_IDS,
     SLOW_S,
     app,
     browser,
@@ -25,18 +27,10 @@ from tests.test_app_browser import (  # noqa: F401 - fixtures
     wait_for,
 )
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(
-        not CHROMIUM.exists(),
-        reason="needs Debian's chromium at /usr/bin/chromium (scripts/setup.sh --browser)",
-    ),
-]
-
-SIZES = [(1280, 800), (1920, 1080)]
+pytestmark = BROWSER_MARKS
 
 
-@pytest.mark.parametrize("size", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
+@pytest.mark.parametrize("size", SCREEN_SIZES, ids=SIZE_IDS)
 def test_run_is_watchable_and_an_edit_keeps_the_result(
     app: LightcalApp,  # noqa: F811 - the fixture imported above
     browser: Any,  # noqa: F811 - the fixture imported above

@@ -80,7 +80,8 @@ def _run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) -
 def test_the_services_import_no_viser() -> None:
     code = (
         "import sys; import lightcal_app.solve_service, lightcal_app.files_service, "
-        "lightcal_app.worker, lightcal_app.actions, lightcal_app.requests; "
+        "lightcal_app.worker, lightcal_app.actions, lightcal_app.requests, "
+        "lightcal_app.plan_service; "
         "print('viser' in sys.modules)"
     )
     import subprocess

@@ -14,12 +14,13 @@ import numpy as np
 
 from lightcal.core.rotations import as_finite_array, matrix_from_quaternion_wxyz
 from lightcal.errors import InputError, LightcalError
-from lightcal_app.limits import check_position_m, check_rotation, check_selection
+from lightcal_app.limits import check_plan, check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
 from lightcal_app.requests import (
     DownloadKind,
     LoadSavedSession,
     Pause,
+    PlanViews,
     PrepareDownload,
     Reset,
     RestorePrevious,
@@ -234,6 +235,18 @@ class Actions:
         st = self.state
         with st.lock:
             st.min_iteration_s = min(max(value, 0.0), MAX_ITERATION_S)
+
+    def request_plan(self, n: object, wall_size_m: object, client: Any = None) -> None:
+        """Suggest the next views (Plan tab); values checked here (InputError: refused)."""
+        views, size = check_plan(n, wall_size_m)
+        self.state.request(PlanViews(views, size, client=client))
+
+    def set_show_plan(self, show: bool) -> None:
+        """Show or hide the suggested views in the 3D view."""
+        st = self.state
+        with st.lock:
+            st.show_plan = bool(show)
+            st.mark("plan")
 
     def step(self, client: Any = None) -> None:
         self.state.request(Solve("step", client=client))

@@ -19,6 +19,7 @@ from lightcal_app import requests as rq
 from lightcal_app.actions import Actions
 from lightcal_app.files_service import FilesService
 from lightcal_app.overlays import OverlayImages
+from lightcal_app.plan_service import PlanService
 from lightcal_app.redraw import Redrawer
 from lightcal_app.scene3d import Scene3D
 from lightcal_app.session_file import SessionFile
@@ -74,8 +75,9 @@ class Controller(Actions):
             state_dir=state_dir,
             upload_limit_bytes=upload_limit_bytes,
         )
+        self.plan = PlanService(state, self.solve, notify=self.notify, say=self._show_work)
         self.startup_notes: list[tuple[str, str]] = []
-        solve, files = self.solve, self.files
+        solve, files, plan = self.solve, self.files, self.plan
         self.worker = Worker(
             state,
             handlers={
@@ -90,11 +92,12 @@ class Controller(Actions):
                 rq.RestorePrevious: files.restore_previous,
                 rq.ApplySession: files.apply_session,
                 rq.SwitchProject: files.switch_project,
+                rq.PlanViews: plan.plan,
             },
             redraw=self.redrawer.redraw,
             notify=self.notify,
             poll=solve.poll,
-            after=files.autosave,
+            after=self._after_round,
             running=solve.running,
             show_work=self._show_work,
         )
@@ -145,6 +148,11 @@ class Controller(Actions):
         """Block until no request is queued, nothing is dirty and the solve is not running
         (tests and benchmarks). True if that happened within `timeout`."""
         return self.worker.wait_idle(timeout)
+
+    def _after_round(self) -> None:
+        """The end of each worker round: the autosave, then the Plan tab's read-out."""
+        self.files.autosave()
+        self.plan.refresh()
 
     def _show_work(self, text: str) -> None:
         """The page's busy line (set from the worker; nothing before the GUI exists)."""

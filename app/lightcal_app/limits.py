@@ -104,3 +104,28 @@ def check_selection(
         check_int("binning", binning, 1, MAX_BINNING),
         check_int("seed", seed, 0, MAX_SEED),
     )
+
+
+PLAN_MAX_VIEWS = 6
+"""The most views the Plan tab suggests at once."""
+
+PLAN_WALL_SIZE_M = (0.2, 100.0)
+"""The wall size (width and height) the Plan tab's candidates stay within, m."""
+
+
+def check_plan(n: object, wall_size_m: object) -> tuple[int, float]:
+    """The Plan tab's (views to suggest, wall size in m), checked.
+
+    Raises:
+        InputError: naming the value, when it is not a whole number of views in
+            1..PLAN_MAX_VIEWS or a wall size in PLAN_WALL_SIZE_M.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, float)) or int(n) != n:
+        raise InputError("views to suggest", f"expected a whole number, got {n!r}")
+    if not 1 <= int(n) <= PLAN_MAX_VIEWS:
+        raise InputError("views to suggest", f"expected 1 to {PLAN_MAX_VIEWS}, got {int(n)}")
+    lo, hi = PLAN_WALL_SIZE_M
+    size = float(wall_size_m)  # type: ignore[arg-type]
+    if not (math.isfinite(size) and lo <= size <= hi):
+        raise InputError("wall size (m)", f"expected {lo:g} to {hi:g} m, got {wall_size_m!r}")
+    return int(n), size

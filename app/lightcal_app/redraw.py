@@ -14,6 +14,7 @@ import numpy as np
 
 from lightcal.core.scene import Light
 from lightcal_app.overlays import OverlayImages, draw_name, shared_vmax
+from lightcal_app.plan_scene import PlanScene
 from lightcal_app.scene3d import Scene3D
 from lightcal_app.state import AppState, Display, Frame, LightGuess
 
@@ -34,6 +35,7 @@ class Redrawer:
         self.server = server
         self.state = state
         self.scene = scene
+        self.plan_scene = PlanScene(scene.scene)
         self.overlays = overlays
         self.panels: Any = None
         self.truth: list[LightGuess] | None = None
@@ -110,6 +112,13 @@ class Redrawer:
                 self.scene.set_lights(lights)
                 rig = frame.display.rig if frame.display is not None else None
                 self.scene.set_rays(rig, frame.wall_points, frame.rays_image)
+            if d & {"plan", "scene"}:
+                self.plan_scene.draw(
+                    frame.plan if frame.show_plan else None,
+                    project.camera,
+                    scale=self.scene.frustum_scale,
+                    rebuilt="scene" in d,
+                )
             if self.panels is not None:
                 self.panels.update(frame, legend_vmax=self.legend_vmax, messages=list(st.messages))
         t2 = time.perf_counter()

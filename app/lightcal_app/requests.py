@@ -87,6 +87,14 @@ class RestorePrevious(FromBrowser):
 
 
 @dataclass(frozen=True)
+class PlanViews(FromBrowser):
+    """Suggest the `n` best next camera poses for the current estimate (Plan tab)."""
+
+    n: int = 3
+    wall_size_m: float = 3.0
+
+
+@dataclass(frozen=True)
 class SwitchProject(FromBrowser):
     """Show another project (an upload); `keep` keeps the guess and the selection."""
 
@@ -109,6 +117,7 @@ Request = (
     | RestorePrevious
     | ApplySession
     | SwitchProject
+    | PlanViews
 )
 
 MERGED: frozenset[type] = frozenset((SetupChanged,))
@@ -145,6 +154,7 @@ _WORK: dict[type, str] = {
     RestorePrevious: "restoring the previous result",
     ApplySession: "restoring the session",
     SwitchProject: "loading the project",
+    PlanViews: "planning the next views",
 }
 
 

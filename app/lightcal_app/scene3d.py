@@ -151,6 +151,7 @@ class Scene3D:
         self.ref_image = 0
         self.cone_length_m = 0.3
         self.light_size_m = 0.02
+        self.frustum_scale = 0.1
 
     # -- building ---------------------------------------------------------------------------
 
@@ -198,6 +199,7 @@ class Scene3D:
         scene.add_label("/wall_label", "wall (z = 0)", position=(float(lo[0]), float(lo[1]), 0.0))
         fov = cam.fov_y_rad
         scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
+        self.frustum_scale = scale
         self.frusta = []
         self.planes = []
         for i, view in enumerate(project.views):

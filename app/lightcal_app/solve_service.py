@@ -206,6 +206,21 @@ class SolveService:
 
     # ------------------------------------------------------------------ the solve
 
+    def build_model(self) -> tuple[CalibrationModel, list[int]] | None:
+        """The model of the user's selection and guess (scales fitted), and the project
+        index of each of its images; None when no image has pixels."""
+        st = self.state
+        with st.lock:
+            project = st.project
+            guess = list(st.guess)
+            datas, index = self.usable_images()
+        if not datas:
+            return None
+        model = CalibrationModel(
+            datas, self._lights(project, guess, datas), project.solver, project.wall
+        )
+        return model, index
+
     def ensure_session(self, client: Any = None) -> bool:
         """Build the model and the solver session if there is none. False (with a
         message) when no image has pixels."""
@@ -213,14 +228,12 @@ class SolveService:
             return True
         st = self.state
         with st.lock:
-            project = st.project
-            guess = list(st.guess)
-            datas, index = self.usable_images()
             resume = st.resume_x
             saved_names = list(st.parameter_names)
             history = list(st.history)
             gen = st.session_gen
-        if not datas:
+        built = self.build_model()
+        if built is None:
             self.notify(
                 client,
                 "No pixels to fit",
@@ -228,9 +241,7 @@ class SolveService:
                 error=True,
             )
             return False
-        model = CalibrationModel(
-            datas, self._lights(project, guess, datas), project.solver, project.wall
-        )
+        model, index = built
         session = SolverSession(
             model,
             on_iteration=lambda rep: self.on_iteration(gen, model, rep),

@@ -20,6 +20,7 @@ from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal.pipeline.plan import PlannedView, Sigmas
 from lightcal_app.requests import Request, SetupChanged
 
 if TYPE_CHECKING:  # session_file imports this module
@@ -31,9 +32,11 @@ SolverState = Literal["idle", "running", "paused", "converged", "not converged"]
 """One vocabulary for the solve (the reason in plain words is `solver_message`)."""
 
 # What a redraw may have to refresh.
-Dirt = Literal["scene", "overlays", "light", "selection", "plots", "status", "result", "widgets"]
+Dirt = Literal[
+    "scene", "overlays", "light", "selection", "plots", "status", "result", "widgets", "plan"
+]
 ALL_DIRT: frozenset[Dirt] = frozenset(
-    ("scene", "overlays", "light", "selection", "plots", "status", "result", "widgets")
+    ("scene", "overlays", "light", "selection", "plots", "status", "result", "widgets", "plan")
 )
 
 
@@ -41,6 +44,10 @@ DEFAULT_ITERATION_S = 0.5
 """Run's default pace in the app: at least half a second per iteration, readable."""
 MAX_ITERATION_S = 5.0
 """The slowest pace the Solve tab offers."""
+
+EstimateKey = tuple[int, int, int, str]
+"""Which estimate a number was computed for: (setup_rev, session_gen, iteration, solver
+state); any change of the guess, the selection or the solve changes it."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +105,38 @@ class PreviousResult:
     session: SessionFile
     result: CalibrationResult
     state: SolverState
+
+
+@dataclass(frozen=True)
+class Readout:
+    """The pose's 1-sigma uncertainty at an estimate (the Plan tab's live read-out).
+
+    Attributes:
+        sigmas: per light, position (m) and axis (deg) sigmas, and the D-criterion.
+        light_names: one per light.
+        where: the estimate, in words ("the initial guess", "iteration 4", ...).
+        noise: where s^2 (the pixel noise) came from, in words.
+        key: the estimate it belongs to (`AppState.estimate_key`).
+    """
+
+    sigmas: Sigmas
+    light_names: tuple[str, ...]
+    where: str
+    noise: str
+    key: EstimateKey
+
+
+@dataclass(frozen=True)
+class PlanShown:
+    """The next views suggested for an estimate (`lightcal.pipeline.plan`).
+
+    Attributes:
+        now: the read-out of the estimate planned for.
+        views: the chosen views, best first, each with its sigmas before and after.
+    """
+
+    now: Readout
+    views: tuple[PlannedView, ...]
 
 
 @dataclass(frozen=True)
@@ -207,6 +246,10 @@ class AppState:
         # drawn); only a solve followed by a page waits (SolveService.follow_iterations).
         self.min_iteration_s = DEFAULT_ITERATION_S
         self.drawn: tuple[int, int] = (-1, -1)  # (session_gen, iteration) last drawn
+        # Capture planning (Plan tab): the last plan, the live read-out, the ghost frusta.
+        self.plan: PlanShown | None = None
+        self.readout: Readout | None = None
+        self.show_plan = True
         self.changed = True  # something worth autosaving happened
         self.dirty = set(ALL_DIRT)
 
@@ -233,6 +276,11 @@ class AppState:
                 self.selection_rev += 1
             self.request(SetupChanged())
             self.mark("light", "overlays", "selection", "widgets", "status", changed=True)
+
+    def estimate_key(self) -> EstimateKey:
+        """The estimate shown now (call under the lock): see `EstimateKey`."""
+        it = self.history[-1].iteration if self.history else -1
+        return (self.setup_rev, self.session_gen, it, self.solver_state)
 
     def image_index(self, name: str) -> int:
         """Index of an image by name (ValueError naming it when unknown)."""
@@ -274,6 +322,8 @@ class Frame:
         rays_image: image whose rays are drawn ("all", "none" or a name).
         ref_image: the image whose camera carries the gizmo.
         solver_state, solver_message, history, parameter_names, result: the solve.
+        plan, readout, show_plan: the Plan tab's suggested views and read-out.
+        estimate_key: the estimate shown (stale plans and read-outs differ from it).
     """
 
     dirty: frozenset[Dirt]
@@ -297,6 +347,10 @@ class Frame:
     result: CalibrationResult | None
     selection_summary: tuple[int, ...] = field(default=())
     previous: PreviousResult | None = None
+    plan: PlanShown | None = None
+    readout: Readout | None = None
+    show_plan: bool = True
+    estimate_key: EstimateKey = (0, 0, -1, "idle")
 
 
 def take_frame(state: AppState) -> Frame:
@@ -326,6 +380,10 @@ def take_frame(state: AppState) -> Frame:
         parameter_names=tuple(state.parameter_names),
         result=state.result,
         selection_summary=tuple(len(s) for s in state.selected),
+        plan=state.plan,
+        readout=state.readout,
+        show_plan=state.show_plan,
+        estimate_key=state.estimate_key(),
     )
     state.dirty.clear()
     return frame

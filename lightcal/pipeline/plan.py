@@ -46,184 +46,48 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lightcal.core.camera import Camera
-from lightcal.core.footprint import pixel_footprints
 from lightcal.core.light_axis import axis_jacobian
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
-from lightcal.core.render import shade
-from lightcal.core.rotations import matrix_from_rotvec
-from lightcal.core.scene import View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.uncertainty import noise_inflation
 from lightcal.errors import InputError
+from lightcal.pipeline.plan_candidates import (
+    AZIMUTHS_DEG,
+    DISTANCES_M,
+    ROLLS_DEG,
+    TILTS_DEG,
+    WALL_SIZE_M,
+    Candidate,
+    PlanGrid,
+    candidate_image,
+    candidate_view,
+    candidates,
+    wall_centre,
+)
 
-#: Candidate grid defaults: distances (m), tilts (deg), azimuths (deg), rolls (deg).
-DISTANCES_M = (0.6, 0.9, 1.3, 1.8, 2.5)
-TILTS_DEG = (0.0, 15.0, 30.0, 45.0)
-AZIMUTHS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
-ROLLS_DEG = (0.0, 90.0)
-#: The wall's size (m, width and height) the cameras must keep their view within.
-WALL_SIZE_M = 3.0
-
-
-@dataclass(frozen=True)
-class PlanGrid:
-    """The candidate camera poses' grid (see the module docstring)."""
-
-    distances_m: tuple[float, ...] = DISTANCES_M
-    tilts_deg: tuple[float, ...] = TILTS_DEG
-    azimuths_deg: tuple[float, ...] = AZIMUTHS_DEG
-    rolls_deg: tuple[float, ...] = ROLLS_DEG
-    wall_size_m: float = WALL_SIZE_M
-    pixels_per_view: int = 200
-    min_lit_pixels: int = 30
-    min_fraction: float = 0.02
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """One candidate camera pose: its geometry and its `View` (world-to-camera)."""
-
-    distance_m: float
-    tilt_deg: float
-    azimuth_deg: float
-    roll_deg: float
-    target_world: np.ndarray
-    view: View
-
-    def instruction(self) -> str:
-        """The pose as a plain instruction (directions as you face the wall)."""
-        where = f"{self.distance_m:.2f} m from the wall point ({self.target_world[0]:+.2f}, "
-        where += f"{self.target_world[1]:+.2f}) m, aimed at it"
-        if self.tilt_deg < 0.5:
-            tilt = "square to the wall"
-        else:
-            tilt = f"tilted {self.tilt_deg:.0f} deg, the camera moved {self.side()}"
-        roll = "no roll" if abs(self.roll_deg) < 0.5 else f"rolled {self.roll_deg:+.0f} deg"
-        return f"{where}, {tilt}, {roll}"
-
-    def side(self) -> str:
-        """Where the camera is moved (world +x is the left as you face the wall, +y down)."""
-        a = math.radians(self.azimuth_deg)
-        dx, dy = math.cos(a), math.sin(a)
-        words = []
-        if dy < -0.38:
-            words.append("up")
-        elif dy > 0.38:
-            words.append("down")
-        if dx > 0.38:
-            words.append("left")
-        elif dx < -0.38:
-            words.append("right")
-        return "-".join(words) + " (as you face the wall)"
-
-
-def candidate_view(
-    distance_m: float,
-    tilt_deg: float,
-    azimuth_deg: float,
-    roll_deg: float,
-    target_world: np.ndarray,
-    exposure: float = 1.0,
-) -> Candidate:
-    """The camera looking at `target_world` (3,) from `distance_m` along its axis, tilted
-    `tilt_deg` from the wall normal towards `azimuth_deg`, rolled `roll_deg` about its axis
-    (the construction of `lightcal.synthetic.views.sample_views`)."""
-    a, b = math.radians(tilt_deg), math.radians(azimuth_deg)
-    toward_camera = np.array([math.sin(a) * math.cos(b), math.sin(a) * math.sin(b), math.cos(a)])
-    target = np.asarray(target_world, dtype=np.float64)
-    center = target + distance_m * toward_camera
-    base = View.looking_at(center, target, up_world=(0.0, -1.0, 0.0))
-    R = matrix_from_rotvec(np.array([0.0, 0.0, math.radians(roll_deg)])) @ base.R_camera_world
-    view = View(R, -R @ center, exposure)
-    return Candidate(distance_m, tilt_deg, azimuth_deg, roll_deg, target[:2].copy(), view)
-
-
-def wall_centre(views: list[View]) -> np.ndarray:
-    """(3,) the mean point where the views' optical axes meet the wall z = 0."""
-    hits = []
-    for v in views:
-        axis = v.R_camera_world[2]
-        if axis[2] < -1e-9:
-            c = v.center_world
-            hits.append(c - c[2] / axis[2] * axis)
-    return np.mean(hits, axis=0) if hits else np.zeros(3)
-
-
-def candidates(
-    camera: Camera, grid: PlanGrid, target_world: np.ndarray, exposure: float
-) -> list[Candidate]:
-    """The grid's poses whose image corners see the wall within its extent."""
-    corners = np.array(
-        [
-            [0, 0],
-            [camera.width - 1, 0],
-            [0, camera.height - 1],
-            [camera.width - 1, camera.height - 1],
-        ]
-    )
-    half = grid.wall_size_m / 2.0
-    out = []
-    for d in grid.distances_m:
-        for t in grid.tilts_deg:
-            for az in grid.azimuths_deg if t > 0 else grid.azimuths_deg[:1]:
-                for roll in grid.rolls_deg:
-                    c = candidate_view(d, t, az, roll, target_world, exposure)
-                    fp = pixel_footprints(camera, c.view, corners)
-                    if not np.all(fp.valid):
-                        continue
-                    pts = fp.corners_world.reshape(-1, 3)
-                    if np.all(np.abs(pts[:, :2] - target_world[:2]) <= half):
-                        out.append(c)
-    return out
-
-
-def candidate_image(
-    model: CalibrationModel,
-    x: np.ndarray,
-    camera: Camera,
-    view: View,
-    grid: PlanGrid,
-    name: str = "candidate",
-    *,
-    peak: float | None = None,
-) -> ImageData | None:
-    """A synthetic selection of `view`'s pixels rendered at the estimate x: about
-    `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
-    sigma from the noise model (or the images' median sigma); None when too few are lit.
-    With `peak` the view's exposure is set so that its brightest pixel reads `peak` above
-    the offset (as a photographer exposes each view; `typical_peak`)."""
-    side = max(2, math.ceil(math.sqrt(4 * grid.pixels_per_view)))
-    us = np.linspace(0, camera.width - 1, side).round()
-    vs = np.linspace(0, camera.height - 1, max(2, side * camera.height // camera.width)).round()
-    pix = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2).astype(np.int64)
-    pix = np.unique(pix, axis=0)
-    fp = pixel_footprints(camera, view, pix)
-    lay = model.layout
-    rig, wall = lay.rig(x), lay.wall_of(x)
-    values = shade(fp, view, rig, rid_subsamples=model.options.rid_subsamples, wall=wall)
-    v = values.values.filled(np.nan)
-    ok = fp.valid & np.isfinite(v)
-    if not ok.any():
-        return None
-    peak_value = float(np.max(v[ok]))
-    ok &= v > grid.min_fraction * peak_value
-    if peak is not None and peak_value > 0.0:
-        ratio = peak / peak_value
-        view = View(view.R_camera_world, view.t_camera_world, view.exposure * ratio)
-        v = v * ratio
-    keep = np.nonzero(ok)[0]
-    if len(keep) < grid.min_lit_pixels:
-        return None
-    if len(keep) > grid.pixels_per_view:
-        keep = keep[np.linspace(0, len(keep) - 1, grid.pixels_per_view).round().astype(int)]
-    signal = v[keep]
-    noise = next((im.noise for im in model.images if im.noise is not None), None)
-    if noise is not None:
-        sigma = poisson_gaussian_sigma(signal, noise)
-    else:
-        sigma = np.full(len(keep), float(np.median(np.concatenate(model.sigmas))))
-    offset = lay.offset(x)
-    return ImageData(name, view, pixel_footprints(camera, view, pix[keep]), signal + offset, sigma)
+__all__ = [
+    "AZIMUTHS_DEG",
+    "DISTANCES_M",
+    "ROLLS_DEG",
+    "TILTS_DEG",
+    "WALL_SIZE_M",
+    "Candidate",
+    "InformationState",
+    "PlanGrid",
+    "PlannedView",
+    "Sigmas",
+    "candidate_image",
+    "candidate_view",
+    "candidates",
+    "greedy_plan",
+    "noise_variance",
+    "plan_to_dict",
+    "plan_views",
+    "residual_noise_scale2",
+    "start_vector",
+    "typical_peak",
+    "wall_centre",
+]
 
 
 def noise_variance(
@@ -247,6 +111,15 @@ def noise_variance(
         total += float(np.sum(variance))
         count += variance.size
     return total / count if count else None
+
+
+def residual_noise_scale2(model: CalibrationModel, x: np.ndarray) -> float:
+    """s^2 from the residuals at x (`noise_inflation`, as a solve's uncertainty takes it):
+    after a solve the pixel noise the fit left; before it, the guess's misfit."""
+    r = model.residuals(np.asarray(x, dtype=np.float64))
+    sigma_is_noise = any(im.noise is not None for im in model.images)
+    dof = model.m - model.layout.n
+    return noise_inflation(float(r @ r), dof, 0.0, sigma_is_noise=sigma_is_noise)
 
 
 def typical_peak(model: CalibrationModel, x: np.ndarray) -> float:
@@ -410,10 +283,7 @@ def plan_views(
     """
     grid = PlanGrid() if grid is None else grid
     if noise_scale2 is None:
-        r = model.residuals(np.asarray(x, dtype=np.float64))
-        sigma_is_noise = any(im.noise is not None for im in model.images)
-        dof = model.m - model.layout.n
-        noise_scale2 = noise_inflation(float(r @ r), dof, 0.0, sigma_is_noise=sigma_is_noise)
+        noise_scale2 = residual_noise_scale2(model, x)
     rows = float(np.median(model.sizes))
     state = InformationState(model, x, noise_scale2, rows)
     exposure = float(np.median([im.view.exposure for im in model.images]))

@@ -1,5 +1,5 @@
-"""The control panel: one class per tab (light, pixels, view, solve, result, files,
-explanation) in one tab group, and the messages box under it.
+"""The control panel: one class per tab (light, pixels, view, solve, result, plan,
+files, explanation) in one tab group, and the messages box under it.
 
 `Panels` builds them and passes each redraw's `Frame` to every tab's `update`, inside
 the shared programmatic-write flag (see `lightcal_app.panels.base`).
@@ -16,6 +16,7 @@ from lightcal_app.panels.base import Programmatic, assign
 from lightcal_app.panels.files import FilesPanel
 from lightcal_app.panels.light import LightPanel, pose_angles_deg, rotation_from_angles_deg
 from lightcal_app.panels.pixels import PixelsPanel
+from lightcal_app.panels.plan import PlanPanel
 from lightcal_app.panels.result import ResultPanel
 from lightcal_app.panels.solve import SolvePanel
 from lightcal_app.panels.view import ViewPanel
@@ -64,6 +65,8 @@ class Panels:
             self.solve = SolvePanel(server, controller, flag)
         with self.tabs.add_tab("Result", viser.Icon.LIST_CHECK):
             self.result = ResultPanel(server, controller, flag)
+        with self.tabs.add_tab("Plan", viser.Icon.CAMERA_PLUS):
+            self.plan = PlanPanel(server, controller, flag)
         with self.tabs.add_tab("Files", viser.Icon.FILE):
             self.files = FilesPanel(server, controller, flag)
         with self.tabs.add_tab("Explain", viser.Icon.HELP):
@@ -99,6 +102,7 @@ class Panels:
             self.view.update(frame, legend_vmax=legend_vmax)
             self.solve.update(frame)
             self.result.update(frame)
+            self.plan.update(frame)
             text = (  # names and paths come from files and users: shown, never rendered
                 "\n".join(f"**{md_prose(t)}**: {md_prose(b)}  " for t, b in messages[-3:])
                 if messages
