@@ -301,7 +301,7 @@ def test_selection_is_what_calibrate_would_use(
         expected = image_data(st.project, st.loaded, i).footprints.pixels
         np.testing.assert_array_equal(st.selected[i], expected)
         assert len(expected) == 60
-    assert "240 pixels" in app.panels.pixels.selection_md.content
+    assert "240 pixels" in app.panels.pixels.selection_text.handle.content
 
 
 def test_step_adds_an_iteration_to_the_cost_plot(app: LightcalApp) -> None:
@@ -549,7 +549,7 @@ def test_residual_overlay_and_legend(app: LightcalApp) -> None:
     _set(app.panels.view.overlay_one, "residual")
     _idle(app)
     assert app.state.overlay_of(0) == "residual" and app.state.overlay_of(1) == "real"
-    assert "pixel values" in app.panels.view.legend_md.content
+    assert "pixel values" in app.panels.view.legend_text.handle.content
     img = app.controller.scene.frusta[0].image.astype(int)
     # Diverging colours: the light is off, so the residual has both signs, red and blue.
     assert (img[..., 0] - img[..., 2] > 60).any() and (img[..., 2] - img[..., 0] > 60).any()

@@ -394,7 +394,10 @@ def test_an_image_named_with_html_is_shown_as_text(
         assert a.wait_idle()
         a.controller.run()
         assert a.wait_idle(120)
-        for text in (a.panels.pixels.selection_md.content, a.panels.result.result_md.content):
+        for text in (
+            a.panels.pixels.selection_text.handle.content,
+            a.panels.result.result_md.content,
+        ):
             assert "&lt;img" in text and "<img" not in text, text
     finally:
         a.close()

@@ -218,6 +218,15 @@ class Actions:
             st.rays_image = which
             st.mark("light", "widgets", changed=True)
 
+    def set_focus(self, image: str | None) -> None:
+        """Highlight one image (its frustum framed, the other pictures dimmed); None: none."""
+        st = self.state
+        with st.lock:
+            if image is not None:
+                st.image_index(image)  # ValueError naming it when unknown
+            st.focus_image = image
+            st.mark("overlays", "widgets")
+
     def set_ref_image(self, index: int) -> None:
         """Put the gizmo on image `index`'s camera."""
         st = self.state

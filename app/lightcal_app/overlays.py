@@ -237,6 +237,18 @@ class OverlayImages:
         return rgb
 
 
+DIM_RGB = np.array([228, 226, 220], dtype=np.float64)
+"""What a dimmed picture fades towards (the wall's grey)."""
+DIM_KEEP = 0.35
+"""How much of a dimmed picture stays."""
+
+
+def dimmed(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 `rgb` faded towards the wall's grey (an image not highlighted)."""
+    out = DIM_KEEP * rgb.astype(np.float64) + (1.0 - DIM_KEEP) * DIM_RGB
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
 def draw_name(rgb: np.ndarray, name: str) -> np.ndarray:
     """The image's name in its top-left corner, dark on a white box, about 12 % of the
     picture's height (in place, returned). On the picture itself, names of neighbouring

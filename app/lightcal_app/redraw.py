@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from lightcal.core.scene import Light
-from lightcal_app.overlays import OverlayImages, draw_name, shared_vmax
+from lightcal_app.overlays import OverlayImages, dimmed, draw_name, shared_vmax
 from lightcal_app.plan_scene import PlanScene
 from lightcal_app.scene3d import Scene3D
 from lightcal_app.state import AppState, Display, Frame, LightGuess
@@ -79,6 +79,8 @@ class Redrawer:
                     regions=frame.regions[i],
                     points=frame.points[i],
                 )
+            if frame.focus_image is not None and i != frame.focus_image:
+                rgb = dimmed(rgb)
             out[i] = draw_name(rgb, names[i])
         return out
 
@@ -108,6 +110,8 @@ class Redrawer:
                     self.panels.set_project(project)
             elif pictures:
                 self.scene.set_pictures(pictures)
+            if d & {"overlays", "scene"}:
+                self.scene.set_focus(frame.focus_image, frame.ref_image)
             if d & {"light", "scene"}:
                 self.scene.set_lights(lights)
                 rig = frame.display.rig if frame.display is not None else None

@@ -37,6 +37,8 @@ TRUTH_RGB = (40, 200, 90)
 RAY_RGB = (255, 200, 40)
 CAMERA_RGB = (60, 60, 70)
 REF_CAMERA_RGB = (230, 120, 0)
+FOCUS_CAMERA_RGB = (210, 30, 110)
+FRUSTUM_PX, FOCUS_FRUSTUM_PX = 1.5, 4.0
 WALL_RGB = (228, 226, 220)
 MAX_RAYS_PER_IMAGE = 300
 CONE_MAX_ANGLE_RAD = math.radians(85.0)
@@ -209,7 +211,7 @@ class Scene3D:
                 fov=fov,
                 aspect=cam.aspect,
                 scale=scale,
-                thickness=1.5,
+                thickness=FRUSTUM_PX,
                 thickness_units="screen",
                 color=REF_CAMERA_RGB if i == ref_image else CAMERA_RGB,
                 image=pictures[i],
@@ -311,6 +313,17 @@ class Scene3D:
         """Replace the pictures of some frusta."""
         for i, rgb in pictures.items():
             self.frusta[i].image = rgb
+
+    def set_focus(self, focus: int | None, ref_image: int) -> None:
+        """Frame the highlighted image's frustum (thick, crimson); the others as built."""
+        for i, h in enumerate(self.frusta):
+            colour = REF_CAMERA_RGB if i == ref_image else CAMERA_RGB
+            thickness = FRUSTUM_PX
+            if i == focus:
+                colour, thickness = FOCUS_CAMERA_RGB, FOCUS_FRUSTUM_PX
+            if tuple(h.color) != colour or h.thickness != thickness:
+                h.color = colour
+                h.thickness = thickness
 
     def set_lights(self, lights: list[Light | LightGuess]) -> None:
         """Pose every light node (gizmo and copies) and refresh its cones."""

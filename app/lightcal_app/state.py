@@ -220,6 +220,7 @@ class AppState:
         self.overlay_per_image: dict[str, OverlayKind] = {}
         self.show_selection = True
         self.rays_image: str = project.names[0]
+        self.focus_image: str | None = None  # highlighted, the others dimmed (View tab)
         self.ref_image = 0
         # Selection as computed by the worker: per project image, the (N, 2) chosen
         # (super-)pixels, their binning, and the footprint centres (N, 3) on the wall.
@@ -324,6 +325,7 @@ class Frame:
         solver_state, solver_message, history, parameter_names, result: the solve.
         plan, readout, show_plan: the Plan tab's suggested views and read-out.
         estimate_key: the estimate shown (stale plans and read-outs differ from it).
+        focus_image: the image highlighted (the others dimmed), None: none.
     """
 
     dirty: frozenset[Dirt]
@@ -351,6 +353,7 @@ class Frame:
     readout: Readout | None = None
     show_plan: bool = True
     estimate_key: EstimateKey = (0, 0, -1, "idle")
+    focus_image: int | None = None
 
 
 def take_frame(state: AppState) -> Frame:
@@ -384,6 +387,7 @@ def take_frame(state: AppState) -> Frame:
         readout=state.readout,
         show_plan=state.show_plan,
         estimate_key=state.estimate_key(),
+        focus_image=None if state.focus_image is None else names.index(state.focus_image),
     )
     state.dirty.clear()
     return frame

@@ -19,6 +19,7 @@ import viser
 
 from lightcal.errors import LightcalError
 from lightcal_app.controller import Controller
+from lightcal_app.text import md_prose
 
 
 def assign(handle: Any, value: Any) -> None:
@@ -90,3 +91,34 @@ class TabPanel:
                 self.ctl.state.mark("widgets")
 
         return cb
+
+
+class LiveText:
+    """A markdown that redraws fill and a callback can mark stale until the next one.
+
+    A callback marks it *before* it queues the work, so the worker's redraw, which comes
+    after, always replaces the mark with the fresh text (or the old one, when the edit
+    was refused).
+
+    Args:
+        gui: where to add the markdown.
+        text: the first text.
+    """
+
+    def __init__(self, gui: Any, text: str = "") -> None:
+        self.handle = gui.add_markdown(text)
+        self.text = text
+        self.marked = False
+
+    def show(self, text: str) -> None:
+        """The fresh text (a redraw); clears the mark."""
+        if text != self.text or self.marked:
+            self.text, self.marked = text, False
+            self.handle.content = text
+
+    def mark_stale(self, work: str) -> None:
+        """Say that `work` is under way and the text below is from before it."""
+        self.marked = True
+        self.handle.content = f"**⟳ updating** ({md_prose(work)}); until then, as before:  \n" + (
+            self.text
+        )

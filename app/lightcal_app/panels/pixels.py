@@ -16,7 +16,7 @@ from lightcal_app.limits import (
     MAX_SEED,
     check_selection,
 )
-from lightcal_app.panels.base import Programmatic, TabPanel, assign
+from lightcal_app.panels.base import LiveText, Programmatic, TabPanel, assign
 from lightcal_app.state import Frame, SelectionSettings
 from lightcal_app.text import md
 
@@ -24,6 +24,7 @@ ALL_IMAGES = "all images"
 RECT_MODES = ("include region", "exclude region")
 CLICK_MODES = ("does nothing", "adds a pixel", "removes nearby pixels")
 STRATEGIES = ("random", "grid", "all")
+SELECTING = "selecting the pixels"
 
 
 class PixelsPanel(TabPanel):
@@ -65,7 +66,7 @@ class PixelsPanel(TabPanel):
         self.clear_regions = gui.add_button("Clear all regions")
         self.clear_points = gui.add_button("Clear all clicked pixels")
         self.show_selection = gui.add_checkbox("show selection and masks on the images", True)
-        self.selection_md = gui.add_markdown("")
+        self.selection_text = LiveText(gui)
         self._wire()
 
     def _settings(self) -> SelectionSettings:
@@ -85,6 +86,7 @@ class PixelsPanel(TabPanel):
 
         def selection_changed(event: Any) -> None:
             target = self.sel_target.value
+            self.selection_text.mark_stale(SELECTING)
             ctl.set_selection(self._settings(), image=None if target == ALL_IMAGES else target)
 
         for h in (self.strategy, self.n_per_image, self.grid_step, self.binning, self.seed):
@@ -93,11 +95,19 @@ class PixelsPanel(TabPanel):
 
         def clear_override(event: Any) -> None:
             if self.sel_target.value != ALL_IMAGES:
+                self.selection_text.mark_stale(SELECTING)
                 ctl.clear_selection_override(self.sel_target.value)
 
+        def cleared(clear: Any) -> Any:
+            def cb(event: Any) -> None:
+                self.selection_text.mark_stale(SELECTING)
+                clear()
+
+            return cb
+
         self.clear_override.on_click(self.guard(clear_override))
-        self.clear_regions.on_click(lambda e: ctl.clear_regions())
-        self.clear_points.on_click(lambda e: ctl.clear_points())
+        self.clear_regions.on_click(cleared(ctl.clear_regions))
+        self.clear_points.on_click(cleared(ctl.clear_points))
         self.show_selection.on_update(
             self.guard(lambda e: ctl.set_show_selection(self.show_selection.value))
         )
@@ -152,8 +162,8 @@ class PixelsPanel(TabPanel):
             self.show_settings()
             with self.ctl.state.lock:
                 assign(self.show_selection, self.ctl.state.show_selection)
-        if d & {"selection", "status", "scene"}:
-            self.selection_md.content = self._selection_text(frame)
+        if d & {"selection", "status", "scene", "widgets"}:
+            self.selection_text.show(self._selection_text(frame))
 
     def _selection_text(self, frame: Frame) -> str:
         names = self.ctl.state.project.names

@@ -10,15 +10,17 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.overlays import legend_picture
-from lightcal_app.panels.base import Programmatic, TabPanel, assign
+from lightcal_app.panels.base import LiveText, Programmatic, TabPanel, assign
 from lightcal_app.state import OVERLAY_KINDS, Frame
 
 AS_ALL = "(as all images)"
+DRAWING = "drawing the pictures"
+LEGEND_BEFORE = "**Residual colours** (shown when an image shows *residual*):"
 
 SCENE_LEGEND = """**In the scene**
 - *light grey*: the **wall** (its plane, z = 0 of the world); each image on its
   **camera's frustum** (*dark* frame; *orange* frame: the camera that carries the light
-  gizmo)
+  gizmo; thick *crimson* frame: the highlighted image, the other pictures faded)
 - *orange*: the **light** (bulb) at its pose in each camera, with its **cones** (the
   RID's half-intensity and cut-off angles) and, on the gizmo's camera, the draggable
   **gizmo** (arrows move it, rings turn it)
@@ -48,6 +50,11 @@ class ViewPanel(TabPanel):
             hint="real image, image rendered with the current light, or real minus rendered",
         )
         self.overlay_image = gui.add_dropdown("image", names, initial_value=names[0])
+        self.focus = gui.add_checkbox(
+            "highlight this image",
+            initial_value=False,
+            hint="frame its frustum in crimson and fade the other pictures",
+        )
         self.overlay_one = gui.add_dropdown(
             "this image shows", [AS_ALL, *OVERLAY_KINDS], initial_value=AS_ALL
         )
@@ -56,9 +63,7 @@ class ViewPanel(TabPanel):
             "rays from the light for", ["none", "all", *names], initial_value=st.rays_image
         )
         self.scene_legend = gui.add_markdown(SCENE_LEGEND)
-        self.legend_md = gui.add_markdown(
-            "**Residual colours** (shown when an image shows *residual*):"
-        )
+        self.legend_text = LiveText(gui, LEGEND_BEFORE)
         self.legend = gui.add_image(legend_picture(1.0), label="residual scale", format="png")
         self._legend_shown: float | None = None
         self._wire()
@@ -66,10 +71,16 @@ class ViewPanel(TabPanel):
     def _wire(self) -> None:
         ctl = self.ctl
         g = self.guard
-        self.overlay_all.on_update(g(lambda e: ctl.set_overlay(self.overlay_all.value)))
+
+        def overlay_all(event: Any) -> None:
+            self.legend_text.mark_stale(DRAWING)
+            ctl.set_overlay(self.overlay_all.value)
+
+        self.overlay_all.on_update(g(overlay_all))
 
         def overlay_one(event: Any) -> None:
             v = self.overlay_one.value
+            self.legend_text.mark_stale(DRAWING)
             ctl.set_overlay(None if v == AS_ALL else v, image=self.overlay_image.value)  # type: ignore[arg-type]
 
         self.overlay_one.on_update(g(overlay_one))
@@ -81,6 +92,12 @@ class ViewPanel(TabPanel):
                 assign(self.overlay_one, v)
 
         self.overlay_image.on_update(overlay_image)
+
+        def focus(event: Any) -> None:
+            ctl.set_focus(self.overlay_image.value if self.focus.value else None)
+
+        self.focus.on_update(g(focus))
+        self.overlay_image.on_update(g(focus))
         self.look_through.on_click(self._look_through)
         self.rays.on_update(g(lambda e: ctl.set_rays(self.rays.value)))
 
@@ -118,14 +135,18 @@ class ViewPanel(TabPanel):
             with st.lock:
                 assign(self.overlay_all, st.overlay_default)
                 assign(self.rays, st.rays_image)
-        if (
-            legend_vmax is not None
-            and d & {"overlays", "scene"}
-            and self._legend_shown != legend_vmax
-        ):
+                assign(self.focus, st.focus_image is not None)
+                if st.focus_image is not None:
+                    assign(self.overlay_image, st.focus_image)
+        if not d & {"overlays", "scene", "widgets"}:
+            return
+        if legend_vmax is not None and self._legend_shown != legend_vmax:
             self._legend_shown = legend_vmax
             self.legend.image = legend_picture(legend_vmax)
-            self.legend_md.content = (
-                f"**Residual colours**: real − rendered, ±{legend_vmax:.4g} pixel values "
-                "(99th percentile over the images shown as residual; grey: no value)."
+        if self._legend_shown is None:
+            self.legend_text.show(LEGEND_BEFORE)
+        else:
+            self.legend_text.show(
+                f"**Residual colours**: real − rendered, ±{self._legend_shown:.4g} pixel "
+                "values (99th percentile over the images shown as residual; grey: no value)."
             )
