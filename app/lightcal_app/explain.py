@@ -26,14 +26,18 @@ SECTIONS: tuple[tuple[str, str, str | None], ...] = (
         "`T_camera_light` (position p_cl in metres and the direction of its axis), is the "
         "same in every photo. Photos of a flat white wall (z = 0) from several known camera "
         "poses show the light's pattern; lightcal moves a model light until the rendered "
-        "photos match the real ones (after Song et al. 2020).",
+        "photos match the real ones (after Song et al. 2020). Frames: the camera's is "
+        "OpenCV's (x right, y down, z forward); the world's wall is z = 0 with its normal "
+        "+z towards the cameras; a view T_camera_world = (R_i, t_i) maps X_c = R_i X_w + t_i.",
         "frames.png",
     ),
     (
         "One pixel's footprint",
         "Each pixel's four corners are undistorted and cast as rays onto the wall; they "
         "outline a small quad, the pixel's footprint. A pixel whose corner ray misses the "
-        "wall is masked, never guessed.",
+        "wall is masked, never guessed. Pixel (u, v) has its centre at integer (u, v) and "
+        "its corners at u ± 1/2, v ± 1/2; a corner's ray d = R_i^T K^-1 (u, v, 1) "
+        "(undistorted) meets the wall at C_i + λ d with λ = -C_iz / d_z > 0.",
         "footprint.png",
     ),
     (
@@ -41,7 +45,10 @@ SECTIONS: tuple[tuple[str, str, str | None], ...] = (
         "Seen from the light, the footprint covers a solid angle Omega_Q (computed exactly). "
         "The flux is I0 f Omega_Q, with f the light's relative intensity towards the "
         "footprint; divided by the footprint's area it gives the irradiance, and the "
-        "Lambertian wall turns it into the radiance the pixel sees.",
+        "Lambertian wall turns it into the radiance the pixel sees: "
+        "Φ_Q = I0 f(θ, φ) Ω_Q, E = Φ_Q / A_Q, and the pixel value "
+        "m = k g_i V(u, v) ρ E / π + b (k the scale, g_i the image's exposure, V the "
+        "camera's fall-off, ρ the wall's albedo, b the offset).",
         "solid_angle.png",
     ),
     (
@@ -56,7 +63,9 @@ SECTIONS: tuple[tuple[str, str, str | None], ...] = (
         "The solver (least squares) changes the light's position, axis and brightness scale "
         "to make rendered pixel values equal the real ones at the selected pixels (Pixels "
         "tab). The residual maps show what is left; the result lists each number with its "
-        "1-sigma uncertainty and warns when the photos lack distance or angle variety.",
+        "1-sigma uncertainty and warns when the photos lack distance or angle variety. In "
+        "the residual maps red means the real image is brighter than the rendered one, "
+        "blue darker; after Run they are flat (noise only).",
         "residual.png",
     ),
 )
