@@ -78,6 +78,9 @@ def main() -> None:
     args = parser.parse_args()
 
     env = dict(os.environ)
+    # As on a user's machine: byte code cached (a sandbox's PYTHONDONTWRITEBYTECODE would
+    # recompile lightcal's ~90 modules, about 0.15 s, in every run).
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     env["PYTHONPATH"] = os.pathsep.join(
         [str(REPO), str(REPO / "app"), *filter(None, [env.get("PYTHONPATH")])]
     )

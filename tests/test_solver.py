@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from lightcal.core import calibration_model
-from lightcal.core.calibration_model import economic_r, stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
 from lightcal.core.solver import (
@@ -413,6 +413,31 @@ def test_compressed_solve_follows_the_full_solve(noisy_problem):
     for a, b in zip(out_red.history, out_full.history, strict=True):
         assert a.cost == pytest.approx(b.cost, rel=1e-9)
         np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+
+
+def test_a_report_after_a_trial_point_evaluates_nothing(noisy_problem):
+    """trf may evaluate a trial point after the one an iteration reports: the report comes
+    from the last two compressed evaluations, equal to the full problem's numbers."""
+    light, images = noisy_problem
+    start = [cs.start_near(light)]
+    model = cs.model_of(images, start, compress=True)
+    full = cs.model_of(images, start, compress=False)
+    x1 = model.layout.x0.copy()
+    x2 = x1 + 1e-4
+    model.solver_residuals(x1)
+    model.solver_residuals(x2)  # the trial: the cache now holds x2
+    evaluations = model.nfev
+    got = model.report(x1, 3)
+    assert model.nfev == evaluations  # no evaluation for the report
+    want = full.report(x1, 3)
+    assert got.cost == pytest.approx(want.cost, rel=1e-10)
+    assert got.gradient_norm == pytest.approx(want.gradient_norm, rel=1e-7)
+    np.testing.assert_allclose(got.per_image_rms, want.per_image_rms, rtol=1e-12)
+    # Three points back is out of the cache: evaluated again, the same numbers.
+    model.solver_residuals(x2 + 1e-4)
+    again = model.report(x1, 3)
+    assert model.nfev == evaluations + 2
+    assert again.cost == pytest.approx(got.cost, rel=1e-10)
 
 
 def test_the_compressed_problem_is_chosen_by_pixel_count(noisy_problem, monkeypatch):

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
@@ -28,6 +28,7 @@ from lightcal.core.problem import (
     WallUnknown,
     poisson_gaussian_sigma,
 )
+from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import light_flux, shade
 from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
@@ -86,6 +87,9 @@ class CalibrationModel:
         self._cache_J_x: np.ndarray | None = None
         self._cache_J: np.ndarray | None = None
         self._cache_R: np.ndarray | None = None
+        # The last two compressed evaluations' (x, R factor, per-image RMS): what an
+        # iteration's report needs (trf may have tried a point after the one it reports).
+        self._recent: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=2)
         self.sigmas: list[np.ndarray] = [im.sigma for im in images]
         self._buffers = _Buffers()
         self._evaluating = threading.Lock()
@@ -181,6 +185,7 @@ class CalibrationModel:
         r = np.empty(self.m)
         J = np.empty((self.m, n)) if full_jacobian else None
         tops = []
+        rms = np.full(len(self.images), np.nan)
         lay = self.layout
         at_x = _StateAtX(
             lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
@@ -196,9 +201,11 @@ class CalibrationModel:
                 assert fluxes is not None
                 visit(i, A, fluxes[0][None] if len(fluxes) == 1 else np.stack(fluxes))
             if self.compressed and A.shape[0]:
+                rms[i] = math.sqrt(float(np.mean(np.square(A[:, n] * self.sigmas[i]))))
                 tops.append(economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
         if self.compressed:
             self._cache_R = stack_r_factors(tops, n + 1)
+            self._recent.append((x.copy(), self._cache_R, rms))
         self._cache_x = x.copy()
         self._cache_r = r
         if J is not None:
@@ -352,6 +359,7 @@ class CalibrationModel:
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)
         self._cache_x = self._cache_J_x = None
+        self._recent.clear()
 
     def per_image_rms(self, x: np.ndarray) -> np.ndarray:
         """(n_images,) RMS of m_obs - m_render per image (pixel value units)."""
@@ -363,13 +371,22 @@ class CalibrationModel:
         return out
 
     def report(self, x: np.ndarray, iteration: int) -> IterationReport:
-        r = self.residuals(x)
+        """The iteration's numbers at x; from a recent compressed evaluation when there is
+        one (|r~| = |r|, J~^T r~ = J^T r), else from the residuals and gradient at x."""
+        recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+        if recent is None:
+            r = self.residuals(x)
+            cost = robust_cost(r, self.options.loss, self.options.f_scale)
+            gradient, rms = self.gradient(x), self.per_image_rms(x)
+        else:  # compressed: the linear loss
+            _, R, rms = recent
+            cost, gradient = 0.5 * float(R[:, -1] @ R[:, -1]), R[:, :-1].T @ R[:, -1]
         return IterationReport(
             iteration,
             x.copy(),
-            robust_cost(r, self.options.loss, self.options.f_scale),
-            float(np.abs(self.gradient(x)).max()),
-            self.per_image_rms(x),
+            cost,
+            float(np.abs(gradient).max()),
+            rms.copy(),
             self.nfev,
             self.weights_at is not None,
         )
@@ -423,31 +440,6 @@ class CalibrationModel:
             hi[s + 2] = max(z_max(d), z0 + 1e-9)
         lo[self.layout.wall], hi[self.layout.wall] = self.layout.wall_bounds()
         return lo, hi
-
-
-def economic_r(A: np.ndarray) -> np.ndarray:
-    """R (min(N, k), k) of the thin QR of A (N, k); A (Fortran order) is overwritten."""
-    qr, _, _, info = scipy.linalg.lapack.dgeqrf(A, overwrite_a=True)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"QR of the image system failed (LAPACK info {info})")
-    return np.triu(qr[: min(A.shape)])
-
-
-def stack_r_factors(tops: list[np.ndarray | None], width: int) -> np.ndarray:
-    """R factor (width, width) of the row-stack of matrices whose R factors are `tops`.
-
-    QR of the stacked (k, width) upper-triangular factors is that of the stack of the
-    original blocks (Q is orthogonal). A None (a block with non-finite residuals) makes
-    the whole result NaN, which trf treats as a failed step.
-    """
-    if any(t is None for t in tops):
-        return np.full((width, width), np.nan)
-    out = np.zeros((width, width))
-    if tops:
-        stack = np.concatenate([t for t in tops if t is not None])
-        top = economic_r(np.asfortranarray(stack))
-        out[: top.shape[0]] = top
-    return out
 
 
 def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:

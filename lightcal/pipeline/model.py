@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import nnls
 
-from lightcal.core.calibration_model import economic_r, stack_r_factors
 from lightcal.core.problem import ImageData, LightUnknown
+from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
