@@ -329,6 +329,23 @@ def test_the_pace_is_bounded_and_must_be_a_number(synthetic: SyntheticProject) -
         actions.set_pace(float("nan"))
 
 
+def test_only_run_is_paced_a_step_shows_at_once(synthetic: SyntheticProject) -> None:
+    from lightcal_app.solve_service import pace_wait_s
+
+    assert pace_wait_s(True, 0.5, 0.2) == pytest.approx(0.3)
+    assert pace_wait_s(True, 0.5, 0.7) == 0.0
+    assert pace_wait_s(True, 99.0, 0.0) == 5.0  # at most MAX_ITERATION_S
+    assert pace_wait_s(False, 0.5, 0.0) == 0.0  # Step: no wait
+    # The session says which: steps are a budget, Run is unlimited.
+    state, solve, _ = _service(synthetic)
+    solve.start("step")
+    assert solve.session is not None and not solve.session.unlimited
+    _run_requests(solve, state)
+    solve.start("run")
+    assert solve.session.unlimited
+    _run_requests(solve, state, timeout=120.0)
+
+
 def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: SyntheticProject) -> None:
     state = _state(synthetic)
     handled: list[rq.Request] = []

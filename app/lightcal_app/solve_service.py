@@ -41,6 +41,15 @@ Notify = Callable[..., None]
 """`notify(client, title, body, *, error=False)`: a message in the page."""
 
 
+def pace_wait_s(running: bool, min_iteration_s: float, shown_s: float) -> float:
+    """How long the next iteration waits so that the last one stayed `min_iteration_s`
+    (at most MAX_ITERATION_S) on the page, `shown_s` after it was drawn; only Run is
+    paced (`running`): a Step shows its iteration as soon as it is computed."""
+    if not running:
+        return 0.0
+    return max(min(min_iteration_s, MAX_ITERATION_S) - shown_s, 0.0)
+
+
 class SolveService:
     """The selection and the solve of the state's project.
 
@@ -282,12 +291,14 @@ class SolveService:
         """Called by the solver's thread: record, then wait until drawn."""
         st = self.state
         display = self.estimate_display(model, rep.x)
+        session = self.session
+        running = session is not None and session.unlimited
         with st.cond:
             if self.follow_iterations and st.history:
-                # A readable pace: the page shows the previous iteration at least
+                # Run's readable pace: the page shows the previous iteration at least
                 # min_iteration_s before this one (a reset or closing ends the wait).
-                left = min(st.min_iteration_s, MAX_ITERATION_S) - (
-                    time.monotonic() - self._shown_at
+                left = pace_wait_s(
+                    running, st.min_iteration_s, time.monotonic() - self._shown_at
                 )
                 if left > 0:
                     st.cond.wait_for(lambda: st.session_gen != gen or st.closing, timeout=left)

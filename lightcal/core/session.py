@@ -58,6 +58,12 @@ class SolverSession:
             return self._state
 
     @property
+    def unlimited(self) -> bool:
+        """Running to the end (`run`), not a number of steps (`step`)."""
+        with self._cond:
+            return self._budget < 0
+
+    @property
     def latest(self) -> IterationReport | None:
         with self._cond:
             return self.history[-1] if self.history else None
