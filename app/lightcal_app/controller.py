@@ -19,6 +19,7 @@ from lightcal_app import requests as rq
 from lightcal_app.actions import Actions
 from lightcal_app.files_service import FilesService
 from lightcal_app.overlays import OverlayImages
+from lightcal_app.photo_service import PhotoService
 from lightcal_app.redraw import Redrawer
 from lightcal_app.scene3d import Scene3D
 from lightcal_app.session_file import SessionFile
@@ -74,6 +75,8 @@ class Controller(Actions):
             state_dir=state_dir,
             upload_limit_bytes=upload_limit_bytes,
         )
+        # A new project from photos (the Files tab's "New project from photos").
+        self.photos = PhotoService(self.files, notify=self.notify, show_work=self._show_work)
         self.startup_notes: list[tuple[str, str]] = []
         solve, files = self.solve, self.files
         self.worker = Worker(
@@ -90,6 +93,7 @@ class Controller(Actions):
                 rq.RestorePrevious: files.restore_previous,
                 rq.ApplySession: files.apply_session,
                 rq.SwitchProject: files.switch_project,
+                rq.BuildPhotoProject: self.photos.build,
             },
             redraw=self.redrawer.redraw,
             notify=self.notify,
