@@ -26,7 +26,6 @@ from lightcal.io.images import read_image
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
 from lightcal_app.photo_records import (
-    DEFAULT_HALF_ANGLE_DEG,
     CameraSource,
     PhotoBuild,
     PhotoOptions,
@@ -60,9 +59,8 @@ def build_project(
     assert wall_board is not None
     board_path = area / BOARD_DIRS[wall_board[0]] / wall_board[1]
     light = None if staged.light is None else area / LIGHT_DIR / staged.light
-    half = None
-    if light is None:
-        half = DEFAULT_HALF_ANGLE_DEG if options.half_angle_deg is None else options.half_angle_deg
+    # Without a light file nor a half angle, init_project takes 30 degrees and says so.
+    half = options.half_angle_deg if light is None else None
     n = len(staged.wall_photos)
     done = [0]
 

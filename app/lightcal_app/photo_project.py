@@ -289,7 +289,10 @@ class PhotoStaging:
                     shown,
                     f"unsupported photo suffix {path.suffix!r}: expected {IMAGE_SUFFIXES_TEXT}",
                 )
-            check_image_headers([path], shown)
+            try:
+                check_image_headers([path], shown)
+            except InputError as exc:
+                raise InputError(shown, exc.detail.removeprefix(f"{path.name}: ")) from exc
             folder = area / (WALL_DIR if kind == "wall" else CHESSBOARD_DIR)
             stored = safe_file_name(path.name)
             if zip_rel is not None and (folder / stored).exists() and len(zip_rel.parts) > 1:
