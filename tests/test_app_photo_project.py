@@ -443,7 +443,7 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
     )
     client, title, body, error = messages.items[-1]
     assert (client, title, error) == ("page", "1 of 6 photos rejected", True)
-    assert body == f"- {BLANK_NAME}: {BLANK_REASON}"
+    assert body == f"{BLANK_NAME}: {BLANK_REASON}"
     # The staging area keeps the files for another build; clearing it keeps the project
     # shown (it reads the photos there) and forgets the table.
     service.clear("page")

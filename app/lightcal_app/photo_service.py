@@ -157,7 +157,7 @@ class PhotoService:
         )
         rejected = built.rejected
         if rejected:
-            body = "\n".join(f"- {p.name}: {p.reason}" for p in rejected)
+            body = "; ".join(f"{p.name}: {p.reason}" for p in rejected)
             self.notify(
                 req.client,
                 f"{len(rejected)} of {n} photos rejected",
