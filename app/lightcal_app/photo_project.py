@@ -83,6 +83,7 @@ from lightcal_app.upload_checks import (
     MAX_ZIP_MEMBERS,
     check_image_headers,
     extract_zip,
+    format_size,
     make_room,
     upload_folder,
 )
@@ -207,7 +208,11 @@ class PhotoStaging:
             make_room(self.root, len(content), keep=self._kept(area), limit=MAX_UPLOAD_FOLDER_BYTES)
             room = MAX_UPLOAD_FOLDER_BYTES - _size_of(area)
             if len(content) > room:
-                raise InputError(name, "the photos of one project are limited to 2 GB in all")
+                raise InputError(
+                    name,
+                    "the files of one new project are limited to "
+                    f"{format_size(MAX_UPLOAD_FOLDER_BYTES)} in all",
+                )
             with upload_folder(area) as incoming:
                 try:
                     if Path(name).suffix.lower() == ".zip":
