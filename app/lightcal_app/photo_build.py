@@ -50,6 +50,19 @@ Progress = Callable[[str], None]
 def build_project(
     area: Path, out_dir: Path, staged: Staged, progress: Progress, options: PhotoOptions
 ) -> PhotoBuild:
+    """Build the project of the staging area `area` into `out_dir` (an empty folder of it).
+
+    Args:
+        area: the staging area's folder (its layout: the `*_DIR` names above).
+        out_dir: where the project, its masks and a calibrated camera file go.
+        staged: what the area holds (complete: `staged.missing` is empty).
+        progress: told each step.
+        options: `lightcal init`'s choices besides the files.
+
+    Raises:
+        InputError: the chessboard photos give no intrinsics, no wall photo is usable, or
+            the initial guess is behind the wall (named as the page knows them).
+    """
     if staged.camera is not None:
         camera_path = area / CAMERA_DIR / staged.camera
         camera = CameraSource(staged.camera)
