@@ -38,7 +38,7 @@ ALLOWED: dict[str, frozenset[str]] = {
     "report": frozenset({"base", "core", "io", "pipeline"}),
     "resources": frozenset({"base", "io"}),
     "warmup": frozenset({"base", "core", "io", "synthetic", "pipeline", "report"}),
-    "app": frozenset({"base", "core", "io", "pipeline", "report", "resources"}),
+    "app": frozenset({"base", "core", "io", "capture", "pipeline", "report", "resources"}),
     "cli": frozenset(
         {
             "base",

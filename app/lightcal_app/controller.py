@@ -19,6 +19,7 @@ from lightcal_app import requests as rq
 from lightcal_app.actions import Actions
 from lightcal_app.files_service import FilesService
 from lightcal_app.overlays import OverlayImages
+from lightcal_app.photo_service import PhotoService
 from lightcal_app.plan_service import PlanService
 from lightcal_app.redraw import Redrawer
 from lightcal_app.scene3d import Scene3D
@@ -76,6 +77,8 @@ class Controller(Actions):
             upload_limit_bytes=upload_limit_bytes,
         )
         self.plan = PlanService(state, self.solve, notify=self.notify, say=self._show_work)
+        # A new project from photos (the Files tab's "New project from photos").
+        self.photos = PhotoService(self.files, notify=self.notify, show_work=self._show_work)
         self.startup_notes: list[tuple[str, str]] = []
         solve, files, plan = self.solve, self.files, self.plan
         self.worker = Worker(
@@ -93,6 +96,7 @@ class Controller(Actions):
                 rq.ApplySession: files.apply_session,
                 rq.SwitchProject: files.switch_project,
                 rq.PlanViews: plan.plan,
+                rq.BuildPhotoProject: self.photos.build,
             },
             redraw=self.redrawer.redraw,
             notify=self.notify,

@@ -104,13 +104,16 @@ class FilesService:
 
     # ------------------------------------------------------------------ uploads
 
-    def _place(self) -> Place:
-        """Where uploads go; the folders the project shown reads from stay."""
+    def kept_folders(self) -> tuple[Path, ...]:
+        """The folders the project shown reads from (never removed to make room)."""
         with self.state.lock:
             project = self.state.project
         folder = project.folder
-        keep = [folder] + [(folder / p).parent for _, p in project_paths(project.spec)]
-        return Place(self.upload_root, self.upload_limit, tuple(keep))
+        return (folder, *((folder / p).parent for _, p in project_paths(project.spec)))
+
+    def _place(self) -> Place:
+        """Where uploads go; the folders the project shown reads from stay."""
+        return Place(self.upload_root, self.upload_limit, self.kept_folders())
 
     def _upload(self, name: str, client: Any, receive: Callable[[], SwitchProject]) -> None:
         try:

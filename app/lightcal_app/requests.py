@@ -105,6 +105,17 @@ class SwitchProject(FromBrowser):
     note: str = ""
 
 
+@dataclass(frozen=True)
+class BuildPhotoProject(FromBrowser):
+    """Build a project from the photos received (`lightcal_app.photo_project`) and show it.
+
+    `half_angle_deg` is used without a light file; `initial_position_m` is the light's
+    initial guess in the camera frame, m."""
+
+    half_angle_deg: float | None = None
+    initial_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 Request = (
     SetupChanged
     | Solve
@@ -118,6 +129,7 @@ Request = (
     | ApplySession
     | SwitchProject
     | PlanViews
+    | BuildPhotoProject
 )
 
 MERGED: frozenset[type] = frozenset((SetupChanged,))
@@ -155,6 +167,7 @@ _WORK: dict[type, str] = {
     ApplySession: "restoring the session",
     SwitchProject: "loading the project",
     PlanViews: "planning the next views",
+    BuildPhotoProject: "building the project from the photos",
 }
 
 

@@ -297,9 +297,7 @@ class SolveService:
             if self.follow_iterations and st.history:
                 # Run's readable pace: the page shows the previous iteration at least
                 # min_iteration_s before this one (a reset or closing ends the wait).
-                left = pace_wait_s(
-                    running, st.min_iteration_s, time.monotonic() - self._shown_at
-                )
+                left = pace_wait_s(running, st.min_iteration_s, time.monotonic() - self._shown_at)
                 if left > 0:
                     st.cond.wait_for(lambda: st.session_gen != gen or st.closing, timeout=left)
             if st.session_gen != gen:

@@ -2,7 +2,9 @@
 
 - Zips: at most `MAX_ZIP_MEMBERS` files and `MAX_UNPACKED_BYTES` unpacked (each
   member's bytes are counted as they are written, not taken from the zip's directory),
-  relative paths only, and a project file among them, all checked before extraction.
+  relative paths only, and (`unpack_zip`) a project file among them, all checked before
+  extraction; `extract_zip` makes the same checks on a zip of any files (the photos of a
+  new project, `lightcal_app.photo_project`).
 - Confinement: every file a project names (camera, images, masks, RID files, sensor
   maps) must be a relative path that stays inside the upload's folder; absolute and
   escaping paths are refused before any of those files is read.
@@ -128,33 +130,77 @@ def unpack_zip(
     Returns:
         the project file's path in `folder`.
     """
+    with _open_zip(name, content) as zf:
+        members, paths = _checked_members(zf, name, max_members)
+        project = project_member(paths, name)
+        _extract(zf, members, paths, name, folder, max_bytes)
+    return folder.joinpath(*project.parts)
+
+
+def extract_zip(
+    name: str,
+    content: bytes,
+    folder: Path,
+    *,
+    max_bytes: int = MAX_UNPACKED_BYTES,
+    max_members: int = MAX_ZIP_MEMBERS,
+) -> list[Path]:
+    """Extract any zip into `folder` with the checks of `unpack_zip` (paths, member count,
+    bytes written), without asking for a project file.
+
+    Returns:
+        the extracted files, in the zip's order.
+    """
+    with _open_zip(name, content) as zf:
+        members, paths = _checked_members(zf, name, max_members)
+        return _extract(zf, members, paths, name, folder, max_bytes)
+
+
+def _open_zip(name: str, content: bytes) -> zipfile.ZipFile:
     try:
-        zf = zipfile.ZipFile(io.BytesIO(content))
+        return zipfile.ZipFile(io.BytesIO(content))
     except zipfile.BadZipFile as exc:
         raise InputError(name, "not a valid zip file") from exc
-    with zf:
-        members = [m for m in zf.infolist() if not m.is_dir()]
-        if len(members) > max_members:
-            raise InputError(name, f"the zip holds {len(members)} files; at most {max_members}")
-        paths = [_safe_member(m.filename, name) for m in members]
-        project = project_member(paths, name)
-        declared = sum(m.file_size for m in members)
-        if declared > max_bytes:
-            raise InputError(name, _too_big(declared, max_bytes))
-        written = 0
-        for m, rel in zip(members, paths, strict=True):
-            target = folder.joinpath(*rel.parts)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            try:
-                with zf.open(m) as src, target.open("wb") as dst:
-                    while chunk := src.read(1 << 20):
-                        written += len(chunk)
-                        if written > max_bytes:
-                            raise InputError(name, _too_big(written, max_bytes))
-                        dst.write(chunk)
-            except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
-                raise InputError(name, f"{m.filename}: cannot be unpacked") from exc
-    return folder.joinpath(*project.parts)
+
+
+def _checked_members(
+    zf: zipfile.ZipFile, name: str, max_members: int
+) -> tuple[list[zipfile.ZipInfo], list[PurePosixPath]]:
+    """The zip's files (folders left out) and their checked relative paths."""
+    members = [m for m in zf.infolist() if not m.is_dir()]
+    if len(members) > max_members:
+        raise InputError(name, f"the zip holds {len(members)} files; at most {max_members}")
+    return members, [_safe_member(m.filename, name) for m in members]
+
+
+def _extract(
+    zf: zipfile.ZipFile,
+    members: list[zipfile.ZipInfo],
+    paths: list[PurePosixPath],
+    name: str,
+    folder: Path,
+    max_bytes: int,
+) -> list[Path]:
+    """Write the members under `folder`, counting the bytes as they are written."""
+    declared = sum(m.file_size for m in members)
+    if declared > max_bytes:
+        raise InputError(name, _too_big(declared, max_bytes))
+    written = 0
+    out: list[Path] = []
+    for m, rel in zip(members, paths, strict=True):
+        target = folder.joinpath(*rel.parts)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            with zf.open(m) as src, target.open("wb") as dst:
+                while chunk := src.read(1 << 20):
+                    written += len(chunk)
+                    if written > max_bytes:
+                        raise InputError(name, _too_big(written, max_bytes))
+                    dst.write(chunk)
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
+            raise InputError(name, f"{m.filename}: cannot be unpacked") from exc
+        out.append(target)
+    return out
 
 
 def _too_big(n: int, limit: int) -> str:

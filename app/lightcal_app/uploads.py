@@ -15,6 +15,7 @@ the upload folder with absolute paths.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,11 +99,11 @@ def receive_project(name: str, content: bytes, place: Place) -> tuple[Project, L
             check_image_headers(project.image_paths, name)
             loaded = load_images(project)
         except InputError as exc:
-            raise InputError(name, _relative_message(exc, folder, name)) from exc
+            raise InputError(name, relative_message(exc, folder, name)) from exc
     return project, loaded
 
 
-def _relative_message(exc: InputError, folder: Path, name: str) -> str:
+def relative_message(exc: InputError, folder: Path, name: str) -> str:
     """The reader's message with the upload folder left out (and the upload's own name
     once: the caller puts it in front)."""
     text = str(exc).replace(str(folder.resolve()) + "/", "").replace(str(folder) + "/", "")
@@ -140,6 +141,23 @@ def _file_name(name: str, suffix: str) -> str:
     return base if base not in ("", ".", "..") else f"upload{suffix}"
 
 
+_UNSAFE_CHARACTERS = re.compile(r"[^A-Za-z0-9._+-]")
+MAX_NAME_CHARACTERS = 120
+
+
+def safe_file_name(name: str, suffix: str = "") -> str:
+    """The uploaded file's own name made safe to store: no folder, only letters, digits and
+    `._+-` (anything else becomes `_`), no leading dot (hidden files are skipped by the
+    readers of a folder), at most `MAX_NAME_CHARACTERS` with its suffix kept."""
+    base = _UNSAFE_CHARACTERS.sub("_", _file_name(name, suffix))
+    if base.startswith("."):
+        base = "_" + base[1:]
+    if len(base) > MAX_NAME_CHARACTERS:
+        ext = Path(base).suffix[:20]
+        base = base[: MAX_NAME_CHARACTERS - len(ext)] + ext
+    return base
+
+
 def _with_upload(
     name: str,
     content: bytes,
@@ -162,7 +180,7 @@ def _with_upload(
             new = project_from_spec(spec, new_path)
             return new, load_images(new)
         except InputError as exc:
-            raise InputError(name, _relative_message(exc, folder, name)) from exc
+            raise InputError(name, relative_message(exc, folder, name)) from exc
 
 
 def receive_rid(

@@ -1,5 +1,6 @@
-"""The Files tab: sessions (save, reload, upload) and uploads of a project, an image or
-a light's RID file. The files themselves are handled by `FilesService`."""
+"""The Files tab: sessions (save, reload, upload), uploads of a project, an image or a
+light's RID file, and a new project from photos (`lightcal_app.panels.photos`). The files
+themselves are handled by `FilesService` (and `PhotoService`)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.panels.photos import PhotosPanel
 from lightcal_app.text import md
 from lightcal_app.upload_checks import format_size
 
@@ -53,6 +55,8 @@ class FilesPanel(TabPanel):
         names = [u.initial.name for u in ctl.state.project.lights]
         self.rid_light = gui.add_dropdown("RID file for light", names, initial_value=names[0])
         self.upload_rid = gui.add_upload_button("Upload an IES/LDT file", mime_type=".ies,.ldt")
+        with gui.add_folder("New project from photos"):
+            self.photos = PhotosPanel(server, ctl, flag)
         self.save_session.on_click(lambda e: ctl.save_session(e.client))
         self.reload_session.on_click(lambda e: ctl.load_saved_session(e.client))
         self._on_upload(self.upload_session, files.upload_session)
