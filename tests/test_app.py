@@ -826,11 +826,15 @@ def test_demo_mode_shows_the_true_light(synthetic: SyntheticProject, tmp_path: P
 
 
 def test_explanation_panel_has_pictures() -> None:
-    from lightcal_app.explain import SECTIONS, load_figure
+    from lightcal_app.explain import PROJECT_FIGURES, SECTIONS, load_figure
 
+    from lightcal.io.project import load_project
+
+    project = load_project(Path(__file__).resolve().parents[1] / "sample_data" / "project.json")
     for _, _, figure in SECTIONS:
         assert figure is not None
-        img = load_figure(figure)
+        drawn = PROJECT_FIGURES.get(figure)  # drawn from the project shown
+        img = drawn(project) if drawn is not None else load_figure(figure)
         assert img is not None and img.ndim == 3 and img.shape[2] == 3
 
 

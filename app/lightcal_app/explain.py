@@ -2,7 +2,8 @@
 
 The pictures are PNGs in the repository's `static/` folder, drawn by
 `static/make_figures.py` (NumPy and OpenCV only). A missing picture is replaced by a
-line saying how to draw it.
+line saying how to draw it. Two are drawn from the project shown (`PROJECT_FIGURES`): its
+lights' profiles and its views' distances and tilts.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from lightcal.io.figures import profile_figure
+from lightcal.io.figures import profile_figure, views_figure
 from lightcal.io.project import Project
 from lightcal.resources import data_folder
 
@@ -57,6 +58,15 @@ SECTIONS: tuple[tuple[str, str, str | None], ...] = (
         "show where it is half (half-intensity angle) and 1 % (cut-off). A profile can come "
         "from a formula, a table, or an IES/LDT file (Files tab).",
         "rid.png",
+    ),
+    (
+        "Your views",
+        "Each dot is one photo of this project: how far its camera was from the wall and how "
+        "far its optical axis tilted from the wall's normal. A spread in both is what pins "
+        "the light down (one distance and one angle leave the position along the light's "
+        "axis and its brightness entangled); the **Plan** tab suggests the views that add "
+        "most.",
+        "views",
     ),
     (
         "Fitting",
@@ -110,19 +120,42 @@ def project_rid_figure(project: Project) -> np.ndarray:
     )
 
 
-def add_explanation(gui: Any, project: Project | None = None) -> Any:
+def view_geometry(project: Project) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) each view's distance from the wall (m, its camera centre's z) and (N,) the tilt
+    of its optical axis from the wall's normal (deg)."""
+    distance = np.array([float(v.center_world[2]) for v in project.views])
+    # The optical axis in the world is the third row of R_camera_world; the camera looks
+    # towards -z (the wall's normal points at the cameras).
+    axis_z = np.array([float(v.R_camera_world[2, 2]) for v in project.views])
+    return distance, np.degrees(np.arccos(np.clip(-axis_z, -1.0, 1.0)))
+
+
+def project_views_figure(project: Project) -> np.ndarray:
+    """(H, W, 3) the project's views as distance against tilt (`view_geometry`), at the
+    panel's scale (600 pixels shown in about 360)."""
+    distance, tilt = view_geometry(project)
+    return views_figure(distance, tilt, project.names, title="this project's views")
+
+
+PROJECT_FIGURES = {"rid.png": project_rid_figure, "views": project_views_figure}
+"""The sections' figures drawn from the project shown, by their SECTIONS key."""
+
+
+def add_explanation(gui: Any, project: Project | None = None) -> dict[str, Any]:
     """Add the explanation's folders to the current GUI container; with `project`, the
-    RID section shows that project's lights (`project_rid_figure`).
+    figures of `PROJECT_FIGURES` show that project (its lights, its views).
 
     Returns:
-        the RID section's image handle (None without a project), for `set_project`.
+        those figures' image handles by key (none without a project), for `set_project`.
     """
-    rid_image = None
+    handles: dict[str, Any] = {}
     for k, (title, body, figure) in enumerate(SECTIONS):
         with gui.add_folder(title, expand_by_default=k == 0):
             gui.add_markdown(body)
-            if figure == "rid.png" and project is not None:
-                rid_image = gui.add_image(project_rid_figure(project), format="png")
+            if figure in PROJECT_FIGURES:
+                if project is not None:
+                    drawn = PROJECT_FIGURES[figure](project)
+                    handles[figure] = gui.add_image(drawn, format="png")
             elif figure is not None:
                 rgb = load_figure(figure)
                 if rgb is None:
@@ -131,4 +164,4 @@ def add_explanation(gui: Any, project: Project | None = None) -> Any:
                     )
                 else:
                     gui.add_image(rgb, format="png")
-    return rid_image
+    return handles

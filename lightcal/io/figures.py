@@ -395,3 +395,75 @@ def profile_figure(
         )
         pen.text(fig, label, (x, y), _TICK_TEXT, "right")
     return fig
+
+
+def views_figure(
+    distances_m: ArrayLike,
+    tilts_deg: ArrayLike,
+    names: Sequence[str],
+    *,
+    title: str = "the views: distance and tilt",
+    size: tuple[int, int] = (300, 210),
+    scale: float = PRINT_SCALE,
+) -> np.ndarray:
+    """One dot per image: its distance from the wall (m) against the tilt of its optical
+    axis from the wall's normal (deg), named when there are at most 12.
+
+    Args:
+        distances_m, tilts_deg: (N,) per image.
+        names: N image names.
+        size: layout points (text 9-10 points whatever the size).
+    """
+    d = np.asarray(distances_m, dtype=np.float64)
+    t = np.asarray(tilts_deg, dtype=np.float64)
+    pen = _Pen(scale)
+    w, h = pen.px(size[0]), pen.px(size[1])
+    fig = pen.canvas(h, w)
+    pen.text(fig, title, (pen.px(56), pen.px(16)), _LABEL_TEXT)
+    x_ticks = nice_ticks(0.0, max(float(d.max(initial=0.0)) * 1.1, 0.5), 4)
+    y_ticks = nice_ticks(0.0, max(float(t.max(initial=0.0)) * 1.15, 10.0), 4)
+    ax = _Axes(
+        pen.px(56),
+        pen.px(26),
+        w - pen.px(12),
+        h - pen.px(48),
+        (0.0, x_ticks[-1]),
+        (0.0, y_ticks[-1]),
+    )
+    _draw_axes(
+        fig,
+        pen,
+        ax,
+        x_ticks=x_ticks,
+        x_format="g",
+        y_ticks=[(v, f"{v:g}") for v in y_ticks],
+        x_label="distance from the wall (m)",
+        y_label="tilt (deg)",
+    )
+    dots = [ax.xy(x, y) for x, y in zip(d.tolist(), t.tolist(), strict=True)]
+    r = pen.px(3.5)
+    taken = [(p[0] - r, p[1] - r, p[0] + r, p[1] + r) for p in dots]
+    for p in dots:
+        cv2.circle(fig, p, r, _DOT, -1, cv2.LINE_AA)
+    if len(names) <= 12:
+        # Each name where it overlaps no dot and no name placed before (else none).
+        for p, name in zip(dots, names, strict=True):
+            text = str(name)[:10]
+            tw, th = pen.text_size(text, _NAME_TEXT)
+            for dx, dy in ((1, -1), (1, 1), (-1, -1), (-1, 1)):
+                x0 = p[0] + pen.px(5) if dx > 0 else p[0] - pen.px(5) - tw
+                y1 = p[1] - pen.px(4) if dy < 0 else p[1] + pen.px(4) + th
+                box = (x0, y1 - th, x0 + tw, y1)
+                inside = box[0] >= ax.left and box[2] <= w and box[1] >= ax.top
+                if inside and not any(_overlap(box, o) for o in taken):
+                    pen.text(fig, text, (x0, y1), _NAME_TEXT)
+                    taken.append(box)
+                    break
+    return fig
+
+
+_NAME_TEXT = 0.38
+
+
+def _overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]

@@ -11,7 +11,7 @@ import viser
 
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
-from lightcal_app.explain import add_explanation, project_rid_figure
+from lightcal_app.explain import PROJECT_FIGURES, add_explanation
 from lightcal_app.panels.base import Programmatic, assign
 from lightcal_app.panels.files import FilesPanel
 from lightcal_app.panels.light import LightPanel, pose_angles_deg, rotation_from_angles_deg
@@ -70,7 +70,8 @@ class Panels:
         with self.tabs.add_tab("Files", viser.Icon.FILE):
             self.files = FilesPanel(server, controller, flag)
         with self.tabs.add_tab("Explain", viser.Icon.HELP):
-            self.rid_figure = add_explanation(gui, controller.state.project)
+            self.explain_figures = add_explanation(gui, controller.state.project)
+        self.rid_figure = self.explain_figures.get("rid.png")
         self.messages_md = gui.add_markdown("")
         self._messages_shown: str | None = None
 
@@ -87,8 +88,8 @@ class Panels:
             self.pixels.set_project(project)
             self.view.set_project(project)
             self.files.set_project(project)
-            if self.rid_figure is not None:
-                self.rid_figure.image = project_rid_figure(project)
+            for key, handle in self.explain_figures.items():
+                handle.image = PROJECT_FIGURES[key](project)
 
     def update(
         self, frame: Frame, *, legend_vmax: float | None, messages: list[tuple[str, str]]
