@@ -35,14 +35,24 @@ if [ ! -x .venv/bin/python ]; then
   .venv/bin/python -m pip install -q --upgrade pip
 fi
 
-spec="."
-[ -n "$extras" ] && spec=".[$extras]"
+# The stamp holds pyproject.toml's hash and the extras installed with it: the app's
+# set-up after the tests' (fewer extras) installs nothing, and neither drops the other's.
 stamp=".venv/.lightcal-installed"
-want="$(sha256sum pyproject.toml | cut -c1-16) $spec"
-if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+hash="$(sha256sum pyproject.toml | cut -c1-16)"
+have_hash="" have_extras=""
+if [ -f "$stamp" ]; then read -r have_hash have_extras < "$stamp" || true; fi
+have_extras="${have_extras#.}" && have_extras="${have_extras#[}" && have_extras="${have_extras%]}"
+[ "$have_hash" = "$hash" ] || have_extras=""
+union="$have_extras"
+for e in ${extras//,/ }; do
+  case ",$union," in *",$e,"*) ;; *) union="${union:+$union,}$e" ;; esac
+done
+if [ "$have_hash" != "$hash" ] || [ "$union" != "$have_extras" ]; then
+  spec="."
+  [ -n "$union" ] && spec=".[$union]"
   echo "setup: pip install -e '$spec'"
   .venv/bin/python -m pip install -q -e "$spec"
-  echo "$want" > "$stamp"
+  echo "$hash $union" > "$stamp"
 fi
 
 # Byte-compile lightcal's own modules (an editable install leaves them as sources; a
