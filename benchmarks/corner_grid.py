@@ -21,7 +21,8 @@ Per camera and round, alternately: "old", the kernel before issue 12 (`old_corne
 below, kept here as the baseline: `undistort_normalized` from the distorted point for
 every corner) and "new" (`corner_grid`: each corner seeded from its solved neighbours,
 one or two Newton steps). Both allocate their outputs, as a first render does. Wall
-seconds (the kernels run on numba's threads), median over the rounds; compilation is
+seconds (the kernels run on numba's threads) and CPU seconds (all threads: less
+disturbed by other work on the machine), medians over the rounds; compilation is
 excluded (both run once on a tiny camera first). Printed beside them: old / new, the
 largest round-trip error of the new grid over every corner (distort the undistorted
 corner, apply K, compare with its pixel (i - 1/2, j - 1/2)), the largest difference to
@@ -142,19 +143,20 @@ def round_trip_px(camera: Camera, grid_xy: np.ndarray, grid_ok: np.ndarray) -> f
 
 def measure(camera: Camera, rounds: int) -> dict[str, Any]:
     """Old and new cold grids of `camera`, alternately; accuracy of the last new one."""
-    times: dict[str, list[float]] = {"old": [], "new": []}
+    times: dict[str, list[float]] = {"old": [], "new": [], "old_cpu": [], "new_cpu": []}
     grids: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for _ in range(rounds):
         for name, build in (("old", old_corner_grid), ("new", corner_grid)):
             grids.pop(name, None)  # its memory goes back before the next allocation
             t = time.perf_counter()
+            cpu = time.process_time()
             grids[name] = build(camera)
             times[name].append(time.perf_counter() - t)
+            times[f"{name}_cpu"].append(time.process_time() - cpu)
     (old_xy, old_ok), (new_xy, new_ok) = grids["old"], grids["new"]
     both = old_ok & new_ok
     return {
-        "old_s": statistics.median(times["old"]),
-        "new_s": statistics.median(times["new"]),
+        **{f"{key}_s": statistics.median(values) for key, values in times.items()},
         "round_trip_px": round_trip_px(camera, new_xy, new_ok),
         "max_diff": float(np.abs(new_xy[both] - old_xy[both]).max(initial=0.0)),
         "flags_differ": int(np.count_nonzero(old_ok != new_ok)),
@@ -180,16 +182,17 @@ def main() -> None:
     )
     print(f"first touch of a fresh grid's memory (both pay it once per process): {touch:.3f} s")
     header = (
-        f"{'camera':8} {'old s':>7} {'new s':>7} {'old/new':>8} {'round trip px':>14} "
-        f"{'max |new-old|':>14} {'flags differ':>13} {'failed':>8}"
+        f"{'camera':8} {'old s':>7} {'new s':>7} {'old/new':>8} {'old CPU s':>10} "
+        f"{'new CPU s':>10} {'round trip px':>14} {'max |new-old|':>14} {'flags differ':>13} "
+        f"{'failed':>8}"
     )
     print(header)
     for name, camera in cameras(args.width, args.height).items():
         r = measure(camera, args.rounds)
         print(
             f"{name:8} {r['old_s']:7.3f} {r['new_s']:7.3f} {r['old_s'] / r['new_s']:7.1f}x "
-            f"{r['round_trip_px']:14.2e} {r['max_diff']:14.2e} {r['flags_differ']:13d} "
-            f"{r['failed']:8d}"
+            f"{r['old_cpu_s']:10.3f} {r['new_cpu_s']:10.3f} {r['round_trip_px']:14.2e} "
+            f"{r['max_diff']:14.2e} {r['flags_differ']:13d} {r['failed']:8d}"
         )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
