@@ -11,13 +11,14 @@ extrapolation of the three corners above polishes it to round-off, in vectorised
 where `undistort_normalized` (what `Camera.pixels_to_normalized` runs per point) needs
 ~8-10 damped steps from the distorted point. The corners agree with
 `Camera.pixels_to_normalized`'s to round-off (not bit for bit: ~1e-15 in normalised
-coordinates, tests hold them to 1e-12) and map back to their pixels within `PIXEL_TOL`
-(1e-9 px; ~1e-12 px in practice). `grid_ok` is exactly `pixels_to_normalized`'s
-validity: a neighbour-seeded root is kept only inside the disc where the map is
-one-to-one with margin (`_safe_radius2`), where it is the root `undistort_normalized`
-finds; every other corner (past or near the fold of a strong distortion, next to a
-failed corner, or slow to converge) is solved by `undistort_normalized` itself, which
-decides whether it fails.
+coordinates, tests hold them to 1e-12). A neighbour-seeded corner is kept only at
+`undistort_normalized`'s residual tolerance and within `PIXEL_TOL` (1e-9 px) of its
+pixel (~1e-12 px in practice; tests hold every corner to 1e-9 px). `grid_ok` is exactly
+`pixels_to_normalized`'s validity: a neighbour-seeded root is kept only inside the disc
+where the map is one-to-one with margin (`_safe_radius2`), where it is the root
+`undistort_normalized` finds; every other corner (past or near the fold of a strong
+distortion, next to a failed corner, or slow to converge) is solved by
+`undistort_normalized` itself, bit for bit as before, which decides whether it fails.
 """
 
 from __future__ import annotations
