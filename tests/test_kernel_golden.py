@@ -8,6 +8,12 @@ are compared so through their exact interpolation (`RID.exact_data`, what was re
 rendered from their grids (`lightcal.core.rid_tabulate`, what lightcal renders with) they
 stay within GRID_RTOL of the recorded values and GRID_GRAD_RTOL of the gradients' norms
 (measured: 4.3e-5 and 6.7e-3, the 2-D table's; the symmetric table's 7.3e-8 and 8.8e-5).
+
+The images of the high-resolution crop (`image__crop_*`) are held to CROP_RTOL: since
+issue 12 the corner grid is no longer bit for bit `pixels_to_normalized` (round-off apart:
+both stop at a residual of 1e-15 relative, so corners may differ by ~4e-15 in normalised
+coordinates, 2e-11 of a crop pixel 1/5400 wide), and a `paper` value scales with its
+footprint's area (measured: 2.0e-12 for `image__crop_paper`, 1.8e-15 for the others).
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ import pytest
 from tests.make_kernel_golden import PATH, cases
 
 RTOL = 1e-12
+CROP_RTOL = 5e-11
 GRID_RTOL = 1e-4
 GRID_GRAD_RTOL = 1.5e-2
 
@@ -55,7 +62,8 @@ def test_values_match_the_recorded_ones(
         np.testing.assert_array_equal(np.isnan(got), np.isnan(expected), err_msg=key)
         ok = ~np.isnan(expected)
         assert np.count_nonzero(expected[ok]) > 0, key
-        np.testing.assert_allclose(got[ok], expected[ok], rtol=RTOL, atol=0.0, err_msg=key)
+        rtol = CROP_RTOL if key.startswith("image__crop_") else RTOL
+        np.testing.assert_allclose(got[ok], expected[ok], rtol=rtol, atol=0.0, err_msg=key)
 
 
 def test_gradients_match_the_recorded_ones(

@@ -445,8 +445,10 @@ def test_flux_pixels_fast_gradient_matches_finite_differences(rid_name: str) -> 
 # --- the corner grid -------------------------------------------------------------------
 
 
-def test_corner_grid_is_bit_identical_to_pixels_to_normalized() -> None:
+def test_corner_grid_matches_pixels_to_normalized() -> None:
     # Strong barrel distortion: the outer corners fall outside the model's valid region.
+    # The same corners fail; the others agree to 1e-12 in normalised coordinates (the
+    # grid's stated accuracy; not bit for bit since issue 12, tests/test_corner_grid.py).
     camera = Camera.from_params(
         fx=30.0,
         fy=31.0,
@@ -464,7 +466,8 @@ def test_corner_grid_is_bit_identical_to_pixels_to_normalized() -> None:
     np.testing.assert_array_equal(grid_ok, ok.reshape(31, 41))
     assert 0 < np.count_nonzero(~grid_ok) < grid_ok.size
     expected = np.where(ok[:, None], xy, 0.0).reshape(31, 41, 2)
-    np.testing.assert_array_equal(grid_xy, expected)
+    np.testing.assert_allclose(grid_xy, expected, rtol=0.0, atol=1e-12)
+    assert np.all(grid_xy[~grid_ok] == 0.0)
 
 
 # --- the fused image kernel ----------------------------------------------------------

@@ -22,10 +22,13 @@ the value of one big pixel. `paper` values of a super-pixel are the mean of its 
 The work is one parallel compiled pass (`footprint_kernels`) that writes the outputs
 directly. A dense selection reads its corners from the camera's cached corner grid
 (`corner_grid`, built once per camera); a sparse one undistorts its own corners. Both give
-the same numbers, bit for bit. A sparse selection keeps its quads (96 bytes each); a dense
-one does not (for 9.5 M pixels that was 0.9 GB): its `Footprints` hold the grid and the
-view (`GridCorners`), and the kernels that need the quads recompute them from there per
-block of pixels (a wall intersection per corner, cheap beside the flux it feeds).
+the same valid pixels and, from the same corners, the same arithmetic; the grid's corners
+agree with the direct undistortion to round-off (~1e-15 in normalised coordinates, not bit
+for bit: the grid seeds each corner from its neighbours). A sparse selection keeps its
+quads (96 bytes each); a dense one does not (for 9.5 M pixels that was 0.9 GB): its
+`Footprints` hold the grid and the view (`GridCorners`), and the kernels that need the
+quads recompute them from there per block of pixels (a wall intersection per corner, cheap
+beside the flux it feeds).
 """
 
 from __future__ import annotations
@@ -300,12 +303,14 @@ def _corner_grid_for(camera: Camera, n_pixels: int, binning: int) -> CornerGrid 
 
     A cached grid always pays (a look-up is ~10x cheaper than an undistortion). Otherwise
     the direct path undistorts the (b+1)^2 corners of each of the n_pixels super-pixels,
-    the grid (H+1)(W+1) corners at about the same cost per corner, once per camera (it is
-    cached for the next views). It is built when the selection's corners number at least
-    `GRID_MIN_CORNER_SHARE` of the grid's: the first call then costs at most ~2x the
-    direct path, the following views of the camera are ~4x cheaper (every pixel of a
+    the grid (H+1)(W+1) corners once per camera (it is cached for the next views). It is
+    built when the selection's corners number at least `GRID_MIN_CORNER_SHARE` of the
+    grid's: the following views of the camera are then ~4x cheaper (every pixel of a
     binning-1 image: 0.04 s instead of 0.4 s of CPU for 375,000 pixels); a sparse
-    selection on a large sensor undistorts only its own corners.
+    selection on a large sensor undistorts only its own corners. (The share was set when
+    the grid cost about as much per corner as the direct path; since issue 12 a grid
+    corner is ~20x cheaper, so the first call with the grid costs well under the direct
+    path's.)
     """
     grid = GRID_CACHE.lookup(camera)
     n_corners = n_pixels * (binning + 1) ** 2

@@ -11,7 +11,8 @@ operation, so that the results are the same to the last bit (with NumPy 2.4 and 
 OpenBLAS; the order of a sum or an FMA only ever moves the last bit):
 
 - corner (u_c, v_c): yd = (v_c - cy) / fy, xd = (u_c - cx - s yd) / fx, undistorted by
-  `undistort_normalized` (`Camera.pixels_to_normalized`, `corner_grid`);
+  `undistort_normalized` (`Camera.pixels_to_normalized`), or read from the `corner_grid`
+  (the same roots to round-off, not bit for bit: the reference is then fed the grid's);
 - ray d = R^T (x, y, 1) rounded as `(N, 3) @ (3, 3)` does in OpenBLAS's FMA kernels:
   d_k = fl(fma(y, R[1, k], fl(x R[0, k])) + R[2, k]);
 - wall point C + lambda d, lambda = -C_z / d_z, hit when undistorted, d_z < 0 and
