@@ -89,6 +89,21 @@ def ray_hit(
         parameter in units of |direction|, or None when the ray misses the picture (or
         runs parallel to it, or meets it behind the origin).
     """
+    hit = _plane_point(plane, origin_world, direction_world)
+    if hit is None:
+        return None
+    x, y, t = hit
+    if abs(x) > plane.half_width_m or abs(y) > plane.half_height_m:
+        return None
+    u, v = _pixel_of(plane, x, y)
+    return u, v, t
+
+
+def _plane_point(
+    plane: FrustumPlane, origin_world: np.ndarray, direction_world: np.ndarray
+) -> tuple[float, float, float] | None:
+    """(x, y) in the picture's plane (camera frame, m) where the ray meets it, and the
+    ray parameter t > 0; None when parallel to it or behind the origin."""
     R = plane.R_world_camera
     o = R.T @ (np.asarray(origin_world, dtype=np.float64) - plane.center_world)
     d = R.T @ np.asarray(direction_world, dtype=np.float64)
@@ -97,30 +112,23 @@ def ray_hit(
     t = (plane.depth_m - o[2]) / d[2]
     if t <= 0.0:
         return None
-    x, y = o[0] + t * d[0], o[1] + t * d[1]
-    if abs(x) > plane.half_width_m or abs(y) > plane.half_height_m:
-        return None
+    return float(o[0] + t * d[0]), float(o[1] + t * d[1]), float(t)
+
+
+def _pixel_of(plane: FrustumPlane, x: float, y: float) -> tuple[float, float]:
+    """Full-resolution pixel coordinates of the plane point (x, y) (pixel centres at
+    integers)."""
     u = (x / plane.half_width_m + 1.0) * 0.5 * plane.width_px - 0.5
     v = (y / plane.half_height_m + 1.0) * 0.5 * plane.height_px - 0.5
-    return float(u), float(v), float(t)
+    return float(u), float(v)
 
 
 def plane_hit_unbounded(
     plane: FrustumPlane, origin_world: np.ndarray, direction_world: np.ndarray
 ) -> tuple[float, float] | None:
     """Pixel coordinates where a ray meets the picture's plane (may lie off the picture)."""
-    R = plane.R_world_camera
-    o = R.T @ (np.asarray(origin_world, dtype=np.float64) - plane.center_world)
-    d = R.T @ np.asarray(direction_world, dtype=np.float64)
-    if abs(d[2]) < 1e-12:
-        return None
-    t = (plane.depth_m - o[2]) / d[2]
-    if t <= 0.0:
-        return None
-    x, y = o[0] + t * d[0], o[1] + t * d[1]
-    u = (x / plane.half_width_m + 1.0) * 0.5 * plane.width_px - 0.5
-    v = (y / plane.half_height_m + 1.0) * 0.5 * plane.height_px - 0.5
-    return float(u), float(v)
+    hit = _plane_point(plane, origin_world, direction_world)
+    return None if hit is None else _pixel_of(plane, hit[0], hit[1])
 
 
 def pick(
