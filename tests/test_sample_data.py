@@ -92,6 +92,10 @@ def test_intrinsics_within_a_tenth_of_a_percent():
     assert np.max(np.abs(projected - pixels)) < 0.3
 
 
+POSE_REPEAT = 1e-6
+"""How closely a marker pose estimated now repeats the committed project's (rad, m)."""
+
+
 @pytest.mark.slow
 def test_marker_poses_of_the_committed_images():
     truth = _truth()
@@ -110,11 +114,13 @@ def test_marker_poses_of_the_committed_images():
             assert position_error < MAX_POSE_POSITION_M, (view["name"], kind, position_error)
             assert angle_error < MAX_POSE_ANGLE_DEG, (view["name"], kind, angle_error)
             if kind == "estimated":  # what `lightcal init` wrote
+                # To 1e-6 (rad, m): OpenCV 5's marker corner refinement moves the poses by
+                # up to 3e-8 from those OpenCV 4 wrote, against pose sigmas of ~1e-5.
                 np.testing.assert_allclose(
-                    pose.R_camera_world, project.views[i].R_camera_world, atol=1e-9
+                    pose.R_camera_world, project.views[i].R_camera_world, atol=POSE_REPEAT
                 )
                 np.testing.assert_allclose(
-                    pose.t_camera_world, project.views[i].t_camera_world, atol=1e-9
+                    pose.t_camera_world, project.views[i].t_camera_world, atol=POSE_REPEAT
                 )
                 written = project.pose_covariances[i]
                 assert written is not None

@@ -174,7 +174,7 @@ def run(venv: Path, tmp: Path, *args: str, timeout: float = 900) -> str:
 CHECK_ISOLATION = """
 import json, sys
 import lightcal, lightcal_app
-from lightcal_app.explain import SECTIONS, STATIC_DIR, load_figure
+from lightcal_app.explain import PROJECT_FIGURES, SECTIONS, STATIC_DIR, load_figure
 from lightcal.resources import sample_project_dir, sample_project_is_packaged
 print(json.dumps({
     "lightcal": lightcal.__file__,
@@ -182,7 +182,9 @@ print(json.dumps({
     "sys_path": sys.path,
     "finders": [type(f).__module__ for f in sys.meta_path],
     "static": str(STATIC_DIR),
-    "figures": [load_figure(f) is not None for _, _, f in SECTIONS if f],
+    "figures": [
+        load_figure(f) is not None for _, _, f in SECTIONS if f and f not in PROJECT_FIGURES
+    ],
     "sample": str(sample_project_dir()),
     "packaged": sample_project_is_packaged(),
 }))
