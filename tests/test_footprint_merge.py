@@ -33,12 +33,15 @@ from tests.scenes import (
     symmetric_table_rid,
 )
 
-#: Measured largest |merged / exact - 1| of a binning-4 super-pixel's value on the
-#: 1200 x 800 camera below (pixels ~0.9 mrad, 4x4 super-pixels merged into 2 x 2 quads)
-#: over both RIDs, both sensor models and both corner sources: see `test_values_...`.
-VALUE_BOUND = 2e-5
+#: Bound on |merged / exact - 1| of a binning-4 super-pixel's value on the 1200 x 800
+#: camera below (pixels ~0.9 mrad, 4 x 4 super-pixels merged into 2 x 2 quads), over both
+#: RIDs, both sensor models and both corner sources. Measured: 1.3e-6 (cos^3.7), 8.2e-7
+#: (table).
+VALUE_BOUND = 3e-6
 #: ... and of each pixel's position and rotation gradients (relative, as vectors).
-GRAD_BOUND = 5e-5
+#: Measured: position 1.7e-6 (cos^m), 9.1e-5 (table: its piecewise cubic derivative
+#: varies fastest); rotation 2.1e-5 (cos^m), 5.6e-4 (table; small near the axis).
+GRAD_BOUNDS = (2e-4, 1e-3)
 
 
 def test_quads_per_side() -> None:
@@ -101,14 +104,15 @@ def test_values_and_gradients_of_merged_quads_match_the_exact_ones(
         rel = np.abs(m.values[ok] / a.values[ok] - 1.0)
         assert rel.max() < VALUE_BOUND, (sensor, rel.max())
         print(f"{rid_name} {path} {sensor}: values {rel.max():.2e}", end="")
-        for ga, gm in ((a.grad_position, m.grad_position), (a.grad_rotation, m.grad_rotation)):
+        pairs = ((a.grad_position, m.grad_position), (a.grad_rotation, m.grad_rotation))
+        for (ga, gm), bound in zip(pairs, GRAD_BOUNDS, strict=True):
             assert ga is not None and gm is not None
             # Each pixel's gradient against its own size (a component may vanish: the
             # roll of a symmetric light).
             size = np.linalg.norm(ga[0, ok], axis=1)
             grel = np.linalg.norm(gm[0, ok] - ga[0, ok], axis=1) / size
             print(f", gradient {grel.max():.2e}", end="")
-            assert grel.max() < GRAD_BOUND
+            assert grel.max() < bound
         print()
 
 
@@ -124,25 +128,27 @@ def test_stored_and_grid_paths_of_merged_quads_agree(monkeypatch: pytest.MonkeyP
         out[path] = (fp, shade(fp, view, _rig(CosPowerRID(3.7)), want_grad=True))
     (fs, ss), (fg, sg) = out["stored"], out["grid"]
     assert fs.grid is None and fg.grid is not None
-    np.testing.assert_allclose(fg.corners_world, fs.corners_world, rtol=1e-12)
-    np.testing.assert_allclose(fg.centers_now(), fs.centers_now(), rtol=1e-12)
+    # The grid's corners and the direct undistortion's agree to round-off (metres).
+    np.testing.assert_allclose(fg.corners_world, fs.corners_world, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(fg.centers_now(), fs.centers_now(), rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(sg.values, ss.values, rtol=1e-11)
     np.testing.assert_allclose(sg.grad_position, ss.grad_position, rtol=1e-9, atol=1e-300)
 
 
 def test_solver_estimate_moves_by_under_one_percent_of_its_sigma() -> None:
     # Noisy data rendered with the exact footprints; solved once with exact and once with
-    # merged footprints of the same super-pixels (binning 4 of a 320 x 240 camera).
-    camera = cs.small_camera()
+    # merged footprints of the same super-pixels: binning 4 of the 3000 x 2000 camera of
+    # benchmarks/fullres.py (green-binned 6000 x 4000), 3000 random super-pixels a view.
+    camera = cs.small_camera(width=3000, height=2000)
     truth = cs.symmetric_light()
     rig = Rig.single(truth)
     b = 4
     rng = np.random.default_rng(12)
     images: dict[str, list[ImageData]] = {"exact": [], "merged": []}
-    pixels = np.stack(
-        np.meshgrid(np.arange(camera.width // b), np.arange(camera.height // b)), -1
-    ).reshape(-1, 2)
     for i, view in enumerate(cs.views(6)):
+        pixels = np.unique(
+            np.stack([rng.integers(0, 750, 3000), rng.integers(0, 500, 3000)], 1), axis=0
+        )
         exact = pixel_footprints(camera, view, pixels, binning=b, max_quads_per_side=None)
         values = shade(exact, view, rig).values.filled(np.nan)
         keep = exact.valid & (values > 0.05 * np.nanmax(values))
@@ -159,7 +165,9 @@ def test_solver_estimate_moves_by_under_one_percent_of_its_sigma() -> None:
         results[name] = summarise(model, run_least_squares(model)).lights[0]
     e, m = results["exact"], results["merged"]
     shift = np.abs(m.pose.t_camera_light - e.pose.t_camera_light) / e.sigma.t_camera_light
+    print(f"position shift / sigma {shift}", end="")
     assert shift.max() < 0.01, shift
     for angle in ("roll_deg", "pitch_deg"):
         d = abs(getattr(m.pose, angle) - getattr(e.pose, angle)) / getattr(e.sigma, angle)
+        print(f", {angle} {d:.2e}", end="")
         assert d < 0.01, (angle, d)

@@ -170,7 +170,11 @@ class Footprints:
         if self.stored_corners is not None:
             return self.stored_corners
         assert self.grid is not None
-        return self.grid.quads(self.pixels)
+        quads = self.grid.quads(self.pixels)
+        # Merged quads read only the groups' corners: a pixel made invalid by a member's
+        # inner corner is NaN as its kept quads are.
+        quads[~self.valid] = np.nan
+        return quads
 
     def subset(self, rows: np.ndarray | slice) -> Footprints:
         """The footprints of rows (k,) (indices, a boolean mask or a slice: views) of these
