@@ -120,7 +120,27 @@ def _reference_footprints(
     weights = np.where(valid[:, None], weights, 0.0)
     corners[~valid] = np.nan
     area = np.where(valid, area, np.nan)
+    s = footprint.quads_per_side(b)
+    if s < b:
+        corners, weights = _merged(corners, weights, b, s)
     return p, corners, weights, valid, area
+
+
+def _merged(
+    corners: np.ndarray, weights: np.ndarray, b: int, s: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Members' quads (n, b^2, 4, 3) and weights (n, b^2) merged into s x s groups of
+    g x g members (g = b / s): each group's quad the outer corners of its corner members'
+    quads, its weight the mean of its members'."""
+    n = corners.shape[0]
+    g = b // s
+    c = corners.reshape(n, s, g, s, g, 4, 3)
+    merged = np.stack(
+        [c[:, :, 0, :, 0, 0], c[:, :, 0, :, -1, 1], c[:, :, -1, :, -1, 2], c[:, :, -1, :, 0, 3]],
+        axis=3,
+    ).reshape(n, s * s, 4, 3)
+    w = weights.reshape(n, s, g, s, g).transpose(0, 1, 3, 2, 4).reshape(n, s * s, g * g)
+    return merged, w.sum(axis=2) / (g * g)
 
 
 # ---------------------------------------------------------------- scenes

@@ -4,7 +4,13 @@ A pixel (u, v) covers [u - 1/2, u + 1/2] x [v - 1/2, v + 1/2] (OpenCV: centres a
 integers). Its four corners are undistorted, turned into rays and intersected with the
 wall z = 0: the footprint quad. A pixel whose corner ray misses the wall (or fails to
 undistort) is invalid. A super-pixel of a b x b binned image is the union of its b^2
-pixels' footprints: it is represented by those b^2 quads, so its flux is exact.
+pixels' footprints. Up to `MAX_QUADS_PER_SIDE` pixels a side it is represented by those
+b^2 quads, so its flux is exact; beyond, its pixels are merged into s x s groups of
+g x g (b = s g, `quads_per_side`), each group one quad with the group's outer corners and
+the mean of its members' sensor weights (a weight multiplies flux; the group's flux is
+its members' sum). Solid angle is additive, so only the RID's and the sensor weights'
+variation inside a group is approximated (`tests/test_footprint_merge.py`); validity,
+area and the members' sensor terms (cos^4, the map) stay the members'.
 
 Sensor models (docs/model.md, step 5); a pixel's value is
 offset + gain * sum_lights scale * sum_k weight_k * Phi_k / I0 over its quads k, with
@@ -63,6 +69,12 @@ SENSOR_CODES = {
 }
 """The kernels' code of each sensor model."""
 
+MAX_QUADS_PER_SIDE = 2
+"""At most this many footprint quads per side of a super-pixel (`quads_per_side`): a
+super-pixel of b x b pixels is integrated over (b / g)^2 quads of g x g pixels each,
+g = b / MAX_QUADS_PER_SIDE when that divides evenly (solid angle is additive: only the
+RID's and the sensor weights' variation inside a group is approximated; docs/model.md)."""
+
 GRID_MIN_CORNER_SHARE = 0.5
 """Build the camera's corner grid for a selection whose own corners number at least this
 share of the grid's (H+1)(W+1) (see `_corner_grid_for`)."""
@@ -84,7 +96,10 @@ class GridCorners:
         grid_ok: (H+1, W+1) its validity.
         R_camera_world: (3, 3) the view's rotation.
         center_world: (3,) the camera centre, m.
-        binning: b, the super-pixel side of the footprints' pixels.
+        binning: the super-pixel side in cells of `grid_xy`: its quads per side. With
+            merged quads (`quads_per_side`: g x g pixels a quad) the grid is the camera's
+            taken at every g-th corner (`_strided_grid`), so a super-pixel of b pixels
+            spans b / g of its cells.
     """
 
     grid_xy: np.ndarray
@@ -94,7 +109,7 @@ class GridCorners:
     binning: int
 
     def quads(self, pixels: np.ndarray) -> np.ndarray:
-        """(N, b^2, 4, 3) the footprint quads of `pixels` (N, 2), world frame, m."""
+        """(N, s^2, 4, 3) the footprint quads of `pixels` (N, 2), world frame, m."""
         out = np.empty((pixels.shape[0], self.binning**2, 4, 3))
         kernel = gk.grid_corners_parallel if len(pixels) > 4096 else gk.grid_corners_serial
         kernel(pixels, self.binning, *self._args(), out)
@@ -122,8 +137,9 @@ class Footprints:
 
     Attributes:
         pixels: (N, 2) int32 pixel indices (u, v) in the (binned) image.
-        stored_corners: (N, K, 4, 3) the K = b^2 footprint quads of each pixel, world
-            frame, m (NaN for invalid pixels), or None when `grid` gives them.
+        stored_corners: (N, K, 4, 3) the K = s^2 footprint quads of each pixel
+            (`quads_per_side`: s = b unless merged), world frame, m (NaN for invalid
+            pixels), or None when `grid` gives them.
         weights: (N, K) sensor weight of each quad (0 for invalid pixels).
         valid: (N,) pixels whose every corner ray hits the wall in front of the camera.
         area_m2: (N,) footprint area (the union's), m^2.
@@ -154,7 +170,11 @@ class Footprints:
         if self.stored_corners is not None:
             return self.stored_corners
         assert self.grid is not None
-        return self.grid.quads(self.pixels)
+        quads = self.grid.quads(self.pixels)
+        # Merged quads read only the groups' corners: a pixel made invalid by a member's
+        # inner corner is NaN as its kept quads are.
+        quads[~self.valid] = np.nan
+        return quads
 
     def subset(self, rows: np.ndarray | slice) -> Footprints:
         """The footprints of rows (k,) (indices, a boolean mask or a slice: views) of these
@@ -187,7 +207,11 @@ class Footprints:
         if self.stored_corners is not None:
             return quad_corner_means(self.stored_corners)
         assert self.grid is not None
-        return self.grid.centers(self.pixels)
+        centers = self.grid.centers(self.pixels)
+        # Merged quads read only the groups' corners: a pixel made invalid by a member's
+        # inner corner is NaN as its kept quads would be.
+        centers[~self.valid] = np.nan
+        return centers
 
 
 def quad_corner_means(corners_world: np.ndarray) -> np.ndarray:
@@ -235,6 +259,7 @@ def pixel_footprints(
     sensor: SensorModel = "radiance",
     vignetting: np.ndarray | None = None,
     binning: int = 1,
+    max_quads_per_side: int | None = MAX_QUADS_PER_SIDE,
 ) -> Footprints:
     """Footprints and sensor weights of (super-)pixels.
 
@@ -245,9 +270,11 @@ def pixel_footprints(
         sensor: the sensor fall-off model (module docstring).
         vignetting: (H, W) fall-off map of the full-resolution image, for sensor "map".
         binning: b >= 1; super-pixel (u, v) covers pixels [u b, u b + b) x [v b, v b + b).
+        max_quads_per_side: merge a super-pixel's pixels into at most this many quads per
+            side (`quads_per_side`); None: one quad per pixel (exact).
 
     Returns:
-        The footprints.
+        The footprints: K = s^2 quads per pixel, s = `quads_per_side(b, ...)`.
     """
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
@@ -258,7 +285,9 @@ def pixel_footprints(
     p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else _NO_MAP
     n = p.shape[0]
-    k = b * b
+    s = quads_per_side(b, max_quads_per_side)
+    step = b // s
+    k = s * s
     grid = _corner_grid_for(camera, n, b)
     grid_xy, grid_ok = _NO_GRID if grid is None else grid
     # With the grid the quads are not kept: the kernels that need them read the grid.
@@ -273,6 +302,7 @@ def pixel_footprints(
     args = (
         p,
         b,
+        step,
         grid is not None,
         grid_xy,
         grid_ok,
@@ -294,8 +324,43 @@ def pixel_footprints(
             fk.pixel_footprints_parallel(*args, chunk_pixels, *outputs)
     if grid is None:
         return Footprints(p, corners, weights, valid, area)
-    source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, b)
+    if step > 1:
+        grid_xy, grid_ok = _strided_grid(grid_xy, grid_ok, step)
+    source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, s)
     return Footprints(p, None, weights, valid, area, source)
+
+
+def quads_per_side(binning: int, max_quads_per_side: int | None = MAX_QUADS_PER_SIDE) -> int:
+    """s, the footprint quads per side of a super-pixel of b = `binning` pixels.
+
+    b itself (one quad per pixel: exact) when b <= max_quads_per_side, when it is None or
+    when max_quads_per_side does not divide b; else max_quads_per_side, each quad covering
+    g x g pixels, g = b / s.
+    """
+    b = int(binning)
+    if max_quads_per_side is None:
+        return b
+    m = int(max_quads_per_side)
+    if m < 1:
+        raise ValueError(f"max_quads_per_side: expected an integer >= 1, got {m}")
+    return m if b > m and b % m == 0 else b
+
+
+_STRIDED: list[tuple[np.ndarray, int, CornerGrid]] = []
+
+
+def _strided_grid(grid_xy: np.ndarray, grid_ok: np.ndarray, step: int) -> CornerGrid:
+    """The corner grid at every `step`-th corner (contiguous; kept for the last grid
+    asked: the views of a project share their camera's grid)."""
+    for source, g, strided in _STRIDED:
+        if source is grid_xy and g == step:
+            return strided
+    strided = (
+        np.ascontiguousarray(grid_xy[::step, ::step]),
+        np.ascontiguousarray(grid_ok[::step, ::step]),
+    )
+    _STRIDED[:] = [(grid_xy, step, strided)]
+    return strided
 
 
 def _corner_grid_for(camera: Camera, n_pixels: int, binning: int) -> CornerGrid | None:

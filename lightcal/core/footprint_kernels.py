@@ -134,6 +134,7 @@ def _pixel_footprint(
     p: int,
     pixels: np.ndarray,
     binning: int,
+    step: int,
     use_grid: bool,
     grid_xy: np.ndarray,
     grid_ok: np.ndarray,
@@ -194,7 +195,7 @@ def _pixel_footprint(
             break
     out_valid[p] = valid
     if not valid:
-        for m in range(k):
+        for m in range(out_weights.shape[1]):
             out_weights[p, m] = 0.0
             if write_corners:
                 for q in range(4):
@@ -216,11 +217,11 @@ def _pixel_footprint(
         y3 = wall_y[i3]
         x4 = wall_x[i4]
         y4 = wall_y[i4]
-        if write_corners:
+        if write_corners and step == 1:
             write_quad(out_corners, p, m, x1, y1, x2, y2, x3, y3, x4, y4)
         areas[m] = quad_area(x1, y1, x2, y2, x3, y3, x4, y4)
         if sensor == SENSOR_PAPER:
-            out_weights[p, m] = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view) / k
+            terms[m] = paper_weight(x1, y1, x2, y2, x3, y3, x4, y4, view) / k
         elif sensor == SENSOR_COS4:
             terms[m] = cos4(
                 norm_x[i1], norm_y[i1], norm_x[i2], norm_y[i2],
@@ -230,19 +231,49 @@ def _pixel_footprint(
             terms[m] = vignetting[v0 + jj, u0 + m - jj * b]
     area = pairwise_sum(areas, 0, k)
     out_area[p] = area
+    weight = 0.0
     if sensor != SENSOR_PAPER:
         v_mean = 1.0
         if sensor != SENSOR_RADIANCE:  # cos4, map: the mean over the members
             v_mean = pairwise_sum(terms, 0, k) / k
         weight = v_mean / area
+    if step == 1:
         for m in range(k):
-            out_weights[p, m] = weight
+            out_weights[p, m] = terms[m] if sensor == SENSOR_PAPER else weight
+        return
+    # Merged quads: group (gj, gi) of step x step members, its quad from the lattice at
+    # the group's corners, its weight the mean of its members' (a weight multiplies flux,
+    # and the group's flux is the sum of its members': sum_m w_m Phi_m ~ mean(w) Phi_group).
+    s = b // step
+    members = float(step * step)
+    for g in range(s * s):
+        gj = g // s
+        gi = g - gj * s
+        if write_corners:
+            i1 = gj * step * n_lat + gi * step
+            i2 = i1 + step
+            i3 = i2 + step * n_lat
+            i4 = i1 + step * n_lat
+            write_quad(
+                out_corners, p, g,
+                wall_x[i1], wall_y[i1], wall_x[i2], wall_y[i2],
+                wall_x[i3], wall_y[i3], wall_x[i4], wall_y[i4],
+            )  # fmt: skip
+        if sensor == SENSOR_PAPER:
+            total = 0.0
+            for mj in range(gj * step, (gj + 1) * step):
+                for mi in range(gi * step, (gi + 1) * step):
+                    total += terms[mj * b + mi]
+            out_weights[p, g] = total / members
+        else:
+            out_weights[p, g] = weight
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def pixel_footprints_parallel(
     pixels: np.ndarray,
     binning: int,
+    step: int,
     use_grid: bool,
     grid_xy: np.ndarray,
     grid_ok: np.ndarray,
@@ -265,6 +296,11 @@ def pixel_footprints_parallel(
         pixels: (N, 2) int32 (u, v) indices in the image binned by `binning`, in range.
         binning: b >= 1; super-pixel (u, v) has the b^2 members (u b + i, v b + j),
             member index j b + i.
+        step: g, a divisor of b: the members are merged into (b / g)^2 groups of g x g
+            (`footprint.quads_per_side`), group (gi, gj) at index gj (b / g) + gi, its
+            quad from the lattice at the group's corners and its weight the mean of
+            its members' (validity, area and the members' sensor terms are the members'
+            all the same). g = 1: each member its own quad (the exact footprints).
         use_grid: read corners from `grid_xy` / `grid_ok`, else undistort them here.
         grid_xy: (H+1, W+1, 2) the camera's corner grid (`corner_grid`); any shape when
             not `use_grid`.
@@ -279,9 +315,9 @@ def pixel_footprints_parallel(
             selection's footprints read their corners from the grid when they need them
             (`grid_quads`) instead of keeping 96 bytes a quad.
         chunk_pixels: pixels per parallel work item (>= 1).
-        out_corners: (N, b^2, 4, 3) written: quads P1..P4 of each member, world frame, m;
-            NaN for invalid pixels.
-        out_weights: (N, b^2) written: sensor weights, 0 for invalid pixels.
+        out_corners: (N, (b/g)^2, 4, 3) written: quads P1..P4 of each member (group),
+            world frame, m; NaN for invalid pixels.
+        out_weights: (N, (b/g)^2) written: sensor weights, 0 for invalid pixels.
         out_valid: (N,) written: every corner ray of every member hits the wall.
         out_area: (N,) written: the sum of the members' quad areas, m^2; NaN if invalid.
     """
@@ -295,6 +331,7 @@ def pixel_footprints_parallel(
                 p,
                 pixels,
                 binning,
+                step,
                 use_grid,
                 grid_xy,
                 grid_ok,
@@ -317,6 +354,7 @@ def pixel_footprints_parallel(
 def pixel_footprints_serial(
     pixels: np.ndarray,
     binning: int,
+    step: int,
     use_grid: bool,
     grid_xy: np.ndarray,
     grid_ok: np.ndarray,
@@ -340,6 +378,7 @@ def pixel_footprints_serial(
             p,
             pixels,
             binning,
+            step,
             use_grid,
             grid_xy,
             grid_ok,
