@@ -728,6 +728,9 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
     try:
         _idle(a)
         _set(a.panels.light.light_widgets[0]["position"], (60.0, -5.0, 1.0))
+        # Settled first: the redraw of the guess rewrites every widget from the state, and a
+        # widget edited while it does so may be read back at its old value.
+        _idle(a)
         _set(a.panels.pixels.n_per_image, 40)
         a.controller.add_point(1, 50, 60)
         _set(a.panels.view.overlay_all, "residual")

@@ -23,8 +23,15 @@ from lightcal_app.text import md_prose
 
 
 def assign(handle: Any, value: Any) -> None:
-    """Set a widget's value (viser sends it to every browser and fires its callbacks)."""
-    handle.value = value
+    """Set a widget's value (viser sends it to every browser and fires its callbacks),
+    unless it holds that value already: a redraw that rewrites every widget from the state
+    then leaves alone the ones a user is editing at that moment."""
+    try:
+        same = bool(handle.value == value)
+    except (TypeError, ValueError):  # arrays: compared element-wise
+        same = False
+    if not same:
+        handle.value = value
 
 
 def rounded(v: float, digits: int) -> float:
