@@ -12,7 +12,7 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
@@ -51,6 +51,25 @@ from lightcal_app.uploads import (
 )
 
 log = logging.getLogger("lightcal.app")
+
+T = TypeVar("T")
+
+
+def received_or_refused(
+    notify: Notify, client: Any, name: str, receive: Callable[[], T]
+) -> T | None:
+    """`receive()` for the upload `name`; None when it refuses it, with the reason in the
+    page (a reader's unexpected failure: the exception's kind only, details in the log)."""
+    try:
+        return receive()
+    except LightcalError as exc:
+        notify(client, f"Upload rejected: {name}", str(exc), error=True)
+    except Exception as exc:  # a reader's unexpected failure: no details in the page
+        log.warning("upload %r failed", name, exc_info=True)
+        reason = f"{name}: the file could not be read ({type(exc).__name__})"
+        notify(client, f"Upload rejected: {name}", reason, error=True)
+    return None
+
 
 AUTOSAVE_INTERVAL_S = 0.5
 
@@ -116,17 +135,9 @@ class FilesService:
         return Place(self.upload_root, self.upload_limit, self.kept_folders())
 
     def _upload(self, name: str, client: Any, receive: Callable[[], SwitchProject]) -> None:
-        try:
-            request = receive()
-        except LightcalError as exc:
-            self.notify(client, f"Upload rejected: {name}", str(exc), error=True)
-            return
-        except Exception as exc:  # a reader's unexpected failure: no details in the page
-            log.warning("upload %r failed", name, exc_info=True)
-            reason = f"{name}: the file could not be read ({type(exc).__name__})"
-            self.notify(client, f"Upload rejected: {name}", reason, error=True)
-            return
-        self.state.request(request)
+        request = received_or_refused(self.notify, client, name, receive)
+        if request is not None:
+            self.state.request(request)
 
     def upload_project(self, name: str, content: bytes, client: Any = None) -> None:
         """A project (zip or project file) replaces the one shown."""

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from lightcal.errors import LightcalError
-from lightcal_app.files_service import FilesService
+from lightcal_app.files_service import FilesService, received_or_refused
 from lightcal_app.limits import check_position_m
 from lightcal_app.photo_project import (
     PhotoBuild,
@@ -80,17 +80,13 @@ class PhotoService:
     def upload(self, kind: PhotoKind, name: str, content: bytes, client: Any = None) -> None:
         """A file (or a zip) for the new project; a refusal is said in the page."""
         try:
-            received = self.staging.receive(kind, name, content)
-        except LightcalError as exc:
-            self.notify(client, f"Upload rejected: {name}", str(exc), error=True)
-            return
-        except Exception as exc:  # a reader's unexpected failure: no details in the page
-            log.warning("photo upload %r failed", name, exc_info=True)
-            reason = f"{name}: the file could not be read ({type(exc).__name__})"
-            self.notify(client, f"Upload rejected: {name}", reason, error=True)
-            return
+            received = received_or_refused(
+                self.notify, client, name, lambda: self.staging.receive(kind, name, content)
+            )
         finally:
             self._changed()
+        if received is None:
+            return
         if received.ignored or len(received.placed) > 1:  # a zip: say what it held
             self.notify(client, f"{name} unpacked", received.text())
 
