@@ -93,7 +93,8 @@ def time_steps(app: LightcalApp, n: int) -> list[dict[str, float]]:
         with st.cond:
             st.cond.wait_for(drawn, 60)
         total = time.perf_counter() - t0
-        timings = dict(ctl.timings)
+        # The redraw that showed this iteration (the Plan tab's read-out redraws after it).
+        timings = dict(ctl.redrawer.iteration_timings.get((gen, target), ctl.timings))
         out.append({"total_s": total, **timings})
         app.wait_idle(60)
         if st.solver_state != "paused":

@@ -40,6 +40,9 @@ class Redrawer:
         self.panels: Any = None
         self.truth: list[LightGuess] | None = None
         self.timings: dict[str, float] = {}
+        # Per (session_gen, iteration) drawn: the timings of the redraw that first showed
+        # it (later redraws, e.g. of the Plan tab's read-out, do not overwrite them).
+        self.iteration_timings: dict[tuple[int, int], dict[str, float]] = {}
         self.legend_vmax: float | None = None
         self._render_cache: dict[int, tuple[Display, np.ma.MaskedArray]] = {}
 
@@ -127,6 +130,11 @@ class Redrawer:
                 self.panels.update(frame, legend_vmax=self.legend_vmax, messages=list(st.messages))
         t2 = time.perf_counter()
         self.timings = {"pictures_s": t1 - t0, "send_s": t2 - t1, "redraw_s": t2 - t0}
+        shown = (frame.session_gen, frame.iteration)
+        if shown not in self.iteration_timings:
+            if len(self.iteration_timings) > 64:  # only recent ones are asked for
+                self.iteration_timings.clear()
+            self.iteration_timings[shown] = self.timings
         with st.cond:
             if (frame.session_gen, frame.iteration) > st.drawn:
                 st.drawn = (frame.session_gen, frame.iteration)
