@@ -237,24 +237,42 @@ def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None)
     total = len(FAMILIES)
     try:
         context = multiprocessing.get_context("spawn")  # no fork of a threaded process
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-            pending = {
-                pool.submit(_run_family, family, tmp / f"family{i}"): family
-                for i, family in enumerate(FAMILIES)
-            }
-            done = 0
-            while pending:
-                if progress is not None:
-                    running = [f.label for f in list(pending.values())[:jobs]]
-                    progress(" + ".join(running), done, total)
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in finished:
-                    del pending[future]
-                    future.result()
-                    done += 1
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context)
     except Exception:  # no processes here (a sandbox, no /dev/shm): compile in-process
         return False
+    try:
+        pending = {
+            pool.submit(_run_family, family, tmp / f"family{i}"): family
+            for i, family in enumerate(FAMILIES)
+        }
+        done = 0
+        while pending:
+            if progress is not None:
+                running = [f.label for f in list(pending.values())[:jobs]]
+                progress(" + ".join(running), done, total)
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                del pending[future]
+                future.result()
+                done += 1
+    except BaseException as exc:
+        # Interrupted (a SIGINT sent to this process alone, as a supervisor or a test
+        # does) or failed: the workers would compile on for minutes after this process
+        # ended. They are stopped now; a failure compiles in-process instead.
+        _stop_workers(pool)
+        if isinstance(exc, Exception):
+            return False
+        raise
+    pool.shutdown(wait=True)
     return True
+
+
+def _stop_workers(pool: Any) -> None:
+    """Terminate a ProcessPoolExecutor's worker processes and drop its queued work.
+    (`_processes` is the executor's own table; without it the workers finish.)"""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) -> float:

@@ -187,3 +187,65 @@ def test_default_jobs_is_one_per_core_at_most_two(monkeypatch: pytest.MonkeyPatc
     for cores, jobs in ((1, 1), (2, 2), (16, 2)):
         monkeypatch.setattr(os, "sched_getaffinity", lambda pid, n=cores: set(range(n)))
         assert warmup.default_jobs() == jobs
+
+
+_INTERRUPTED_SCRIPT = textwrap.dedent(
+    """
+    import lightcal.warmup as W
+    if __name__ == "__main__":
+        W.warm_up(lambda family, done, total: print("compiling", flush=True), jobs=2)
+    """
+)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads the process table with ps")
+def test_an_interrupted_warm_up_leaves_no_compiling_workers(tmp_path: Path) -> None:
+    """A SIGINT sent to the warm-up's process alone (a supervisor, a test harness; a
+    terminal's Ctrl-C reaches the whole group) ends it at once and its worker processes
+    with it; they used to compile on for minutes, orphaned."""
+    import os
+    import signal
+    import time
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))  # a cold cache: busy
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _INTERRUPTED_SCRIPT],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+
+    def workers() -> list[str]:
+        table = subprocess.run(["ps", "-eo", "ppid,args"], capture_output=True, text=True)
+        return [
+            line
+            for line in table.stdout.splitlines()
+            if line.split(None, 1)[0] == str(proc.pid) and "multiprocessing.spawn" in line
+        ]
+
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().startswith("compiling")
+        deadline = time.monotonic() + 60
+        while not workers() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert workers(), "the warm-up started no worker processes"
+        spawned = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True)
+        children = [int(p) for p in spawned.stdout.split()]
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) != 0  # ended by the interrupt, not after the compile
+        time.sleep(1.0)
+        alive = []
+        for pid in children:
+            try:
+                os.kill(pid, 0)
+                state = Path(f"/proc/{pid}/stat").read_text().split()[2]
+                if state != "Z":
+                    alive.append(pid)
+            except (ProcessLookupError, FileNotFoundError):
+                pass
+        assert alive == [], f"worker processes still running: {alive}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
