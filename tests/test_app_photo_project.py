@@ -37,16 +37,7 @@ from lightcal.pipeline import load_images
 from lightcal.resources import sample_project_dir
 from tests.app_fixtures import make_project
 from tests.photo_fixtures import BLANK_NAME, BLANK_REASON, Photos, write_photos
-
-IES = """IESNA:LM-63-2002
-[TEST] test
-TILT=NONE
-1 -1 1 4 1 1 2 0 0 0
-1 1 0
-0 30 60 90
-0
-1000 700 200 0
-"""
+from tests.test_cli_init import IES  # the same small IES file
 
 
 @pytest.fixture(scope="module")

@@ -44,8 +44,9 @@ from __future__ import annotations
 import shutil
 import threading
 import uuid
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Collection, Iterable
 from pathlib import Path, PurePosixPath
+from typing import TypeVar
 
 from lightcal.capture.boards import ArucoGridBoard, Board, CharucoBoard
 from lightcal.errors import InputError
@@ -144,6 +145,26 @@ def _reader_error(exc: InputError, path: Path, name: str) -> InputError:
         where = f"line {exc.line}: " if exc.line is not None else ""
         return InputError(name, where + exc.detail)
     return InputError(name, relative_message(exc, path.parent, name))
+
+
+T = TypeVar("T")
+
+
+def _read_checked(
+    path: Path,
+    shown: str,
+    suffixes: Collection[str],
+    what: str,
+    expected: str,
+    reader: Callable[[Path], T],
+) -> T:
+    """`reader(path)` after checking the suffix; errors name the upload `shown`."""
+    if path.suffix.lower() not in suffixes:
+        raise InputError(shown, f"unsupported {what} suffix {path.suffix!r}: expected {expected}")
+    try:
+        return reader(path)
+    except InputError as exc:
+        raise _reader_error(exc, path, shown) from exc
 
 
 class PhotoStaging:
@@ -309,40 +330,34 @@ class PhotoStaging:
             path.replace(folder / stored)
             return what, stored
         if kind == "camera":
-            if suffix not in CAMERA_SUFFIXES:
-                raise InputError(
-                    shown,
-                    f"unsupported camera file suffix {path.suffix!r}: expected an OpenCV "
-                    ".yaml, .yml, .xml or .json file, or a COLMAP cameras.txt",
-                )
-            try:
-                read_camera(path)
-            except InputError as exc:
-                raise _reader_error(exc, path, shown) from exc
+            _read_checked(
+                path,
+                shown,
+                CAMERA_SUFFIXES,
+                "camera file",
+                "an OpenCV .yaml, .yml, .xml or .json file, or a COLMAP cameras.txt",
+                read_camera,
+            )
             return "camera file", self._replace(area / CAMERA_DIR, path)
         if kind == "board":
-            if suffix not in BOARD_SUFFIXES:
-                raise InputError(
-                    shown,
-                    f"unsupported board file suffix {path.suffix!r}: expected a .yaml, .yml or "
-                    ".json board description (aruco_grid, charuco or chessboard)",
-                )
-            try:
-                board = read_board(path)
-            except InputError as exc:
-                raise _reader_error(exc, path, shown) from exc
+            board = _read_checked(
+                path,
+                shown,
+                BOARD_SUFFIXES,
+                "board file",
+                "a .yaml, .yml or .json board description (aruco_grid, charuco or chessboard)",
+                read_board,
+            )
             board_type = _board_type(board)
             return f"board file ({board_type})", self._replace(area / BOARD_DIRS[board_type], path)
-        if suffix not in RID_SUFFIXES:
-            raise InputError(
-                shown,
-                f"unsupported light file suffix {path.suffix!r}: expected an IES (.ies) or "
-                "EULUMDAT (.ldt) file",
-            )
-        try:
-            read_rid_file(path)
-        except InputError as exc:
-            raise _reader_error(exc, path, shown) from exc
+        _read_checked(
+            path,
+            shown,
+            RID_SUFFIXES,
+            "light file",
+            "an IES (.ies) or EULUMDAT (.ldt) file",
+            read_rid_file,
+        )
         return "light file", self._replace(area / LIGHT_DIR, path)
 
     @staticmethod
