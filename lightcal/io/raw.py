@@ -131,7 +131,6 @@ def _read_open_raw(
             "holds no colour filter mosaic (a linear DNG or a Foveon image); "
             "convert it to a 16-bit or float TIFF and read that",
         )
-    data = np.array(raw.raw_image_visible, dtype=np.float64)
     blacks = np.array(raw.black_level_per_channel, dtype=np.float64)  # by colour index
     if user_black is not None:
         blacks = np.full(4, float(user_black))
@@ -145,23 +144,33 @@ def _read_open_raw(
     colors = np.asarray(raw.raw_colors_visible)
     exposure = read_exposure(path)
     if channel == "luminance":
+        data = np.array(raw.raw_image_visible, dtype=np.float64)
         return _luminance(path, raw, data, colors, blacks, white, use_camera_wb, exposure)
 
+    # The CFA channels read their sites straight from the sensor's integers: a 24 MP
+    # frame is never converted to float as a whole (0.23 -> 0.05 s a file).
+    data = np.asarray(raw.raw_image_visible)
     sites = _bayer_sites(path, raw, colors, channel)
     rows, cols = (data.shape[0] // 2) * 2, (data.shape[1] // 2) * 2
     names = ("G1", "G2") if channel == "green_binned" else (channel,)
-    planes = []
+    values: NDArray[np.float64] | None = None
     saturated = np.zeros((rows // 2, cols // 2), dtype=np.bool_)
     site_blacks = []
     for dy, dx in (sites[name] for name in names):
         black = float(blacks[colors[dy, dx]])
         plane = data[dy:rows:2, dx:cols:2]
         saturated |= plane >= saturation_threshold(white, black)
-        planes.append(plane - black)
+        if values is None:
+            values = np.subtract(plane, black, dtype=np.float64)
+        else:
+            values += np.subtract(plane, black, dtype=np.float64)
         site_blacks.append(black)
+    assert values is not None
+    if len(names) == 2:
+        values *= 0.5  # the mean of the two greens, as (a + b) / 2
     black_mean = float(np.mean(site_blacks))
     return LinearImage(
-        values=np.mean(planes, axis=0),
+        values=values,
         saturated=saturated,
         white_level=white - black_mean,
         black_level=black_mean,
@@ -193,10 +202,12 @@ def _bayer_sites(
     else:
         cell = colors[:2, :2]
         rows, cols = (colors.shape[0] // 2) * 2, (colors.shape[1] // 2) * 2
-        tiled = np.tile(cell, (rows // 2, cols // 2))
         letters = [description[int(c)] if int(c) < len(description) else "?" for c in cell.flat]
         one_bayer_cell = sorted(letters) == ["B", "G", "G", "R"]
-        if not one_bayer_cell or not np.array_equal(colors[:rows, :cols], tiled):
+        repeats = all(
+            np.all(colors[dy:rows:2, dx:cols:2] == cell[dy, dx]) for dy in (0, 1) for dx in (0, 1)
+        )
+        if not one_bayer_cell or not repeats:
             problem = "its colour filter array is not a 2x2 Bayer pattern"
     if problem is not None:
         raise InputError(
