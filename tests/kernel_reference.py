@@ -171,7 +171,7 @@ def flux_pixels_plain(
 ) -> None:
     """`flux_pixels` without the fast paths: `quad_flux` for every quad (rid: `rid_tuple`)."""
     flux_range(
-        0,
+        int(0),  # noqa: UP018, RUF046 (not a literal type)
         corners_world.shape[0],
         corners_world,
         weights,
@@ -181,7 +181,7 @@ def flux_pixels_plain(
         RIDData(*rid),
         n_sub,
         want_grad,
-        False,
+        bool(False),  # noqa: UP018 (not a literal type)
         out_flux,
         out_grad,
     )

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from lightcal.core.footprint_grid_kernels import grid_corners_serial, grid_quads_range
-from lightcal.core.kernels.quad_flux import pixel_flux
+from lightcal.core.kernels.quad_flux import pixel_flux_range, wall_flux_range
 from lightcal.core.kernels.sensor import view_scalars
 from lightcal.core.kernels.wall_gradients import wall_grad_range
 from lightcal.core.rid_eval import RIDData, RIDTuple, rid_tuple
@@ -51,9 +51,26 @@ def flux_range(
 
     The parallel and serial entry points below (and the plain one of the tests) inline
     it (they are separate functions: numba's cache does not tell apart compilations of
-    one function with different options).
+    one function with different options); the work is in `wall_flux_range` (inlined
+    too), `wall_grad_range` and `pixel_flux_range` (compiled once for all of them).
+    Callers pass int(0), not the constant 0: numba types a constant argument as a
+    literal (Literal[int](0)) and would compile the last two again for it; int(...) and
+    bool(...) of a constant are typed int64 and bool.
     """
-    if allow_fast and want_grad and n_sub == 1:
+    if allow_fast and n_sub == 1 and not want_grad:
+        wall_flux_range(
+            i0,
+            i1,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            rid,
+            out_flux,
+            out_grad,
+        )
+    elif allow_fast and want_grad and n_sub == 1:
         wall_grad_range(
             i0,
             i1,
@@ -67,25 +84,21 @@ def flux_range(
             out_grad,
         )
     else:
-        g = np.zeros(6)
-        gq = np.zeros(6)
-        for i in range(i0, i1):
-            pixel_flux(
-                i,
-                corners_world,
-                weights,
-                valid,
-                light_world,
-                R_world_light,
-                rid,
-                n_sub,
-                want_grad,
-                allow_fast,
-                g,
-                gq,
-                out_flux,
-                out_grad,
-            )
+        pixel_flux_range(
+            i0,
+            i1,
+            corners_world,
+            weights,
+            valid,
+            light_world,
+            R_world_light,
+            rid,
+            n_sub,
+            want_grad,
+            bool(allow_fast),  # the entry points pass a literal
+            out_flux,
+            out_grad,
+        )
 
 
 @numba.njit(cache=True, parallel=True)
@@ -141,7 +154,7 @@ def flux_pixels_serial(
     """`flux_pixels` on the calling thread (small sets: no thread launch); rid: as
     `flux_pixels_parallel`'s."""
     flux_range(
-        0,
+        int(0),  # noqa: UP018, RUF046 (not a literal type)
         corners_world.shape[0],
         corners_world,
         weights,
@@ -247,7 +260,7 @@ def flux_pixels_grid_parallel(
             for m in range(k):
                 w[i, m] = weights[i0 + i, m]
         flux_range(
-            0,
+            int(0),  # noqa: UP018, RUF046 (not a literal type)
             nb,
             quads,
             w,

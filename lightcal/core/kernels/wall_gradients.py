@@ -15,7 +15,7 @@ LLVM vectorises:
 - cos^m: f = u_z^m and its tangential gradient m u_z^(m - 1) (e_z - u_z u), i.e. in the
   world frame (m f / u_z) (axis - u_z w): no arctangent, no arccosine.
 
-Pixels with a quad off the wall take the quad loop (`pixel_flux`) afterwards.
+Pixels with a quad off the wall take the quad loop (`pixel_flux_range`) afterwards.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from lightcal.core.kernels.fastmath import (
     cos_power,
     rotate_transposed,
 )
-from lightcal.core.kernels.quad_flux import pixel_flux
+from lightcal.core.kernels.quad_flux import pixel_flux_range
 from lightcal.core.kernels.solid_angle import wall_quad_omega_signed
 from lightcal.core.rid_eval import (
     AXIS_EPS,
@@ -80,7 +80,7 @@ def wall_grad_block(
 
     Writes out_flux[i0:i1] and out_grad[i0:i1] for pixels whose quads all lie on the wall
     (0 for invalid pixels) and returns how many valid pixels have a quad off the wall:
-    the caller computes those (flags[0] False) by `pixel_flux`.
+    the caller computes those (flags[0] False) by `pixel_flux_range`.
 
     Args:
         scratch: (_N_SCRATCH, GRAD_BLOCK) float buffer; flags: (2, GRAD_BLOCK) bool buffer.
@@ -430,8 +430,11 @@ def wall_grad_range(
     scratch = np.empty((_N_SCRATCH, GRAD_BLOCK))
     flags = np.empty((2, GRAD_BLOCK), dtype=np.bool_)
     on_wall = flags[0]
-    g = np.zeros(6)
-    gq = np.zeros(6)
+    # Typed values, not literals: numba would compile `pixel_flux_range` again for
+    # Literal[int](1) and the literal booleans.
+    n_sub = int(1)  # noqa: UP018, RUF046 (not a literal type)
+    want_grad = bool(True)  # noqa: UP018 (not a literal type)
+    allow_fast = bool(False)  # noqa: UP018 (not a literal type)
     for b0 in range(i0, i1, GRAD_BLOCK):
         b1 = min(b0 + GRAD_BLOCK, i1)
         n_off = wall_grad_block(
@@ -452,19 +455,18 @@ def wall_grad_range(
             continue
         for i in range(b0, b1):
             if valid[i] and not on_wall[i - b0]:
-                pixel_flux(
+                pixel_flux_range(
                     i,
+                    i + 1,
                     corners_world,
                     weights,
                     valid,
                     light_world,
                     R_world_light,
                     rid,
-                    1,
-                    True,
-                    False,
-                    g,
-                    gq,
+                    n_sub,
+                    want_grad,
+                    allow_fast,
                     out_flux,
                     out_grad,
                 )
