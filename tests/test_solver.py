@@ -479,6 +479,35 @@ def test_stacked_r_factors_equal_the_r_factor_of_the_stack():
     assert np.all(np.isnan(stack_r_factors([tops[0], None], 4)))
 
 
+def test_tall_systems_are_reduced_in_blocks_to_the_same_r_factor():
+    from lightcal.core import qr_factors
+
+    rng = np.random.default_rng(4)
+    # 4.3 blocks of rows (the last one partial), columns of very different scales as in
+    # [J r] (metres, radians, a log scale, residuals).
+    n = int(4.3 * qr_factors.QR_BLOCK_ROWS)
+    A = rng.normal(size=(n, 9)) * np.logspace(-4, 3, 9)
+    whole = np.linalg.qr(A, mode="r")
+    R = economic_r(np.asfortranarray(A))
+    assert R.shape == (9, 9)
+    assert np.array_equal(R, np.triu(R))
+    # Unique up to the sign of each row.
+    np.testing.assert_allclose(
+        np.abs(R), np.abs(whole), rtol=1e-11, atol=1e-9 * np.abs(whole).max()
+    )
+    np.testing.assert_allclose(R.T @ R, A.T @ A, rtol=1e-11)
+    # Below four blocks: one LAPACK call, which overwrites its (Fortran) input.
+    small = np.asfortranarray(A[: 3 * qr_factors.QR_BLOCK_ROWS])
+    before = small.copy()
+    np.testing.assert_allclose(
+        np.abs(economic_r(small)),
+        np.abs(np.linalg.qr(before, mode="r")),
+        rtol=1e-11,
+        atol=1e-9 * np.abs(whole).max(),
+    )
+    assert not np.array_equal(small, before)
+
+
 # ------------------------------------------------------------------ re-weighting
 
 

@@ -374,6 +374,11 @@ class CalibrationModel:
         """The iteration's numbers at x; from a recent compressed evaluation when there is
         one (|r~| = |r|, J~^T r~ = J^T r), else from the residuals and gradient at x."""
         recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+        if recent is None and self.compressed:
+            # The start (iteration 0) is reported before trf evaluates it: evaluate it
+            # now (trf then reuses it), and read the numbers off its compressed system.
+            self.residuals(x)
+            recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
         if recent is None:
             r = self.residuals(x)
             cost = robust_cost(r, self.options.loss, self.options.f_scale)
