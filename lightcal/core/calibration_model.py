@@ -193,7 +193,7 @@ class CalibrationModel:
         for i in range(len(self.images)):
             rows = slice(self.bounds[i], self.bounds[i + 1])
             fluxes: list[np.ndarray] | None = None if visit is None else []
-            A = self._image_system(x, i, at_x, fluxes)
+            A, (squares, finite) = self._image_system(x, i, at_x, fluxes)
             r[rows] = A[:, n]
             if J is not None:
                 J[rows] = A[:, :n]
@@ -201,8 +201,8 @@ class CalibrationModel:
                 assert fluxes is not None
                 visit(i, A, fluxes[0][None] if len(fluxes) == 1 else np.stack(fluxes))
             if self.compressed and A.shape[0]:
-                rms[i] = math.sqrt(float(np.mean(np.square(A[:, n] * self.sigmas[i]))))
-                tops.append(economic_r(A) if np.all(np.isfinite(A[:, n])) else None)
+                rms[i] = math.sqrt(squares / A.shape[0])
+                tops.append(economic_r(A) if finite else None)
         if self.compressed:
             self._cache_R = stack_r_factors(tops, n + 1)
             self._recent.append((x.copy(), self._cache_R, rms))
@@ -231,8 +231,9 @@ class CalibrationModel:
 
     def _image_system(
         self, x: np.ndarray, i: int, at_x: _StateAtX, fluxes: list[np.ndarray] | None = None
-    ) -> np.ndarray:
-        """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals.
+    ) -> tuple[np.ndarray, tuple[float, bool]]:
+        """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals, and
+        (sum of the squared residuals in value units, whether all are finite).
 
         One render with gradients per light; the world-frame gradients go to the pose
         columns through one (N, 6) x (6, k) product per light. `fluxes`, when given,
@@ -290,7 +291,7 @@ class CalibrationModel:
                 A[:, block.rid] = self._rid_jacobian(x, i, j, block)
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
-        sk.finish_rows(
+        stats = sk.finish_rows(
             A,
             total,
             im.footprints.valid,
@@ -301,7 +302,7 @@ class CalibrationModel:
             lay.gains.start + i - 1 if lay.gains.stop > lay.gains.start and i > 0 else -1,
             -1 if lay.offset_index is None else lay.offset_index,
         )
-        return A
+        return A, stats
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
         """d m_render / d (RID params of light j) on image i by central differences."""

@@ -157,8 +157,13 @@ def _finish(
     offset: float,
     gain_column: int,
     offset_column: int,
+    stats: np.ndarray,
 ) -> None:
+    """Rows i0 .. i1 - 1 (see `finish_rows`); stats (2,) receives the sum of (r sigma)^2
+    and the number of rows whose r is not finite."""
     n = A.shape[1] - 1
+    ssq = 0.0
+    bad = 0
     for i in range(i0, i1):
         m = offset + gain * total[i] if valid[i] else np.nan
         if gain_column >= 0:
@@ -168,7 +173,14 @@ def _finish(
         inv = 1.0 / sigma[i]
         for c in range(n):
             A[i, c] = -A[i, c] * inv
-        A[i, n] = (observed[i] - m) * inv
+        r = (observed[i] - m) * inv
+        A[i, n] = r
+        d = r * sigma[i]
+        finite = abs(r) < np.inf  # False for NaN and infinities
+        ssq += d * d
+        bad += not finite
+    stats[0] = ssq
+    stats[1] = bad
 
 
 @numba.njit(cache=True, parallel=True)
@@ -182,8 +194,10 @@ def _finish_rows_parallel(
     offset: float,
     gain_column: int,
     offset_column: int,
+    stats: np.ndarray,
 ) -> None:
     n = A.shape[0]
+    partial = np.zeros((_CHUNKS, 2))
     for ch in numba.prange(_CHUNKS):
         _finish(
             ch * n // _CHUNKS,
@@ -197,7 +211,13 @@ def _finish_rows_parallel(
             offset,
             gain_column,
             offset_column,
+            partial[ch],
         )
+    stats[0] = 0.0
+    stats[1] = 0.0
+    for ch in range(_CHUNKS):
+        stats[0] += partial[ch, 0]
+        stats[1] += partial[ch, 1]
 
 
 @numba.njit(cache=True)
@@ -211,9 +231,21 @@ def _finish_rows_serial(
     offset: float,
     gain_column: int,
     offset_column: int,
+    stats: np.ndarray,
 ) -> None:
     _finish(
-        0, A.shape[0], A, total, valid, observed, sigma, gain, offset, gain_column, offset_column
+        0,
+        A.shape[0],
+        A,
+        total,
+        valid,
+        observed,
+        sigma,
+        gain,
+        offset,
+        gain_column,
+        offset_column,
+        stats,
     )
 
 
@@ -227,7 +259,7 @@ def finish_rows(
     offset: float,
     gain_column: int,
     offset_column: int,
-) -> None:
+) -> tuple[float, bool]:
     """Values, the gain and offset columns, d r / d x = -(d m / d x) / sigma and r.
 
     m = offset + gain * total (NaN where the footprint is invalid); column -1 of A
@@ -240,6 +272,12 @@ def finish_rows(
         observed, sigma: (N,) the measured values and their noise.
         gain, offset: the image's gain and the offset.
         gain_column, offset_column: their columns, or -1.
+
+    Returns:
+        (sum of (r sigma)^2, whether every r is finite), in the same pass: the RMS of
+        the image's residuals in value units, and whether its system can be reduced.
     """
     kernel = _finish_rows_parallel if A.shape[0] >= PARALLEL_MIN_ROWS else _finish_rows_serial
-    kernel(A, total, valid, observed, sigma, gain, offset, gain_column, offset_column)
+    stats = np.zeros(2)
+    kernel(A, total, valid, observed, sigma, gain, offset, gain_column, offset_column, stats)
+    return float(stats[0]), stats[1] == 0
