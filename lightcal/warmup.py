@@ -9,7 +9,9 @@ sources pays: one to a few minutes on two cores. Unannounced, that first run loo
   selects pixels, builds the model, solves a few iterations, tests the fit and, for the
   first family, writes the report. Every kernel a command or the app runs is then in the
   cache, with the argument types real projects give it. It ends by writing a marker
-  beside numba's cache listing the kernels it compiled.
+  beside numba's cache listing the kernels it compiled. With two worker processes, the
+  kernels every family shares come first (the flux kernels in one worker, the full-image
+  renderer in the other), then the families side by side: 130-200 s on two cores.
 - `kernels_ready` reads that marker back and asks numba's cache whether each listed
   kernel is still there and matches its source; it takes a few milliseconds.
 - `lightcal warmup` (run by `scripts/setup.sh`) and the first `calibrate`, `render`,
@@ -203,6 +205,61 @@ def _calibrate(project_path: Path, report_dir: Path | None) -> None:
         write_report(report_dir, project, loaded, cal.model, cal.result)
 
 
+def _compile_flux_kernels() -> int:
+    """The flux kernels every family calls (the quad loop and the wall fast paths with
+    and without gradients: serial, on the thread pool, on the corner grid) by `shade` on
+    a synthetic view; returns the process id. The longest chain of the compile: run
+    first, on its own, so that no two workers compile it side by side."""
+    import math
+
+    import numpy as np
+
+    from lightcal.core.camera import Camera
+    from lightcal.core.footprint import pixel_footprints
+    from lightcal.core.kernels import flux
+    from lightcal.core.pose import axis_from_angles, rotation_from_axis
+    from lightcal.core.render import shade
+    from lightcal.core.rid import CosPowerRID
+    from lightcal.core.scene import Light, Rig, View
+
+    w, h = _DENSE
+    camera = Camera.from_params(
+        fx=0.95 * w, fy=0.95 * w, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h,
+        dist=(-0.1, 0.02, 0, 0, 0),
+    )  # fmt: skip
+    view = View.looking_at(np.array([0.2, -0.1, 1.2]), np.array([0.0, 0.05, 0.0]))
+    light = Light(
+        CosPowerRID.from_half_angle(math.radians(30.0)),
+        np.array([0.1, -0.03, 0.01]),
+        rotation_from_axis(axis_from_angles(0.05, -0.04)),
+        scale=1.0,
+    )
+    rig = Rig.single(light)
+    v, u = np.mgrid[0 : camera.height, 0 : camera.width]
+    every = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.int64)
+    serial_work = flux.SERIAL_WORK
+    try:
+        for pixels, serial in ((every[::97], True), (every[::97], False), (every, True)):
+            flux.SERIAL_WORK = serial_work if serial else 0
+            footprints = pixel_footprints(camera, view, pixels)
+            for want_grad in (False, True):
+                shade(footprints, view, rig, want_grad=want_grad)
+    finally:
+        flux.SERIAL_WORK = serial_work
+    return os.getpid()
+
+
+def _compile_render_kernels(folder: Path) -> int:
+    """The full-image renderer (what writing every family's dataset runs); returns the
+    process id."""
+    _write_dataset(folder / "data", FAMILIES[0])
+    return os.getpid()
+
+
+SHARED_LABEL = "shared kernels: the flux + the renderer"
+"""The progress label of the stage that compiles what every family shares."""
+
+
 def _run_family(family: Family, folder: Path) -> int:
     """Compile one family's kernels by its synthetic calibration; returns the process id."""
     project_path = _write_dataset(folder / "data", family)
@@ -228,8 +285,8 @@ def default_jobs() -> int:
 
 
 def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None) -> bool:
-    """Compile the families in `jobs` worker processes, the longest first; numba's cache
-    on disk is what they leave behind. False if the workers could not run (then the
+    """Compile the shared kernels, then the families, in `jobs` worker processes; numba's
+    cache on disk is what they leave behind. False if the workers could not run (then the
     caller compiles everything itself)."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -241,6 +298,13 @@ def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None)
     except Exception:  # no processes here (a sandbox, no /dev/shm): compile in-process
         return False
     try:
+        # First what every family shares, the flux and the renderer side by side: workers
+        # that took families at once would compile the same kernels in each.
+        if progress is not None:
+            progress(SHARED_LABEL, 0, total)
+        shared = [pool.submit(_compile_flux_kernels), pool.submit(_compile_render_kernels, tmp)]
+        for future in shared:
+            future.result()
         pending = {
             pool.submit(_run_family, family, tmp / f"family{i}"): family
             for i, family in enumerate(FAMILIES)
@@ -279,7 +343,7 @@ def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) 
     """Compile every kernel family (see the module docstring); returns the seconds taken.
 
     With `jobs` > 1 (default: `default_jobs()`), worker processes compile the families
-    side by side first (269 s -> about 170 s on two cores); then this process runs every
+    side by side first (see the module docstring); then this process runs every
     family once more, which loads their kernels from numba's cache (a few seconds) and
     compiles whatever a worker left out. Writes only in a temporary folder and numba's
     cache (and the marker beside it).

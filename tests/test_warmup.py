@@ -142,8 +142,9 @@ TWO_FAMILIES = (
 def test_warm_up_in_two_processes_reports_both_families_then_done(
     marker: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Two worker processes take the families side by side (the progress names both),
-    then this process runs them again from the cache and writes the marker."""
+    """Two worker processes compile the shared kernels, then take the families side by
+    side (the progress names both); then this process runs them again from the cache and
+    writes the marker."""
     monkeypatch.setattr(warmup, "FAMILIES", TWO_FAMILIES)
     seen_in_process: list[str] = []
     run_family = warmup._run_family
@@ -155,7 +156,8 @@ def test_warm_up_in_two_processes_reports_both_families_then_done(
     monkeypatch.setattr(warmup, "_run_family", counting)  # the workers use the real one
     calls: list[tuple[str, int, int]] = []
     warmup.warm_up(lambda *a: calls.append(a), jobs=2)
-    assert calls[0] == ("sparse + isotropic", 0, 2)
+    assert calls[0] == (warmup.SHARED_LABEL, 0, 2)  # the kernels every family shares
+    assert calls[1] == ("sparse + isotropic", 0, 2)
     assert calls[-1] == ("done", 2, 2)
     assert [c[1] for c in calls] == sorted(c[1] for c in calls)  # done only grows
     assert seen_in_process == ["sparse", "isotropic"]  # the in-process pass, from the cache
