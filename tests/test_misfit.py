@@ -135,3 +135,8 @@ def test_image_noise_recovers_poisson_gaussian(h: int, w: int) -> None:
     for level in (300.0, 1500.0, 3000.0):
         assert est[0] * level + est[1] == pytest.approx(gain * level + read_variance, rel=0.1)
     assert image_noise(img[:20, :20], np.ones((20, 20), dtype=bool)) is None
+    # An offset given is removed from the rows read, as if from the whole image.
+    usable = np.ones((h, w), dtype=bool)
+    shifted = image_noise(img + 7.0, usable, offset=7.0)
+    assert shifted is not None
+    np.testing.assert_allclose(shifted, est, rtol=1e-9)

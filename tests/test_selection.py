@@ -339,6 +339,41 @@ def test_noise_floor_rules(tmp_path):
     assert noise_floor(project, img) == pytest.approx(0.01 * np.percentile(image, 99))
 
 
+def test_the_99th_percentile_of_a_large_image_reads_a_regular_subsample():
+    from lightcal.io.linear_image import PERCENTILE_SAMPLES, LinearImage
+
+    rng = np.random.default_rng(5)
+    h, w = 2000, 3000  # 6 M values: about one in six read
+    yy, xx = np.mgrid[0:h, 0:w]
+    values = 4000.0 * np.exp(-((xx - 1400.0) ** 2 + (yy - 900.0) ** 2) / (2 * 900.0**2))
+    values += rng.normal(size=values.shape) * 20.0
+    values[::7, ::5] = np.nan
+    image = LinearImage(
+        values=values,
+        saturated=np.zeros((h, w), dtype=bool),
+        white_level=1e4,
+        black_level=0.0,
+        exposure=None,
+        source="test",
+        bit_depth=None,
+    )
+    exact = np.percentile(values[np.isfinite(values)], 99)
+    assert values.size > 5 * PERCENTILE_SAMPLES
+    assert image.percentile_99 == pytest.approx(exact, rel=2e-3)
+    assert image.percentile_99 != exact  # a subsample was read
+    small = LinearImage(
+        values=values[:500, :500],
+        saturated=np.zeros((500, 500), dtype=bool),
+        white_level=1e4,
+        black_level=0.0,
+        exposure=None,
+        source="test",
+        bit_depth=None,
+    )
+    patch = values[:500, :500]
+    assert small.percentile_99 == np.percentile(patch[np.isfinite(patch)], 99)  # all read
+
+
 def test_project_noise_model_reaches_the_solver_per_super_pixel(tmp_path):
     image = 50.0 + np.arange(H * W, dtype=np.float64).reshape(H, W) % 17.0
     path = _project(

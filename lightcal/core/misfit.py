@@ -347,7 +347,9 @@ NOISE_SAMPLES = 200_000
 """Most usable pixels `image_noise` reads from one image (a regular subsample beyond)."""
 
 
-def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] | None:
+def image_noise(
+    values: np.ndarray, usable: np.ndarray, offset: float = 0.0
+) -> tuple[float, float] | None:
     """A Poisson-Gaussian noise model (gain, read_variance) estimated from one image.
 
     The wall's shading is smooth, so the difference between a pixel and the mean of its
@@ -359,8 +361,9 @@ def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] |
     (binning by the pixel's own value would select on its noise and bias the variance).
 
     Args:
-        values: (H, W) linear values (offset removed).
+        values: (H, W) linear values.
         usable: (H, W) pixels to use (lit, unsaturated, unmasked).
+        offset: the values' offset, subtracted from the rows read (not the whole image).
 
     Returns:
         (gain, read_variance), or None with fewer than 2,000 usable interior pixels.
@@ -375,7 +378,7 @@ def image_noise(values: np.ndarray, usable: np.ndarray) -> tuple[float, float] |
     h, w = v.shape
     step = -(-((h - 2) * (w - 2)) // NOISE_SAMPLES)
     rows = np.arange(1, h - 1, step)
-    above, here, below = v[rows - 1], v[rows], v[rows + 1]
+    above, here, below = v[rows - 1] - offset, v[rows] - offset, v[rows + 1] - offset
     lap = here[:, 1:-1] - 0.25 * (above[:, 1:-1] + below[:, 1:-1] + here[:, :-2] + here[:, 2:])
     diag = 0.25 * (above[:, :-2] + below[:, 2:] + above[:, 2:] + below[:, :-2])
     ok = np.ones(lap.shape, dtype=bool)

@@ -88,9 +88,18 @@ class LinearImage:
     @functools.cached_property
     def percentile_99(self) -> float | None:
         """The 99th percentile of the finite values (None when there are none); computed
-        once (the values are read-only)."""
-        finite = self.values[np.isfinite(self.values)]
+        once (the values are read-only). Beyond PERCENTILE_SAMPLES values, of a regular
+        subsample of them (a 24 MP frame: 60 ms instead of 0.6 s; it sets a threshold
+        at 1 % of it, which moves by a fraction of a percent)."""
+        flat = self.values.reshape(-1)
+        step = -(-flat.size // PERCENTILE_SAMPLES)
+        sample = flat[::step] if step > 1 else flat
+        finite = sample[np.isfinite(sample)]
         return float(np.percentile(finite, 99)) if finite.size else None
+
+
+PERCENTILE_SAMPLES = 1 << 20
+"""Most values `LinearImage.percentile_99` reads (a regular subsample beyond)."""
 
 
 def saturation_threshold(white_level: float, black_level: float) -> float:

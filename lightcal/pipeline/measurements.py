@@ -84,8 +84,9 @@ def measurements_for(
         noise = []
         for k in rows:
             est = image_noise(
-                loaded.images[k].values - project.spec.sensor.offset,
+                loaded.images[k].values,
                 candidates(project, loaded, k),
+                offset=project.spec.sensor.offset,
             )
             # A super-pixel value is the mean of b^2 pixels: 1 / b^2 of their variance.
             noise.append(None if est is None else (est[0] / (b * b), est[1] / (b * b)))
