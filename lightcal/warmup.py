@@ -277,6 +277,12 @@ def _run_family(family: Family, folder: Path) -> int:
     return os.getpid()
 
 
+def _run_family_in_worker(family: Family, folder: Path) -> int:
+    """`_run_family` as a worker process runs it (a module-level name that pickles, looked
+    up in the worker's own import of this module)."""
+    return _run_family(family, folder)
+
+
 def default_jobs() -> int:
     """Processes that compile at once: one per core, at most two (the first two families
     take most of the time; more processes would compile the same shared kernels again)."""
@@ -306,7 +312,7 @@ def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None)
         for future in shared:
             future.result()
         pending = {
-            pool.submit(_run_family, family, tmp / f"family{i}"): family
+            pool.submit(_run_family_in_worker, family, tmp / f"family{i}"): family
             for i, family in enumerate(FAMILIES)
         }
         done = 0

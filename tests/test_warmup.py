@@ -158,6 +158,7 @@ def test_warm_up_in_two_processes_reports_both_families_then_done(
     warmup.warm_up(lambda *a: calls.append(a), jobs=2)
     assert calls[0] == (warmup.SHARED_LABEL, 0, 2)  # the kernels every family shares
     assert calls[1] == ("sparse + isotropic", 0, 2)
+    assert ("sparse", 0, 2) not in calls  # the workers ran: no in-process fallback
     assert calls[-1] == ("done", 2, 2)
     assert [c[1] for c in calls] == sorted(c[1] for c in calls)  # done only grows
     assert seen_in_process == ["sparse", "isotropic"]  # the in-process pass, from the cache
