@@ -105,6 +105,16 @@ def test_binning_of_candidates_and_values():
     np.testing.assert_allclose(means[0, 0], np.mean([0, 1, 7, 8]))
     np.testing.assert_allclose(means[1, 2], np.mean([18, 19, 25, 26]))
     assert means.shape == (2, 3)
+    # Larger blocks and images: the same as a mean over the blocks' axes, to rounding.
+    rng = np.random.default_rng(6)
+    big = rng.uniform(0.0, 4000.0, size=(403, 605))
+    cand = rng.uniform(size=big.shape) > 0.002
+    for b in (1, 3, 4):
+        h, w = big.shape[0] // b * b, big.shape[1] // b * b
+        blocks = big[:h, :w].reshape(h // b, b, w // b, b)
+        np.testing.assert_allclose(bin_values(big, b), blocks.mean(axis=(1, 3)), rtol=1e-15)
+        ok = cand[:h, :w].reshape(h // b, b, w // b, b).all(axis=(1, 3))
+        np.testing.assert_array_equal(binned_candidates(cand, b), ok)
 
 
 # ---------------------------------------------------------------------------- strategies
