@@ -294,3 +294,35 @@ def test_solver_estimates_move_far_less_than_their_sigma(kind: str) -> None:
     sigma = np.sqrt(np.diag(covariance(exact_model, exact.x)))
     shift = np.abs(on_grid.x - exact.x) / sigma
     assert shift.max() < 0.02, dict(zip(exact_model.layout.names, shift.round(4), strict=True))
+
+
+@pytest.mark.parametrize("make", [table_2d_rid, table_2d_to_90])
+def test_2d_grid_row_values_equal_the_per_pixel_interpolation(make) -> None:
+    """`grid2d_values_row` (runs of pixels in one cell, power-basis Horner) against
+    `grid2d_interp`'s value pixel by pixel: a smooth row of directions as an image row
+    gives (long runs in a cell), random coordinates (runs of one), the clamped last node,
+    beyond the last angle and NaN."""
+    from lightcal.core.rid_grid import grid2d_coords, grid2d_interp, grid2d_values_row
+
+    data = make().data()
+    grid, inv_h, s_max, s_back = data.grid, data.params[2], data.params[3], data.params[4]
+    n = grid.shape[1]
+    rng = np.random.default_rng(7)
+    # An image row: directions sweeping across the front hemisphere.
+    a = np.linspace(-1.2, 1.2, 3000)
+    dirs = np.stack([np.sin(a), 0.3 + 0.0 * a, np.cos(a)], axis=1)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    coords = [grid2d_coords(*d, n, inv_h, s_max, s_back) for d in dirs]
+    xs = np.array([c[0] for c in coords])
+    ys = np.array([c[1] for c in coords])
+    xs = np.concatenate([xs, rng.uniform(0, n - 1, 500), [n - 1.0, -1.0, np.nan, 0.0]])
+    ys = np.concatenate([ys, rng.uniform(0, 2 * n - 1, 500), [n - 1.0, 3.0, 3.0, 2 * n - 1.0]])
+    expected = np.array([grid2d_interp(x, y, grid, inv_h)[0] for x, y in zip(xs, ys, strict=True)])
+    got = xs.copy()
+    grid2d_values_row(got, ys, grid, inv_h)
+    assert np.array_equal(np.isnan(got), np.isnan(expected))
+    ok = ~np.isnan(expected)
+    np.testing.assert_allclose(got[ok], expected[ok], rtol=1e-12, atol=1e-14)
+    assert got[-3] == 0.0  # beyond the last angle
+    runs = np.count_nonzero(np.diff(np.floor(xs[:3000])) != 0)
+    assert runs < 300  # the image row does come in long runs

@@ -60,7 +60,7 @@ from lightcal.core.rid_eval import (
     rid_value_direction,
     table2d_value_grad,
 )
-from lightcal.core.rid_grid import grid1d_coord, grid1d_interp, grid2d_coords, grid2d_interp
+from lightcal.core.rid_grid import grid1d_coord, grid1d_interp, grid2d_coords, grid2d_values_row
 from lightcal.core.rid_stack import RIDStack, light_rid
 
 
@@ -304,8 +304,7 @@ def _flux_row(
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
                 f_row[u], y_row[u] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
-            for u in range(w):
-                f_row[u] = grid2d_interp(f_row[u], y_row[u], grid, inv_h)[0]
+            grid2d_values_row(f_row, y_row, grid, inv_h)
         else:
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
