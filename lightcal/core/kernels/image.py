@@ -163,8 +163,8 @@ def _centroid_dir_light(
     """
     mx = 0.25 * (tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]) - lx
     my = 0.25 * (tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]) - ly
-    rr = math.sqrt(mx * mx + my * my + az * az)
-    return rotate_transposed(mx / rr, my / rr, az / rr, R9)
+    inv = 1.0 / math.sqrt(mx * mx + my * my + az * az)  # one division, not three
+    return rotate_transposed(mx * inv, my * inv, az * inv, R9)
 
 
 @numba.njit(cache=True, error_model="numpy")
