@@ -13,7 +13,10 @@ sources pays: one to a few minutes on two cores. Unannounced, that first run loo
   kernels every family shares come first (the flux kernels in one worker, the full-image
   renderer in the other), then the families side by side: 130-200 s on two cores.
 - `kernels_ready` reads that marker back and asks numba's cache whether each listed
-  kernel is still there and matches its source; it takes a few milliseconds.
+  kernel is still there and matches its source; it takes a few milliseconds. The marker
+  also holds a digest of `lightcal.core`'s sources (`sources_digest`): numba checks only
+  a kernel's own file, so after an edit of a helper in another file the digest differs,
+  the kernels are not ready, and `warm_up` flushes the listed kernels' cache first.
 - `lightcal warmup` (run by `scripts/setup.sh`) and the first `calibrate`, `render`,
   `init` or `app` without a ready cache run `warm_up` with a progress line.
 
@@ -23,6 +26,7 @@ says "ready" and numba compiles silently, as before.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import json
 import os
@@ -121,15 +125,43 @@ def _cached(dispatcher: Any) -> bool:
     return bool(dispatcher._cache._cache_file._load_index())
 
 
+def sources_digest() -> str:
+    """A digest of every module of `lightcal.core`, where all the compiled kernels live.
+
+    numba's cache checks only the stamp of a kernel's own source file, not of the helpers
+    it inlines from other files: after an edit of, say, `rid_grid.py`, the kernels of
+    `kernels/image.py` would load their old machine code. The warm-up marker records this
+    digest; a different one makes the kernels not ready and `warm_up` flush their cache.
+    """
+    root = Path(__file__).resolve().parent / "core"
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _read_marker(marker: Path) -> dict[str, Any] | None:
+    """The marker's content, or None when it is missing or unreadable."""
+    try:
+        data = json.loads(marker.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
 def kernels_ready() -> bool:
-    """True when the kernels `warm_up` compiles are all in numba's cache (or when numba's
-    cache cannot be inspected); False before the first warm-up or after a change."""
+    """True when the kernels `warm_up` compiles are all in numba's cache, compiled from
+    the present sources (or when numba's cache cannot be inspected); False before the
+    first warm-up or after a change."""
     marker = _marker_path()
     if marker is None:
         return True
+    data = _read_marker(marker)
+    if data is None or data.get("sources") != sources_digest():
+        return False
     try:
-        names = json.loads(marker.read_text(encoding="utf-8"))["kernels"]
-    except (OSError, ValueError, KeyError, TypeError):
+        names = data["kernels"]
+    except (KeyError, TypeError):
         return False
     try:
         for qualified in names:
@@ -345,6 +377,24 @@ def _stop_workers(pool: Any) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
+def _flush_stale_kernels() -> None:
+    """Empty numba's cache of every kernel a marker lists when the marker was written for
+    other sources (`sources_digest`): they are compiled again from the present ones. No
+    marker (a fresh install) flushes nothing."""
+    marker = _marker_path()
+    data = None if marker is None else _read_marker(marker)
+    if data is None or data.get("sources") == sources_digest():
+        return
+    for qualified in data.get("kernels", []):
+        try:
+            module_name, attr = str(qualified).split(":", 1)
+            dispatcher = getattr(importlib.import_module(module_name), attr, None)
+            if dispatcher is not None:
+                dispatcher._cache.flush()
+        except (AttributeError, ImportError, ValueError, OSError):
+            continue  # renamed or moved since: nothing cached under the old name is loaded
+
+
 def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) -> float:
     """Compile every kernel family (see the module docstring); returns the seconds taken.
 
@@ -357,6 +407,7 @@ def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) 
     start = time.perf_counter()
     jobs = default_jobs() if jobs is None else max(1, jobs)
     total = len(FAMILIES)
+    _flush_stale_kernels()
     with tempfile.TemporaryDirectory(prefix="lightcal-warmup-") as tmp:
         parallel = jobs > 1 and _compile_in_processes(Path(tmp) / "workers", jobs, progress)
         for i, family in enumerate(FAMILIES):
@@ -370,7 +421,8 @@ def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) 
         compiled = sorted(name for name, d in _dispatchers().items() if _cached(d))
         try:
             tmp_marker = marker.with_suffix(".tmp")
-            tmp_marker.write_text(json.dumps({"kernels": compiled}, indent=1), encoding="utf-8")
+            content = {"sources": sources_digest(), "kernels": compiled}
+            tmp_marker.write_text(json.dumps(content, indent=1), encoding="utf-8")
             tmp_marker.replace(marker)
         except OSError:
             pass  # a read-only cache: numba could not write there either

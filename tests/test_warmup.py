@@ -84,15 +84,70 @@ def test_kernels_ready_reads_the_marker_and_numbas_cache(marker: Path) -> None:
     assert not warmup.kernels_ready()  # no marker: never warmed up
     marker.write_text("{not json", encoding="utf-8")
     assert not warmup.kernels_ready()
-    marker.write_text(
-        json.dumps({"kernels": ["lightcal.core.kernels.image:render_image_fused"]}),
-        encoding="utf-8",
-    )
+    sources = warmup.sources_digest()
+    fused = ["lightcal.core.kernels.image:render_image_fused"]
+    marker.write_text(json.dumps({"sources": sources, "kernels": fused}), encoding="utf-8")
     assert warmup.kernels_ready()
     marker.write_text(
-        json.dumps({"kernels": ["lightcal.core.kernels.image:no_such_kernel"]}), encoding="utf-8"
+        json.dumps({"sources": sources, "kernels": ["lightcal.core.kernels.image:no_such_kernel"]}),
+        encoding="utf-8",
     )
     assert not warmup.kernels_ready()  # renamed since: warm up again
+    # Compiled from other sources (a helper edited in another file: numba would not see it).
+    marker.write_text(json.dumps({"sources": "0" * 16, "kernels": fused}), encoding="utf-8")
+    assert not warmup.kernels_ready()
+    marker.write_text(json.dumps({"kernels": fused}), encoding="utf-8")  # before the digest
+    assert not warmup.kernels_ready()
+
+
+def test_sources_digest_follows_every_core_module(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shutil
+
+    package = tmp_path / "lightcal"
+    shutil.copytree(
+        REPO / "lightcal" / "core", package / "core", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    shutil.copy(REPO / "lightcal" / "warmup.py", package / "warmup.py")
+    monkeypatch.setattr(warmup, "__file__", str(package / "warmup.py"))
+    before = warmup.sources_digest()
+    assert before == warmup.sources_digest()
+    helper = package / "core" / "rid_grid.py"
+    helper.write_text(helper.read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8")
+    assert warmup.sources_digest() != before
+
+
+_STALE_MODULE = textwrap.dedent(
+    """
+    import numba
+
+    @numba.njit(cache=True)
+    def twice(x):
+        return 2.0 * x
+    """
+)
+
+
+def test_warm_up_flushes_the_cache_of_kernels_compiled_from_other_sources(
+    tmp_path: Path, marker: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "stale_kernels_mod.py").write_text(_STALE_MODULE, encoding="utf-8")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import importlib
+
+    module = importlib.import_module("stale_kernels_mod")
+    assert module.twice(2.0) == 4.0
+    assert warmup._cached(module.twice)  # in numba's cache on disk
+    listed = {"kernels": ["stale_kernels_mod:twice"]}
+    marker.write_text(json.dumps({"sources": warmup.sources_digest(), **listed}), "utf-8")
+    warmup._flush_stale_kernels()
+    assert warmup._cached(module.twice)  # same sources: kept
+    marker.write_text(json.dumps({"sources": "0" * 16, **listed}), "utf-8")
+    warmup._flush_stale_kernels()
+    assert not warmup._cached(module.twice)  # other sources: flushed
+    marker.unlink()
+    warmup._flush_stale_kernels()  # no marker (a fresh install): nothing to flush
 
 
 def test_ensure_kernels_says_what_it_compiles(
