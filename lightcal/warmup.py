@@ -149,6 +149,13 @@ def _read_marker(marker: Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+def _listed_dispatcher(qualified: str) -> Any:
+    """The dispatcher a marker names as 'module:name', or None when the module no longer
+    has it (ImportError, ValueError: as importlib and the split raise them)."""
+    module_name, attr = qualified.split(":", 1)
+    return getattr(importlib.import_module(module_name), attr, None)
+
+
 def kernels_ready() -> bool:
     """True when the kernels `warm_up` compiles are all in numba's cache, compiled from
     the present sources (or when numba's cache cannot be inspected); False before the
@@ -165,8 +172,7 @@ def kernels_ready() -> bool:
         return False
     try:
         for qualified in names:
-            module_name, attr = qualified.split(":", 1)
-            dispatcher = getattr(importlib.import_module(module_name), attr, None)
+            dispatcher = _listed_dispatcher(qualified)
             if dispatcher is None or not _cached(dispatcher):
                 return False
     except (AttributeError, ImportError, ValueError):
@@ -377,18 +383,17 @@ def _stop_workers(pool: Any) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _flush_stale_kernels() -> None:
+def _flush_stale_kernels(sources: str) -> None:
     """Empty numba's cache of every kernel a marker lists when the marker was written for
-    other sources (`sources_digest`): they are compiled again from the present ones. No
-    marker (a fresh install) flushes nothing."""
+    other sources than `sources` (`sources_digest`): they are compiled again from the
+    present ones. No marker (a fresh install) flushes nothing."""
     marker = _marker_path()
     data = None if marker is None else _read_marker(marker)
-    if data is None or data.get("sources") == sources_digest():
+    if data is None or data.get("sources") == sources:
         return
     for qualified in data.get("kernels", []):
         try:
-            module_name, attr = str(qualified).split(":", 1)
-            dispatcher = getattr(importlib.import_module(module_name), attr, None)
+            dispatcher = _listed_dispatcher(str(qualified))
             if dispatcher is not None:
                 dispatcher._cache.flush()
         except (AttributeError, ImportError, ValueError, OSError):
@@ -407,7 +412,9 @@ def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) 
     start = time.perf_counter()
     jobs = default_jobs() if jobs is None else max(1, jobs)
     total = len(FAMILIES)
-    _flush_stale_kernels()
+    # The sources as they are now: the marker must not claim an edit made while compiling.
+    sources = sources_digest()
+    _flush_stale_kernels(sources)
     with tempfile.TemporaryDirectory(prefix="lightcal-warmup-") as tmp:
         parallel = jobs > 1 and _compile_in_processes(Path(tmp) / "workers", jobs, progress)
         for i, family in enumerate(FAMILIES):
@@ -421,7 +428,7 @@ def warm_up(progress: WarmupProgress | None = None, *, jobs: int | None = None) 
         compiled = sorted(name for name, d in _dispatchers().items() if _cached(d))
         try:
             tmp_marker = marker.with_suffix(".tmp")
-            content = {"sources": sources_digest(), "kernels": compiled}
+            content = {"sources": sources, "kernels": compiled}
             tmp_marker.write_text(json.dumps(content, indent=1), encoding="utf-8")
             tmp_marker.replace(marker)
         except OSError:

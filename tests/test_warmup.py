@@ -141,13 +141,14 @@ def test_warm_up_flushes_the_cache_of_kernels_compiled_from_other_sources(
     assert warmup._cached(module.twice)  # in numba's cache on disk
     listed = {"kernels": ["stale_kernels_mod:twice"]}
     marker.write_text(json.dumps({"sources": warmup.sources_digest(), **listed}), "utf-8")
-    warmup._flush_stale_kernels()
+    warmup._flush_stale_kernels(warmup.sources_digest())
     assert warmup._cached(module.twice)  # same sources: kept
     marker.write_text(json.dumps({"sources": "0" * 16, **listed}), "utf-8")
-    warmup._flush_stale_kernels()
+    warmup._flush_stale_kernels(warmup.sources_digest())
     assert not warmup._cached(module.twice)  # other sources: flushed
     marker.unlink()
-    warmup._flush_stale_kernels()  # no marker (a fresh install): nothing to flush
+    # No marker (a fresh install): nothing to flush.
+    warmup._flush_stale_kernels(warmup.sources_digest())
 
 
 def test_ensure_kernels_says_what_it_compiles(
