@@ -57,6 +57,7 @@ class Family:
     selection: dict[str, Any] | None = None
     report: bool = False
     parallel: bool = False  # every flux call on the thread pool, however small
+    noise_model: bool = True  # False: the noise estimated from the images (the sample's)
 
 
 # Beyond the kinds of light and wall, numba compiles a kernel once per combination of
@@ -70,6 +71,7 @@ FAMILIES: tuple[Family, ...] = (
         size=_DENSE,
         selection={"strategy": "all", "binning": 1},
         report=True,
+        noise_model=False,
     ),
     # The parallel flux kernel on stored quads: what the intrinsics' uncertainty renders
     # (perturbed cameras) on a large project; here every flux call goes parallel.
@@ -204,6 +206,8 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     project["selection"] = family.selection or {"strategy": "random", "n_per_image": 120}
     if family.wall is not None:
         project["wall"] = family.wall
+    if not family.noise_model:
+        project["sensor"].pop("noise", None)
     dataset.project_path.write_text(json.dumps(project), encoding="utf-8")
     return dataset.project_path
 

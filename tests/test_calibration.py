@@ -63,6 +63,31 @@ def test_fit_scales_at_the_true_poses():
     )
 
 
+def test_fit_scales_of_large_images_read_a_regular_subsample(monkeypatch):
+    from scipy.optimize import nnls
+
+    from lightcal.core.render import shade
+    from lightcal.pipeline import model as model_module
+
+    rig = cs.two_light_rig()
+    clean_images = cs.observe(
+        CAMERA, cs.views(5), rig, n_per_image=80, rng=np.random.default_rng(3)
+    )
+    images = cs.add_noise(clean_images, NOISE, np.random.default_rng(4))
+    unknowns = [LightUnknown(cs.start_near(light)) for light in rig.lights]
+    monkeypatch.setattr(model_module, "SCALE_FIT_PIXELS", 30)  # every third pixel of 80
+    start = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
+    A = np.concatenate([(shade(i.footprints, i.view, start).flux / i.sigma).T[::3] for i in images])
+    y = np.concatenate([((i.observed - 2.0) / i.sigma)[::3] for i in images])
+    expected, _ = nnls(A, y)
+    np.testing.assert_allclose(fit_scales(images, unknowns, 2.0), expected, rtol=1e-12)
+    # At the true poses a subsample gives the exact scales.
+    truth = [LightUnknown(light.replace(scale=1.0)) for light in rig.lights]
+    np.testing.assert_allclose(
+        fit_scales(clean_images, truth, 0.0), [light.scale for light in rig.lights], rtol=1e-9
+    )
+
+
 def test_fit_scales_on_the_reduced_system_match_nnls_of_every_pixel():
     # Noisy data and a start off the truth: the scales are those of NNLS on all rows.
     from scipy.optimize import nnls

@@ -14,6 +14,7 @@ from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
 from lightcal.core.solver import (
+    CONVERGED_AHEAD,
     CalibrationModel,
     IterationReport,
     SolverOptions,
@@ -639,3 +640,64 @@ def test_evaluate_visiting_shows_each_image_system_and_caches_the_evaluation(
     np.testing.assert_array_equal(model.residuals(x), r)  # cached: no new evaluation
     np.testing.assert_array_equal(model.normal_matrix(x), normal)
     assert model.nfev == nfev
+
+
+# ------------------------------------------------------- stopping one evaluation early
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_gauss_newton_decrease_is_half_the_squared_projection_of_r(noisy_problem, compress):
+    light, images = noisy_problem
+    model = cs.model_of(images, [cs.start_near(light)], compress=compress)
+    x = model.layout.x0 + 1e-4
+    assert model.gauss_newton_decrease(x) is None  # nothing evaluated at x yet
+    r, J = model.residuals(x).copy(), model.jacobian(x).copy()
+    step = np.linalg.lstsq(J, -r, rcond=None)[0]
+    want = 0.5 * (r @ r - (J @ step + r) @ (J @ step + r))
+    assert model.gauss_newton_decrease(x) == pytest.approx(want, rel=1e-8)
+    robust = cs.model_of(images, [cs.start_near(light)], loss="soft_l1")
+    robust.residuals(x)
+    assert robust.gauss_newton_decrease(x) is None
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_the_solve_stops_when_the_next_step_would_only_confirm_convergence(
+    noisy_problem, monkeypatch, compress
+):
+    light, images = noisy_problem
+    start = [cs.start_near(light)]
+    early = cs.model_of(images, start, compress=compress)
+    out = run_least_squares(early)
+    monkeypatch.setattr(CalibrationModel, "gauss_newton_decrease", lambda self, x: None)
+    plain = cs.model_of(images, start, compress=compress)
+    ref = run_least_squares(plain)
+    assert (out.status, out.success, out.message) == (2, True, CONVERGED_AHEAD)
+    assert ref.status > 0 and ref.message != CONVERGED_AHEAD
+    # trf took one more step and evaluation, then stopped on it: the same iterates up to
+    # there, a cost change below the tolerance, a step of |J dx| <= sqrt(2 tol cost).
+    assert (out.iterations, out.nfev) == (ref.iterations - 1, ref.nfev - 1)
+    for a, b in zip(out.history, ref.history, strict=False):
+        np.testing.assert_array_equal(a.x, b.x)
+    tol = early.options.tolerance
+    assert 0.0 <= out.cost - ref.cost < tol * out.cost
+    J = plain.jacobian(ref.x)
+    assert np.linalg.norm(J @ (out.x - ref.x)) < 1.01 * math.sqrt(2 * tol * out.cost)
+    assert np.abs(out.x - ref.x).max() < 1e-6
+
+
+def test_image_systems_zero_only_the_columns_they_do_not_assign(noisy_problem):
+    """The work array is reused: columns no image writes (other images' gains) are zeroed,
+    the others overwritten; a buffer left full of NaN gives the same systems."""
+    light, images = noisy_problem
+    start = [cs.start_near(light)]
+    fresh = cs.model_of(images, start, estimate_gains=True, compress=True)
+    reused = cs.model_of(images, start, estimate_gains=True, compress=True)
+    x = fresh.layout.x0 + 1e-4
+    reused.residuals(x - 1e-4)
+    reused._buffers._system[:] = np.nan
+    reused._buffers._grad[:] = np.nan
+    np.testing.assert_array_equal(reused.reduced(x)[1], fresh.reduced(x)[1])
+    np.testing.assert_array_equal(reused.reduced(x)[0], fresh.reduced(x)[0])
+    gains = fresh.layout.gains
+    assert gains.stop - gains.start == len(images) - 1  # image 0 sets the scale
+    assert fresh._unwritten_columns(-1, -1) == list(range(gains.start, gains.stop))

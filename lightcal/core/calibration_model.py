@@ -19,6 +19,7 @@ import numpy as np
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
+from lightcal.core.light_bounds import parameter_bounds
 from lightcal.core.pose import axis_from_angles, axis_jacobian
 from lightcal.core.problem import (
     LOG_CLIP,
@@ -41,8 +42,6 @@ ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
 # Pixels from which the QR-compressed problem pays (SolverOptions.compress None); measured:
 # 12 x 100 px solve 27 ms compressed vs 21.5 ms full; 12 x 375,000 px 5 s vs 18 s.
 COMPRESS_MIN_PIXELS = 20_000
-# How far beyond the span of its start and the camera centre a light may move (m).
-LIGHT_MOUNT_MARGIN_M = 0.5
 
 
 class CalibrationModel:
@@ -157,6 +156,36 @@ class CalibrationModel:
         J_s = self.solver_jacobian(x)
         return J_s.T @ J_s
 
+    def gauss_newton_decrease(self, x: np.ndarray) -> float | None:
+        """How much the Gauss-Newton step from x lowers the cost in trf's quadratic model:
+        0.5 |Q^T r|^2, Q^T r the first n entries of the last column of [J r]'s R factor
+        (the step p = -R_J^-1 Q^T r leaves the model cost 0.5 rho^2). From the evaluation
+        at x when it is cached; None otherwise, and for a robust loss (trf's model then
+        works on re-scaled residuals)."""
+        if self.options.loss != "linear":
+            return None
+        n = self.layout.n
+        recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+        if recent is not None:
+            R = recent[1]
+        elif (
+            self._cache_J is not None
+            and self._cache_r is not None
+            and self._cache_J_x is not None
+            and self._cache_x is not None
+            and np.array_equal(self._cache_J_x, x)
+            and np.array_equal(self._cache_x, x)
+        ):
+            Jr = np.column_stack([self._cache_J, self._cache_r])
+            if not np.all(np.isfinite(Jr)):
+                return None
+            R = stack_r_factors([economic_r(np.asfortranarray(Jr))], n + 1)
+        else:
+            return None
+        q = R[:n, n]
+        decrease = 0.5 * float(q @ q)
+        return decrease if math.isfinite(decrease) else None
+
     def evaluate_visiting(self, x: np.ndarray, visit: ImageVisitor) -> None:
         """Evaluate at x as the solver does (residuals and J^T J then cached at x) and call
         visit(i, A, fluxes) per image on the way: A (N_i, n + 1) its [J_i r_i] (a shared
@@ -246,7 +275,11 @@ class CalibrationModel:
         rig, offset, pose_maps = at_x.rig, at_x.offset, at_x.pose_maps
         g = at_x.gains[i]
         N = len(im.observed)
-        A, grad_buffer = self._buffers.system(N, n + 1)
+        gain_column = lay.gains.start + i - 1 if lay.gains.stop > lay.gains.start and i > 0 else -1
+        offset_column = -1 if lay.offset_index is None else lay.offset_index
+        A, grad_buffer = self._buffers.system(
+            N, n + 1, self._unwritten_columns(gain_column, offset_column)
+        )
         total = np.zeros(N)
         # d L_world / d t = R^T and delta_world = R^T delta_camera: rows (world) -> camera.
         R_t = view.R_camera_world.T
@@ -259,7 +292,6 @@ class CalibrationModel:
         wall_grad = None
         if not wall.is_lambertian:
             wall_grad = np.empty((N, len(wall.parameter_names)))
-            A[:, wall_cols] = 0.0
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -299,10 +331,21 @@ class CalibrationModel:
             self.sigmas[i],
             g,
             offset,
-            lay.gains.start + i - 1 if lay.gains.stop > lay.gains.start and i > 0 else -1,
-            -1 if lay.offset_index is None else lay.offset_index,
+            gain_column,
+            offset_column,
         )
         return A, stats
+
+    def _unwritten_columns(self, gain_column: int, offset_column: int) -> list[int]:
+        """The columns of an image's [J r] that `_image_system` does not assign (zeroed
+        first): other images' gains and the wall's (which it adds to)."""
+        lay = self.layout
+        written = {lay.n, gain_column, offset_column}
+        for block in lay.blocks:
+            written.update(range(block.pose.start, block.pose.stop))
+            written.update(range(block.rid.start, block.rid.stop))
+            written.add(block.log_scale)
+        return [c for c in range(lay.n + 1) if c not in written]
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
         """d m_render / d (RID params of light j) on image i by central differences."""
@@ -400,52 +443,9 @@ class CalibrationModel:
     # -- bounds -------------------------------------------------------------------------
 
     def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds that keep every light in front of the wall in every view.
-
-        Each light's lateral (camera x, y) position is boxed to the span of its start and
-        the camera centre, widened by d, and its forward position z below z_max(d), the
-        largest z that keeps the light in front of the wall in every view for any lateral
-        position in the box. d is the largest value (up to LIGHT_MOUNT_MARGIN_M) that leaves
-        at least a quarter of the start's forward room z_max(0) - z0. Scales and RID
-        parameters stay unbounded: bounding them degrades trf's steps (it scales
-        variables by their distance to finite bounds); the model clips their
-        exponentials instead (`ParameterLayout`).
-        """
-        lo = np.full(self.layout.n, -np.inf)
-        hi = np.full(self.layout.n, np.inf)
-        b = self.options.position_bound_m
-        x0 = self.layout.x0
-        for block in self.layout.blocks:
-            s = block.pose.start
-            # The lateral box spans the start and the camera centre (lights are mounted
-            # near it), widened by d on every side.
-            near = np.minimum(x0[s : s + 2], 0.0)
-            far = np.maximum(x0[s : s + 2], 0.0)
-            z0 = float(x0[s + 2])
-
-            def z_max(d: float, near: np.ndarray = near, far: np.ndarray = far) -> float:
-                z = b
-                for im in self.images:
-                    R = im.view.R_camera_world
-                    if R[2, 2] >= 0.0:
-                        continue  # the camera axis does not point at the wall
-                    # world z = c_z + sum_k R[k, 2] t_k, worst case over the lateral box.
-                    worst = im.view.center_world[2]
-                    for k in range(2):
-                        worst += min(R[k, 2] * (near[k] - d), R[k, 2] * (far[k] + d))
-                    z = min(z, 0.98 * worst / -R[2, 2])
-                return z
-
-            room = z_max(0.0) - z0
-            d = min(b, LIGHT_MOUNT_MARGIN_M)
-            while d > 1e-3 and z_max(d) - z0 < 0.25 * room:
-                d *= 0.8
-            lo[s : s + 2] = np.maximum(near - d, -b)
-            hi[s : s + 2] = np.minimum(far + d, b)
-            lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
-            hi[s + 2] = max(z_max(d), z0 + 1e-9)
-        lo[self.layout.wall], hi[self.layout.wall] = self.layout.wall_bounds()
-        return lo, hi
+        """Box bounds that keep every light in front of the wall in every view
+        (`lightcal.core.light_bounds`)."""
+        return parameter_bounds(self.layout, self.images, self.options.position_bound_m)
 
 
 def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
@@ -476,14 +476,15 @@ class _Buffers:
         self._system = np.empty(0)
         self._grad = np.empty(0)
 
-    def system(self, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
-        """A zeroed (rows, cols) Fortran-order array and a (rows, 6) C-order one."""
+    def system(self, rows: int, cols: int, zeroed: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """A (rows, cols) Fortran-order array, its columns `zeroed` set to 0 (the others
+        hold what the last caller left), and a (rows, 6) C-order one."""
         if self._system.size < rows * cols:
             self._system = np.empty(rows * cols)
         if self._grad.size < rows * 6:
             self._grad = np.empty(rows * 6)
         A = self._system[: rows * cols].reshape((rows, cols), order="F")
-        A.fill(0.0)
+        A[:, zeroed] = 0.0
         return A, self._grad[: rows * 6].reshape(rows, 6)
 
 

@@ -30,6 +30,7 @@ from lightcal.core.solver_options import (
 )
 
 __all__ = [
+    "CONVERGED_AHEAD",
     "DEFAULT_POSITION_BOUND_M",
     "CalibrationModel",
     "IterationReport",
@@ -77,6 +78,12 @@ class SolveOutcome:
             time_s=time_s,
             history=history,
         )
+
+
+CONVERGED_AHEAD = (
+    "the Gauss-Newton step from the last iterate predicts a cost decrease below "
+    "solver.tolerance times the cost (the step trf would take next and then stop)"
+)
 
 
 def run_least_squares(
@@ -153,13 +160,22 @@ def _trf(
     """One least_squares (trf) run after `done` iterations: (its result, hit the limit)."""
     opts = model.options
     hit_limit = False
+    converged_ahead = False
 
     def callback(intermediate_result: OptimizeResult) -> None:
-        nonlocal hit_limit
+        nonlocal hit_limit, converged_ahead
+        x = np.asarray(intermediate_result.x)
         nit = done + int(intermediate_result.nit)
-        emit(model.report(np.asarray(intermediate_result.x), nit))
+        emit(model.report(x, nit))
         if nit >= opts.max_iterations:
             hit_limit = True
+            raise StopIteration
+        # trf stops after a step whose cost change is below ftol * cost (and then holds
+        # the point after it): when the Gauss-Newton step from x already predicts that,
+        # the evaluation of that step would only confirm it.
+        decrease = model.gauss_newton_decrease(x)
+        if decrease is not None and decrease < opts.tolerance * float(intermediate_result.cost):
+            converged_ahead = True
             raise StopIteration
 
     with single_threaded_blas():  # trf's SVD of a full (m, n) Jacobian: see blas_threads
@@ -178,4 +194,6 @@ def _trf(
             max_nfev=20 * opts.max_iterations,
             callback=callback,
         )
+    if converged_ahead:
+        res.status, res.success, res.message = 2, True, CONVERGED_AHEAD
     return res, hit_limit

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.footprint import Footprints
-from lightcal.core.misfit import FitDiagnosis, diagnose, pixel_angles
-from lightcal.core.problem import poisson_gaussian_sigma
+from lightcal.core.misfit import FitDiagnosis, diagnose
+from lightcal.core.misfit_kernels import add_weighted_gram, mirror_incidence, noise_residuals
 from lightcal.core.render import shade
 from lightcal.core.scene import Light, View
 from lightcal.core.solver import CalibrationModel
@@ -118,33 +118,30 @@ def pixel_evidence(
     shares = [np.zeros(len(rig.lights))]
 
     def visit(i: int, A: np.ndarray, fluxes: np.ndarray) -> None:
-        im = model.images[i]
         rows = slice(model.bounds[i], model.bounds[i + 1])
-        d = A[:, n] * model.sigmas[i]
-        rendered = im.observed - d
+        n_i = A.shape[0]
         noise = meas.noise[i]
-        sigma_n = (
-            model.sigmas[i] if noise is None else poisson_gaussian_sigma(rendered - offset, noise)
+        ratio = np.empty(n_i)
+        noise_residuals(
+            A[:, n],
+            model.sigmas[i],
+            model.images[i].observed,
+            offset,
+            np.empty(0) if noise is None else np.array(noise, dtype=np.float64),
+            r_noise[rows],
+            relative[rows],
+            ratio,
         )
-        ratio = model.sigmas[i] / sigma_n
-        r_noise[rows] = d / sigma_n
-        with np.errstate(divide="ignore", invalid="ignore"):
-            relative[rows] = np.where(rendered - offset > 0, d / (rendered - offset), 0.0)
-        del d, rendered, sigma_n
         shares[0] = shares[0] + gains[i] * scales * fluxes.sum(axis=1)
         lit = fluxes * scales[:, None] * gains[i]
         _angles(model, i, rig.lights, lit, mirror[rows], incidence[rows])
-        n_i = A.shape[0]
         subset = np.arange(n_i)
         if n_i > POSE_ROWS:
             rng = np.random.default_rng([seed, i])
             subset = np.sort(rng.choice(n_i, POSE_ROWS, replace=False))
         subsets.append(ImageRows(i, subset, A[subset, :n], ratio[subset], n_i / subset.size))
         if middle is not None:
-            w = 1.0 / ratio**2
-            for c in _chunks(n_i):
-                J_c = np.ascontiguousarray(A[c, :n])
-                middle[:] += (J_c * w[c, None]).T @ J_c
+            add_weighted_gram(A, n, ratio, middle)
 
     model.evaluate_visiting(x, visit)
     model.release_buffers()  # not needed by the checks that follow
@@ -162,21 +159,12 @@ def _angles(
     """Write the mirror and incidence angles (N_i,) of image i's pixels, each for the
     light that gives it the most of its value (lit (L, N_i))."""
     im = model.images[i]
-    camera_world = im.view.center_world
-    lights_world = [light.position_world(im.view) for light in lights]
-    for c in _chunks(len(im.footprints)):  # pixel by pixel: chunks bound the temporaries
+    lights_world = np.array([light.position_world(im.view) for light in lights])
+    for c in _chunks(len(im.footprints)):  # chunks bound the centres' temporaries
         centers = im.footprints.subset(c).centers_now()
-        if len(lights) == 1:
-            mirror[c], incidence[c] = pixel_angles(centers, lights_world[0], camera_world)
-            continue
-        brightest = np.argmax(lit[:, c], axis=0)
-        mirror_c, incidence_c = mirror[c], incidence[c]
-        for j, light_world in enumerate(lights_world):
-            sel = brightest == j
-            if sel.any():
-                mirror_c[sel], incidence_c[sel] = pixel_angles(
-                    centers[sel], light_world, camera_world
-                )
+        mirror_incidence(
+            centers, lights_world, lit[:, c], im.view.center_world, mirror[c], incidence[c]
+        )
 
 
 #: Pixels per chunk of the checks' per-pixel work (its temporaries: a few MB each).

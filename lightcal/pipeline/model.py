@@ -19,6 +19,10 @@ from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, ProgressFn
 from lightcal.pipeline.select import image_data
 
+#: At most this many pixels per image enter the starting scales' fit (a regular
+#: subsample beyond): a start for the solver, which fits the scales with every pixel.
+SCALE_FIT_PIXELS = 1 << 16
+
 
 def fit_scales(
     images: list[ImageData],
@@ -31,7 +35,8 @@ def fit_scales(
     The weighted system [A y] (one row a pixel, one column a light, then the values) is
     reduced image by image to its R factor (`stack_r_factors`), so no (m, L) matrix is
     held; the non-negative least squares then runs on that (L + 1, L + 1) system, whose
-    solutions are those of the full one.
+    solutions are those of the full one. Images with more than `SCALE_FIT_PIXELS` pixels
+    enter by a regular subsample of them.
     """
     rig = Rig(tuple(u.initial.replace(scale=1.0) for u in unknowns))
     n_l = len(unknowns)
@@ -40,10 +45,13 @@ def fit_scales(
     sum_rows = 0.0
     m = 0
     for im in images:
-        sh = shade(im.footprints, im.view, rig, wall=wall)
-        Ay = np.empty((len(im.observed), n_l + 1), order="F")
-        Ay[:, :n_l] = (sh.flux / im.sigma).T
-        Ay[:, n_l] = (im.observed - offset) / im.sigma
+        # Indices, not a strided slice: the kernels take contiguous arrays.
+        rows = np.arange(0, len(im.observed), -(-len(im.observed) // SCALE_FIT_PIXELS) or 1)
+        sh = shade(im.footprints.subset(rows), im.view, rig, wall=wall)
+        sigma = im.sigma[rows]
+        Ay = np.empty((len(sigma), n_l + 1), order="F")
+        Ay[:, :n_l] = (sh.flux / sigma).T
+        Ay[:, n_l] = (im.observed[rows] - offset) / sigma
         del sh
         sum_abs_y += float(np.abs(Ay[:, n_l]).sum())
         sum_rows += float(Ay[:, :n_l].sum())

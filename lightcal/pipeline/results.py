@@ -326,7 +326,8 @@ _STOP_REASONS = {
     -1: "the solver could not start (improper input)",
     0: "the iteration limit was reached before convergence (solver.max_iterations)",
     1: "the gradient vanished (a minimum)",
-    2: "the cost stopped decreasing (its relative change fell below solver.tolerance)",
+    2: "the cost stopped decreasing (its relative change, or the change the next "
+    "Gauss-Newton step predicts, fell below solver.tolerance)",
     3: "the parameters stopped changing (their relative step fell below solver.tolerance)",
     4: "the cost and the parameters stopped changing (below solver.tolerance)",
 }
