@@ -27,6 +27,8 @@ import numba
 import numpy as np
 from scipy import special  # not scipy.stats: 0.6 s to import, for two tail functions
 
+from lightcal.core.misfit_kernels import order_statistics
+
 #: False-alarm probability of each test on data the model explains.
 P_ALARM = 1e-3
 #: Quantile bins of each angle.
@@ -148,8 +150,7 @@ def angle_trend(
     m = r.size
     if m < 10 * N_BINS:
         return None
-    edges = np.quantile(angles_deg, np.linspace(0.0, 1.0, N_BINS + 1))
-    edges = np.unique(edges)
+    edges = np.unique(quantiles(angles_deg, np.linspace(0.0, 1.0, N_BINS + 1)))
     k = edges.size - 1
     if k < 2:
         return None
@@ -178,6 +179,38 @@ def angle_trend(
     sd = math.sqrt(within / df_w) if within > 0 else 1.0
     effect = float(np.sqrt(np.sum(count * (means - grand) ** 2) / m)) / sd
     return AngleTrend(angle, edges, means, rel, count.astype(np.int64), f_stat, p, effect)
+
+
+#: From this many values `quantiles` finds the order statistics by a histogram.
+QUANTILE_HISTOGRAM_MIN = 1 << 16
+
+
+def quantiles(values: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """np.quantile(values, q) (the "linear" method), equal to it; for large NaN-free
+    values (m,) from the order statistics `misfit_kernels.order_statistics` finds, several
+    times faster than NumPy's partition at every rank.
+
+    Returns:
+        (len(q),) float64.
+    """
+    m = values.size
+    if m < QUANTILE_HISTOGRAM_MIN or np.isnan(values).any():
+        return np.quantile(values, q)
+    # NumPy's linear method: virtual index (m - 1) q between its floor and the next rank,
+    # interpolated as numpy.lib._function_base_impl._lerp does, in the same dtypes.
+    virtual = (m - 1) * np.asarray(q, dtype=np.float64)
+    below = np.floor(virtual)
+    gamma = virtual - below
+    below_i = np.minimum(below.astype(np.intp), m - 1)
+    above_i = np.minimum(below_i + 1, m - 1)
+    ranks = np.unique(np.concatenate([below_i, above_i])).astype(np.int64)
+    stats = order_statistics(np.ascontiguousarray(values), ranks)
+    a = stats[np.searchsorted(ranks, below_i)]
+    b = stats[np.searchsorted(ranks, above_i)]
+    diff = b - a
+    out = a + diff * gamma
+    np.subtract(b, diff * (1 - gamma), out=out, where=gamma >= 0.5)
+    return out
 
 
 @numba.njit(cache=True)

@@ -160,3 +160,60 @@ def _angles_of(
         ok = lz == lz  # NaN points (pixels off the wall)
         mirror_deg[i] = mirror if ok else math.nan
         incidence_deg[i] = incidence if ok else math.nan
+
+
+@numba.njit(cache=True)
+def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray:
+    """The values at 0-based positions `ranks` (k,) of `values` (m,) sorted ascending
+    (NaN-free), without sorting them: a histogram of 65536 equal bins between the
+    smallest and largest value finds each rank's bin, and only those bins' values are
+    gathered and sorted (values in a lower bin are never larger: the bin index is a
+    monotone function of the value). Three passes over `values` where np.partition at a
+    dozen ranks takes several.
+
+    Returns:
+        (k,) in the dtype of `values`.
+    """
+    m = values.shape[0]
+    k = ranks.shape[0]
+    out = np.empty(k, dtype=values.dtype)
+    lo = values[0]
+    hi = values[0]
+    for i in range(m):
+        v = values[i]
+        lo = min(lo, v)
+        hi = max(hi, v)
+    if not hi > lo:
+        out[:] = lo
+        return out
+    n_bins = 65536
+    scale = n_bins / (float(hi) - float(lo))
+    counts = np.zeros(n_bins, dtype=np.int64)
+    for i in range(m):
+        counts[min(int((float(values[i]) - float(lo)) * scale), n_bins - 1)] += 1
+    start = np.zeros(n_bins + 1, dtype=np.int64)
+    for b in range(n_bins):
+        start[b + 1] = start[b] + counts[b]
+    bin_of = np.empty(k, dtype=np.int64)
+    offset = np.full(n_bins, -1, dtype=np.int64)
+    gathered = 0
+    for j in range(k):
+        b = np.searchsorted(start, ranks[j], side="right") - 1
+        bin_of[j] = b
+        if offset[b] < 0:
+            offset[b] = gathered
+            gathered += counts[b]
+    buffer = np.empty(gathered, dtype=values.dtype)
+    fill = offset.copy()
+    for i in range(m):
+        b = min(int((float(values[i]) - float(lo)) * scale), n_bins - 1)
+        if offset[b] >= 0:
+            buffer[fill[b]] = values[i]
+            fill[b] += 1
+    for b in range(n_bins):
+        if offset[b] >= 0:
+            buffer[offset[b] : offset[b] + counts[b]].sort()
+    for j in range(k):
+        b = bin_of[j]
+        out[j] = buffer[offset[b] + ranks[j] - start[b]]
+    return out
