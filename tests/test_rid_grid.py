@@ -302,7 +302,7 @@ def test_2d_grid_row_values_equal_the_per_pixel_interpolation(make) -> None:
     `grid2d_interp`'s value pixel by pixel: a smooth row of directions as an image row
     gives (long runs in a cell), random coordinates (runs of one), the clamped last node,
     beyond the last angle and NaN."""
-    from lightcal.core.rid_grid import grid2d_coords, grid2d_interp, grid2d_values_row
+    from lightcal.core.rid_grid import grid2d_cell, grid2d_coords, grid2d_interp, grid2d_values_row
 
     data = make().data()
     grid, inv_h, s_max, s_back = data.grid, data.params[2], data.params[3], data.params[4]
@@ -318,11 +318,19 @@ def test_2d_grid_row_values_equal_the_per_pixel_interpolation(make) -> None:
     xs = np.concatenate([xs, rng.uniform(0, n - 1, 500), [n - 1.0, -1.0, np.nan, 0.0]])
     ys = np.concatenate([ys, rng.uniform(0, 2 * n - 1, 500), [n - 1.0, 3.0, 3.0, 2 * n - 1.0]])
     expected = np.array([grid2d_interp(x, y, grid, inv_h)[0] for x, y in zip(xs, ys, strict=True)])
+    cells = np.array([grid2d_cell(x, y, n) for x, y in zip(xs, ys, strict=True)])
     got = xs.copy()
-    grid2d_values_row(got, ys, grid, inv_h)
+    grid2d_values_row(got, ys, cells, grid, inv_h)
     assert np.array_equal(np.isnan(got), np.isnan(expected))
     ok = ~np.isnan(expected)
     np.testing.assert_allclose(got[ok], expected[ok], rtol=1e-12, atol=1e-14)
     assert got[-3] == 0.0  # beyond the last angle
     runs = np.count_nonzero(np.diff(np.floor(xs[:3000])) != 0)
     assert runs < 300  # the image row does come in long runs
+    # One number per cell: equal for coordinates in one cell (the clamped last node in
+    # the last cell), different across cells and hemispheres; x itself beyond / at NaN.
+    assert grid2d_cell(2.25, 3.5, n) == grid2d_cell(2.75, 3.0, n) == 2 + n * 3
+    assert grid2d_cell(n - 1.0, n - 1.0, n) == grid2d_cell(n - 1.5, n - 1.5, n)
+    assert grid2d_cell(2.25, n + 3.5, n) == 2 + n * (n + 3)
+    assert len({grid2d_cell(x, y, n) for x in (0.5, 1.5) for y in (0.5, 1.5, n + 0.5)}) == 6
+    assert grid2d_cell(-1.0, 3.0, n) == -1.0 and np.isnan(grid2d_cell(np.nan, 3.0, n))

@@ -279,7 +279,23 @@ def _hermite_powers(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def grid2d_values_row(xs: np.ndarray, ys: np.ndarray, grid: np.ndarray, inv_h: float) -> None:
+def grid2d_cell(x: float, y: float, n: int) -> float:
+    """The grid cell of coordinates (x, y) (`grid2d_coords`) as one number, ix + n row
+    (row: the node row, the back hemisphere's from n on); x itself (-1 or NaN) beyond
+    the last angle or at NaN. Branch-free, for the coordinate loops: `grid2d_values_row`
+    then finds a run of pixels in one cell by comparing these numbers alone."""
+    ok = x >= 0.0  # False for NaN
+    back = y > n - 0.5
+    y_off = float(n) if back else 0.0
+    ix = min(int(x if ok else 0.0), n - 2)
+    iy = min(int((y - y_off) if ok else 0.0), n - 2)
+    return float(ix + n * (iy + (n if back else 0))) if ok else x
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def grid2d_values_row(
+    xs: np.ndarray, ys: np.ndarray, cells: np.ndarray, grid: np.ndarray, inv_h: float
+) -> None:
     """f of a 2-D table's grids at coordinates (xs, ys) (`grid2d_coords`), written over xs:
     the value of `grid2d_interp`, without its derivatives, for a row of pixels.
 
@@ -287,12 +303,14 @@ def grid2d_values_row(xs: np.ndarray, ys: np.ndarray, grid: np.ndarray, inv_h: f
     hundreds: per run, the cell's bicubic Hermite patch is turned into its 16 power-basis
     coefficients once, and the run is evaluated by Horner's rule with those constants, a
     loop without gathers that LLVM vectorises (the per-pixel interpolation gathers 16
-    node values and spends about 40 products on each pixel). Equal to `grid2d_interp`'s
-    value to rounding.
+    node values and spends about 40 products on each pixel). A run ends where the cell
+    number (`grid2d_cell`, computed with the coordinates) changes. Equal to
+    `grid2d_interp`'s value to rounding.
 
     Args:
         xs, ys: (w,) grid coordinates; xs is overwritten with f (0 beyond the last angle,
             NaN at NaN).
+        cells: (w,) `grid2d_cell` of each pixel.
         grid, inv_h: as `grid2d_interp`.
     """
     n = grid.shape[1]
@@ -300,26 +318,18 @@ def grid2d_values_row(xs: np.ndarray, ys: np.ndarray, grid: np.ndarray, inv_h: f
     w = xs.shape[0]
     u = 0
     while u < w:
-        x = xs[u]
-        if not x >= 0.0:  # beyond the last angle, or NaN
-            xs[u] = x if x != x else 0.0
+        cell = cells[u]
+        if not cell >= 0.0:  # beyond the last angle, or NaN
+            xs[u] = cell if cell != cell else 0.0
             u += 1
             continue
-        y = ys[u]
-        back = y > n - 0.5
-        y_off = float(n) if back else 0.0
-        ix = min(int(x), n - 2)
-        iy = min(int(y - y_off), n - 2)
-        # The run of pixels in this cell (same hemisphere, same cell indices).
         end = u + 1
-        while end < w:
-            xe = xs[end]
-            ye = ys[end]
-            if not xe >= 0.0 or (ye > n - 0.5) != back:
-                break
-            if min(int(xe), n - 2) != ix or min(int(ye - y_off), n - 2) != iy:
-                break
+        while end < w and cells[end] == cell:
             end += 1
+        back = ys[u] > n - 0.5
+        y_off = float(n) if back else 0.0
+        ix = min(int(xs[u]), n - 2)
+        iy = min(int(ys[u] - y_off), n - 2)
         row = iy + (n if back else 0)
         # Rows of nodes 0 and 1: r_j(t) (values) and q_j(t) (y-slopes times h) in powers
         # of t, Hermite with the x-slopes (times h) and the cross slopes (times h^2).

@@ -60,7 +60,13 @@ from lightcal.core.rid_eval import (
     rid_value_direction,
     table2d_value_grad,
 )
-from lightcal.core.rid_grid import grid1d_coord, grid1d_interp, grid2d_coords, grid2d_values_row
+from lightcal.core.rid_grid import (
+    grid1d_coord,
+    grid1d_interp,
+    grid2d_cell,
+    grid2d_coords,
+    grid2d_values_row,
+)
 from lightcal.core.rid_stack import RIDStack, light_rid
 
 
@@ -195,8 +201,8 @@ def _flux_row(
     """Add scale * Phi / I0 of one light to acc_row (w,) for the pixels of a row.
 
     Only pixels with ok_row set are guaranteed; the others may receive any value.
-    f_rows: (2, w) scratch (the RID per pixel; the azimuth of 2-D tables or the row of
-    their grid).
+    f_rows: (3, w) scratch (the RID per pixel; the azimuth of 2-D tables or the row and
+    cell number of their grid).
     """
     w = acc_row.shape[0]
     f_row = f_rows[0]
@@ -299,12 +305,13 @@ def _flux_row(
             for u in range(w):
                 f_row[u] = grid1d_interp(f_row[u], grid, inv_h)[0]
         elif kind == KIND_GRID_2D:
-            y_row = f_rows[1]
+            y_row, cell_row = f_rows[1], f_rows[2]
             n = grid.shape[1]
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
-                f_row[u], y_row[u] = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
-            grid2d_values_row(f_row, y_row, grid, inv_h)
+                x, y = grid2d_coords(ux, uy, uz, n, inv_h, s_max, s_back)
+                f_row[u], y_row[u], cell_row[u] = x, y, grid2d_cell(x, y, n)
+            grid2d_values_row(f_row, y_row, cell_row, grid, inv_h)
         else:
             for u in range(w):
                 ux, uy, uz = _centroid_dir_light(tpx, tpy, bpx, bpy, u, lx, ly, az, R9)
@@ -426,7 +433,7 @@ def render_image_fused(
         area_row = np.empty(w)
         v_row = np.empty(w)
         om_row = np.empty(w)
-        f_rows = np.empty((2, w))
+        f_rows = np.empty((3, w))
         bad_row = np.empty(w, dtype=np.bool_)
         acc_row = np.empty(w)
         total_row = np.empty(w)
