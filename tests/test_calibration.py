@@ -88,6 +88,38 @@ def test_fit_scales_of_large_images_read_a_regular_subsample(monkeypatch):
     )
 
 
+def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
+    import importlib
+
+    solve_module = importlib.import_module("lightcal.pipeline.solve")  # not the function
+    light = cs.symmetric_light()
+    images = cs.observe(
+        CAMERA, cs.views(12), Rig.single(light), n_per_image=400, rng=np.random.default_rng(5)
+    )
+    images = cs.add_noise(images, NOISE, np.random.default_rng(6))
+    start = [cs.start_near(light)]
+    monkeypatch.setattr(solve_module, "COARSE_MIN_PIXELS", 1000)
+    monkeypatch.setattr(solve_module, "COARSE_PIXELS", 600)  # every 8th of 4800 pixels
+    model = cs.model_of(images, start)
+    assert model.m == 4800
+    every_8th = [im.subset(np.arange(0, len(im.observed), 8)) for im in images]
+    np.testing.assert_array_equal(
+        solve_module.coarse_start(model), run_least_squares(cs.model_of(every_8th, start)).x
+    )
+    out = solve(model)
+    plain = cs.model_of(images, start)
+    ref = run_least_squares(plain)
+    assert out.success and ref.success
+    assert out.nfev < ref.nfev  # the full problem's evaluations: from near its minimum
+    # The same minimum, to the tolerance: each stop leaves |J dx| <= sqrt(2 tol cost).
+    bound = 2 * math.sqrt(2 * plain.options.tolerance * ref.cost)
+    assert np.linalg.norm(plain.jacobian(ref.x) @ (out.x - ref.x)) < bound
+    assert abs(out.cost - ref.cost) < plain.options.tolerance * ref.cost
+    # Below the threshold, the initial guess.
+    monkeypatch.setattr(solve_module, "COARSE_MIN_PIXELS", model.m + 1)
+    assert solve_module.coarse_start(model) is None
+
+
 def test_fit_scales_on_the_reduced_system_match_nnls_of_every_pixel():
     # Noisy data and a start off the truth: the scales are those of NNLS on all rows.
     from scipy.optimize import nnls
