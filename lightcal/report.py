@@ -166,6 +166,9 @@ def _summary_markdown(
     lines.append("")
     lines.append("![convergence](convergence.png)")
     lines.append("")
+    if result.start:
+        lines.append(f"Iteration 0 is {result.start}.")
+        lines.append("")
     return "\n".join(lines)
 
 

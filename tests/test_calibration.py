@@ -103,10 +103,11 @@ def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
     model = cs.model_of(images, start)
     assert model.m == 4800
     every_8th = [im.subset(np.arange(0, len(im.observed), 8)) for im in images]
-    np.testing.assert_array_equal(
-        solve_module.coarse_start(model), run_least_squares(cs.model_of(every_8th, start)).x
-    )
+    coarse = solve_module.coarse_start(model)
+    assert coarse is not None
+    np.testing.assert_array_equal(coarse[0], run_least_squares(cs.model_of(every_8th, start)).x)
     out = solve(model)
+    assert out.start.startswith("the estimate of a first solve on every 8th pixel (600 of 4800")
     plain = cs.model_of(images, start)
     ref = run_least_squares(plain)
     assert out.success and ref.success
@@ -118,6 +119,7 @@ def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
     # Below the threshold, the initial guess.
     monkeypatch.setattr(solve_module, "COARSE_MIN_PIXELS", model.m + 1)
     assert solve_module.coarse_start(model) is None
+    assert solve(cs.model_of(images, start)).start == ""
 
 
 def test_fit_scales_on_the_reduced_system_match_nnls_of_every_pixel():

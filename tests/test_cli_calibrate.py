@@ -207,3 +207,25 @@ def test_console_script_runs(tmp_path):
     assert proc.stderr == (
         f"lightcal calibrate: error: {tmp_path / 'none.yaml'}: project file not found\n"
     )
+
+
+def test_a_large_calibration_says_where_its_iterations_began(
+    dataset, tmp_path, capsys, monkeypatch
+):
+    import importlib
+
+    solve_module = importlib.import_module("lightcal.pipeline.solve")
+    monkeypatch.setattr(solve_module, "COARSE_MIN_PIXELS", 1000)  # "large": 1000 pixels
+    monkeypatch.setattr(solve_module, "COARSE_PIXELS", 300)
+    project = _project_copy(dataset, tmp_path, selection={"strategy": "all", "binning": 4})
+    out, report = tmp_path / "result.json", tmp_path / "report"
+    code = main(["calibrate", str(project), "--out", str(out), "--report", str(report)])
+    captured = capsys.readouterr()
+    assert code in (0, 3), captured.err  # 3: the fit test's verdict, not the solve's
+    result = read_result(out)
+    assert result.converged
+    text = " ".join(captured.err.split())  # the console's progress lines
+    k = int(text.split("a first solve on every ")[1].split("th pixel")[0])
+    assert text.index("a first solve on every") < text.index("iteration 0 cost")
+    assert k >= 2 and result.start.startswith(f"the estimate of a first solve on every {k}th")
+    assert f"Iteration 0 is {result.start}." in (report / "summary.md").read_text()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -85,6 +86,15 @@ def test_every_field_is_written(result):
     assert rf.parameters.x == result.x
     assert rf.parameters.covariance == result.covariance
     assert result_to_file(result).project is None
+
+
+def test_where_the_iterations_began_is_written(result, tmp_path):
+    assert result_to_file(result).start == ""  # the initial guess
+    began = "the estimate of a first solve on every 37th pixel (256459 of 9488747 pixels)"
+    rf = result_to_file(dataclasses.replace(result, start=began))
+    write_result(rf, tmp_path / "r.json")
+    assert read_result(tmp_path / "r.json").start == began
+    assert json.loads((tmp_path / "r.json").read_text())["start"] == began
 
 
 def test_write_read_round_trip(result, tmp_path):

@@ -46,7 +46,9 @@ class SolveOutcome:
     """What least_squares returned plus the iteration history.
 
     `weights_at`: the parameters the final pixel weights were rendered at (None: the
-    data's sigmas); `CalibrationModel.set_weights_at` restores them.
+    data's sigmas); `CalibrationModel.set_weights_at` restores them. `start`: where the
+    solve started when a caller found the start by a solve of its own, in words (empty:
+    the initial guess or the given x0).
     """
 
     x: np.ndarray
@@ -59,6 +61,7 @@ class SolveOutcome:
     time_s: float
     history: list[IterationReport] = field(default_factory=list)
     weights_at: np.ndarray | None = None
+    start: str = ""
 
     @classmethod
     def stopped(

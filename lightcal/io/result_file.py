@@ -12,7 +12,9 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``offset``, ``offset_sigma``, ``gains`` (per image, relative to the first).
 - ``images[]``: ``name``, ``rms`` (RMS of observed minus rendered, pixel units), ``pixels``.
 - ``iterations``, ``nfev``, ``status`` (scipy's, -2 stopped by the user, 0 iteration
-  limit), ``message``, ``converged``, ``cost``, ``time_s``, ``warnings``.
+  limit), ``message``, ``converged``, ``cost``, ``time_s``, ``warnings``; ``start``: where
+  those iterations began when not at the initial guess (a large problem's first solve on
+  a subsample of its pixels), in words; empty otherwise.
 - ``parameters``: ``names``, ``x`` and ``covariance`` of the solver's parameter vector.
 - ``fit``: is the fit explained by the noise? ``adequate``, ``noise_source`` (model, image or
   none), ``chi2``, ``dof``, ``expected_chi2``, ``chi2_per_dof``, ``p_value``, the residuals
@@ -113,6 +115,10 @@ class ResultFile(_Model):
     uncertainty: list[str] = Field(
         default_factory=list, description="the terms the covariance and sigmas include"
     )
+    start: str = Field(
+        default="",
+        description="where the iterations began when not at the initial guess (empty: there)",
+    )
 
 
 def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
@@ -155,6 +161,7 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
         fit=result.fit or None,
         wall=result.wall,
         uncertainty=result.uncertainty_terms,
+        start=result.start,
     )
 
 

@@ -161,6 +161,7 @@ class CalibrationResult:
     fit: dict = field(default_factory=dict)
     wall: dict = field(default_factory=lambda: {"model": "lambertian"})
     uncertainty_terms: list[str] = field(default_factory=list)
+    start: str = ""  # `SolveOutcome.start`: where the reported iterations began
 
     @property
     def fit_adequate(self) -> bool:
@@ -278,6 +279,7 @@ def summarise(
         fit=diagnosis.to_dict(),
         wall=_wall_summary(model, x, cov),
         uncertainty_terms=unc.terms,
+        start=outcome.start,
     )
 
 

@@ -57,7 +57,7 @@ COARSE_PIXELS = 250_000
 
 def coarse_start(
     model: CalibrationModel, on_stage: Callable[[str], None] | None = None
-) -> np.ndarray | None:
+) -> tuple[np.ndarray, str] | None:
     """Where to start the solve of a large model: the solution of the same problem on
     every k-th pixel of each image (about COARSE_PIXELS in all), from the initial guess;
     None (the initial guess) below COARSE_MIN_PIXELS or when that solve fails.
@@ -67,6 +67,9 @@ def coarse_start(
     full solve takes a Gauss-Newton step or two instead of every iteration from the
     guess. Only the start changes: the full solve converges by its own test, and its
     iterations are the ones reported. `on_stage` hears what runs, in words.
+
+    Returns:
+        (x, what it is in words: `SolveOutcome.start`), or None.
     """
     if model.m < COARSE_MIN_PIXELS:
         return None
@@ -85,7 +88,12 @@ def coarse_start(
         out = run_least_squares(coarse)
     except ValueError:
         return None
-    return out.x if out.success and np.all(np.isfinite(out.x)) else None
+    if not (out.success and np.all(np.isfinite(out.x))):
+        return None
+    return out.x, (
+        f"the estimate of a first solve on every {k}th pixel ({coarse.m} of {model.m} "
+        f"pixels, {out.iterations} iterations)"
+    )
 
 
 def solve(
@@ -109,7 +117,10 @@ def solve(
     n_starts = 1 + multistart
     if on_start is not None:
         on_start(0, n_starts)
-    best = run_least_squares(model, coarse_start(model, on_stage), on_iteration=on_iteration)
+    coarse = coarse_start(model, on_stage)
+    best = run_least_squares(model, coarse and coarse[0], on_iteration=on_iteration)
+    if coarse is not None:
+        best.start = coarse[1]
     rng = np.random.default_rng(seed)
     for k in range(1, n_starts):
         x0 = perturbed_start(
