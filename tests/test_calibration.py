@@ -107,7 +107,7 @@ def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
     assert coarse is not None
     np.testing.assert_array_equal(coarse[0], run_least_squares(cs.model_of(every_8th, start)).x)
     out = solve(model)
-    assert out.start.startswith("the estimate of a first solve on every 8th pixel (600 of 4800")
+    assert out.start.startswith("the estimate of a first solve on one pixel in 8 (600 of 4800")
     plain = cs.model_of(images, start)
     ref = run_least_squares(plain)
     assert out.success and ref.success

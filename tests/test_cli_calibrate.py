@@ -225,7 +225,7 @@ def test_a_large_calibration_says_where_its_iterations_began(
     result = read_result(out)
     assert result.converged
     text = " ".join(captured.err.split())  # the console's progress lines
-    k = int(text.split("a first solve on every ")[1].split("th pixel")[0])
-    assert text.index("a first solve on every") < text.index("iteration 0 cost")
-    assert k >= 2 and result.start.startswith(f"the estimate of a first solve on every {k}th")
+    k = int(text.split("a first solve on one pixel in ")[1].split(" ")[0])
+    assert text.index("a first solve on one pixel in") < text.index("iteration 0 cost")
+    assert k >= 2 and result.start.startswith(f"the estimate of a first solve on one pixel in {k} ")
     assert f"Iteration 0 is {result.start}." in (report / "summary.md").read_text()

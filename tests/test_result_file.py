@@ -90,7 +90,7 @@ def test_every_field_is_written(result):
 
 def test_where_the_iterations_began_is_written(result, tmp_path):
     assert result_to_file(result).start == ""  # the initial guess
-    began = "the estimate of a first solve on every 37th pixel (256459 of 9488747 pixels)"
+    began = "the estimate of a first solve on one pixel in 37 (256459 of 9488747 pixels)"
     rf = result_to_file(dataclasses.replace(result, start=began))
     write_result(rf, tmp_path / "r.json")
     assert read_result(tmp_path / "r.json").start == began

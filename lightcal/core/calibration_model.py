@@ -165,17 +165,11 @@ class CalibrationModel:
         if self.options.loss != "linear":
             return None
         n = self.layout.n
-        recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+        recent = self._recent_at(x)
+        at_x = all(c is not None and np.array_equal(c, x) for c in (self._cache_J_x, self._cache_x))
         if recent is not None:
             R = recent[1]
-        elif (
-            self._cache_J is not None
-            and self._cache_r is not None
-            and self._cache_J_x is not None
-            and self._cache_x is not None
-            and np.array_equal(self._cache_J_x, x)
-            and np.array_equal(self._cache_x, x)
-        ):
+        elif at_x and self._cache_J is not None and self._cache_r is not None:
             Jr = np.column_stack([self._cache_J, self._cache_r])
             if not np.all(np.isfinite(Jr)):
                 return None
@@ -185,6 +179,10 @@ class CalibrationModel:
         q = R[:n, n]
         decrease = 0.5 * float(q @ q)
         return decrease if math.isfinite(decrease) else None
+
+    def _recent_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The kept compressed evaluation (x, R factor, per-image RMS) at x, if any."""
+        return next((e for e in self._recent if np.array_equal(e[0], x)), None)
 
     def evaluate_visiting(self, x: np.ndarray, visit: ImageVisitor) -> None:
         """Evaluate at x as the solver does (residuals and J^T J then cached at x) and call
@@ -417,12 +415,12 @@ class CalibrationModel:
     def report(self, x: np.ndarray, iteration: int) -> IterationReport:
         """The iteration's numbers at x; from a recent compressed evaluation when there is
         one (|r~| = |r|, J~^T r~ = J^T r), else from the residuals and gradient at x."""
-        recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+        recent = self._recent_at(x)
         if recent is None and self.compressed:
             # The start (iteration 0) is reported before trf evaluates it: evaluate it
             # now (trf then reuses it), and read the numbers off its compressed system.
             self.residuals(x)
-            recent = next((e for e in self._recent if np.array_equal(e[0], x)), None)
+            recent = self._recent_at(x)
         if recent is None:
             r = self.residuals(x)
             cost = robust_cost(r, self.options.loss, self.options.f_scale)

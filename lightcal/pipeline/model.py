@@ -45,15 +45,13 @@ def fit_scales(
     sum_rows = 0.0
     m = 0
     for im in images:
-        fp, observed, sigma = im.footprints, im.observed, im.sigma
-        step = -(-len(observed) // SCALE_FIT_PIXELS)
+        step = -(-len(im.observed) // SCALE_FIT_PIXELS)
         if step > 1:  # indices, not a strided slice: the kernels take contiguous arrays
-            rows = np.arange(0, len(observed), step)
-            fp, observed, sigma = fp.subset(rows), observed[rows], sigma[rows]
-        sh = shade(fp, im.view, rig, wall=wall)
-        Ay = np.empty((len(sigma), n_l + 1), order="F")
-        Ay[:, :n_l] = (sh.flux / sigma).T
-        Ay[:, n_l] = (observed - offset) / sigma
+            im = im.subset(np.arange(0, len(im.observed), step))
+        sh = shade(im.footprints, im.view, rig, wall=wall)
+        Ay = np.empty((len(im.observed), n_l + 1), order="F")
+        Ay[:, :n_l] = (sh.flux / im.sigma).T
+        Ay[:, n_l] = (im.observed - offset) / im.sigma
         del sh
         sum_abs_y += float(np.abs(Ay[:, n_l]).sum())
         sum_rows += float(Ay[:, :n_l].sum())

@@ -81,7 +81,7 @@ def coarse_start(
         return None
     if on_stage is not None:
         on_stage(
-            f"a first solve on every {k}th pixel ({coarse.m} of {model.m}), "
+            f"a first solve on one pixel in {k} ({coarse.m} of {model.m}), "
             "then the full solve from its estimate"
         )
     try:
@@ -91,7 +91,7 @@ def coarse_start(
     if not (out.success and np.all(np.isfinite(out.x))):
         return None
     return out.x, (
-        f"the estimate of a first solve on every {k}th pixel ({coarse.m} of {model.m} "
+        f"the estimate of a first solve on one pixel in {k} ({coarse.m} of {model.m} "
         f"pixels, {out.iterations} iterations)"
     )
 
@@ -118,7 +118,8 @@ def solve(
     if on_start is not None:
         on_start(0, n_starts)
     coarse = coarse_start(model, on_stage)
-    best = run_least_squares(model, coarse and coarse[0], on_iteration=on_iteration)
+    x0 = None if coarse is None else coarse[0]
+    best = run_least_squares(model, x0, on_iteration=on_iteration)
     if coarse is not None:
         best.start = coarse[1]
     rng = np.random.default_rng(seed)
