@@ -12,7 +12,7 @@ import pytest
 import tifffile
 
 from lightcal.errors import InputError
-from lightcal.io.images import read_image
+from lightcal.io.images import read_image, read_mask
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.response import ResponseCurve
 
@@ -309,6 +309,33 @@ def test_missing_and_unsupported_files(tmp_path: Path) -> None:
     broken_tiff.write_bytes(b"not a tiff at all")
     with pytest.raises(InputError, match=re.escape(f"{broken_tiff}: not a readable TIFF image (")):
         read_image(broken_tiff)
+
+
+def test_read_mask_is_read_image_above_zero(tmp_path: Path) -> None:
+    """read_mask keeps read_image(assume_linear=True).values > 0 for every kind of file."""
+    rng = np.random.default_rng(4)
+    grey8 = (rng.random((6, 9)) > 0.5).astype(np.uint8) * 255
+    colour16 = rng.integers(0, 3, (6, 9, 4)).astype(np.uint16)  # B, G, R, alpha
+    colour16[..., 3] = 65535  # alpha alone never makes a pixel masked
+    colour16[0, 0, :3] = 0
+    signed = rng.normal(size=(6, 9))  # float data: the luminance decides
+    cv2.imwrite(str(tmp_path / "grey.png"), grey8)
+    cv2.imwrite(str(tmp_path / "colour.png"), colour16)
+    tifffile.imwrite(tmp_path / "colour.tif", rng.integers(0, 2, (6, 9, 3)).astype(np.uint8))
+    np.save(tmp_path / "signed.npy", signed)
+    for name in ("grey.png", "colour.png", "colour.tif", "signed.npy"):
+        mask = read_mask(tmp_path / name)
+        assert mask.dtype == np.bool_ and mask.shape == (6, 9)
+        expected = read_image(tmp_path / name, assume_linear=True).values > 0
+        np.testing.assert_array_equal(mask, expected)
+        assert 0 < mask.sum() < mask.size
+    assert not read_mask(tmp_path / "colour.png")[0, 0]
+    signed[2, 3] = np.nan
+    np.save(tmp_path / "nan.npy", signed)
+    with pytest.raises(InputError, match=re.escape("1 pixel values are NaN or infinite")):
+        read_mask(tmp_path / "nan.npy")
+    with pytest.raises(InputError, match=re.escape(f"{tmp_path / 'no.png'}: file not found")):
+        read_mask(tmp_path / "no.png")
 
 
 def test_bad_levels(tmp_path: Path) -> None:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from lightcal.core.misfit import NOISE_SAMPLES, angle_trend, diagnose, image_noise, pixel_angles
+from lightcal.core.misfit_kernels import binned_noise, noise_samples
 
 
 def _angles(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -110,6 +111,59 @@ def test_angle_trend_bins_as_numpy_bit_for_bit() -> None:
     assert t.effect == float(np.sqrt(np.sum(count * (means - grand) ** 2) / (m - 20))) / sd
     # A NaN angle makes every quantile NaN: no bins, no test (as before).
     assert angle_trend("mirror", angles, r, relative) is None
+
+
+def _numpy_noise_bins(
+    values: np.ndarray, usable: np.ndarray, offset: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """image_noise's bins as first written in NumPy (full-size temporaries, np.median per
+    bin): (median level, robust variance, count) of the bins of >= 100 pixels."""
+    v = np.asarray(values, dtype=np.float64)
+    h, w = v.shape
+    step = -(-((h - 2) * (w - 2)) // NOISE_SAMPLES)
+    rows = np.arange(1, h - 1, step)
+    above, here, below = v[rows - 1] - offset, v[rows] - offset, v[rows + 1] - offset
+    lap = here[:, 1:-1] - 0.25 * (above[:, 1:-1] + below[:, 1:-1] + here[:, :-2] + here[:, 2:])
+    diag = 0.25 * (above[:, :-2] + below[:, 2:] + above[:, 2:] + below[:, :-2])
+    ok = np.ones(lap.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in range(3):
+            ok &= usable[rows + dy][:, dx : dx + w - 2]
+    ok &= np.isfinite(lap) & np.isfinite(diag)
+    level, n = diag[ok], lap[ok]
+    edges = np.quantile(level, np.linspace(0, 1, 13))
+    idx = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, 11)
+    xs, ys, ws = [], [], []
+    for b in range(12):
+        sel = idx == b
+        if sel.sum() < 100:
+            continue
+        nb = n[sel]
+        mad = float(np.median(np.abs(nb - np.median(nb))))
+        xs.append(float(np.median(level[sel])))
+        ys.append((1.4826 * mad) ** 2 / 1.25)
+        ws.append(int(sel.sum()))
+    return np.array(xs), np.array(ys), np.array(ws)
+
+
+@pytest.mark.parametrize("h, w", [(120, 90), (700, 1001)])  # even and odd bin sizes
+def test_image_noise_bins_equal_the_numpy_formulation(h: int, w: int) -> None:
+    rng = np.random.default_rng(5)
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = 100.0 + 5.0 * xx + 2.0 * yy + rng.normal(size=(h, w)) * 3.0
+    img[10, 20] = np.nan  # skipped with its neighbours
+    img[30, 40] = np.inf
+    usable = rng.random((h, w)) > 0.02
+    rows = np.arange(1, h - 1, -(-((h - 2) * (w - 2)) // NOISE_SAMPLES), dtype=np.int64)
+    level, n = noise_samples(img, usable, rows, 4.0)
+    edges = np.quantile(level, np.linspace(0, 1, 13))
+    count, median_level, mad = binned_noise(level, n, edges, 100)
+    kept = count >= 100
+    xs, ys, ws = _numpy_noise_bins(img, usable, 4.0)
+    np.testing.assert_array_equal(median_level[kept], xs)
+    np.testing.assert_array_equal((1.4826 * mad[kept]) ** 2 / 1.25, ys)
+    np.testing.assert_array_equal(count[kept], ws)
+    assert np.all(np.isnan(median_level[~kept]))
 
 
 def test_angle_trend_needs_pixels() -> None:

@@ -5,12 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lightcal.core.misfit import pixel_angles, quantiles
+from lightcal.core.misfit import pixel_angles
 from lightcal.core.misfit_kernels import (
     add_weighted_gram,
     mirror_incidence,
     noise_residuals,
-    order_statistics,
 )
 from lightcal.core.problem import poisson_gaussian_sigma
 
@@ -92,24 +91,3 @@ def test_each_point_takes_the_angles_of_its_brightest_light() -> None:
         np.testing.assert_allclose(incidence[sel], want_incidence, rtol=1e-6, atol=1e-5)
     assert np.isnan(mirror[0]) and np.isnan(incidence[0])
     assert np.isfinite(mirror[1:]).all() and np.isfinite(incidence[1:]).all()
-
-
-@pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_quantiles_equal_numpys(dtype) -> None:
-    rng = np.random.default_rng(7)
-    q = np.linspace(0.0, 1.0, 9)
-    for m in (10, 70_001, 300_000):
-        values = (rng.gamma(2.0, 9.0, m)).astype(dtype)
-        values[::5] = np.round(values[::5], 1)  # ties
-        np.testing.assert_array_equal(quantiles(values, q), np.quantile(values, q))
-    values[3] = np.nan  # NaN: every quantile NaN, as NumPy says
-    assert np.isnan(quantiles(values, q)).all()
-    same = np.full(100_000, 2.5, dtype=dtype)
-    np.testing.assert_array_equal(quantiles(same, q), np.quantile(same, q))
-
-
-def test_order_statistics_are_the_sorted_values_at_the_ranks() -> None:
-    rng = np.random.default_rng(8)
-    values = np.concatenate([rng.normal(size=200_000), np.full(50_000, 0.25)])  # a spike
-    ranks = np.array([0, 1, 99_999, 150_000, 160_000, 249_999], dtype=np.int64)
-    np.testing.assert_array_equal(order_statistics(values, ranks), np.sort(values)[ranks])

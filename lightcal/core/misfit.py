@@ -27,7 +27,12 @@ import numba
 import numpy as np
 from scipy import special  # not scipy.stats: 0.6 s to import, for two tail functions
 
-from lightcal.core.misfit_kernels import order_statistics
+from lightcal.core.misfit_kernels import (
+    binned_noise,
+    noise_samples,
+    quantile_bin,
+)
+from lightcal.core.quantiles import quantiles
 
 #: False-alarm probability of each test on data the model explains.
 P_ALARM = 1e-3
@@ -181,46 +186,6 @@ def angle_trend(
     return AngleTrend(angle, edges, means, rel, count.astype(np.int64), f_stat, p, effect)
 
 
-#: From this many values `quantiles` finds the order statistics by a histogram.
-QUANTILE_HISTOGRAM_MIN = 1 << 16
-
-
-def quantiles(values: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """np.quantile(values, q) (the "linear" method), equal to it; for large NaN-free
-    values (m,) from the order statistics `misfit_kernels.order_statistics` finds, several
-    times faster than NumPy's partition at every rank.
-
-    Returns:
-        (len(q),) float64.
-    """
-    m = values.size
-    if m < QUANTILE_HISTOGRAM_MIN or np.isnan(values).any():
-        return np.quantile(values, q)
-    # NumPy's linear method: virtual index (m - 1) q between its floor and the next rank,
-    # interpolated as numpy.lib._function_base_impl._lerp does, in the same dtypes.
-    virtual = (m - 1) * np.asarray(q, dtype=np.float64)
-    below = np.floor(virtual)
-    gamma = virtual - below
-    below_i = np.minimum(below.astype(np.intp), m - 1)
-    above_i = np.minimum(below_i + 1, m - 1)
-    ranks = np.unique(np.concatenate([below_i, above_i])).astype(np.int64)
-    stats = order_statistics(np.ascontiguousarray(values), ranks)
-    a = stats[np.searchsorted(ranks, below_i)]
-    b = stats[np.searchsorted(ranks, above_i)]
-    diff = b - a
-    out = a + diff * gamma
-    np.subtract(b, diff * (1 - gamma), out=out, where=gamma >= 0.5)
-    return out
-
-
-@numba.njit(cache=True)
-def _bin_of(edges: np.ndarray, angle: float) -> int:
-    """The quantile bin of `angle` among the k = len(edges) - 1 bins (NumPy's
-    clip(searchsorted(edges, angle, side="right") - 1, 0, k - 1), NaN in the last)."""
-    b = int(np.searchsorted(edges, angle, side="right")) - 1
-    return min(max(b, 0), edges.size - 2)
-
-
 @numba.njit(cache=True)
 def _bin_sums(
     edges: np.ndarray,
@@ -234,7 +199,7 @@ def _bin_sums(
     """Add each pixel's 1, r and relative (m,) to its bin's count, sums and rel_sums (k,),
     in pixel order (the sums of `np.bincount` with weights, bit for bit)."""
     for i in range(angles.size):
-        b = _bin_of(edges, angles[i])
+        b = quantile_bin(edges, angles[i])
         count[b] += 1.0
         sums[b] += r[i]
         rel_sums[b] += relative[i]
@@ -246,7 +211,7 @@ def _squared_deviations(
 ) -> None:
     """out (m,) = (r - the mean of each pixel's bin)^2."""
     for i in range(angles.size):
-        d = r[i] - means[_bin_of(edges, angles[i])]
+        d = r[i] - means[quantile_bin(edges, angles[i])]
         out[i] = d * d
 
 
@@ -403,42 +368,26 @@ def image_noise(
         Beyond NOISE_SAMPLES interior pixels, every k-th row is used.
         Demosaiced or compressed images have correlated noise: the estimate is then low.
     """
-    v = np.asarray(values, dtype=np.float64)
+    v = np.ascontiguousarray(values, dtype=np.float64)
     if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] < 3:
         return None
     # Every k-th interior row, at most NOISE_SAMPLES pixels: the medians below cost about
     # 70 ms per megapixel, and 200,000 samples pin each bin's variance to about 2 %.
     h, w = v.shape
     step = -(-((h - 2) * (w - 2)) // NOISE_SAMPLES)
-    rows = np.arange(1, h - 1, step)
-    above, here, below = v[rows - 1] - offset, v[rows] - offset, v[rows + 1] - offset
-    lap = here[:, 1:-1] - 0.25 * (above[:, 1:-1] + below[:, 1:-1] + here[:, :-2] + here[:, 2:])
-    diag = 0.25 * (above[:, :-2] + below[:, 2:] + above[:, 2:] + below[:, :-2])
-    ok = np.ones(lap.shape, dtype=bool)
-    for dy in (-1, 0, 1):
-        u_rows = usable[rows + dy]
-        for dx in range(3):
-            ok &= u_rows[:, dx : dx + w - 2]
-    ok &= np.isfinite(lap) & np.isfinite(diag)
-    level = diag[ok]
-    n = lap[ok]
+    rows = np.arange(1, h - 1, step, dtype=np.int64)
+    level, n = noise_samples(v, np.ascontiguousarray(usable, dtype=np.bool_), rows, offset)
     if level.size < 2000:
         return None
-    edges = np.quantile(level, np.linspace(0, 1, 13))
-    idx = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, 11)
-    xs, ys, ws = [], [], []
-    for b in range(12):
-        sel = idx == b
-        if sel.sum() < 100:
-            continue
-        nb = n[sel]
-        mad = float(np.median(np.abs(nb - np.median(nb))))
-        xs.append(float(np.median(level[sel])))
-        ys.append((1.4826 * mad) ** 2 / 1.25)
-        ws.append(float(sel.sum()))
-    if len(xs) < 2:
+    edges = quantiles(level, np.linspace(0, 1, 13))
+    count, median_level, mad = binned_noise(level, n, edges, 100)
+    kept = count >= 100
+    xs = median_level[kept]
+    ys = (1.4826 * mad[kept]) ** 2 / 1.25
+    ws = count[kept].astype(np.float64)
+    if xs.size < 2:
         return None
-    x, y, w = np.array(xs), np.array(ys), np.sqrt(np.array(ws))
+    x, y, w = xs, ys, np.sqrt(ws)
     A = np.stack([x, np.ones_like(x)], axis=1) * w[:, None]
     from scipy.optimize import nnls
 

@@ -1,5 +1,6 @@
 """Compiled (numba) per-pixel passes of the checks after a solve (`lightcal.core.misfit`,
-`lightcal.pipeline.fit_check`).
+`lightcal.pipeline.fit_check`) and of the noise estimate from an image
+(`misfit.image_noise`: `noise_samples`, `binned_noise`).
 
 A dense solve hands the checks millions of pixels per image; in NumPy each figure they
 need (residuals in noise units, relative residuals, the noise weights' J^T W J, the
@@ -163,57 +164,107 @@ def _angles_of(
 
 
 @numba.njit(cache=True)
-def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray:
-    """The values at 0-based positions `ranks` (k,) of `values` (m,) sorted ascending
-    (NaN-free), without sorting them: a histogram of 65536 equal bins between the
-    smallest and largest value finds each rank's bin, and only those bins' values are
-    gathered and sorted (values in a lower bin are never larger: the bin index is a
-    monotone function of the value). Three passes over `values` where np.partition at a
-    dozen ranks takes several.
+def quantile_bin(edges: np.ndarray, x: float) -> int:
+    """The quantile bin of `x` among the k = len(edges) - 1 bins (NumPy's
+    clip(searchsorted(edges, x, side="right") - 1, 0, k - 1), NaN in the last)."""
+    b = int(np.searchsorted(edges, x, side="right")) - 1
+    return min(max(b, 0), edges.size - 2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def noise_samples(
+    values: np.ndarray, usable: np.ndarray, rows: np.ndarray, offset: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The level and the Laplacian residual of every usable interior pixel of `rows`, for
+    `misfit.image_noise`, in one pass (the NumPy formulation took a dozen full-size
+    temporaries): with v = values - offset and the 3 x 3 neighbourhood of the pixel all
+    usable, residual = v - (up + down + left + right) / 4 and level = the mean of the four
+    diagonal neighbours, summed in the NumPy formulation's order (so equal to it bit for
+    bit). Pixels with a non-finite residual or level are skipped.
+
+    Args:
+        values: (H, W) float64 linear values.
+        usable: (H, W) bool.
+        rows: (R,) int64 row indices in [1, H - 2].
+        offset: subtracted from every value read.
 
     Returns:
-        (k,) in the dtype of `values`.
+        (level, residual), each (N,) float64, N <= R (W - 2), in row-major pixel order.
     """
-    m = values.shape[0]
-    k = ranks.shape[0]
-    out = np.empty(k, dtype=values.dtype)
-    lo = values[0]
-    hi = values[0]
+    w = values.shape[1]
+    level = np.empty(rows.size * max(w - 2, 0))
+    residual = np.empty_like(level)
+    k = 0
+    for r in rows:
+        for c in range(1, w - 1):
+            ok = True
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    ok = ok and usable[r + dy, c + dx]
+            if not ok:
+                continue
+            here = values[r, c] - offset
+            up = values[r - 1, c] - offset
+            down = values[r + 1, c] - offset
+            left = values[r, c - 1] - offset
+            right = values[r, c + 1] - offset
+            n = here - 0.25 * (((up + down) + left) + right)
+            d = 0.25 * (
+                (
+                    ((values[r - 1, c - 1] - offset) + (values[r + 1, c + 1] - offset))
+                    + (values[r - 1, c + 1] - offset)
+                )
+                + (values[r + 1, c - 1] - offset)
+            )
+            if math.isfinite(n) and math.isfinite(d):
+                level[k] = d
+                residual[k] = n
+                k += 1
+    return level[:k], residual[:k]
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def binned_noise(
+    level: np.ndarray, residual: np.ndarray, edges: np.ndarray, min_count: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per quantile bin of `level` (`quantile_bin`): its pixel count, the median level and
+    the median absolute deviation of the residuals from their median (np.median's values:
+    the middle order statistic, or the mean of the two). Bins of fewer than `min_count`
+    pixels get NaN medians.
+
+    Args:
+        level, residual: (N,) float64 (`noise_samples`).
+        edges: (k + 1,) ascending bin edges.
+
+    Returns:
+        (count (k,) int64, median level (k,), MAD (k,)).
+    """
+    k = edges.size - 1
+    m = level.size
+    count = np.zeros(k, dtype=np.int64)
+    bins = np.empty(m, dtype=np.int64)
     for i in range(m):
-        v = values[i]
-        lo = min(lo, v)
-        hi = max(hi, v)
-    if not hi > lo:
-        out[:] = lo
-        return out
-    n_bins = 65536
-    scale = n_bins / (float(hi) - float(lo))
-    counts = np.zeros(n_bins, dtype=np.int64)
+        b = quantile_bin(edges, level[i])
+        bins[i] = b
+        count[b] += 1
+    start = np.zeros(k + 1, dtype=np.int64)
+    for b in range(k):
+        start[b + 1] = start[b] + count[b]
+    fill = start[:k].copy()
+    by_bin_level = np.empty(m)
+    by_bin_residual = np.empty(m)
     for i in range(m):
-        counts[min(int((float(values[i]) - float(lo)) * scale), n_bins - 1)] += 1
-    start = np.zeros(n_bins + 1, dtype=np.int64)
-    for b in range(n_bins):
-        start[b + 1] = start[b] + counts[b]
-    bin_of = np.empty(k, dtype=np.int64)
-    offset = np.full(n_bins, -1, dtype=np.int64)
-    gathered = 0
-    for j in range(k):
-        b = np.searchsorted(start, ranks[j], side="right") - 1
-        bin_of[j] = b
-        if offset[b] < 0:
-            offset[b] = gathered
-            gathered += counts[b]
-    buffer = np.empty(gathered, dtype=values.dtype)
-    fill = offset.copy()
-    for i in range(m):
-        b = min(int((float(values[i]) - float(lo)) * scale), n_bins - 1)
-        if offset[b] >= 0:
-            buffer[fill[b]] = values[i]
-            fill[b] += 1
-    for b in range(n_bins):
-        if offset[b] >= 0:
-            buffer[offset[b] : offset[b] + counts[b]].sort()
-    for j in range(k):
-        b = bin_of[j]
-        out[j] = buffer[offset[b] + ranks[j] - start[b]]
-    return out
+        b = bins[i]
+        by_bin_level[fill[b]] = level[i]
+        by_bin_residual[fill[b]] = residual[i]
+        fill[b] += 1
+    median_level = np.full(k, np.nan)
+    mad = np.full(k, np.nan)
+    for b in numba.prange(k):  # the medians, bin by bin on the thread pool
+        if count[b] < min_count:
+            continue
+        median_level[b] = np.median(by_bin_level[start[b] : start[b + 1]])
+        res = by_bin_residual[start[b] : start[b + 1]]
+        centre = np.median(res)
+        mad[b] = np.median(np.abs(res - centre))
+    return count, median_level, mad

@@ -54,7 +54,7 @@ from lightcal.io.linear_image import (
 from lightcal.io.raw import RawChannel, read_raw
 from lightcal.io.response import ResponseCurve
 
-__all__ = ["RAW_EXTENSIONS", "SUPPORTED_EXTENSIONS", "Channel", "read_image"]
+__all__ = ["RAW_EXTENSIONS", "SUPPORTED_EXTENSIONS", "Channel", "read_image", "read_mask"]
 
 Channel = Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"]
 """Which light to read: see `read_image`."""
@@ -112,17 +112,7 @@ def read_image(
             does not have, or inconsistent levels.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if not path.is_file():
-        raise InputError(path, "not a file; expected an image file")
-    suffix = path.suffix.lower()
-    if suffix not in SUPPORTED_EXTENSIONS:
-        raise InputError(
-            path,
-            f"unsupported image extension {path.suffix!r}; expected .png, .jpg, .tif, .tiff, "
-            ".npy, .exr or a camera raw extension such as .dng, .cr2, .nef, .arw",
-        )
+    suffix = _checked_suffix(path)
     if suffix in RAW_EXTENSIONS:
         if response is not None:
             raise InputError(
@@ -136,19 +126,7 @@ def read_image(
             user_white=white_level,
         )
 
-    check_image_size(path)  # before decoding: a header may claim 10^10 pixels
-    # Colour data is kept in OpenCV's B, G, R order from here on.
-    bit_depth: int | None = None
-    if suffix in _CV2_EXTENSIONS:
-        data = _read_cv2(path)
-    elif suffix == ".exr":
-        data = _read_exr(path)
-    elif suffix in _TIFF_EXTENSIONS:
-        data, bit_depth = _read_tiff(path)
-    else:
-        data = _read_npy(path)
-
-    data = _drop_alpha(path, data)
+    data, bit_depth = _decode(path, suffix)
     resolved = _resolve_developed_channel(path, channel, data.ndim == 3)
     exposure = None if suffix == ".npy" else read_exposure(path)
 
@@ -171,6 +149,61 @@ def read_image(
     return _from_integer(
         path, data, resolved, bit_depth, black_level, white_level, response, exposure
     )
+
+
+def read_mask(path: str | Path) -> NDArray[np.bool_]:
+    """Read a mask image: (H, W) bool, True where the image is not 0.
+
+    Any format `read_image` reads; a pixel of a colour image is in the mask when any of
+    its colour channels is not 0 (alpha is ignored), as its luminance read by
+    `read_image(path, assume_linear=True)` is > 0, without the float image and the EXIF.
+
+    Raises:
+        InputError: as `read_image`.
+    """
+    path = Path(path)
+    suffix = _checked_suffix(path)
+    if suffix in RAW_EXTENSIONS:
+        return np.asarray(read_image(path, assume_linear=True).values > 0)
+    data, _ = _decode(path, suffix)
+    if data.dtype.kind == "f":
+        # Signed values: the luminance decides, as for read_image.
+        _check_finite(path, data)
+        return np.asarray(_combine(data, "luminance") > 0)
+    return np.asarray(data > 0 if data.ndim == 2 else np.any(data > 0, axis=2))
+
+
+def _checked_suffix(path: Path) -> str:
+    """The lower-case extension of an existing image file `read_image` can read."""
+    if not path.exists():
+        raise InputError(path, "file not found")
+    if not path.is_file():
+        raise InputError(path, "not a file; expected an image file")
+    suffix = path.suffix.lower()
+    if suffix not in SUPPORTED_EXTENSIONS:
+        raise InputError(
+            path,
+            f"unsupported image extension {path.suffix!r}; expected .png, .jpg, .tif, .tiff, "
+            ".npy, .exr or a camera raw extension such as .dng, .cr2, .nef, .arw",
+        )
+    return suffix
+
+
+def _decode(path: Path, suffix: str) -> tuple[NDArray[Any], int | None]:
+    """The pixels of a developed (non-raw) image: (H, W) grey or (H, W, 3) B, G, R, and the
+    TIFF's bits per sample (None for other files)."""
+    check_image_size(path)  # before decoding: a header may claim 10^10 pixels
+    # Colour data is kept in OpenCV's B, G, R order from here on.
+    bit_depth: int | None = None
+    if suffix in _CV2_EXTENSIONS:
+        data = _read_cv2(path)
+    elif suffix == ".exr":
+        data = _read_exr(path)
+    elif suffix in _TIFF_EXTENSIONS:
+        data, bit_depth = _read_tiff(path)
+    else:
+        data = _read_npy(path)
+    return _drop_alpha(path, data), bit_depth
 
 
 def _resolve_developed_channel(path: Path, channel: str, colour: bool) -> str:
@@ -286,11 +319,7 @@ def _from_float(
         raise InputError(
             path, "a response curve applies only to 8-bit images; this image has float values"
         )
-    bad = int(np.count_nonzero(~np.isfinite(data)))
-    if bad:
-        raise InputError(
-            path, f"{bad} pixel values are NaN or infinite; expected finite linear values"
-        )
+    _check_finite(path, data)
     black = 0.0 if black_level is None else float(black_level)
     if white_level is None:
         saturated = np.zeros(data.shape[:2], dtype=np.bool_)
@@ -309,6 +338,14 @@ def _from_float(
         bit_depth=None,
         channel=channel,
     )
+
+
+def _check_finite(path: Path, data: NDArray[Any]) -> None:
+    bad = int(np.count_nonzero(~np.isfinite(data)))
+    if bad:
+        raise InputError(
+            path, f"{bad} pixel values are NaN or infinite; expected finite linear values"
+        )
 
 
 def _check_levels(black: float, white: float) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.images import read_image
+from lightcal.io.images import read_image, read_mask
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
 
@@ -91,14 +91,14 @@ def load_images(project: Project, *, progress: ProgressFn | None = None) -> Load
 
 
 def _read_mask(path, shape: tuple[int, int]) -> np.ndarray:
-    img = read_image(path, assume_linear=True)
-    if img.values.shape != shape:
+    mask = read_mask(path)
+    if mask.shape != shape:
         raise InputError(
             path,
-            f"mask is {img.values.shape[1]}x{img.values.shape[0]} pixels, "
+            f"mask is {mask.shape[1]}x{mask.shape[0]} pixels, "
             f"expected {shape[1]}x{shape[0]} like its image",
         )
-    return np.asarray(img.values > 0)
+    return mask
 
 
 def vignetting_for(project: Project, camera: Camera) -> np.ndarray | None:
