@@ -362,12 +362,16 @@ def grid2d_values_row(
         d03, d13, d23, d33 = _hermite_powers(r03, r13, q03, q13)
         fx_ = float(ix)
         fy_ = float(iy) + y_off
-        for k in range(u, end):
-            t = xs[k] - fx_
-            s = ys[k] - fy_
+        # Views of the run indexed from 0: indices LLVM knows are not negative, so no
+        # wrap-around test per element, and the loop vectorises.
+        x_run = xs[u:end]
+        y_run = ys[u:end]
+        for k in range(x_run.shape[0]):
+            t = x_run[k] - fx_
+            s = y_run[k] - fy_
             e0 = ((d03 * t + d02) * t + d01) * t + d00
             e1 = ((d13 * t + d12) * t + d11) * t + d10
             e2 = ((d23 * t + d22) * t + d21) * t + d20
             e3 = ((d33 * t + d32) * t + d31) * t + d30
-            xs[k] = ((e3 * s + e2) * s + e1) * s + e0
+            x_run[k] = ((e3 * s + e2) * s + e1) * s + e0
         u = end
