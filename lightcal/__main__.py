@@ -1,8 +1,8 @@
 import sys
 
 try:
-    from lightcal.cli.main import main
+    from lightcal.cli.main import entry
 except KeyboardInterrupt:  # Ctrl-C while Python starts: no traceback either
     sys.exit(130)
 
-sys.exit(main())
+sys.exit(entry())

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import importlib
 import os
 import sys
@@ -118,5 +119,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
 
+def entry() -> int:
+    """The `lightcal` command itself (console script, `python -m lightcal`): `main`, then
+    the garbage collector frozen for the interpreter's exit.
+
+    At exit Python collects every object that is left, several times: after a
+    calibration that is numba's and SciPy's object graphs, 0.25-0.3 s of a 1.7 s command
+    (measured). Frozen objects are skipped and the exit takes ~0.05 s. During the
+    command, full collections are made rarer (below). Nothing is lost:
+    lightcal closes what it writes before `main` returns, atexit handlers and the flush
+    of the standard streams still run, and the memory goes back with the process.
+    `main` itself leaves the collector alone (tests call it many times in one process).
+    """
+    # Full collections 10x rarer (after 100 younger ones, not 10): the imports alone
+    # (numba, SciPy) triggered two, 0.1 s, each walking every object they made. Arrays
+    # are freed by their reference counts either way.
+    gc.set_threshold(700, 10, 100)
+    code = main()
+    gc.freeze()
+    return code
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry())

@@ -5,9 +5,12 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TYPE_CHECKING
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+
+if TYPE_CHECKING:  # rich.progress is imported when a bar is drawn (a terminal, not --quiet)
+    from rich.progress import Progress, TaskID
 
 console = Console(stderr=True)
 
@@ -29,6 +32,8 @@ class StageProgress:
 
 def _bar(*, label_width: int) -> Progress:
     """One transient bar per task on stderr: label, bar, done/total, elapsed time."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
     return Progress(
         TextColumn(f"{{task.description:<{label_width}}}"),
         BarColumn(),

@@ -260,14 +260,13 @@ class Camera:
             )
         K = self.K.copy()
         K[0, 0], K[1, 1], K[0, 2], K[1, 2] = p[:4]
-        return Camera(
-            K=K,
-            dist=p[4:].copy(),
-            width=self.width,
-            height=self.height,
-            n_dist_coeffs=self.n_dist,
-            intrinsics_covariance=self.intrinsics_covariance,
+        camera = Camera(
+            K=K, dist=p[4:].copy(), width=self.width, height=self.height, n_dist_coeffs=self.n_dist
         )
+        # This camera's covariance, checked when it was made (its eigenvalues cost more
+        # than the rest of a camera: the uncertainty renders make hundreds of these).
+        object.__setattr__(camera, "intrinsics_covariance", self.intrinsics_covariance)
+        return camera
 
     @property
     def fov_y_rad(self) -> float:

@@ -14,14 +14,14 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray:
     """The values at 0-based positions `ranks` (k,) of `values` (m,) sorted ascending
     (NaN-free), without sorting them: a histogram of min(m, 65536) equal bins between the
     smallest and largest value finds each rank's bin, and only those bins' values are
     gathered and sorted (values in a lower bin are never larger: the bin index is a
     monotone function of the value). Three passes over `values` where np.partition at a
-    dozen ranks takes several.
+    dozen ranks takes several. Releases the GIL (image readers call it on their threads).
 
     Returns:
         (k,) in the dtype of `values`.

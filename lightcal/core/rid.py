@@ -274,7 +274,8 @@ class SymmetricTableRID(RID):
 
     theta_rad: np.ndarray
     values: np.ndarray
-    _data: RIDData = field(init=False, repr=False)
+    _knots: RIDData = field(init=False, repr=False)
+    _data: RIDData | None = field(init=False, repr=False)
     symmetric = True
 
     def __post_init__(self) -> None:
@@ -293,24 +294,28 @@ class SymmetricTableRID(RID):
         object.__setattr__(self, "theta_rad", theta)
         object.__setattr__(self, "values", values)
         slopes = _pchip_slopes_even(theta, values)
-        object.__setattr__(
-            self,
-            "_data",
-            tabulate_1d(
-                RIDData(
-                    rid_eval.KIND_TABLE_1D,
-                    rid_eval.table_params(theta),
-                    theta,
-                    np.zeros(1),
-                    values[None, :].copy(),
-                    slopes[None, :].copy(),
-                    rid_eval.NO_GRID,
-                )
-            ),
+        knots = RIDData(
+            rid_eval.KIND_TABLE_1D,
+            rid_eval.table_params(theta),
+            theta,
+            np.zeros(1),
+            values[None, :].copy(),
+            slopes[None, :].copy(),
+            rid_eval.NO_GRID,
         )
+        object.__setattr__(self, "_knots", knots)
+        object.__setattr__(self, "_data", None)
 
     def data(self) -> RIDData:
+        """The knot table's uniform grids, filled on the first call (by a compiled
+        kernel: reading a project starts no numba)."""
+        if self._data is None:
+            object.__setattr__(self, "_data", tabulate_1d(self._knots))
+        assert self._data is not None
         return self._data
+
+    def exact_data(self) -> RIDData:
+        return self._knots
 
 
 @dataclass(frozen=True, eq=False)
@@ -327,7 +332,8 @@ class Table2DRID(RID):
     theta_rad: np.ndarray
     phi_rad: np.ndarray
     values: np.ndarray
-    _data: RIDData = field(init=False, repr=False)
+    _knots: RIDData = field(init=False, repr=False)
+    _data: RIDData | None = field(init=False, repr=False)
     symmetric = False
 
     def __post_init__(self) -> None:
@@ -361,21 +367,25 @@ class Table2DRID(RID):
         object.__setattr__(self, "phi_rad", phi)
         object.__setattr__(self, "values", values)
         slopes = _pchip_slopes_even(theta, values)
-        object.__setattr__(
-            self,
-            "_data",
-            tabulate_2d(
-                RIDData(
-                    rid_eval.KIND_TABLE_2D,
-                    rid_eval.table_params(theta, phi),
-                    theta,
-                    phi,
-                    values,
-                    slopes,
-                    rid_eval.NO_GRID,
-                )
-            ),
+        knots = RIDData(
+            rid_eval.KIND_TABLE_2D,
+            rid_eval.table_params(theta, phi),
+            theta,
+            phi,
+            values,
+            slopes,
+            rid_eval.NO_GRID,
         )
+        object.__setattr__(self, "_knots", knots)
+        object.__setattr__(self, "_data", None)
 
     def data(self) -> RIDData:
+        """The knot table's equal-area grids, filled on the first call (as
+        `SymmetricTableRID.data`)."""
+        if self._data is None:
+            object.__setattr__(self, "_data", tabulate_2d(self._knots))
+        assert self._data is not None
         return self._data
+
+    def exact_data(self) -> RIDData:
+        return self._knots

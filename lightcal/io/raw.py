@@ -43,7 +43,6 @@ from typing import Any, Literal
 import numpy as np
 import rawpy
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from lightcal.errors import InputError
 from lightcal.io.exif import read_exposure
@@ -273,6 +272,8 @@ def _luminance(
     thresholds = np.array([saturation_threshold(white, float(blacks[c])) for c in range(4)])
     source_saturated = data >= thresholds[np.clip(colors, 0, 3)]
     reach = 2 * DEMOSAIC_REACH + 1
+    from scipy import ndimage  # 50 ms to import: only demosaiced reads need it
+
     saturated = ndimage.binary_dilation(
         source_saturated, structure=np.ones((reach, reach), dtype=bool)
     )

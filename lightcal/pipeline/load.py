@@ -40,8 +40,21 @@ class LoadedImages:
     camera: Camera
 
 
-def load_images(project: Project, *, progress: ProgressFn | None = None) -> LoadedImages:
-    """Read every image of a project (and its mask) and check sizes against the camera."""
+def load_images(
+    project: Project,
+    *,
+    progress: ProgressFn | None = None,
+    meanwhile: Callable[[], object] | None = None,
+) -> LoadedImages:
+    """Read every image of a project (and its mask) and check sizes against the camera.
+
+    Args:
+        project: the project.
+        progress: called as images arrive.
+        meanwhile: called on this thread once the decoders have started, before their
+            results are awaited: work that needs the interpreter (numba's start-up, the
+            RID grids) overlaps the decoding, which does not. Its errors propagate.
+    """
     sensor = project.spec.sensor
     response = None
     if sensor.response:
@@ -59,6 +72,9 @@ def load_images(project: Project, *, progress: ProgressFn | None = None) -> Load
             response=response,
             assume_linear=sensor.assume_linear,
         )
+        # The noise floor's percentile (`select.noise_floor`), on this thread while the
+        # image is in cache (a compiled pass that releases the interpreter).
+        _ = img.percentile_99
         mask_path = project.mask_paths[i]
         h, w = img.values.shape
         return img, (_read_mask(mask_path, (h, w)) if mask_path is not None else None)
@@ -69,7 +85,10 @@ def load_images(project: Project, *, progress: ProgressFn | None = None) -> Load
     # The decoders (OpenCV, LibRaw, tifffile) release the GIL: a few images at once. Results
     # come back in order, so the first bad file named is the first in the project.
     with ThreadPoolExecutor(max_workers=min(READ_THREADS, max(1, len(paths)))) as pool:
-        for i, (img, mask) in enumerate(pool.map(read, range(len(paths)))):
+        results = pool.map(read, range(len(paths)))  # submitted now, awaited in order
+        if meanwhile is not None:
+            meanwhile()
+        for i, (img, mask) in enumerate(results):
             if progress is not None:
                 progress("reading images", i, len(paths))
             h, w = img.values.shape
@@ -88,6 +107,14 @@ def load_images(project: Project, *, progress: ProgressFn | None = None) -> Load
     if progress is not None:
         progress("reading images", len(paths), len(paths))
     return LoadedImages(images, excluded, camera)
+
+
+def prepare_lights(project: Project) -> None:
+    """Fill the lights' RID grids now (`RID.data`). The first compiled kernel a process
+    calls also starts numba (0.15-0.2 s of the interpreter's time): passed to
+    `load_images` as `meanwhile`, both overlap the image decoding."""
+    for unknown in project.lights:
+        unknown.initial.rid.data()
 
 
 def _read_mask(path, shape: tuple[int, int]) -> np.ndarray:
