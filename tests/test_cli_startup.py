@@ -61,3 +61,28 @@ def test_help_and_version_do_not_import_the_numerical_stack(args: tuple[str, ...
         for command in ("sample", "synth", "calibrate", "render", "schema", "init", "camera"):
             assert command in out
     assert sorted(imported.intersection(HEAVY)) == []
+
+
+def test_the_command_entry_runs_main_then_freezes_the_collector(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`lightcal` (console script, `python -m lightcal`) is `entry`: main's exit code, full
+    collections made rarer while it runs, the collector frozen for the exit (the
+    interpreter's final collections skipped); `main` alone leaves the collector as is."""
+    import gc
+
+    from lightcal.cli.main import entry, main
+
+    thresholds = gc.get_threshold()
+    frozen = gc.get_freeze_count()
+    monkeypatch.setattr(sys, "argv", ["lightcal", "schema"])
+    try:
+        assert main(["schema"]) == 0
+        assert gc.get_threshold() == thresholds and gc.get_freeze_count() == frozen
+        assert entry() == 0
+        assert '"title"' in capsys.readouterr().out
+        assert gc.get_threshold() == (700, 10, 100)
+        assert gc.get_freeze_count() > frozen
+    finally:
+        gc.unfreeze()
+        gc.set_threshold(*thresholds)
