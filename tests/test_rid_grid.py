@@ -334,3 +334,25 @@ def test_2d_grid_row_values_equal_the_per_pixel_interpolation(make) -> None:
     assert grid2d_cell(2.25, n + 3.5, n) == 2 + n * (n + 3)
     assert len({grid2d_cell(x, y, n) for x in (0.5, 1.5) for y in (0.5, 1.5, n + 0.5)}) == 6
     assert grid2d_cell(-1.0, 3.0, n) == -1.0 and np.isnan(grid2d_cell(np.nan, 3.0, n))
+
+
+def test_table_grids_are_filled_on_first_use() -> None:
+    """A table RID keeps its knots from construction and fills its grid at the first
+    `data()` (a compiled kernel: reading a project starts no numba), once."""
+    theta = np.radians(np.arange(0.0, 90.0, 5.0))
+    for rid, grid_kind, knot_kind in (
+        (
+            SymmetricTableRID(theta, np.cos(theta) ** 3),
+            rid_eval.KIND_GRID_1D,
+            rid_eval.KIND_TABLE_1D,
+        ),
+        (
+            Table2DRID(theta, np.radians(np.arange(0.0, 360.0, 45.0)), np.ones((8, theta.size))),
+            rid_eval.KIND_GRID_2D,
+            rid_eval.KIND_TABLE_2D,
+        ),
+    ):
+        assert rid._data is None
+        assert rid.exact_data().kind == knot_kind and rid._data is None
+        first = rid.data()
+        assert first.kind == grid_kind and rid.data() is first

@@ -16,8 +16,9 @@ in radians. Models:
 
 Every model evaluates through the compiled functions of `lightcal.core.rid_eval`, so the
 renderer and Python callers agree exactly. The tables render from a uniform grid filled
-from their interpolation when they are made (`lightcal.core.rid_tabulate`: no angle and
-no knot search per pixel); `RID.exact_data` keeps the knot interpolation itself.
+from their interpolation on the first call of `RID.data` (`lightcal.core.rid_tabulate`:
+no angle and no knot search per pixel; a compiled kernel, so reading a project starts no
+numba); `RID.exact_data` keeps the knot interpolation itself.
 """
 
 from __future__ import annotations
@@ -315,6 +316,7 @@ class SymmetricTableRID(RID):
         return self._data
 
     def exact_data(self) -> RIDData:
+        """The knot interpolation, as made (no grid filled for it)."""
         return self._knots
 
 
@@ -388,4 +390,5 @@ class Table2DRID(RID):
         return self._data
 
     def exact_data(self) -> RIDData:
+        """The knot interpolation, as made (no grid filled for it)."""
         return self._knots

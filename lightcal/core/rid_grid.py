@@ -3,7 +3,7 @@
 A table RID (`rid_eval.KIND_TABLE_1D`, `KIND_TABLE_2D`) is interpolated exactly by
 `rid_eval.rid_value_grad` in (theta, phi): per direction two atan2 and a knot search.
 The renderer's fast paths evaluate it instead from grids that `rid_tabulate` fills once
-when the RID is made, in coordinates that are a polynomial in the unit direction
+(the RID's first `data()` call), in coordinates that are a polynomial in the unit direction
 u = (ux, uy, uz) of the light frame and a square root. Each hemisphere has its own grid,
 centred on its pole so that the coordinate is smooth there (a map centred on the axis
 stretches theta without bound near theta = pi):
