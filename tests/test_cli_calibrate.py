@@ -80,6 +80,35 @@ def test_calibrate_with_report(dataset, tmp_path, capsys):
     assert "converged: " in text and "result written to" in text
 
 
+def test_report_figures_on_threads_equal_the_serial_ones_with_progress(
+    dataset, tmp_path, monkeypatch
+):
+    """write_report makes two images' figures at a time: the files are the one-thread
+    files byte for byte, and progress counts the images as their figures are written."""
+    from lightcal import report
+    from lightcal.pipeline import build_model, calibrate
+
+    project = load_project(dataset.project_path)
+    loaded = load_images(project)
+    cal = calibrate(project, loaded, build_model(project, loaded))
+    calls: list[tuple[str, int, int]] = []
+    threaded = report.write_report(
+        tmp_path / "threads",
+        project,
+        loaded,
+        cal.model,
+        cal.result,
+        progress=lambda stage, done, total: calls.append((stage, done, total)),
+    )
+    monkeypatch.setattr(report, "FIGURE_THREADS", 1)
+    serial = report.write_report(tmp_path / "serial", project, loaded, cal.model, cal.result)
+    assert [p.name for p in threaded] == [p.name for p in serial]
+    for a, b in zip(threaded, serial, strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    stages = [c for c in calls if c[0] == "writing figures"]
+    assert stages == [("writing figures", i, N_VIEWS) for i in range(N_VIEWS + 1)]
+
+
 def test_calibrate_quiet_prints_only_the_summary(dataset, tmp_path, capsys):
     out = tmp_path / "result.json"
     assert main(["calibrate", str(dataset.project_path), "--out", str(out), "--quiet"]) == 0
