@@ -42,6 +42,23 @@ def test_percentile_99_is_numpys() -> None:
     assert img.percentile_99 == float(np.percentile(finite, 99))
 
 
+def test_infinities_and_percentiles_are_numpys() -> None:
+    """Infinite values go to NumPy (the histogram needs a finite range); `percentile` is
+    np.percentile, p in percent, at the display and residual scales' percentiles."""
+    from lightcal.core.quantiles import percentile
+
+    rng = np.random.default_rng(10)
+    values = rng.normal(size=100_000) * 40.0
+    q = np.linspace(0.0, 1.0, 5)
+    for p in (0.0, 50.0, 99.0, 99.5, 100.0):
+        assert percentile(values, p) == float(np.percentile(values, p))
+    values[[3, 7]] = np.inf
+    values[11] = -np.inf
+    with np.errstate(invalid="ignore"):  # NumPy's inf - inf at the ends
+        np.testing.assert_array_equal(quantiles(values, q), np.quantile(values, q))
+        assert percentile(values, 99.5) == float(np.percentile(values, 99.5))
+
+
 def test_order_statistics_are_the_sorted_values_at_the_ranks() -> None:
     rng = np.random.default_rng(8)
     values = np.concatenate([rng.normal(size=200_000), np.full(50_000, 0.25)])  # a spike

@@ -20,6 +20,7 @@ import numpy as np
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.camera import Camera
 from lightcal.core.problem import with_view
+from lightcal.core.quantiles import percentile
 from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
 from lightcal.io.project import Project
@@ -101,7 +102,7 @@ class OverlayImages:
         for i, img in enumerate(loaded.images):
             values = np.where(img.saturated, np.nan, img.values)
             finite = values[np.isfinite(values)]
-            white = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+            white = percentile(finite, 99.5) if finite.size else 1.0
             white = white if white > 0 else 1.0
             self.white.append(white)
             self.real_rgb.append(self._resize(grey_rgb(img.values, white)))

@@ -17,7 +17,7 @@ import numpy as np
 @numba.njit(cache=True, nogil=True)
 def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray:
     """The values at 0-based positions `ranks` (k,) of `values` (m,) sorted ascending
-    (NaN-free), without sorting them: a histogram of min(m, 65536) equal bins between the
+    (finite), without sorting them: a histogram of min(m, 65536) equal bins between the
     smallest and largest value finds each rank's bin, and only those bins' values are
     gathered and sorted (values in a lower bin are never larger: the bin index is a
     monotone function of the value). Three passes over `values` where np.partition at a
@@ -72,7 +72,7 @@ def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray:
 
 
 def quantiles(values: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """np.quantile(values, q) (the "linear" method), equal to it; for NaN-free values
+    """np.quantile(values, q) (the "linear" method), equal to it; for finite values
     from the order statistics `order_statistics` finds, several times faster than
     NumPy's partition at every rank on large arrays (and without its per-call overhead
     on small ones).
@@ -85,7 +85,9 @@ def quantiles(values: np.ndarray, q: np.ndarray) -> np.ndarray:
         (len(q),) float64.
     """
     m = values.size
-    if m == 0 or np.isnan(values).any():  # NumPy's error, or its NaN everywhere
+    # NumPy itself for an empty array (its error), NaN (NaN everywhere) and infinities (the
+    # histogram needs a finite range).
+    if m == 0 or not np.isfinite(values).all():
         return np.quantile(values, q)
     # NumPy's linear method: virtual index (m - 1) q between its floor and the next rank,
     # interpolated as numpy.lib._function_base_impl._lerp does, in the same dtypes.
@@ -102,3 +104,8 @@ def quantiles(values: np.ndarray, q: np.ndarray) -> np.ndarray:
     out = a + diff * gamma
     np.subtract(b, diff * (1 - gamma), out=out, where=gamma >= 0.5)
     return out
+
+
+def percentile(values: np.ndarray, p: float) -> float:
+    """float(np.percentile(values, p)), equal to it, by `quantiles` (p in [0, 100])."""
+    return float(quantiles(values, np.array([p / 100.0]))[0])

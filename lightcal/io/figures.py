@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
+from lightcal.core.quantiles import percentile
 from lightcal.io.atomic import atomic_write_bytes
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -166,8 +167,9 @@ def image_pair_figure(
 ) -> np.ndarray:
     """Real and rendered images side by side on one grey scale (masked pixels dark)."""
     pen = _Pen(scale)
-    finite = np.ma.filled(np.ma.asarray(real, dtype=np.float64), np.nan)
-    vmax = float(np.nanpercentile(finite, 99.5)) if np.isfinite(finite).any() else 1.0
+    filled = np.ma.filled(np.ma.asarray(real, dtype=np.float64), np.nan)
+    shown = filled[~np.isnan(filled)]  # what np.nanpercentile reads
+    vmax = percentile(shown, 99.5) if np.isfinite(filled).any() else 1.0
     gap = np.full((real.shape[0], max(8, real.shape[1] // 100), 3), 255, np.uint8)
     pair = np.concatenate([grey_rgb(real, vmax), gap, grey_rgb(rendered, vmax)], axis=1)
     body = _fit_width(pair, pen.px(width_pt))
