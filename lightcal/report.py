@@ -130,7 +130,14 @@ def write_report(
     if progress is not None:
         progress("writing figures", len(names), len(names))
     p = out / "convergence.png"
-    write_png(p, convergence_figure([h.cost for h in result.history]))
+    write_png(
+        p,
+        convergence_figure(
+            [h.cost for h in result.history],
+            earlier=result.start_costs,
+            earlier_label="the first solve, on a subsample (cost x m / its pixels)",
+        ),
+    )
     written.append(p)
     if result.fit:
         p = out / "fit_vs_angle.png"
@@ -183,7 +190,8 @@ def _summary_markdown(
     lines.append("![convergence](convergence.png)")
     lines.append("")
     if result.start:
-        lines.append(f"Iteration 0 is {result.start}.")
+        drawn = " (its iterations are the grey curve)" if result.start_costs else ""
+        lines.append(f"Iteration 0 is {result.start}{drawn}.")
         lines.append("")
     return "\n".join(lines)
 

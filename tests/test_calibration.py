@@ -105,9 +105,13 @@ def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
     every_8th = [im.subset(np.arange(0, len(im.observed), 8)) for im in images]
     coarse = solve_module.coarse_start(model)
     assert coarse is not None
-    np.testing.assert_array_equal(coarse[0], run_least_squares(cs.model_of(every_8th, start)).x)
+    first = run_least_squares(cs.model_of(every_8th, start))
+    np.testing.assert_array_equal(coarse[0], first.x)
+    # Its costs on the full problem's scale: x 4800 / 600 pixels.
+    assert coarse[2] == [rep.cost * 8.0 for rep in first.history]
     out = solve(model)
     assert out.start.startswith("the estimate of a first solve on one pixel in 8 (600 of 4800")
+    assert out.start_costs == coarse[2]
     plain = cs.model_of(images, start)
     ref = run_least_squares(plain)
     assert out.success and ref.success
@@ -119,7 +123,8 @@ def test_large_models_start_from_the_solution_of_a_subsample(monkeypatch):
     # Below the threshold, the initial guess.
     monkeypatch.setattr(solve_module, "COARSE_MIN_PIXELS", model.m + 1)
     assert solve_module.coarse_start(model) is None
-    assert solve(cs.model_of(images, start)).start == ""
+    below = solve(cs.model_of(images, start))
+    assert below.start == "" and below.start_costs == []
 
 
 def test_fit_scales_on_the_reduced_system_match_nnls_of_every_pixel():

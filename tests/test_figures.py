@@ -52,6 +52,24 @@ def test_convergence_figure_without_costs_says_so():
     assert (fig < 100).any()  # "no iterations" is written
 
 
+def test_convergence_figure_draws_the_earlier_stage_in_grey_before_the_solve():
+    """A start found by a first solve: its costs in grey at iterations 0..K-1, the solve's
+    in colour from K on, one log axis for both (the earlier costs may lie above)."""
+
+    def dots(fig: np.ndarray, colour: tuple[int, int, int]) -> np.ndarray:
+        """Columns of the pixels exactly of `colour` (the dots' fill)."""
+        return np.nonzero(np.all(fig == colour, axis=2))[1]
+
+    solve = [10.0, 9.0, 8.9]
+    alone = convergence_figure(solve)
+    fig = convergence_figure(solve, earlier=[1e4, 300.0, 20.0, 10.5], earlier_label="first")
+    grey, red = dots(fig, (115, 115, 130)), dots(fig, (178, 24, 43))
+    assert grey.size and red.size and grey.max() < red.min()  # grey first, then the solve
+    assert dots(alone, (115, 115, 130)).size == 0
+    # The axis grew to hold 1e4 and 7 iterations: the solve's dots moved right and down.
+    assert red.min() > dots(alone, (178, 24, 43)).min()
+
+
 def test_residual_figure_keeps_masked_pixels_grey_and_labels_the_unit():
     residual = np.ma.masked_array(np.linspace(-5, 5, 200 * 300).reshape(200, 300))
     residual[50:60, 50:60] = np.ma.masked

@@ -48,7 +48,8 @@ class SolveOutcome:
     `weights_at`: the parameters the final pixel weights were rendered at (None: the
     data's sigmas); `CalibrationModel.set_weights_at` restores them. `start`: where the
     solve started when a caller found the start by a solve of its own, in words (empty:
-    the initial guess or the given x0).
+    the initial guess or the given x0); `start_costs`: that solve's cost per iteration,
+    scaled to this problem's pixels (its last iterate is this solve's iteration 0).
     """
 
     x: np.ndarray
@@ -62,6 +63,7 @@ class SolveOutcome:
     history: list[IterationReport] = field(default_factory=list)
     weights_at: np.ndarray | None = None
     start: str = ""
+    start_costs: list[float] = field(default_factory=list)
 
     @classmethod
     def stopped(

@@ -237,37 +237,58 @@ def _draw_axes(
     np.minimum(region, strip[: region.shape[0], : region.shape[1]], out=region)
 
 
-def _draw_series(fig: np.ndarray, pen: _Pen, ax: _Axes, xs: ArrayLike, ys: ArrayLike) -> None:
-    """A line with dots through (xs[i], ys[i]), both (N,)."""
+def _draw_series(
+    fig: np.ndarray,
+    pen: _Pen,
+    ax: _Axes,
+    xs: ArrayLike,
+    ys: ArrayLike,
+    colours: tuple[tuple[int, int, int], tuple[int, int, int]] = (_LINE, _DOT),
+) -> None:
+    """A line with dots through (xs[i], ys[i]), both (N,); colours: (line, dots)."""
     x_values = np.asarray(xs, dtype=np.float64)
     y_values = np.asarray(ys, dtype=np.float64)
     pairs = zip(x_values.tolist(), y_values.tolist(), strict=True)
     pts = np.array([ax.xy(x, y) for x, y in pairs], dtype=np.int32)
-    cv2.polylines(fig, [pts], False, _LINE, pen.thickness(2), cv2.LINE_AA)
+    cv2.polylines(fig, [pts], False, colours[0], pen.thickness(2), cv2.LINE_AA)
     for p in pts:
-        cv2.circle(fig, (int(p[0]), int(p[1])), pen.px(3.5), _DOT, -1, cv2.LINE_AA)
+        cv2.circle(fig, (int(p[0]), int(p[1])), pen.px(3.5), colours[1], -1, cv2.LINE_AA)
+
+
+_EARLIER = ((160, 160, 175), (115, 115, 130))
+"""Line and dot colours of `convergence_figure`'s earlier stage (a grey with a tint: not
+the grey of anti-aliased text)."""
 
 
 def convergence_figure(
     costs: Sequence[float],
     *,
+    earlier: Sequence[float] = (),
+    earlier_label: str = "",
     title: str = "cost per iteration",
     size: tuple[int, int] = (640, 360),
     scale: float = PRINT_SCALE,
 ) -> np.ndarray:
-    """A log-scale plot of the cost per iteration (`size` in layout points)."""
+    """A log-scale plot of the cost per iteration (`size` in layout points).
+
+    `earlier`: the costs of a stage that found the start (e.g. a solve on a subsample,
+    scaled to the same pixels), drawn first in grey and named by `earlier_label`; its
+    last iterate is the first of `costs`, which follow it on the iteration axis.
+    """
     pen = _Pen(scale)
     w, h = pen.px(size[0]), pen.px(size[1])
     fig = pen.canvas(h, w)
     pen.text(fig, title, (pen.px(80), pen.px(20)), _LABEL_TEXT)
     c = np.asarray([v for v in costs if v > 0 and math.isfinite(v)], dtype=np.float64)
+    early = np.asarray([v for v in earlier if v > 0 and math.isfinite(v)], dtype=np.float64)
     if c.size == 0:
         pen.text(fig, "no iterations", (w // 2, h // 2), _LABEL_TEXT, "center")
         return fig
-    lo = math.floor(math.log10(c.min()))
-    hi = math.ceil(math.log10(c.max()))
+    both = np.concatenate([early, c])
+    lo = math.floor(math.log10(both.min()))
+    hi = math.ceil(math.log10(both.max()))
     hi = hi if hi > lo else lo + 1
-    n = max(len(c) - 1, 1)
+    n = max(both.size - 1, 1)
     ax = _Axes(pen.px(80), pen.px(32), w - pen.px(20), h - pen.px(50), (0.0, n), (lo, hi))
     step = max(1, math.ceil((hi - lo) / 8))
     _draw_axes(
@@ -280,7 +301,12 @@ def convergence_figure(
         x_label="iteration",
         y_label="cost (log)",
     )
-    _draw_series(fig, pen, ax, range(len(c)), np.log10(c))
+    if early.size:
+        _draw_series(fig, pen, ax, range(early.size), np.log10(early), _EARLIER)
+        x_legend = ax.right - pen.px(4)
+        for k, text in enumerate((f"grey: {earlier_label}", "colour: the full solve")):
+            pen.text(fig, text, (x_legend, ax.top + pen.px(14 + 14 * k)), _TICK_TEXT, "right")
+    _draw_series(fig, pen, ax, range(early.size, early.size + c.size), np.log10(c))
     return fig
 
 

@@ -162,6 +162,7 @@ class CalibrationResult:
     wall: dict = field(default_factory=lambda: {"model": "lambertian"})
     uncertainty_terms: list[str] = field(default_factory=list)
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
+    start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
 
     @property
     def fit_adequate(self) -> bool:
@@ -280,6 +281,7 @@ def summarise(
         wall=_wall_summary(model, x, cov),
         uncertainty_terms=unc.terms,
         start=outcome.start,
+        start_costs=outcome.start_costs,
     )
 
 

@@ -57,7 +57,7 @@ COARSE_PIXELS = 250_000
 
 def coarse_start(
     model: CalibrationModel, on_stage: Callable[[str], None] | None = None
-) -> tuple[np.ndarray, str] | None:
+) -> tuple[np.ndarray, str, list[float]] | None:
     """Where to start the solve of a large model: the solution of the same problem on
     every k-th pixel of each image (about COARSE_PIXELS in all), from the initial guess;
     None (the initial guess) below COARSE_MIN_PIXELS or when that solve fails.
@@ -69,7 +69,8 @@ def coarse_start(
     iterations are the ones reported. `on_stage` hears what runs, in words.
 
     Returns:
-        (x, what it is in words: `SolveOutcome.start`), or None.
+        (x, what it is in words: `SolveOutcome.start`, that solve's cost per iteration
+        times m / m_subsample: `SolveOutcome.start_costs`), or None.
     """
     if model.m < COARSE_MIN_PIXELS:
         return None
@@ -90,9 +91,13 @@ def coarse_start(
         return None
     if not (out.success and np.all(np.isfinite(out.x))):
         return None
-    return out.x, (
+    # On the full problem's scale: the same mean squared residual over m pixels.
+    costs = [rep.cost * model.m / coarse.m for rep in out.history]
+    return (
+        out.x,
         f"the estimate of a first solve on one pixel in {k} ({coarse.m} of {model.m} "
-        f"pixels, {out.iterations} iterations)"
+        f"pixels, {out.iterations} iterations)",
+        costs,
     )
 
 
@@ -121,7 +126,7 @@ def solve(
     x0 = None if coarse is None else coarse[0]
     best = run_least_squares(model, x0, on_iteration=on_iteration)
     if coarse is not None:
-        best.start = coarse[1]
+        best.start, best.start_costs = coarse[1], coarse[2]
     rng = np.random.default_rng(seed)
     for k in range(1, n_starts):
         x0 = perturbed_start(
