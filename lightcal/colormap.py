@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from lightcal.core import quantiles
-
 # A diverging blue - white - red map (ColorBrewer RdBu, reversed so positive is red),
 # as RGB anchor colours at evenly spaced positions over [-1, 1].
 _DIVERGING_RGB = np.array(
@@ -65,7 +63,7 @@ def grey_rgb(
     data = np.ma.filled(np.ma.asarray(values, dtype=np.float64), np.nan)
     finite = data[np.isfinite(data)]
     if vmax is None:
-        vmax = quantiles.percentile(finite, 99.5) if finite.size else 1.0
+        vmax = float(np.percentile(finite, 99.5)) if finite.size else 1.0
     vmax = vmax if vmax > 0 else 1.0
     g = np.clip(np.nan_to_num(data, nan=0.0) / vmax, 0.0, 1.0) ** gamma
     out = np.repeat(np.round(g * 255).astype(np.uint8)[..., None], 3, axis=-1)
@@ -79,5 +77,5 @@ def robust_vmax(residual: np.ndarray, *, percentile: float = 99.0) -> float:
     finite = np.abs(data[np.isfinite(data)])
     if finite.size == 0:
         return 1.0
-    v = quantiles.percentile(finite, percentile)
+    v = float(np.percentile(finite, percentile))
     return v if v > 0 else float(finite.max()) or 1.0
