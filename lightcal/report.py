@@ -120,7 +120,7 @@ def write_report(
     written: list[Path] = []
     rms_rows = []
     # Two images at a time: the colour maps, resampling and PNG encoding run in NumPy and
-    # OpenCV, which release the interpreter (the sample's 24 figures: 2.8 -> 1.6 s).
+    # OpenCV, which release the interpreter (the sample's 24 figures: 2.8 -> 1.7-1.9 s).
     with ThreadPoolExecutor(max_workers=FIGURE_THREADS) as pool:
         for i, (paths, rms) in enumerate(pool.map(figures, range(len(names)))):
             if progress is not None:
