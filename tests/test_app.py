@@ -30,6 +30,7 @@ from lightcal_app.overlays import (
     full_to_display,
     legend_picture,
 )
+from lightcal_app.panels.base import Programmatic
 from lightcal_app.panels.light import pose_angles_deg, rotation_from_angles_deg
 from lightcal_app.panels.solve import status_text
 from lightcal_app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
@@ -241,6 +242,23 @@ def test_legend_picture_shows_both_ends() -> None:
     bar = img[14, 14:306]
     assert bar[0, 2] > bar[0, 0]  # blue end (negative)
     assert bar[-1, 0] > bar[-1, 2]  # red end (positive)
+
+
+def test_a_redraw_leaves_alone_a_widget_a_user_edited_until_its_callback_ends() -> None:
+    flag = Programmatic()
+    w = SimpleNamespace(value="real")  # what `assign` uses of a viser handle
+    flag.assign(w, "real")
+    w.value = "residual"  # a browser's value, stored by viser before its callback runs
+    flag.assign(w, "real")  # a redraw from the state as it was before the edit
+    assert w.value == "residual"
+    flag.release(w)  # the callback ended (here: the value was refused)
+    flag.assign(w, "real")
+    assert w.value == "real"
+    flag.assign(w, "depth")  # the state changed: written
+    assert w.value == "depth"
+    other = SimpleNamespace(value="real")  # every widget has its own record
+    flag.assign(other, "residual")
+    assert other.value == "residual" and w.value == "depth"
 
 
 def test_truth_file_errors(tmp_path: Path) -> None:
@@ -723,14 +741,27 @@ def test_project_and_rid_uploads_switch_the_project(
     assert "now uses the RID of lamp.ies" in st.messages[-1][1]
 
 
+def test_a_browser_edit_survives_a_redraw_before_its_callback(app: LightcalApp) -> None:
+    handle = app.panels.view.overlay_all
+    assert handle.value == "real"
+    # viser stores a browser's value, then queues the widget's callbacks on a worker
+    # thread: a redraw can come in between, from the state as it was before the edit.
+    handle._impl.value = "residual"
+    app.state.mark("widgets")
+    _idle(app)
+    assert handle.value == "residual"
+    for cb in handle._impl.update_cb:
+        cb(GuiEvent(client=None, client_id=None, target=handle))
+    _idle(app)
+    assert app.state.overlay_default == "residual" and handle.value == "residual"
+
+
 def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path: Path) -> None:
     a = _build(synthetic, tmp_path)
     try:
         _idle(a)
+        # Edits one after the other, while the redraws of the earlier ones run.
         _set(a.panels.light.light_widgets[0]["position"], (60.0, -5.0, 1.0))
-        # Settled first: the redraw of the guess rewrites every widget from the state, and a
-        # widget edited while it does so may be read back at its old value.
-        _idle(a)
         _set(a.panels.pixels.n_per_image, 40)
         a.controller.add_point(1, 50, 60)
         _set(a.panels.view.overlay_all, "residual")

@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from lightcal_app.panels.base import assign
 from lightcal_app.server import LightcalApp, build_app
 
 from lightcal.core.rotations import matrix_from_quaternion_wxyz
@@ -242,7 +241,7 @@ def test_region_drawn_on_an_image_changes_its_selection(
     app.controller.set_overlay("real")
     page.get_by_role("tab", name="View").click()
     # "Look through image" for image v01 (the dropdown's value is set server-side).
-    assign(app.panels.view.overlay_image, st.project.names[1])
+    app.panels.view.overlay_image.value = st.project.names[1]
     page.get_by_role("button", name="Look through image").click()
     view = st.project.views[1]
     wait_for(

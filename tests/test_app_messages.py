@@ -136,6 +136,7 @@ def test_a_choice_that_is_not_offered_is_refused(app: LightcalApp) -> None:
     assert app.wait_idle()
     assert _refusals(app)[-1] == "'../../etc/passwd' is not a value this control takes"
     assert app.state.ref_image == before
+    assert app.panels.light.ref_image.value == app.state.project.names[before]  # shown again
 
 
 # ---------------------------------------------------------------- before viser takes them

@@ -12,7 +12,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.explain import PROJECT_FIGURES, add_explanation
-from lightcal_app.panels.base import Programmatic, assign
+from lightcal_app.panels.base import Programmatic
 from lightcal_app.panels.files import FilesPanel
 from lightcal_app.panels.light import LightPanel, pose_angles_deg, rotation_from_angles_deg
 from lightcal_app.panels.pixels import PixelsPanel
@@ -23,7 +23,7 @@ from lightcal_app.panels.view import ViewPanel
 from lightcal_app.state import Frame
 from lightcal_app.text import md_prose
 
-__all__ = ["Panels", "assign", "pose_angles_deg", "rotation_from_angles_deg"]
+__all__ = ["Panels", "pose_angles_deg", "rotation_from_angles_deg"]
 
 
 class Panels:

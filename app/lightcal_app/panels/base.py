@@ -22,16 +22,11 @@ from lightcal_app.controller import Controller
 from lightcal_app.text import md_prose
 
 
-def assign(handle: Any, value: Any) -> None:
-    """Set a widget's value (viser sends it to every browser and fires its callbacks),
-    unless it holds that value already: a redraw that rewrites every widget from the state
-    then leaves alone the ones a user is editing at that moment."""
+def _same(a: Any, b: Any) -> bool:
     try:
-        same = bool(handle.value == value)
+        return bool(a == b)
     except (TypeError, ValueError):  # arrays: compared element-wise
-        same = False
-    if not same:
-        handle.value = value
+        return False
 
 
 def rounded(v: float, digits: int) -> float:
@@ -40,10 +35,25 @@ def rounded(v: float, digits: int) -> float:
 
 
 class Programmatic:
-    """A thread-local flag: widget writes inside `writing()` are not user edits."""
+    """The panels' own widget writes, told apart from users' edits.
+
+    - A thread-local flag: writes inside `writing()` are not user edits (their callbacks
+      ignore them, see `TabPanel.guard`).
+    - Per widget, the value a redraw last wrote or found in step with the state. A widget
+      that holds another value was edited by a user since, and that edit is on its way
+      to the state: viser stores a browser's value, then runs the widget's callbacks on
+      a worker thread, which reads it back. A redraw in between leaves such a widget
+      alone (`assign`), so it does not undo the edit before the callback has read it.
+      The callback's end `release`s the widget: the next redraw writes it from the state
+      again, whatever it holds (a refused or a normalised value).
+    """
 
     def __init__(self) -> None:
         self._local = threading.local()
+        self._lock = threading.Lock()
+        # id(handle) -> (the handle, the value written or seen). Handles are unhashable;
+        # the reference kept here keeps an id from passing to a newer widget.
+        self._written: dict[int, tuple[Any, Any]] = {}
 
     @contextmanager
     def writing(self) -> Iterator[None]:
@@ -56,6 +66,26 @@ class Programmatic:
 
     def active(self) -> bool:
         return bool(getattr(self._local, "on", False))
+
+    def assign(self, handle: Any, value: Any) -> None:
+        """Set a widget's value (viser sends it to every browser and fires its callbacks),
+        unless it holds that value already or a user's edit of it has not reached the
+        state yet (see the class)."""
+        key = id(handle)
+        current = handle.value
+        with self._lock:
+            seen = self._written.get(key)
+        if seen is not None and not _same(current, seen[1]):
+            return  # edited by a user: left alone until its callback releases it
+        if not _same(current, value):
+            handle.value = value
+        with self._lock:
+            self._written[key] = (handle, handle.value)
+
+    def release(self, handle: Any) -> None:
+        """A user's edit of `handle` reached the state (or was refused)."""
+        with self._lock:
+            self._written.pop(id(handle), None)
 
 
 class TabPanel:
@@ -84,7 +114,6 @@ class TabPanel:
             except LightcalError as exc:
                 # Refused in the page, with the reason; the widgets show the state again.
                 self.ctl.notify(event.client, "Value refused", str(exc), error=True)
-                self.ctl.state.mark("widgets")
             except (ValueError, TypeError, KeyError, IndexError, OverflowError):
                 # A value no widget of this page can send (a choice not offered, a string
                 # for a number): a page speaking for itself. Refused; nothing changed.
@@ -95,6 +124,10 @@ class TabPanel:
                     f"{str(value)[:60]!r} is not a value this control takes",
                     error=True,
                 )
+            finally:
+                # The edit is in the state, or refused: the next redraw (one is marked
+                # here, after the release) writes the widget from the state again.
+                self.flag.release(event.target)
                 self.ctl.state.mark("widgets")
 
         return cb

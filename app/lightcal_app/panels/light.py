@@ -25,7 +25,7 @@ from lightcal_app.limits import (
     POSITION_LIMIT_M,
     SPIN_LIMIT_DEG,
 )
-from lightcal_app.panels.base import Programmatic, TabPanel, assign, rounded
+from lightcal_app.panels.base import Programmatic, TabPanel, rounded
 from lightcal_app.state import Frame, LightGuess
 from lightcal_app.text import md
 
@@ -156,7 +156,7 @@ class LightPanel(TabPanel):
             return
         st = self.ctl.state
         with st.lock:
-            assign(self.ref_image, st.project.names[st.ref_image])
+            self.flag.assign(self.ref_image, st.project.names[st.ref_image])
             names = [u.initial.name for u in st.project.lights]
         lights: list[Light | LightGuess] = (
             list(frame.display.rig.lights) if frame.display is not None else list(frame.guess)
@@ -169,9 +169,9 @@ class LightPanel(TabPanel):
                 t, R = light.position_m, light.R_camera_light
             roll, pitch, spin = pose_angles_deg(R)
             w = self.light_widgets[j]
-            assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
-            assign(w["axis"], (rounded(roll, 3), rounded(pitch, 3)))
-            assign(w["spin"], rounded(spin, 3))
+            self.flag.assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
+            self.flag.assign(w["axis"], (rounded(roll, 3), rounded(pitch, 3)))
+            self.flag.assign(w["spin"], rounded(spin, 3))
             pose = describe_pose(R, t)
             ax = np.asarray(pose["axis_camera"]) + 0.0  # no "-0.0000"
             scale = f", scale {light.scale:.4g}" if isinstance(light, Light) else ""

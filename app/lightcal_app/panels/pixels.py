@@ -16,7 +16,7 @@ from lightcal_app.limits import (
     MAX_SEED,
     check_selection,
 )
-from lightcal_app.panels.base import LiveText, Programmatic, TabPanel, assign
+from lightcal_app.panels.base import LiveText, Programmatic, TabPanel
 from lightcal_app.state import Frame, SelectionSettings
 from lightcal_app.text import md
 
@@ -147,11 +147,11 @@ class PixelsPanel(TabPanel):
                 else st.selection_per_image.get(target, st.selection)
             )
         with self.flag.writing():
-            assign(self.strategy, s.strategy)
-            assign(self.n_per_image, s.n_per_image)
-            assign(self.grid_step, s.grid_step)
-            assign(self.binning, s.binning)
-            assign(self.seed, s.seed)
+            self.flag.assign(self.strategy, s.strategy)
+            self.flag.assign(self.n_per_image, s.n_per_image)
+            self.flag.assign(self.grid_step, s.grid_step)
+            self.flag.assign(self.binning, s.binning)
+            self.flag.assign(self.seed, s.seed)
 
     def set_project(self, project: Project) -> None:
         self.sel_target.options = [ALL_IMAGES, *project.names]
@@ -161,7 +161,7 @@ class PixelsPanel(TabPanel):
         if d & {"widgets", "scene"}:
             self.show_settings()
             with self.ctl.state.lock:
-                assign(self.show_selection, self.ctl.state.show_selection)
+                self.flag.assign(self.show_selection, self.ctl.state.show_selection)
         if d & {"selection", "status", "scene", "widgets"}:
             self.selection_text.show(self._selection_text(frame))
 

@@ -12,7 +12,7 @@ import viser
 from lightcal.pipeline.plan import Sigmas
 from lightcal_app.controller import Controller
 from lightcal_app.limits import PLAN_MAX_VIEWS, PLAN_WALL_SIZE_M
-from lightcal_app.panels.base import Programmatic, TabPanel, assign
+from lightcal_app.panels.base import Programmatic, TabPanel
 from lightcal_app.state import EstimateKey, Frame, PlanShown, Readout
 from lightcal_app.text import md, md_prose
 
@@ -142,4 +142,4 @@ class PlanPanel(TabPanel):
             self.readout_md.content = readout
             self.plan_md.content = plan
         if self.show.value != frame.show_plan:
-            assign(self.show, frame.show_plan)
+            self.flag.assign(self.show, frame.show_plan)

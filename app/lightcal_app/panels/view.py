@@ -10,7 +10,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.overlays import legend_picture
-from lightcal_app.panels.base import LiveText, Programmatic, TabPanel, assign
+from lightcal_app.panels.base import LiveText, Programmatic, TabPanel
 from lightcal_app.state import OVERLAY_KINDS, Frame
 
 AS_ALL = "(as all images)"
@@ -89,7 +89,7 @@ class ViewPanel(TabPanel):
             with ctl.state.lock:
                 v = ctl.state.overlay_per_image.get(self.overlay_image.value, AS_ALL)
             with self.flag.writing():
-                assign(self.overlay_one, v)
+                self.flag.assign(self.overlay_one, v)
 
         self.overlay_image.on_update(overlay_image)
 
@@ -133,11 +133,11 @@ class ViewPanel(TabPanel):
         if d & {"widgets", "scene"}:
             st = self.ctl.state
             with st.lock:
-                assign(self.overlay_all, st.overlay_default)
-                assign(self.rays, st.rays_image)
-                assign(self.focus, st.focus_image is not None)
+                self.flag.assign(self.overlay_all, st.overlay_default)
+                self.flag.assign(self.rays, st.rays_image)
+                self.flag.assign(self.focus, st.focus_image is not None)
                 if st.focus_image is not None:
-                    assign(self.overlay_image, st.focus_image)
+                    self.flag.assign(self.overlay_image, st.focus_image)
         if not d & {"overlays", "scene", "widgets"}:
             return
         if legend_vmax is not None and self._legend_shown != legend_vmax:
