@@ -768,7 +768,7 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
         _set(a.panels.solve.step_button, True)
         _idle(a)
         path = tmp_path / "autosave.session.json"
-        deadline = time.monotonic() + 5.0  # written by the worker after the changes
+        deadline = time.monotonic() + 30.0  # written by the worker after the changes
         while time.monotonic() < deadline:
             saved = read_session(path) if path.is_file() else None
             if saved is not None and saved.solve is not None and len(saved.solve.history) == 2:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -158,7 +159,8 @@ def test_the_truth_lies_within_3_sigma(tmp_path: Path, selection: str):
     doc = json.loads((SAMPLE / "project.json").read_text())
     if selection == "all":
         doc["selection"].update(strategy="all", binning=2)
-    project = SAMPLE / f"project_{tmp_path.name}.json"  # beside the images it names
+    # Beside the images it names; tmp_path's name is only unique within one test process.
+    project = SAMPLE / f"project_{os.getpid()}_{tmp_path.name}.json"
     project.write_text(json.dumps(doc))
     out = tmp_path / "result.json"
     try:
