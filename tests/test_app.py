@@ -8,6 +8,7 @@ project (`tests/app_fixtures.py`) and waits for its worker to finish (`wait_idle
 from __future__ import annotations
 
 import dataclasses
+import gc
 import io
 import json
 import math
@@ -49,6 +50,7 @@ from viser import _messages
 from viser._gui_handles import GuiEvent, UploadedFile
 from viser.infra import ClientId
 
+from lightcal.cli import collector
 from lightcal.core.pose import describe_pose, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, quaternion_wxyz_from_matrix
 from lightcal.core.scene import Rig
@@ -904,20 +906,30 @@ def test_cli_warns_when_exposed(
         a.close()
 
     monkeypatch.setattr(server_module, "serve_forever", serve)
-    rc = main(
-        [
-            "app",
-            str(synthetic.path),
-            "--host",
-            "0.0.0.0",
-            "--port",
-            "0",
-            "--session",
-            str(tmp_path / "s.json"),
-            "--state-dir",
-            str(tmp_path / "state"),
-        ]
-    )
+    frozen = gc.get_freeze_count()
+    gc.set_threshold(*collector.COMMAND_THRESHOLDS)  # as `lightcal` sets it for any command
+    try:
+        rc = main(
+            [
+                "app",
+                str(synthetic.path),
+                "--host",
+                "0.0.0.0",
+                "--port",
+                "0",
+                "--session",
+                str(tmp_path / "s.json"),
+                "--state-dir",
+                str(tmp_path / "state"),
+            ]
+        )
+        # Served as a long-running process: the start-up's objects frozen, Python's own
+        # thresholds back.
+        assert gc.get_freeze_count() > frozen
+        assert gc.get_threshold() == collector.PYTHON_THRESHOLDS
+    finally:
+        gc.unfreeze()
+        gc.set_threshold(*collector.PYTHON_THRESHOLDS)
     assert rc == 0
     out = capsys.readouterr()
     assert "warning: --host 0.0.0.0 exposes the app" in out.err

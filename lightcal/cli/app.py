@@ -14,6 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from lightcal.cli import collector
 from lightcal.errors import InputError
 
 EXPOSED_HOSTS = ("0.0.0.0", "::", "")
@@ -120,5 +121,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"lightcal app: serving {app.state.project.path}", flush=True)
         print(f"lightcal app: open {app.url} in your browser (Ctrl-C stops)", flush=True)
 
+    collector.for_a_server()
     serve_forever(app, on_ready=announce)
     return 0
