@@ -133,6 +133,7 @@ def test_all_strategy_returns_every_candidate_in_row_order():
     cand[2, 0] = cand[0, 3] = cand[1, 1] = True
     px = select_pixels(cand, SelectionOptions(strategy="all"))
     assert px.tolist() == [[3, 0], [1, 1], [0, 2]]
+    assert px.dtype == np.int64 and px.flags.c_contiguous
 
 
 def test_random_strategy_is_deterministic_by_seed():
