@@ -758,6 +758,18 @@ def test_a_browser_edit_survives_a_redraw_before_its_callback(app: LightcalApp) 
     assert app.state.overlay_default == "residual" and handle.value == "residual"
 
 
+def test_a_widget_the_panels_changed_beside_a_redraw_is_not_taken_for_an_edit(
+    app: LightcalApp,
+) -> None:
+    rays, shown = app.panels.view.rays, app.state.rays_image
+    assert rays.value == shown != "all"
+    with app.panels.flag.writing():  # as viser does when new options drop the old value
+        rays.value = "all"
+    app.state.mark("widgets")
+    _idle(app)
+    assert rays.value == shown == app.state.rays_image  # written from the state again
+
+
 def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path: Path) -> None:
     a = _build(synthetic, tmp_path)
     try:

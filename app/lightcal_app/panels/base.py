@@ -39,20 +39,21 @@ class Programmatic:
 
     - A thread-local flag: writes inside `writing()` are not user edits (their callbacks
       ignore them, see `TabPanel.guard`).
-    - Per widget, the value a redraw last wrote or found in step with the state. A widget
-      that holds another value was edited by a user since, and that edit is on its way
-      to the state: viser stores a browser's value, then runs the widget's callbacks on
-      a worker thread, which reads it back. A redraw in between leaves such a widget
-      alone (`assign`), so it does not undo the edit before the callback has read it.
-      The callback's end `release`s the widget: the next redraw writes it from the state
-      again, whatever it holds (a refused or a normalised value).
+    - Per widget, its last value that did not come from a user (a redraw's, or one
+      written inside `writing()`). A widget that holds another value was edited by a
+      user since, and that edit is on its way to the state: viser stores a browser's
+      value, then runs the widget's callbacks on a worker thread, which reads it back.
+      A redraw in between leaves such a widget alone (`assign`), so it does not undo the
+      edit before the callback has read it. The callback's end `release`s the widget:
+      the next redraw writes it from the state again, whatever it holds (a refused or a
+      normalised value).
     """
 
     def __init__(self) -> None:
         self._local = threading.local()
         self._lock = threading.Lock()
-        # id(handle) -> (the handle, the value written or seen). Handles are unhashable;
-        # the reference kept here keeps an id from passing to a newer widget.
+        # id(handle) -> (the handle, its last value not from a user). Handles are
+        # unhashable; the reference kept here keeps an id from passing to a newer widget.
         self._written: dict[int, tuple[Any, Any]] = {}
 
     @contextmanager
@@ -71,16 +72,20 @@ class Programmatic:
         """Set a widget's value (viser sends it to every browser and fires its callbacks),
         unless it holds that value already or a user's edit of it has not reached the
         state yet (see the class)."""
-        key = id(handle)
         current = handle.value
         with self._lock:
-            seen = self._written.get(key)
+            seen = self._written.get(id(handle))
         if seen is not None and not _same(current, seen[1]):
-            return  # edited by a user: left alone until its callback releases it
+            return  # a user's edit on its way to the state: its callback releases it
         if not _same(current, value):
             handle.value = value
+        self.record(handle)
+
+    def record(self, handle: Any) -> None:
+        """The widget's value is not a user's (written by a panel, or by viser itself, e.g.
+        when new options no longer hold the old value)."""
         with self._lock:
-            self._written[key] = (handle, handle.value)
+            self._written[id(handle)] = (handle, handle.value)
 
     def release(self, handle: Any) -> None:
         """A user's edit of `handle` reached the state (or was refused)."""
@@ -108,6 +113,7 @@ class TabPanel:
 
         def cb(event: Any) -> None:
             if event.client is None and self.flag.active():
+                self.flag.record(event.target)  # the panels' own write, not an edit
                 return
             try:
                 fn(event)
