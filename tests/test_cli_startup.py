@@ -86,3 +86,24 @@ def test_the_command_entry_runs_main_then_freezes_the_collector(
     finally:
         gc.unfreeze()
         gc.set_threshold(*thresholds)
+
+
+def test_the_solver_imports_scipy_optimize_while_the_images_decode() -> None:
+    """`lightcal calibrate`'s modules leave scipy.optimize (0.1-0.3 s) to
+    `pipeline.load.prepare_solve`, which runs while the images decode."""
+    code = (
+        "import sys\n"
+        "import lightcal.cli.calibrate, lightcal.io.project, lightcal.pipeline\n"
+        "import lightcal.pipeline.results, lightcal.core.solver, lightcal.core.rid\n"
+        "print('scipy.optimize' in sys.modules)\n"
+        "from lightcal.io.project import load_project\n"
+        "from lightcal.pipeline.load import prepare_solve\n"
+        f"prepare_solve(load_project({str(REPO / 'sample_data' / 'project.json')!r}))\n"
+        "print('scipy.optimize' in sys.modules)\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split() == ["False", "True"]

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project import load_project
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
-    from lightcal.pipeline.load import prepare_lights
+    from lightcal.pipeline.load import prepare_solve
     from lightcal.pipeline.result_text import light_lines
     from lightcal.pipeline.results import stop_reason
 
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         check_output_folder(args.report, option="--report", inputs=inputs, force=args.force)
     ensure_kernels(quiet=args.quiet)
     with stage_progress(enabled=not args.quiet) as progress:
-        loaded = load_images(project, progress=progress, meanwhile=lambda: prepare_lights(project))
+        loaded = load_images(project, progress=progress, meanwhile=lambda: prepare_solve(project))
         model = build_model(project, loaded, progress=progress)
 
     def on_iteration(rep: IterationReport) -> None:

@@ -28,7 +28,6 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from lightcal.core import rid_eval
 from lightcal.core.rid_eval import RIDData
@@ -112,6 +111,8 @@ class RID(ABC):
         if i == theta.size - 1:
             return math.pi
         if self.symmetric:
+            from scipy.optimize import brentq  # see lightcal.core.solver on SciPy's optimize
+
             return float(brentq(lambda t: float(f(np.array(t))) - level, theta[i], theta[i + 1]))
         return float(
             theta[i] + (theta[i + 1] - theta[i]) * (fmax[i] - level) / (fmax[i] - fmax[i + 1])

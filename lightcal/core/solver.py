@@ -16,9 +16,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import OptimizeResult, least_squares
 
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.calibration_model import CalibrationModel
@@ -28,6 +28,9 @@ from lightcal.core.solver_options import (
     SolverOptions,
     robust_cost,
 )
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = [
     "CONVERGED_AHEAD",
@@ -163,6 +166,10 @@ def _trf(
     emit: Callable[[IterationReport], None],
 ) -> tuple[OptimizeResult, bool]:
     """One least_squares (trf) run after `done` iterations: (its result, hit the limit)."""
+    # Imported where it is used: scipy.optimize takes 0.25-0.3 s to import, which a
+    # command overlaps with its image decoding (`pipeline.load.prepare_compute`).
+    from scipy.optimize import least_squares
+
     opts = model.options
     hit_limit = False
     converged_ahead = False

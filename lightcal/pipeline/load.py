@@ -109,12 +109,14 @@ def load_images(
     return LoadedImages(images, excluded, camera)
 
 
-def prepare_lights(project: Project) -> None:
-    """Fill the lights' RID grids now (`RID.data`). The first compiled kernel a process
-    calls also starts numba (0.15-0.2 s of the interpreter's time): passed to
-    `load_images` as `meanwhile`, both overlap the image decoding."""
+def prepare_solve(project: Project) -> None:
+    """What a solve needs that takes the interpreter's time, for `load_images`'
+    `meanwhile` (it then overlaps the image decoding): the lights' RID grids
+    (`RID.data`; the first compiled kernel a process calls also starts numba, 0.15-0.2 s)
+    and SciPy's optimize module, which the solver imports where it is used (0.1-0.3 s)."""
     for unknown in project.lights:
         unknown.initial.rid.data()
+    import scipy.optimize  # noqa: F401
 
 
 def _read_mask(path, shape: tuple[int, int]) -> np.ndarray:

@@ -6,7 +6,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import nnls
 
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.qr_factors import economic_r, stack_r_factors
@@ -61,6 +60,8 @@ def fit_scales(
     R = stack_r_factors(tops, n_l + 1)
     s = np.zeros(n_l)
     if np.all(np.isfinite(R)):
+        from scipy.optimize import nnls  # see lightcal.core.solver on SciPy's optimize
+
         s, _ = nnls(R[:n_l, :n_l], R[:n_l, n_l])
     largest = float(s.max())
     if not largest > 0.0:
