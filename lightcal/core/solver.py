@@ -167,7 +167,7 @@ def _trf(
 ) -> tuple[OptimizeResult, bool]:
     """One least_squares (trf) run after `done` iterations: (its result, hit the limit)."""
     # Imported where it is used: scipy.optimize takes 0.25-0.3 s to import, which a
-    # command overlaps with its image decoding (`pipeline.load.prepare_compute`).
+    # command overlaps with its image decoding (`pipeline.load.prepare_solve`).
     from scipy.optimize import least_squares
 
     opts = model.options

@@ -141,5 +141,4 @@ class PlanPanel(TabPanel):
             self._shown = (readout, plan)
             self.readout_md.content = readout
             self.plan_md.content = plan
-        if self.show.value != frame.show_plan:
-            self.flag.assign(self.show, frame.show_plan)
+        self.flag.assign(self.show, frame.show_plan)
