@@ -201,7 +201,7 @@ def test_rendered_overlay_matches_the_real_image_at_the_true_light(
     # The images were rendered with scale 1 then multiplied by a gain: fit it per image.
     for i in range(len(project.names)):
         display = Display(
-            Rig.single(synthetic.true_light), (1.0,) * len(project.names), 0.0, "guess"
+            Rig.single(synthetic.true_light), (1.0,) * len(project.names), 0.0, "guess", 0
         )
         r = ov.render(i, display)
         real = ov.real_binned[i]
@@ -253,7 +253,7 @@ def test_a_redraw_leaves_alone_a_widget_a_user_edited_until_its_callback_ends() 
     w.value = "residual"  # a browser's value, stored by viser before its callback runs
     flag.assign(w, "real")  # a redraw from the state as it was before the edit
     assert w.value == "residual"
-    flag.release(w)  # the callback ended (here: the value was refused)
+    flag.release(w, "residual")  # the callback ended (here: the value was refused)
     flag.assign(w, "real")
     assert w.value == "real"
     flag.assign(w, "depth")  # the state changed: written
@@ -261,6 +261,20 @@ def test_a_redraw_leaves_alone_a_widget_a_user_edited_until_its_callback_ends() 
     other = SimpleNamespace(value="real")  # every widget has its own record
     flag.assign(other, "residual")
     assert other.value == "residual" and w.value == "depth"
+    # An edit's callback ends: a next edit, right after, is left alone as well.
+    w.value = "real"
+    flag.release(w, "real")
+    w.value = "residual"
+    flag.assign(w, "real")
+    assert w.value == "residual"
+    # The callback of an older edit ends while a newer one is on its way: still left alone.
+    w.value = "depth"
+    flag.release(w, "residual")
+    flag.assign(w, "residual")
+    assert w.value == "depth"
+    flag.release(w, "depth")
+    flag.assign(w, "real")  # that edit was refused: the state's value again
+    assert w.value == "real"
 
 
 def test_truth_file_errors(tmp_path: Path) -> None:
@@ -756,6 +770,31 @@ def test_a_browser_edit_survives_a_redraw_before_its_callback(app: LightcalApp) 
         cb(GuiEvent(client=None, client_id=None, target=handle))
     _idle(app)
     assert app.state.overlay_default == "residual" and handle.value == "residual"
+
+
+def test_edits_in_quick_succession_build_on_each_other_not_on_an_old_estimate(
+    app: LightcalApp,
+) -> None:
+    """With an estimate shown, an edit of the position and then one of the spin, before
+    the worker has replaced the estimate: the spin's edit keeps the new position (the
+    estimate is out of date after the first edit; it was taken for the base pose)."""
+    ctl, st = app.controller, app.state
+    ctl.step(None)
+    _idle(app)
+    with st.lock:
+        assert st.display is not None and st.display.source == "estimate"
+        estimate = st.display.rig.lights[0]
+    w = app.panels.light.light_widgets[0]
+    new_position_mm = (12.0, -3.0, 7.0)
+    with st.lock:  # the worker waits: neither edit has been handled when the next comes
+        _set(w["position"], new_position_mm)
+        _set(w["spin"], float(w["spin"].value) + 5.0)
+        guess = st.guess[0]
+        assert not st.display.current(st)
+    np.testing.assert_allclose(guess.position_m, np.array(new_position_mm) / 1e3)
+    assert not np.allclose(guess.position_m, estimate.t_camera_light)
+    _idle(app)
+    assert tuple(w["position"].value) == new_position_mm  # and the widget shows it
 
 
 def test_a_widget_the_panels_changed_beside_a_redraw_is_not_taken_for_an_edit(

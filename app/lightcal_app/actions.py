@@ -59,7 +59,7 @@ class Actions:
     def _base_pose(self, j: int) -> LightGuess:
         st = self.state
         d = st.display
-        if d is not None and d.source == "estimate" and j < len(d.rig.lights):
+        if d is not None and d.source == "estimate" and d.current(st) and j < len(d.rig.lights):
             light = d.rig.lights[j]
             return LightGuess(light.t_camera_light.copy(), light.R_camera_light.copy())
         return st.guess[j]

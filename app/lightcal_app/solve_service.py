@@ -67,6 +67,7 @@ class SolveService:
         self.session: SolverSession | None = None
         self.model: CalibrationModel | None = None
         self._model_index: list[int] = []  # project image of each model image
+        self._model_setup_rev = -1  # the state's setup_rev when the model was built
         self._image_data: list[ImageData | None] = [None] * len(state.project.names)
         self._selection_done = -1
         self._iteration_offset = 0
@@ -199,7 +200,7 @@ class SolveService:
         with st.lock:
             project = st.project
             guess = list(st.guess)
-            gen = st.session_gen
+            gen, rev = st.session_gen, st.setup_rev
             datas, _ = self.usable_images()
         units = self._lights(project, guess, datas)
         display = Display(
@@ -207,6 +208,7 @@ class SolveService:
             tuple(1.0 for _ in project.names),
             project.solver.offset,
             "guess",
+            rev,
         )
         with st.lock:
             if st.session_gen == gen and st.project is project:
@@ -240,7 +242,7 @@ class SolveService:
             resume = st.resume_x
             saved_names = list(st.parameter_names)
             history = list(st.history)
-            gen = st.session_gen
+            gen, rev = st.session_gen, st.setup_rev
         built = self.build_model()
         if built is None:
             self.notify(
@@ -271,6 +273,7 @@ class SolveService:
             self.session = session
             self.model = model
             self._model_index = index
+            self._model_setup_rev = rev
             self._iteration_offset = offset
             if not offset:
                 st.history = []
@@ -284,7 +287,11 @@ class SolveService:
         for k, i in enumerate(self._model_index):
             gains[i] = g_model[k]
         return Display(
-            model.layout.rig(x), tuple(float(g) for g in gains), model.layout.offset(x), "estimate"
+            model.layout.rig(x),
+            tuple(float(g) for g in gains),
+            model.layout.offset(x),
+            "estimate",
+            self._model_setup_rev,
         )
 
     def on_iteration(self, gen: int, model: CalibrationModel, rep: IterationReport) -> None:

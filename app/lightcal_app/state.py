@@ -165,12 +165,20 @@ class Display:
         gains: per project image, the gain on top of its exposure.
         offset: the offset added to every value.
         source: "guess" or "estimate".
+        setup_rev: the state's `setup_rev` of the guess and selection it was made from;
+            after an edit of either (a newer `setup_rev`) it is out of date until the
+            worker replaces it, and the widgets show the state's guess instead.
     """
 
     rig: Rig
     gains: tuple[float, ...]
     offset: float
     source: Literal["guess", "estimate"]
+    setup_rev: int
+
+    def current(self, state: AppState) -> bool:
+        """Made from the guess and selection the state holds now (call under the lock)."""
+        return self.setup_rev == state.setup_rev
 
 
 @dataclass

@@ -87,10 +87,14 @@ class Programmatic:
         with self._lock:
             self._written[id(handle)] = (handle, handle.value)
 
-    def release(self, handle: Any) -> None:
-        """A user's edit of `handle` reached the state (or was refused)."""
+    def release(self, handle: Any, edited: Any) -> None:
+        """A user's edit of `handle` to the value `edited` reached the state (or was
+        refused): the next redraw writes the state's value (a normalised one, or the old
+        one after a refusal). A widget that holds another value by now was edited again,
+        and stays left alone until that edit's callback ends."""
         with self._lock:
-            self._written.pop(id(handle), None)
+            if _same(handle.value, edited):
+                self._written[id(handle)] = (handle, edited)
 
 
 class TabPanel:
@@ -115,6 +119,7 @@ class TabPanel:
             if event.client is None and self.flag.active():
                 self.flag.record(event.target)  # the panels' own write, not an edit
                 return
+            edited = event.target.value
             try:
                 fn(event)
             except LightcalError as exc:
@@ -133,7 +138,7 @@ class TabPanel:
             finally:
                 # The edit is in the state, or refused: the next redraw (one is marked
                 # here, after the release) writes the widget from the state again.
-                self.flag.release(event.target)
+                self.flag.release(event.target, edited)
                 self.ctl.state.mark("widgets")
 
         return cb

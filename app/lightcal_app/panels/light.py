@@ -158,20 +158,26 @@ class LightPanel(TabPanel):
         with st.lock:
             self.flag.assign(self.ref_image, st.project.names[st.ref_image])
             names = [u.initial.name for u in st.project.lights]
-        lights: list[Light | LightGuess] = (
-            list(frame.display.rig.lights) if frame.display is not None else list(frame.guess)
-        )
+            # The state's lights, not the frame's: a frame is taken before the redraw, and
+            # an edit that reached the state since must not be written back over.
+            display = st.display if st.display is not None and st.display.current(st) else None
+            lights: list[Light | LightGuess] = (
+                list(display.rig.lights) if display is not None else list(st.guess)
+            )
+            poses = []
+            for j, light in enumerate(lights[: len(self.light_widgets)]):
+                if isinstance(light, Light):
+                    t, R = light.t_camera_light, light.R_camera_light
+                else:
+                    t, R = light.position_m, light.R_camera_light
+                roll, pitch, spin = pose_angles_deg(R)
+                w = self.light_widgets[j]
+                self.flag.assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
+                self.flag.assign(w["axis"], (rounded(roll, 3), rounded(pitch, 3)))
+                self.flag.assign(w["spin"], rounded(spin, 3))
+                poses.append((light, t, R))
         lines = []
-        for j, light in enumerate(lights[: len(self.light_widgets)]):
-            if isinstance(light, Light):
-                t, R = light.t_camera_light, light.R_camera_light
-            else:
-                t, R = light.position_m, light.R_camera_light
-            roll, pitch, spin = pose_angles_deg(R)
-            w = self.light_widgets[j]
-            self.flag.assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
-            self.flag.assign(w["axis"], (rounded(roll, 3), rounded(pitch, 3)))
-            self.flag.assign(w["spin"], rounded(spin, 3))
+        for j, (light, t, R) in enumerate(poses):
             pose = describe_pose(R, t)
             ax = np.asarray(pose["axis_camera"]) + 0.0  # no "-0.0000"
             scale = f", scale {light.scale:.4g}" if isinstance(light, Light) else ""
@@ -181,7 +187,7 @@ class LightPanel(TabPanel):
             )
         source = (
             "current estimate"
-            if frame.display is not None and frame.display.source == "estimate"
+            if display is not None and display.source == "estimate"
             else "initial guess"
         )
         self.light_md.content = (

@@ -140,13 +140,12 @@ class PixelsPanel(TabPanel):
         """The settings of the chosen target (all images or one) into the widgets."""
         st = self.ctl.state
         target = self.sel_target.value
-        with st.lock:
+        with st.lock, self.flag.writing():
             s = (
                 st.selection
                 if target == ALL_IMAGES
                 else st.selection_per_image.get(target, st.selection)
             )
-        with self.flag.writing():
             self.flag.assign(self.strategy, s.strategy)
             self.flag.assign(self.n_per_image, s.n_per_image)
             self.flag.assign(self.grid_step, s.grid_step)

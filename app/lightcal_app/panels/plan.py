@@ -141,4 +141,5 @@ class PlanPanel(TabPanel):
             self._shown = (readout, plan)
             self.readout_md.content = readout
             self.plan_md.content = plan
-        self.flag.assign(self.show, frame.show_plan)
+        with self.ctl.state.lock:
+            self.flag.assign(self.show, self.ctl.state.show_plan)

@@ -86,9 +86,8 @@ class ViewPanel(TabPanel):
         self.overlay_one.on_update(g(overlay_one))
 
         def overlay_image(event: Any) -> None:
-            with ctl.state.lock:
+            with ctl.state.lock, self.flag.writing():
                 v = ctl.state.overlay_per_image.get(self.overlay_image.value, AS_ALL)
-            with self.flag.writing():
                 self.flag.assign(self.overlay_one, v)
 
         self.overlay_image.on_update(overlay_image)
