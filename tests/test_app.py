@@ -263,10 +263,12 @@ def test_a_redraw_leaves_alone_a_widget_a_user_edited_until_its_callback_ends() 
     assert other.value == "residual" and w.value == "depth"
     # An edit's callback ends: a next edit, right after, is left alone as well.
     w.value = "real"
+    assert not flag.taken(w)  # the user's: its callback applies it
     flag.release(w, "real")
+    assert flag.taken(w)  # a second callback of the same edit, late, has nothing to do
     w.value = "residual"
     flag.assign(w, "real")
-    assert w.value == "residual"
+    assert w.value == "residual" and not flag.taken(w)
     # The callback of an older edit ends while a newer one is on its way: still left alone.
     w.value = "depth"
     flag.release(w, "residual")

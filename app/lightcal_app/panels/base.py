@@ -21,6 +21,8 @@ from lightcal.errors import LightcalError
 from lightcal_app.controller import Controller
 from lightcal_app.text import md_prose
 
+_BUTTONS = (viser.GuiButtonHandle, viser.GuiButtonGroupHandle, viser.GuiUploadButtonHandle)
+
 
 def _same(a: Any, b: Any) -> bool:
     try:
@@ -46,7 +48,8 @@ class Programmatic:
       A redraw in between leaves such a widget alone (`assign`), so it does not undo the
       edit before the callback has read it. The callback's end `release`s the widget:
       the next redraw writes it from the state again, whatever it holds (a refused or a
-      normalised value).
+      normalised value). A callback that starts when its widget holds no pending edit
+      any more does nothing (`taken`): an earlier one applied the value.
     """
 
     def __init__(self) -> None:
@@ -87,6 +90,15 @@ class Programmatic:
         with self._lock:
             self._written[id(handle)] = (handle, handle.value)
 
+    def taken(self, handle: Any) -> bool:
+        """The widget holds a value that is no user's pending edit: one an earlier
+        callback read and brought to the state, or one the panels wrote. A callback that
+        starts after that (viser's pool runs them late) has no edit of its own left to
+        apply, and must not take the panels' value for one."""
+        with self._lock:
+            seen = self._written.get(id(handle))
+        return seen is not None and _same(handle.value, seen[1])
+
     def release(self, handle: Any, edited: Any) -> None:
         """A user's edit of `handle` to the value `edited` reached the state (or was
         refused): the next redraw writes the state's value (a normalised one, or the old
@@ -119,6 +131,9 @@ class TabPanel:
             if event.client is None and self.flag.active():
                 self.flag.record(event.target)  # the panels' own write, not an edit
                 return
+            button = isinstance(event.target, _BUTTONS)  # a click, not a value
+            if not button and self.flag.taken(event.target):
+                return
             edited = event.target.value
             try:
                 fn(event)
@@ -138,7 +153,8 @@ class TabPanel:
             finally:
                 # The edit is in the state, or refused: the next redraw (one is marked
                 # here, after the release) writes the widget from the state again.
-                self.flag.release(event.target, edited)
+                if not button:
+                    self.flag.release(event.target, edited)
                 self.ctl.state.mark("widgets")
 
         return cb
