@@ -143,11 +143,10 @@ class TabPanel:
             except (ValueError, TypeError, KeyError, IndexError, OverflowError):
                 # A value no widget of this page can send (a choice not offered, a string
                 # for a number): a page speaking for itself. Refused; nothing changed.
-                value = getattr(getattr(event, "target", None), "value", None)
                 self.ctl.notify(
                     event.client,
                     "Value refused",
-                    f"{str(value)[:60]!r} is not a value this control takes",
+                    f"{str(edited)[:60]!r} is not a value this control takes",
                     error=True,
                 )
             finally:
