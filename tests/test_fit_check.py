@@ -55,16 +55,19 @@ def test_plastic_walls_fitted_as_lambertian_fail_in_20_of_20(roughness: float) -
     for seed in range(20):
         result = summarise(*_solve(wall, seed)[:2])
         assert not result.fit_adequate
-        assert result.fit["findings"][0].startswith("residuals grow toward the mirror direction")
-        assert any(
-            "the wall looks glossy; try `wall: {model: plastic}`" in w for w in result.warnings
+        assert result.fit["findings"][0].startswith(
+            "the wall is brighter than the model toward the mirror direction: it looks glossy"
         )
+        assert result.fit["causes"][0]["cause"] == "gloss"
+        assert any("; try `wall: {model: plastic}` (or `auto`)" in w for w in result.warnings)
 
 
 def test_rough_matte_wall_is_told_from_gloss() -> None:
     result = summarise(*_solve(OrenNayarWall(math.radians(25.0)), 0)[:2])
     assert not result.fit_adequate
-    assert result.fit["findings"][0].startswith("residuals change with the angle of incidence")
+    assert result.fit["findings"][0].startswith(
+        "the wall reflects like a rough matte surface (retro-reflection)"
+    )
     assert "try `wall: {model: oren_nayar}`" in result.fit["findings"][0]
 
 

@@ -21,12 +21,13 @@ enough to matter (`MIN_EFFECT`, the RMS of the bin means in sigma units).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
 from scipy import special  # not scipy.stats: 0.6 s to import, for two tail functions
 
+from lightcal.core.misfit_causes import CAUSES
 from lightcal.core.misfit_kernels import (
     binned_noise,
     noise_samples,
@@ -58,7 +59,8 @@ class AngleTrend:
         angle: "mirror" (half vector to the wall normal) or "incidence".
         bin_edges_deg: (k + 1,) quantile bin edges, degrees.
         mean_residual: (k,) mean weighted residual per bin (sigma units).
-        mean_relative: (k,) mean relative residual (m_obs - m_render) / m_render per bin.
+        mean_relative: (k,) relative residual per bin, sum (m_obs - m_render) / sum
+            (m_render - offset): signal-weighted, so dark pixels cannot blow it up.
         count: (k,) pixels per bin.
         f_statistic, p_value: the one-way analysis of variance.
         effect: RMS of the bin means (sigma units).
@@ -91,6 +93,117 @@ class AngleTrend:
         }
 
 
+#: A cause's fitted correction must change the rendered values by at least this fraction
+#: of the signal (RMS, `CauseTest.relative_effect`) to be a finding: below, no one would
+#: act on it, however significant (a million pixels make 0.01 % significant).
+RELATIVE_FLOOR = 0.003
+#: ... and move the pose by at least this many of its statistical sigmas (Mahalanobis
+#: distance over every light's pose parameters).
+SHIFT_FLOOR_SIGMA = 1.0
+#: A misfit no cause explains is a finding when the leave-one-image-out jackknife's
+#: sigma exceeds the statistical one by this factor in some direction of the pose (the
+#: jackknife of 12 images alone reaches ~1.5x by chance).
+JACKKNIFE_FLOOR = 2.0
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def significant_digits(v: float, digits: int = 2) -> str:
+    """v with `digits` significant digits, no exponent for ordinary sizes ("0.013", "12",
+    "1.5e+03")."""
+    if not math.isfinite(v):
+        return str(v)
+    if v == 0.0:
+        return "0"
+    text = f"{v:.{digits}g}"
+    if "e" in text:
+        exponent = text.split("e")[1]
+        e = int(exponent)
+        if -4 <= e < digits + 2:
+            decimals = max(digits - 1 - e, 0)
+            return f"{v:.{decimals}f}"
+    return text
+
+
+def percent(v: float) -> str:
+    """A fraction as a signed percentage with two significant digits ("+0.42 %")."""
+    sign = "+" if v > 0 else "-" if v < 0 else ""
+    return f"{sign}{significant_digits(abs(100.0 * v))} %"
+
+
+@dataclass(frozen=True)
+class CauseTest:
+    """One candidate cause of a misfit fitted beside the model
+    (`lightcal.core.alternatives`, `lightcal.core.misfit_causes`).
+
+    Attributes:
+        name: the cause (`misfit_causes.CAUSES`).
+        k: its columns outside the model's span.
+        delta_chi2: the cost decrease it brings (solver units).
+        f_statistic, p_value: its F test.
+        relative_effect: its fitted correction's RMS relative to the signal.
+        bic_gain: > 0 when it is worth its parameters (Bayesian information criterion).
+        shift_sigma: the pose shift it accounts for, in statistical sigmas (Mahalanobis
+            over every light's pose parameters); NaN for `images` (its shift is the
+            jackknife's).
+        position_shift_m, axis_shift_deg: the largest light position and axis shift it
+            accounts for.
+    """
+
+    name: str
+    k: int
+    delta_chi2: float
+    f_statistic: float
+    p_value: float
+    relative_effect: float
+    bic_gain: float
+    shift_sigma: float
+    position_shift_m: float
+    axis_shift_deg: float
+
+    @property
+    def significant(self) -> bool:
+        """Its F test rejects "no effect" at the false-alarm rate `P_ALARM`."""
+        return self.k > 0 and self.p_value < P_ALARM
+
+    @property
+    def material(self) -> bool:
+        """Significant, above `RELATIVE_FLOOR` and moving the pose by `SHIFT_FLOOR_SIGMA`
+        or more (for `images`: judged with the jackknife by `diagnose`)."""
+        large = not (self.shift_sigma < SHIFT_FLOOR_SIGMA)  # NaN: decided elsewhere
+        return self.significant and self.relative_effect >= RELATIVE_FLOOR and large
+
+    def describe(self) -> str:
+        """Its size in words: "a correction of 0.8 % of the signal that moves the light by
+        12 mm and 0.4 deg (6.1 sigma)"."""
+        text = f"a correction of {percent(self.relative_effect).lstrip('+')} of the signal"
+        if math.isfinite(self.shift_sigma):
+            text += (
+                f" that moves the light by {significant_digits(1e3 * self.position_shift_m)} mm"
+                f" and {significant_digits(self.axis_shift_deg)} deg "
+                f"({significant_digits(self.shift_sigma)} sigma)"
+            )
+        return text
+
+    def to_dict(self) -> dict:
+        return {
+            "cause": self.name,
+            "columns": self.k,
+            "delta_chi2": _finite_or_none(self.delta_chi2),
+            "f_statistic": _finite_or_none(self.f_statistic),
+            "p_value": _finite_or_none(self.p_value),
+            "relative_effect": _finite_or_none(self.relative_effect),
+            "bic_gain": _finite_or_none(self.bic_gain),
+            "shift_sigma": _finite_or_none(self.shift_sigma),
+            "position_shift_m": _finite_or_none(self.position_shift_m),
+            "axis_shift_deg": _finite_or_none(self.axis_shift_deg),
+            "significant": self.significant,
+            "material": self.material,
+        }
+
+
 @dataclass(frozen=True)
 class FitDiagnosis:
     """The verdict on a fit.
@@ -101,9 +214,17 @@ class FitDiagnosis:
         chi2, dof, chi2_per_dof, p_value: the level test (NaN p-value without noise).
         expected_chi2: what chi^2 should be if the model is right: dof plus what the
             camera poses' errors leave (`lightcal.core.uncertainty`).
-        mirror, incidence: the structure tests (None with too few pixels).
-        adequate: the residuals are explained by the noise.
-        findings: what the tests saw and what to try, one sentence each.
+        mirror, incidence: the residuals against those angles (None with too few pixels),
+            for the report's plot.
+        adequate: no finding: nothing that would move the pose beyond its sigma.
+        findings: what the tests saw that matters and what to try, one sentence each,
+            the most likely cause first.
+        causes: every candidate cause's test, most likely (largest BIC gain) first.
+        excess_relative: the residuals' RMS beyond what the noise explains, relative to
+            the signal's RMS (NaN without noise).
+        jackknife_ratio: the leave-one-image-out jackknife's sigma over the statistical
+            sigma in the pose's worst direction (NaN when not computed).
+        notes: what the tests saw that is too small to act on.
     """
 
     noise_source: str
@@ -116,6 +237,10 @@ class FitDiagnosis:
     incidence: AngleTrend | None
     adequate: bool
     findings: list[str] = field(default_factory=list)
+    causes: list[CauseTest] = field(default_factory=list)
+    excess_relative: float = math.nan
+    jackknife_ratio: float = math.nan
+    notes: list[str] = field(default_factory=list)
 
     @property
     def chi2_ratio(self) -> float:
@@ -124,33 +249,59 @@ class FitDiagnosis:
 
     @property
     def level_fails(self) -> bool:
+        """chi^2 is significantly above what the noise (and the camera's errors) explain."""
         if self.noise_source == "none" or self.dof <= 0:
             return False
         return self.chi2_ratio > MAX_CHI2_PER_DOF or (
             self.p_value < P_ALARM and self.chi2_ratio > 1.0 + MIN_EFFECT**2
         )
 
+    @property
+    def explained(self) -> bool:
+        """The residuals are explained by the noise: the level test passes and no cause
+        is significant (the uncertainty then has no systematic term)."""
+        return not self.level_fails and not any(
+            c.significant and c.relative_effect >= RELATIVE_FLOOR for c in self.causes
+        )
+
     def to_dict(self) -> dict:
         return {
             "adequate": self.adequate,
+            "explained_by_noise": self.explained,
             "noise_source": self.noise_source,
             "chi2": _finite(self.chi2),
             "dof": self.dof,
             "chi2_per_dof": _finite(self.chi2_per_dof),
             "expected_chi2": _finite(self.expected_chi2),
             "p_value": _finite(self.p_value),
+            "excess_relative": _finite(self.excess_relative),
+            "jackknife_ratio": _finite(self.jackknife_ratio),
+            "floors": {
+                "relative_effect": RELATIVE_FLOOR,
+                "shift_sigma": SHIFT_FLOOR_SIGMA,
+                "jackknife_ratio": JACKKNIFE_FLOOR,
+                "p_alarm": P_ALARM,
+            },
+            "causes": [c.to_dict() for c in self.causes],
             "mirror": None if self.mirror is None else self.mirror.to_dict(),
             "incidence": None if self.incidence is None else self.incidence.to_dict(),
             "findings": list(self.findings),
+            "notes": list(self.notes),
         }
 
 
 def angle_trend(
-    angle: str, angles_deg: np.ndarray, r: np.ndarray, relative: np.ndarray
+    angle: str,
+    angles_deg: np.ndarray,
+    r: np.ndarray,
+    relative: np.ndarray,
+    signal: np.ndarray | None = None,
 ) -> AngleTrend | None:
     """One-way ANOVA of residuals r (m,) over N_BINS quantile bins of angles_deg (m,).
 
-    None when there are fewer than 10 pixels per bin.
+    relative (m,) is (m_obs - m_render) / (m_render - offset) per pixel and signal (m,)
+    its denominator (default 1: plain means); a bin's relative residual is their
+    signal-weighted mean. None when there are fewer than 10 pixels per bin.
     """
     m = r.size
     if m < 10 * N_BINS:
@@ -164,11 +315,15 @@ def angle_trend(
     count = np.zeros(k)
     sums = np.zeros(k)
     rel_sums = np.zeros(k)
+    sig_sums = np.zeros(k)
     angles = np.ascontiguousarray(angles_deg)  # float64 or float32 (not copied)
     r = np.ascontiguousarray(r, dtype=np.float64)
-    _bin_sums(edges, angles, r, np.ascontiguousarray(relative), count, sums, rel_sums)
+    weight = np.ones(m, dtype=np.float32) if signal is None else np.ascontiguousarray(signal)
+    _bin_sums(
+        edges, angles, r, np.ascontiguousarray(relative), weight, count, sums, rel_sums, sig_sums
+    )
     means = sums / np.maximum(count, 1.0)
-    rel = rel_sums / np.maximum(count, 1.0)
+    rel = np.where(sig_sums > 0.0, rel_sums / np.where(sig_sums > 0.0, sig_sums, 1.0), 0.0)
     grand = float(r.mean())
     between = float(np.sum(count * (means - grand) ** 2))
     squares = np.empty(m)
@@ -192,17 +347,21 @@ def _bin_sums(
     angles: np.ndarray,
     r: np.ndarray,
     relative: np.ndarray,
+    signal: np.ndarray,
     count: np.ndarray,
     sums: np.ndarray,
     rel_sums: np.ndarray,
+    sig_sums: np.ndarray,
 ) -> None:
-    """Add each pixel's 1, r and relative (m,) to its bin's count, sums and rel_sums (k,),
-    in pixel order (the sums of `np.bincount` with weights, bit for bit)."""
+    """Add each pixel's 1, r, relative * signal and signal (m,) to its bin's count, sums,
+    rel_sums and sig_sums (k,), in pixel order (the sums of `np.bincount` with weights)."""
     for i in range(angles.size):
         b = quantile_bin(edges, angles[i])
         count[b] += 1.0
         sums[b] += r[i]
-        rel_sums[b] += relative[i]
+        w = float(signal[i])
+        rel_sums[b] += relative[i] * w
+        sig_sums[b] += w
 
 
 @numba.njit(cache=True)
@@ -225,18 +384,27 @@ def diagnose(
     noise_source: str,
     wall_model: str,
     expected_extra: float = 0.0,
+    signal: np.ndarray | None = None,
+    causes: list[CauseTest] | None = None,
+    excess_relative: float = math.nan,
+    jackknife_ratio: float = math.nan,
 ) -> FitDiagnosis:
-    """Test whether residuals are explained by the noise.
+    """Judge whether the residuals matter: the level test, the candidate causes and the
+    jackknife, each on its effect size as well as its significance (docs/model.md,
+    "Is the fit explained by the noise?").
 
     Args:
         r: (m,) weighted residuals (m_obs - m_render) / sigma.
-        relative: (m,) relative residuals (m_obs - m_render) / m_render.
+        relative: (m,) relative residuals (m_obs - m_render) / (m_render - offset).
         mirror_deg: (m,) angle between the wall normal and the half vector, degrees.
         incidence_deg: (m,) angle of incidence of the light, degrees.
         n_params: parameters fitted.
         noise_source: "model", "image" or "none" (see `FitDiagnosis`).
         wall_model: the wall model the fit used (for the advice).
         expected_extra: chi^2 the camera poses' errors leave on average (0: none known).
+        signal: (m,) m_render - offset (the angle bins' weights; default 1).
+        causes: the candidate causes' tests (`lightcal.pipeline.fit_check`).
+        excess_relative, jackknife_ratio: see `FitDiagnosis`.
     """
     m = int(r.size)
     dof = m - n_params
@@ -247,71 +415,85 @@ def diagnose(
     if dof > 0 and noise_source != "none":
         # chi^2 scaled to dof degrees of freedom (exact without pose errors).
         p = float(special.chdtrc(dof, chi2 * dof / expected))  # chi^2 sf
-    mirror = angle_trend("mirror", mirror_deg, r, relative)
-    incidence = angle_trend("incidence", incidence_deg, r, relative)
+    mirror = angle_trend("mirror", mirror_deg, r, relative, signal)
+    incidence = angle_trend("incidence", incidence_deg, r, relative, signal)
+    ranked = sorted(causes or [], key=lambda c: -c.bic_gain if math.isfinite(c.bic_gain) else 0.0)
     parts = (noise_source, chi2, dof, per_dof, p, expected, mirror, incidence)
-    diag = FitDiagnosis(*parts, True)
-    findings = _findings(diag, wall_model)
-    adequate = not (
-        diag.level_fails
-        or (mirror is not None and mirror.significant)
-        or (incidence is not None and incidence.significant)
+    draft = FitDiagnosis(
+        *parts,
+        True,
+        causes=ranked,
+        excess_relative=excess_relative,
+        jackknife_ratio=jackknife_ratio,
     )
-    return FitDiagnosis(*parts, adequate, findings)
+    findings, notes = _verdict(draft, wall_model)
+    return replace(draft, adequate=not findings, findings=findings, notes=notes)
 
 
-def _findings(d: FitDiagnosis, wall_model: str) -> list[str]:
-    """One sentence per failed test: what the residuals show and what to try.
+def _material(c: CauseTest, jackknife_ratio: float) -> bool:
+    if c.name == "images":
+        return (
+            c.significant
+            and c.relative_effect >= RELATIVE_FLOOR
+            and jackknife_ratio >= JACKKNIFE_FLOOR
+        )
+    return c.material
 
-    Gloss makes the wall brighter than the model toward the mirror direction; a rough
-    matte wall (Oren-Nayar) is darker there and brighter at grazing incidence. With the
-    light beside the camera the two angles are nearly the same, so the sign of the
-    residual near the mirror direction tells them apart.
-    """
-    out = []
-    mirror, incidence = d.mirror, d.incidence
-    structured = [t for t in (mirror, incidence) if t is not None and t.significant]
-    if mirror is not None and mirror.significant and mirror.mean_relative[0] > 0:
-        advice = (
-            "try `wall: {model: plastic}` (or `auto`), or `selection.exclude_mirror_deg`"
-            if wall_model == "lambertian"
-            else "exclude pixels near the mirror direction (`selection.exclude_mirror_deg`)"
-        )
-        out.append(
-            f"residuals grow toward the mirror direction ({100 * mirror.mean_relative[0]:+.1f} % "
-            f"within {mirror.bin_edges_deg[1]:.0f} deg of it, F = {mirror.f_statistic:.1f}): "
-            f"the wall looks glossy; {advice}"
-        )
-    elif structured:
-        t = incidence if incidence is not None else structured[0]
-        advice = (
-            "try `wall: {model: oren_nayar}` or `wall: {model: auto}`"
-            if wall_model == "lambertian"
-            else "check the RID and the sensor fall-off model"
-        )
-        out.append(
-            "residuals change with the angle of incidence "
-            f"({100 * t.mean_relative[0]:+.1f} % at "
-            f"{t.bin_edges_deg[0]:.0f}-{t.bin_edges_deg[1]:.0f} deg, "
-            f"{100 * t.mean_relative[-1]:+.1f} % at "
-            f"{t.bin_edges_deg[-2]:.0f}-{t.bin_edges_deg[-1]:.0f} deg): "
-            f"the wall does not reflect like the {wall_model} model; {advice}"
-        )
+
+def _verdict(d: FitDiagnosis, wall_model: str) -> tuple[list[str], list[str]]:
+    """(findings, notes): one sentence per cause that matters, most likely first, and
+    what was seen but is too small to act on."""
+    findings: list[str] = []
+    notes: list[str] = []
+    material = [c for c in d.causes if _material(c, d.jackknife_ratio)]
+    for k, c in enumerate(material):
+        cause = CAUSES[c.name]
+        advice = cause.advice
+        if c.name == "gloss" and wall_model != "lambertian":
+            advice = "exclude pixels near the mirror direction (`selection.exclude_mirror_deg`)"
+        elif c.name == "rough_matte" and wall_model != "lambertian":
+            advice = "check the RID and the sensor fall-off model"
+        if c.name == "images":
+            size = (
+                f"{percent(c.relative_effect).lstrip('+')} of the signal; the jackknife over "
+                f"the images gives {significant_digits(d.jackknife_ratio)}x the statistical "
+                "sigma"
+            )
+        else:
+            size = c.describe()
+        lead = "" if k == 0 else "also: "
+        findings.append(f"{lead}{cause.meaning} ({size}); {advice}")
+    small = [
+        c
+        for c in d.causes
+        if c.significant and c.relative_effect >= RELATIVE_FLOOR and c not in material
+    ]
+    for c in small:
+        notes.append(f"{c.name}: {c.describe()}: too small to move the pose beyond its sigma")
     if d.level_fails:
         source = "the sensor's noise model" if d.noise_source == "model" else "the images"
         poses = " and the camera poses' errors" if d.expected_chi2 > d.dof else ""
-        out.append(
-            f"residuals are {math.sqrt(d.chi2_ratio):.2f}x what the noise from "
-            f"{source}{poses} explain (chi2 = {d.chi2:.4g}, expected {d.expected_chi2:.4g} "
-            f"over {d.dof} degrees of freedom): the model does not explain the data"
-            + (
-                ""
-                if structured
-                else "; check the camera poses, masks (markers, stray light), the RID and "
+        level = (
+            f"residuals are {significant_digits(math.sqrt(d.chi2_ratio), 3)}x what the noise "
+            f"from {source}{poses} explains (chi2 {significant_digits(d.chi2, 4)}, expected "
+            f"{significant_digits(d.expected_chi2, 4)} over {d.dof} degrees of freedom; "
+            f"{percent(d.excess_relative).lstrip('+')} of the signal beyond the noise)"
+        )
+        unexplained = (
+            not material
+            and d.excess_relative >= RELATIVE_FLOOR
+            and d.jackknife_ratio >= JACKKNIFE_FLOOR
+        )
+        if unexplained:
+            findings.append(
+                f"{level}: no single cause explains them and the images disagree beyond the "
+                f"noise (jackknife {significant_digits(d.jackknife_ratio)}x the statistical "
+                "sigma); check the camera poses, masks (markers, stray light), the RID and "
                 "the sensor model"
             )
-        )
-    return out
+        else:
+            notes.append(f"{level}; the sigma includes the misfit")
+    return findings, notes
 
 
 def pixel_angles(

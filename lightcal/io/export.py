@@ -83,7 +83,7 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
     fs.write("lights_count", len(result.lights))
     fs.startWriteStruct("lights", cv2.FileNode_SEQ)
     for light in result.lights:
-        sigma = light.sigma
+        sigma = light.sigma  # every sigma is known: `export_files` refuses undetermined
         fs.startWriteStruct("", cv2.FileNode_MAP)
         fs.write("name", light.name)
         fs.write("pose_kind", light.pose_kind)
@@ -94,10 +94,10 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
         fs.write("sigma_position_m", np.array(sigma.position_m, dtype=np.float64).reshape(3, 1))
         fs.write("sigma_axis_camera", np.array(sigma.axis_camera, dtype=np.float64).reshape(3, 1))
         fs.write("sigma_R_camera_light", np.array(sigma.R_camera_light, dtype=np.float64))
-        fs.write("sigma_roll_deg", float(sigma.roll_deg))
-        fs.write("sigma_pitch_deg", float(sigma.pitch_deg))
-        fs.write("sigma_axis_angle_deg", float(sigma.axis_angle_from_optical_axis_deg))
-        fs.write("sigma_scale", float(light.scale_sigma))
+        fs.write("sigma_roll_deg", _known(sigma.roll_deg))
+        fs.write("sigma_pitch_deg", _known(sigma.pitch_deg))
+        fs.write("sigma_axis_angle_deg", _known(sigma.axis_angle_from_optical_axis_deg))
+        fs.write("sigma_scale", _known(light.scale_sigma))
         rid = light_rid(light, source)
         if rid is not None:
             fs.write("rid_model", rid.model)
@@ -157,6 +157,11 @@ def add_lights(lights=LIGHTS, camera_name=CAMERA_NAME):
 
 add_lights()
 '''
+
+
+def _known(v: float | None) -> float:
+    """A sigma of a determined result (NaN if it is not)."""
+    return math.nan if v is None else float(v)
 
 
 def _blender_snippet(result: ResultFile, source: str | Path) -> bytes:
@@ -286,6 +291,12 @@ def export_files(
         InputError: an unknown format, or the result lacks what the format needs.
     """
     out = Path(out)
+    if result.undetermined:
+        raise InputError(
+            source,
+            f"the result is undetermined ({result.undetermined[0]}): there is no pose to "
+            "export; fix the project and calibrate again",
+        )
     whole: dict[str, Callable[[ResultFile, str | Path], bytes]] = {
         "opencv": _opencv_yaml,
         "blender": _blender_snippet,

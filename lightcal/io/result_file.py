@@ -21,7 +21,10 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   against the ``mirror`` and ``incidence`` angles (bins, means, F test) and ``findings``
   (what the tests saw and what to try). docs/model.md, "Is the fit explained by the noise?".
 - ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
-- ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, misfit).
+- ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
+  intrinsics, and the systematic terms when the fit is not explained by the noise), in
+  words with their sizes; ``uncertainty_breakdown`` the same per term and light as
+  numbers; ``undetermined``: what the data do not determine (sigmas null there).
 """
 
 from __future__ import annotations
@@ -45,13 +48,16 @@ class _Model(BaseModel):
 
 
 class PoseSigma(_Model):
-    position_m: list[float]
-    R_camera_light: list[list[float]]
-    quaternion_wxyz: list[float]
-    axis_camera: list[float]
-    roll_deg: float
-    pitch_deg: float
-    axis_angle_from_optical_axis_deg: float
+    """1-sigma of each pose quantity; null where the data do not determine it (the
+    result is then not converged: `undetermined` says why)."""
+
+    position_m: list[float | None]
+    R_camera_light: list[list[float | None]]
+    quaternion_wxyz: list[float | None]
+    axis_camera: list[float | None]
+    roll_deg: float | None
+    pitch_deg: float | None
+    axis_angle_from_optical_axis_deg: float | None
 
 
 class LightResultModel(_Model):
@@ -68,7 +74,7 @@ class LightResultModel(_Model):
     pitch_deg: float
     axis_angle_from_optical_axis_deg: float
     scale: float
-    scale_sigma: float
+    scale_sigma: float | None
     sigma: PoseSigma = Field(description="1-sigma uncertainties of the fields above")
     rid: dict[str, Any] | None = None
 
@@ -113,7 +119,19 @@ class ResultFile(_Model):
         description="wall model, parameters, estimated names and their sigma",
     )
     uncertainty: list[str] = Field(
-        default_factory=list, description="the terms the covariance and sigmas include"
+        default_factory=list,
+        description="the terms the covariance and sigmas include, in words with their sizes",
+    )
+    uncertainty_breakdown: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description=(
+            "per covariance term: its name, whether it is systematic, and per light the "
+            "1-sigma norm of the position (m) and of the axis direction (deg)"
+        ),
+    )
+    undetermined: list[str] = Field(
+        default_factory=list,
+        description="what the data do not determine (a result with any is not converged)",
     )
     start: str = Field(
         default="",
@@ -129,8 +147,8 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
             pose_kind=lr.pose_kind,
             **lr.pose.to_dict(),
             scale=lr.scale,
-            scale_sigma=lr.scale_sigma,
-            sigma=PoseSigma(**lr.sigma.to_dict()),
+            scale_sigma=_nan_to_none(lr.scale_sigma),
+            sigma=PoseSigma(**_nan_to_none(lr.sigma.to_dict())),
             rid=lr.rid,
         )
         for lr in result.lights
@@ -161,8 +179,21 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
         fit=result.fit or None,
         wall=result.wall,
         uncertainty=result.uncertainty_terms,
+        uncertainty_breakdown=_nan_to_none(result.uncertainty_breakdown),
+        undetermined=result.undetermined,
         start=result.start,
     )
+
+
+def _nan_to_none(value: Any) -> Any:
+    """value with every NaN float (nested in lists and dicts) replaced by None (JSON null)."""
+    if isinstance(value, float):
+        return None if value != value else value
+    if isinstance(value, list):
+        return [_nan_to_none(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    return value
 
 
 def write_result(result_file: ResultFile, path: str | Path) -> None:

@@ -8,13 +8,21 @@ angle from the optical axis, and the scale.
 
 from __future__ import annotations
 
+import math
+
 from lightcal.pipeline.results import LightResult
+
+
+def sigma_text(s: float, factor: float = 1.0) -> str:
+    """A 1-sigma with two significant digits, or "undetermined" (NaN: the data do not
+    determine it; never "0")."""
+    return f"{s * factor:.2g}" if math.isfinite(s) else "undetermined"
 
 
 def position_text(light: LightResult) -> str:
     """ "+101.97 ± 0.25, -13.72 ± 0.25, +18.41 ± 0.43 mm" (camera frame)."""
     values = zip(light.pose.t_camera_light, light.sigma.t_camera_light, strict=True)
-    return ", ".join(f"{v * 1e3:+.2f} ± {s * 1e3:.2g}" for v, s in values) + " mm"
+    return ", ".join(f"{v * 1e3:+.2f} ± {sigma_text(s, 1e3)}" for v, s in values) + " mm"
 
 
 def axis_text(light: LightResult) -> str:
@@ -24,10 +32,10 @@ def axis_text(light: LightResult) -> str:
         return ""
     pose, sigma = light.pose, light.sigma
     return (
-        f"roll {pose.roll_deg:+.3f} ± {sigma.roll_deg:.2g} deg, "
-        f"pitch {pose.pitch_deg:+.3f} ± {sigma.pitch_deg:.2g} deg "
+        f"roll {pose.roll_deg:+.3f} ± {sigma_text(sigma.roll_deg)} deg, "
+        f"pitch {pose.pitch_deg:+.3f} ± {sigma_text(sigma.pitch_deg)} deg "
         f"({pose.axis_angle_from_optical_axis_deg:.3f} ± "
-        f"{sigma.axis_angle_from_optical_axis_deg:.2g} deg from the optical axis)"
+        f"{sigma_text(sigma.axis_angle_from_optical_axis_deg)} deg from the optical axis)"
     )
 
 
@@ -41,5 +49,5 @@ def light_lines(light: LightResult) -> list[str]:
     axis = axis_text(light)
     if axis:
         lines.append(f"  axis     {axis}")
-    lines.append(f"  scale    {light.scale:.6g} ± {light.scale_sigma:.2g}")
+    lines.append(f"  scale    {light.scale:.6g} ± {sigma_text(light.scale_sigma)}")
     return lines

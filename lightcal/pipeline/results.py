@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from lightcal.core.misfit import significant_digits
 from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
@@ -161,6 +162,11 @@ class CalibrationResult:
     fit: dict = field(default_factory=dict)
     wall: dict = field(default_factory=lambda: {"model": "lambertian"})
     uncertainty_terms: list[str] = field(default_factory=list)
+    # Per term of the covariance: {"term", "systematic", "lights": [{"name",
+    # "position_sigma_m", "axis_sigma_deg"}]} (`uncertainty_breakdown`).
+    uncertainty_breakdown: list[dict] = field(default_factory=list)
+    # What the data do not determine, in words (a result with any is not converged).
+    undetermined: list[str] = field(default_factory=list)
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
     start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
 
@@ -213,12 +219,17 @@ def summarise(
     x = outcome.x
     fit = check_fit(model, x, measurements or model_only(model))
     diagnosis, unc = fit.diagnosis, fit.uncertainty
-    cov = unc.covariance
     lay = model.layout
+    unknown = undetermined_parameters(model, x)
+    cov = unc.covariance.copy()
+    cov[unknown, :] = np.nan
+    cov[:, unknown] = np.nan
     lights = []
+    jacobians = []
     for j, block in enumerate(lay.blocks):
         pose = _light_pose(model, j, x)
         G = _numeric_jacobian(functools.partial(_light_pose_vector, model, j), x)
+        jacobians.append(G)
         sig = np.sqrt(np.clip(np.diag(G @ cov @ G.T), 0, None))
         scale = lay.light_of(block, x).scale  # exp(log-scale), clipped as the model
         rid_desc = None
@@ -247,6 +258,17 @@ def summarise(
             )
         )
     bound_warnings = _bound_warnings(model, x)
+    dark = dark_light_warnings(model, x, fit.light_shares)
+    undetermined = (
+        [
+            f"the data do not determine {', '.join(lay.names[k] for k in unknown)}: the normal "
+            "matrix is singular there (no pixel responds to them); its sigma is undetermined"
+        ]
+        if unknown
+        else []
+    )
+    undetermined += [w.split(":")[0] + ": its pose is not determined" for w in dark]
+    breakdown = _breakdown(model, unc.components, jacobians, unknown)
     offset_sigma = None
     if lay.offset_index is not None:
         offset_sigma = math.sqrt(max(cov[lay.offset_index, lay.offset_index], 0.0))
@@ -262,14 +284,16 @@ def summarise(
         nfev=outcome.nfev,
         status=outcome.status,
         message=outcome.message,
-        # A solve stopped by the search box did not find a minimum, whatever trf says.
-        converged=outcome.success and not bound_warnings,
+        # A solve stopped by the search box did not find a minimum, whatever trf says; one
+        # that leaves a parameter undetermined did not determine the pose.
+        converged=outcome.success and not bound_warnings and not undetermined,
         cost=outcome.cost,
         time_s=outcome.time_s,
         warnings=(
             bound_warnings
-            + dark_light_warnings(model, x, fit.light_shares)
-            + variety_warnings(model, cov)
+            + dark
+            + undetermined[: 1 if unknown else 0]
+            + variety_warnings(model, np.nan_to_num(cov))
             + [f"misfit: {f}" for f in diagnosis.findings]
             + list(notes or [])
         ),
@@ -279,10 +303,92 @@ def summarise(
         history=outcome.history,
         fit=diagnosis.to_dict(),
         wall=_wall_summary(model, x, cov),
-        uncertainty_terms=unc.terms,
+        uncertainty_terms=_sized_terms(unc.terms, breakdown),
+        uncertainty_breakdown=breakdown,
+        undetermined=undetermined,
         start=outcome.start,
         start_costs=outcome.start_costs,
     )
+
+
+def undetermined_parameters(model: CalibrationModel, x: np.ndarray) -> list[int]:
+    """The parameters the data do not determine at x: those no pixel responds to (a zero
+    column of J) and those that carry the null directions of the normal matrix J^T J
+    scaled to unit diagonal (eigenvalues below 1e-12: a correlation of 1 - 1e-12)."""
+    N = model.normal_matrix(x)
+    d = np.diag(N).copy()
+    zero = [k for k in range(d.size) if not (np.isfinite(d[k]) and d[k] > 0.0)]
+    keep = [k for k in range(d.size) if k not in zero]
+    out = set(zero)
+    if keep:
+        s = 1.0 / np.sqrt(d[keep])
+        Ns = N[np.ix_(keep, keep)] * np.outer(s, s)
+        if np.all(np.isfinite(Ns)):
+            w, V = np.linalg.eigh(0.5 * (Ns + Ns.T))
+            for j in np.flatnonzero(w < 1e-12):
+                v = np.abs(V[:, j])
+                out.update(keep[k] for k in np.flatnonzero(v >= 0.5 * v.max()))
+        else:
+            out.update(keep)
+    return sorted(out)
+
+
+def _breakdown(
+    model: CalibrationModel,
+    components: list[tuple[str, np.ndarray]],
+    jacobians: list[np.ndarray],
+    unknown: list[int],
+) -> list[dict]:
+    """Each covariance term's size: per light the 1-sigma norm of its position (m) and of
+    its axis direction (deg)."""
+    index = {name: k for k, name in enumerate(PoseSummary.SHAPES)}
+    sizes = [math.prod(shape) for shape in PoseSummary.SHAPES.values()]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    position = slice(starts[index["t_camera_light"]], starts[index["t_camera_light"] + 1])
+    axis = slice(starts[index["axis_camera"]], starts[index["axis_camera"] + 1])
+    out = []
+    for name, C in components:
+        C = C.copy()
+        C[unknown, :] = np.nan
+        C[:, unknown] = np.nan
+        lights = []
+        for block, G in zip(model.layout.blocks, jacobians, strict=True):
+            V = G @ C @ G.T
+            lights.append(
+                {
+                    "name": block.unknown.initial.name,
+                    "position_sigma_m": _trace_sigma(V[position, position]),
+                    "axis_sigma_deg": (
+                        math.degrees(_trace_sigma(V[axis, axis]))
+                        if block.param.kind != "isotropic"
+                        else None
+                    ),
+                }
+            )
+        out.append({"term": name, "systematic": name.startswith("systematic"), "lights": lights})
+    return out
+
+
+def _sized_terms(terms: list[str], breakdown: list[dict]) -> list[str]:
+    """Each term in words with its size: "...: 1.2 mm, 0.031 deg" (the largest over the
+    lights)."""
+    if len(terms) != len(breakdown):
+        return terms
+    out = []
+    for text, b in zip(terms, breakdown, strict=True):
+        position = [x["position_sigma_m"] for x in b["lights"]]
+        axis = [x["axis_sigma_deg"] for x in b["lights"] if x["axis_sigma_deg"] is not None]
+        size = [f"{significant_digits(1e3 * max(position))} mm" if position else ""]
+        if axis:
+            size.append(f"{significant_digits(max(axis))} deg")
+        out.append(f"{text}: {', '.join(t for t in size if t)}")
+    return out
+
+
+def _trace_sigma(V: np.ndarray) -> float:
+    """sqrt(trace V) (the 1-sigma norm of a vector with covariance V); NaN stays NaN."""
+    t = float(np.trace(V))
+    return math.sqrt(max(t, 0.0)) if math.isfinite(t) else math.nan
 
 
 def _wall_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict:
