@@ -9,6 +9,7 @@ import pytest
 
 from lightcal.core.misfit import NOISE_SAMPLES, angle_trend, diagnose, image_noise, pixel_angles
 from lightcal.core.misfit_kernels import binned_noise, noise_samples
+from lightcal.core.misfit_verdict import CauseTest, percent, significant_digits
 
 
 def _angles(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -48,36 +49,112 @@ def test_noise_only_is_adequate_in_most_seeds() -> None:
     assert alarms <= 1
 
 
-def test_gloss_signature_is_named() -> None:
-    rng = np.random.default_rng(0)
-    m = 1200
-    mirror, incidence = _angles(rng, m)
-    bump = 3.0 * np.exp(-((mirror / 8.0) ** 2))
-    r = rng.normal(size=m) + bump
-    d = diagnose(
-        r, 0.01 * r, mirror, incidence, n_params=7, noise_source="model", wall_model="lambertian"
+def _cause(name: str, *, p: float, relative: float, shift_sigma: float, bic: float = 50.0):
+    return CauseTest(name, 2, 40.0, 20.0, p, relative, bic, shift_sigma, 0.012, 0.4)
+
+
+def _judged(r: np.ndarray, causes, noise_source: str = "model", **kw):
+    rng = np.random.default_rng(3)
+    mirror, incidence = _angles(rng, r.size)
+    return diagnose(
+        r,
+        0.01 * r,
+        mirror,
+        incidence,
+        n_params=7,
+        noise_source=noise_source,
+        wall_model="lambertian",
+        causes=causes,
+        **kw,
+    )
+
+
+def test_a_material_cause_is_a_finding_named_first_by_its_bic() -> None:
+    r = 3.0 * np.random.default_rng(0).normal(size=1200)  # the level fails
+    d = _judged(
+        r,
+        [
+            _cause("vignetting", p=1e-9, relative=0.02, shift_sigma=3.0, bic=40.0),
+            _cause("gloss", p=1e-12, relative=0.05, shift_sigma=6.1, bic=90.0),
+        ],
+        excess_relative=0.03,
+        jackknife_ratio=1.2,
     )
     assert not d.adequate
-    assert d.mirror is not None and d.mirror.significant
-    assert d.findings[0].startswith("residuals grow toward the mirror direction (")
-    assert "the wall looks glossy; try `wall: {model: plastic}`" in d.findings[0]
+    assert [c.name for c in d.causes] == ["gloss", "vignetting"]
+    assert d.findings[0] == (
+        "the wall is brighter than the model toward the mirror direction: it looks glossy "
+        "(a correction of 5.0 % of the signal that moves the light by 12 mm and 0.40 deg "
+        "(6.1 sigma)); try `wall: {model: plastic}` (or `auto`), or "
+        "`selection.exclude_mirror_deg`"
+    )
+    assert d.findings[1].startswith("also: the residuals fall off toward the image corners")
     assert d.to_dict()["adequate"] is False
+    assert d.to_dict()["causes"][0]["material"] is True
 
 
-def test_level_without_structure() -> None:
+@pytest.mark.parametrize(
+    ("p", "relative", "shift_sigma"),
+    [(0.01, 0.05, 6.0), (1e-9, 0.002, 6.0), (1e-9, 0.05, 0.6)],
+    ids=["not significant", "below the relative floor", "below one sigma"],
+)
+def test_a_cause_below_any_floor_is_no_finding(p: float, relative: float, shift_sigma: float):
+    r = 3.0 * np.random.default_rng(0).normal(size=1200)
+    cause = _cause("ambient", p=p, relative=relative, shift_sigma=shift_sigma)
+    d = _judged(r, [cause], excess_relative=0.03, jackknife_ratio=1.2)
+    assert d.adequate and d.findings == []
+    assert d.notes[-1].endswith("; the sigma includes the misfit")
+
+
+def test_no_finding_when_the_level_is_explained() -> None:
+    """A significant cause on residuals the noise explains (what the camera's declared
+    errors leave) is a note, never a finding."""
+    r = np.random.default_rng(0).normal(size=1200)
+    d = _judged(r, [_cause("wall", p=1e-9, relative=0.05, shift_sigma=6.0)])
+    assert d.explained and d.adequate and d.findings == []
+    assert d.notes == [
+        "wall: a correction of 5.0 % of the signal that moves the light by 12 mm and 0.40 deg "
+        "(6.0 sigma): within what the noise and the camera's declared errors explain"
+    ]
+
+
+def test_level_without_a_cause() -> None:
     rng = np.random.default_rng(1)
-    m = 1200
-    mirror, incidence = _angles(rng, m)
-    r = 2.0 * rng.normal(size=m)
-    d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="image", wall_model="lambertian")
+    r = 2.0 * rng.normal(size=1200)
+    d = _judged(r, [], noise_source="image", excess_relative=0.02, jackknife_ratio=2.5)
     assert not d.adequate
     assert d.chi2_per_dof == pytest.approx(4.0, rel=0.1)
-    assert "what the noise from the images explain" in d.findings[-1]
+    assert "what the noise from the images explains" in d.findings[-1]
+    assert "no single cause explains them" in d.findings[-1]
     assert d.findings[-1].endswith("the RID and the sensor model")
+    # The images agree (jackknife within 2x): a note, not a finding.
+    d = _judged(r, [], noise_source="image", excess_relative=0.02, jackknife_ratio=1.4)
+    assert d.adequate and d.notes[0].startswith("residuals are 2.00x what the noise")
     # Without a noise estimate the level is not tested.
-    d = diagnose(r, r, mirror, incidence, n_params=7, noise_source="none", wall_model="lambertian")
+    d = _judged(r, [], noise_source="none")
     assert d.adequate
     assert math.isnan(d.p_value)
+
+
+@pytest.mark.parametrize(
+    ("value", "text"),
+    [(0.00013, "+0.013 %"), (-0.25, "-25 %"), (0.0, "0 %"), (1.5, "+150 %"), (-4e-7, "-4.0e-05 %")],
+)
+def test_percentages_keep_two_significant_digits(value: float, text: str) -> None:
+    assert percent(value) == text
+
+
+def test_significant_digits() -> None:
+    assert [significant_digits(v) for v in (0.01234, 12.3, 1534.0, 0.0, 0.4, 2.0)] == [
+        "0.012",
+        "12",
+        "1500",
+        "0",
+        "0.40",
+        "2.0",
+    ]
+    assert significant_digits(1.9972, 3) == "2.00"
+    assert significant_digits(153400.0) == "1.5e+05"
 
 
 def _numpy_bins(
