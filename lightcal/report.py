@@ -208,15 +208,22 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
     lines.append(f"- wall: {wall.get('model', 'lambertian')}" + (f" ({params})" if params else ""))
     fit = result.fit
     if fit:
-        verdict = "explained by the noise" if fit["adequate"] else "NOT explained by the noise"
+        if not fit["adequate"]:
+            verdict = "a misfit that moves the pose beyond its statistical sigma"
+        elif fit.get("explained_by_noise", True):
+            verdict = "explained by the noise"
+        else:
+            verdict = "not explained by the noise, but no misfit moves the pose beyond its sigma"
         ratio = fit["chi2"] / fit["expected_chi2"] if fit.get("expected_chi2") else math.nan
         lines.append(
             f"- fit: {verdict} (noise from {fit['noise_source']}; chi2 {fit['chi2']:.4g}, "
             f"expected {fit['expected_chi2']:.4g}, ratio {ratio:.3f})"
         )
         lines.extend(f"  - {f}" for f in fit["findings"])
+        lines.extend(f"  - note: {n}" for n in fit.get("notes", []))
     if result.uncertainty_terms:
-        lines.append("- sigmas include: " + "; ".join(result.uncertainty_terms))
+        lines.append("- the sigmas include:")
+        lines.extend(f"  - {t}" for t in result.uncertainty_terms)
     lines.append("")
     if fit:
         lines.append("![residuals against angle](fit_vs_angle.png)")

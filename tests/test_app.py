@@ -1016,8 +1016,10 @@ def _result_text_after_run(project: Path, state: Path) -> tuple[str, bool]:
 def test_app_shows_the_misfit_and_the_wall_model(satin: Path, tmp_path: Path) -> None:
     md, plot = _result_text_after_run(satin / "project.json", tmp_path / "s")
     assert "#### Wall: lambertian" in md
-    assert "Fit: **⚠ not explained by the noise**" in md
-    assert "the wall looks glossy; try `wall: {model: plastic}`" in md
+    assert "Fit: **⚠ a misfit moves the pose beyond its statistical sigma**" in md
+    assert "it looks glossy (a correction of" in md
+    assert "; try `wall: {model: plastic}` (or `auto`)" in md
+    assert "- systematic: the shift the gloss cause accounts for" in md
     assert plot
     doc = json.loads((satin / "project.json").read_text())
     doc["wall"] = {"model": "plastic"}

@@ -105,15 +105,24 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
             lines.append(f"| {k} | {v:.4g} | {s} |")
     fit = result.fit
     if fit:
-        if fit["adequate"]:
-            lines.append("Fit: **explained by the noise** (no structure against the angles).")
+        if not fit["adequate"]:
+            lines.append(
+                "Fit: **⚠ a misfit moves the pose beyond its statistical sigma** (the sigmas "
+                "below include it):"
+            )
+            lines += [f"- {md_prose(f)}" for f in fit["findings"]]
+        elif fit.get("explained_by_noise", True):
+            lines.append("Fit: **explained by the noise**.")
         else:
             lines.append(
-                "Fit: **⚠ not explained by the noise**: the pose may be wrong by more than "
-                "its sigma. " + " ".join(fit["findings"])
+                "Fit: **not explained by the noise**, but nothing found moves the pose beyond "
+                "its sigma (the sigmas include the misfit)."
             )
+        lines += [f"- note: {md_prose(n)}" for n in fit.get("notes", [])]
+        lines.append("")
     if result.uncertainty_terms:
-        lines.append("Sigmas include: " + "; ".join(result.uncertainty_terms) + ".")
+        lines.append("Sigmas include:")
+        lines += [f"- {md_prose(t)}" for t in result.uncertainty_terms]
     lines.append("")
     return lines
 

@@ -17,8 +17,9 @@ additive. The patterns (`PixelFeatures` gives their inputs, per pixel):
   largest: a lens fall-off the project does not declare;
 - `response` (2): ln(m / median m) and its square: a non-linear (gamma, JPEG) response;
 - `medium` (1): d_light + d_camera (m): absorption in water or haze;
-- `wall` (up to 64): indicators of 8 x 8 cells over the tested pixels' extent on the
-  wall: uneven albedo, a bowed wall, light from the surroundings.
+- `wall` (up to 64): indicators of up to 8 x 8 cells (about 50 tested pixels a cell) over
+  the tested pixels' extent on the wall: uneven albedo, a bowed wall, light from the
+  surroundings.
 
 (The per-image cause, "the images disagree", is built from each image's own Jacobian:
 `lightcal.pipeline.fit_check`.) Each pattern is normalised to unit maximum magnitude
@@ -32,8 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Cells a side of the `wall` cause's grid over the tested pixels' extent on the wall.
+#: Most cells a side of the `wall` cause's grid over the tested pixels' extent on the
+#: wall (fewer with few pixels: about `WALL_CELL_PIXELS` a cell).
 WALL_CELLS = 8
+WALL_CELL_PIXELS = 50
 #: Fewest pixels a `wall` cell needs to get a column.
 WALL_CELL_MIN = 10
 #: Hat functions of the `profile` cause over 0 .. the largest angle from the light's axis.
@@ -224,12 +227,13 @@ def _wall(f: PixelFeatures) -> np.ndarray:
     span = float(np.max(xy.max(axis=0) - lo))
     if not span > 0.0:
         return np.zeros((xy.shape[0], 0))
-    cell = np.minimum((xy - lo) / span * WALL_CELLS, WALL_CELLS - 1).astype(np.int64)
-    index = cell[:, 0] * WALL_CELLS + cell[:, 1]
-    counts = np.bincount(index, minlength=WALL_CELLS * WALL_CELLS)
+    side = int(min(WALL_CELLS, max(2, math.isqrt(xy.shape[0] // WALL_CELL_PIXELS))))
+    cell = np.minimum((xy - lo) / span * side, side - 1).astype(np.int64)
+    index = cell[:, 0] * side + cell[:, 1]
+    counts = np.bincount(index, minlength=side * side)
     used = np.flatnonzero(counts >= WALL_CELL_MIN)
     q = np.zeros((xy.shape[0], used.size))
-    column = np.full(WALL_CELLS * WALL_CELLS, -1)
+    column = np.full(side * side, -1)
     column[used] = np.arange(used.size)
     rows = np.flatnonzero(column[index] >= 0)
     q[rows, column[index[rows]]] = 1.0

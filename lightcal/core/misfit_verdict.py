@@ -151,29 +151,44 @@ def _material(c: CauseTest, jackknife_ratio: float) -> bool:
     return c.material
 
 
+def _size(c: CauseTest, jackknife_ratio: float) -> str:
+    """A cause's size in words (`CauseTest.describe`; `images`: with the jackknife)."""
+    if c.name == "images":
+        return (
+            f"{percent(c.relative_effect).lstrip('+')} of the signal; the jackknife over "
+            f"the images gives {significant_digits(jackknife_ratio)}x the statistical sigma"
+        )
+    return c.describe()
+
+
+def _shift(c: CauseTest, jackknife_ratio: float) -> str:
+    """A cause's pose shift in a few words: "12 mm, 0.40 deg"."""
+    if c.name == "images":
+        return f"jackknife {significant_digits(jackknife_ratio)}x"
+    return (
+        f"{significant_digits(1e3 * c.position_shift_m)} mm, "
+        f"{significant_digits(c.axis_shift_deg)} deg"
+    )
+
+
 def verdict(d: FitDiagnosis, wall_model: str) -> tuple[list[str], list[str]]:
     """(findings, notes): one sentence per cause that matters, most likely first, and
     what was seen but is too small to act on."""
     findings: list[str] = []
     notes: list[str] = []
     material = [c for c in d.causes if not d.explained and _material(c, d.jackknife_ratio)]
-    for k, c in enumerate(material):
+    if material:
+        c = material[0]
         cause = CAUSES[c.name]
         advice = cause.advice
         if c.name == "gloss" and wall_model != "lambertian":
             advice = "exclude pixels near the mirror direction (`selection.exclude_mirror_deg`)"
         elif c.name == "rough_matte" and wall_model != "lambertian":
             advice = "check the RID and the sensor fall-off model"
-        if c.name == "images":
-            size = (
-                f"{percent(c.relative_effect).lstrip('+')} of the signal; the jackknife over "
-                f"the images gives {significant_digits(d.jackknife_ratio)}x the statistical "
-                "sigma"
-            )
-        else:
-            size = c.describe()
-        lead = "" if k == 0 else "also: "
-        findings.append(f"{lead}{cause.meaning} ({size}); {advice}")
+        findings.append(f"{cause.meaning} ({_size(c, d.jackknife_ratio)}); {advice}")
+    if len(material) > 1:
+        others = ", ".join(f"{c.name} ({_shift(c, d.jackknife_ratio)})" for c in material[1:])
+        findings.append(f"less likely causes that would also move the pose: {others}")
     small = [
         c
         for c in d.causes

@@ -39,11 +39,16 @@ def pose_indices(model: CalibrationModel) -> np.ndarray:
 def pose_shift(model: CalibrationModel, x: np.ndarray, dx: np.ndarray) -> tuple[float, float]:
     """The largest light position (m) and axis (deg) change from x to x + dx."""
     lay = model.layout
+    if not np.all(np.isfinite(dx)):
+        return math.inf, math.inf
     position, axis = 0.0, 0.0
     x1 = x + dx
     for block in lay.blocks:
         R0, t0 = block.param.to_pose(x[block.pose])
-        R1, t1 = block.param.to_pose(x1[block.pose])
+        try:
+            R1, t1 = block.param.to_pose(x1[block.pose])
+        except (OverflowError, FloatingPointError, ValueError):
+            return math.inf, math.inf
         position = max(position, float(np.linalg.norm(t1 - t0)))
         c = float(np.clip(R0[:, 2] @ R1[:, 2], -1.0, 1.0))
         axis = max(axis, math.degrees(math.acos(c)))

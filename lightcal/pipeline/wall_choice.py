@@ -4,9 +4,12 @@
   vector lies within X deg of the wall normal (where gloss concentrates) are dropped and the
   solve continues from the estimate; the angles are those of the estimate.
 - `wall: {model: auto}`: fit Lambertian and test the fit (`lightcal.core.misfit`); where it
-  fails, fit `plastic` and `oren_nayar` from the Lambertian estimate and keep the model with
-  the lowest Bayesian information criterion BIC = chi^2 + k ln m (noise known) or
-  m ln(RSS / m) + k ln m (noise unknown), k the parameter count and m the pixel count.
+  has a finding, fit `plastic` if the test's `gloss` cause is significant and `oren_nayar`
+  if its `rough_matte` cause is (`auto_candidates`), each from the Lambertian estimate,
+  and keep the model with the lowest Bayesian information criterion BIC = chi^2 + k ln m
+  (noise known) or m ln(RSS / m) + k ln m (noise unknown), k the parameter count and m the
+  pixel count, among those whose wall parameters the data determine (`undetermined_wall`:
+  a 1-sigma no larger than the value); Lambertian is always determined.
 """
 
 from __future__ import annotations
@@ -24,8 +27,35 @@ from lightcal.core.wall import WALL_MODELS
 from lightcal.errors import InputError
 from lightcal.pipeline.results import CalibrationResult
 
-#: The models `auto` tries after Lambertian, in order.
+#: The models `auto` tries after Lambertian, in order, and the fit test's cause that
+#: calls for each.
 AUTO_CANDIDATES = ("plastic", "oren_nayar")
+AUTO_CAUSES = {"plastic": "gloss", "oren_nayar": "rough_matte"}
+
+
+def auto_candidates(fit: dict) -> list[str]:
+    """The wall models `auto` should try after a Lambertian fit whose test (`fit`, the
+    result's dict) has a finding: those whose cause is significant with a relative effect
+    of at least the fit test's floor."""
+    floor = fit.get("floors", {}).get("relative_effect", 0.0)
+    causes = {
+        c["cause"]: c
+        for c in fit.get("causes", [])
+        if c.get("significant") and (c.get("relative_effect") or 0.0) >= floor
+    }
+    return [name for name in AUTO_CANDIDATES if AUTO_CAUSES[name] in causes]
+
+
+def undetermined_wall(wall: dict) -> bool:
+    """A wall model whose estimated parameter has a 1-sigma above its value (or none)."""
+    sigma = wall.get("sigma", {})
+    for name in wall.get("estimated", []):
+        value, s = wall.get(name), sigma.get(name)
+        if not isinstance(value, float) or s is None or not math.isfinite(s):
+            return True
+        if s > abs(value):
+            return True
+    return False
 
 
 def restarted(model: CalibrationModel, x: np.ndarray, **changes: object) -> CalibrationModel:
@@ -122,5 +152,10 @@ def wall_candidate(model: CalibrationModel, x: np.ndarray, name: str) -> Calibra
 
 def choice_note(chosen: Candidate, candidates: list[Candidate]) -> str:
     """The sentence the result carries about what `auto` chose."""
-    others = ", ".join(f"{c.name} {c.bic:.1f}" for c in candidates if c is not chosen)
+    others = ", ".join(
+        f"{c.name} {c.bic:.1f}"
+        + (" (parameters undetermined)" if undetermined_wall(c.result.wall) else "")
+        for c in candidates
+        if c is not chosen
+    )
     return f"wall: auto chose {chosen.name} (BIC {chosen.bic:.1f}; {others})"
