@@ -17,11 +17,12 @@ from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
 from lightcal.pipeline.results import CalibrationResult, summarise
 from lightcal.pipeline.wall_choice import (
-    AUTO_CANDIDATES,
     Candidate,
+    auto_candidates,
     bic,
     choice_note,
     start_from,
+    undetermined_wall,
     wall_candidate,
     without_mirror,
 )
@@ -189,8 +190,10 @@ def calibrate(
 
     Beyond `solve_project`: `selection.exclude_mirror_deg` (drop pixels near the mirror
     direction of the first estimate, solve again from it) and `wall: {model: auto}`
-    (where the Lambertian fit fails its test, also fit plastic and oren_nayar and keep the
-    lowest BIC; docs/model.md). `on_stage` hears each extra stage in words.
+    (where the Lambertian fit has a finding and the fit test's gloss or rough-matte cause
+    is significant, also fit plastic or oren_nayar and keep the lowest BIC among the fits
+    whose wall parameters are determined; docs/model.md). `on_stage` hears each extra
+    stage in words.
     """
 
     def stage(text: str) -> None:
@@ -228,15 +231,23 @@ def calibrate(
         return Calibration(model, outcome, result)
     tried = [Candidate("lambertian", model, outcome, result, bic(result, model))]
     if result.fit_adequate:
-        note = "wall: auto kept lambertian: its fit is explained by the noise"
+        note = "wall: auto kept lambertian: no misfit moves the pose beyond its sigma"
         return Calibration(model, outcome, replace(result, warnings=[*result.warnings, note]))
-    for name in AUTO_CANDIDATES:
-        stage(f"the Lambertian fit fails its test: trying the {name} wall")
+    wanted = auto_candidates(result.fit)
+    if not wanted:
+        note = (
+            "wall: auto kept lambertian: the fit test does not point at the wall's "
+            "reflectance (no significant gloss or rough-matte cause)"
+        )
+        return Calibration(model, outcome, replace(result, warnings=[*result.warnings, note]))
+    for name in wanted:
+        stage(f"the fit test points at the wall: trying the {name} wall")
         candidate = wall_candidate(model, outcome.x, name)
         out = run(candidate, start_from(candidate, model, outcome.x))
         res = summarise(candidate, out, measurements_for(project, loaded, candidate), notes=notes)
         tried.append(Candidate(name, candidate, out, res, bic(res, candidate)))
-    best = min(tried, key=lambda c: c.bic)
+    determined = [c for c in tried if not undetermined_wall(c.result.wall)]
+    best = min(determined, key=lambda c: c.bic)
     note = choice_note(best, tried)
     return Calibration(
         best.model, best.outcome, replace(best.result, warnings=[*best.result.warnings, note])
