@@ -27,7 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-#: Exit code when the solve converged but the residuals are not explained by the noise.
+#: Exit code when the solve converged but a misfit could move the pose beyond its
+#: statistical sigma (a finding of the fit test; docs/model.md).
 EXIT_MISFIT = 3
 
 
@@ -97,13 +98,16 @@ def run(args: argparse.Namespace) -> int:
         console.print(f"report written to {args.report}", highlight=False)
     status = "converged" if result.converged else "not converged"
     reason = stop_reason(result.status, result.message)
+    if result.undetermined:
+        status = "not converged (undetermined)"
+        reason = "; ".join(result.undetermined)
     console.print(f"{status}: {reason}; result written to {args.out}", highlight=False)
     if not result.converged:
         return 1
     if not result.fit_adequate:
         console.print(
-            "the fit is not explained by the noise (see the misfit warnings): the pose may "
-            "be wrong by more than its sigma"
+            "the fit test found a misfit that moves the pose beyond its statistical sigma "
+            "(see the misfit warnings); the sigma above includes it"
             + ("" if args.allow_misfit else f"; exit code {EXIT_MISFIT} (--allow-misfit: 0)"),
             style="yellow",
             highlight=False,
