@@ -340,12 +340,21 @@ class WallSpec(_Model):
     oren_nayar `sigma_deg`. `estimate`: the parameters to estimate with the light(s);
     null: plastic roughness and specular_weight, oren_nayar sigma_deg. `auto`: fit
     Lambertian, test the fit, and where it fails also plastic and oren_nayar, keeping
-    the model the Bayesian information criterion prefers.
+    the model the Bayesian information criterion prefers. `flatness_mm`: how far the wall
+    may depart from a plane (a dome or bowl of that depth), which the images cannot
+    reveal; it enters the uncertainty (docs/model.md, "Uncertainty").
     """
 
     model: WallModelName = "lambertian"
     parameters: dict[str, float] = Field(default_factory=dict)
     estimate: list[str] | None = None
+    flatness_mm: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=1000.0,
+        allow_inf_nan=False,
+        description="the wall's flatness tolerance, mm (0: flat); it widens the sigmas",
+    )
 
     @model_validator(mode="after")
     def _auto_alone(self) -> WallSpec:

@@ -38,6 +38,7 @@ from lightcal.core.uncertainty import (
     pose_sensitivity,
     pose_terms,
 )
+from lightcal.core.wall_flatness import bow_pose_perturbations
 from lightcal.pipeline.cause_check import cause_tests, jackknife_ratio, pose_indices
 from lightcal.pipeline.evidence import (
     CAUSE_ROWS,
@@ -60,6 +61,7 @@ __all__ = [
     "TestedRows",
     "Uncertainty",
     "check_fit",
+    "flatness_uncertainty",
     "intrinsics_uncertainty",
     "pixel_evidence",
     "pose_uncertainty",
@@ -112,6 +114,46 @@ def pose_uncertainty(
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels a perturbed pose pushes off the wall
         blocks.append(PoseBlock(sub.J, S, cov, sub.noise_ratio, sub.row_scale))
     return pose_terms(normal_inverse, blocks)
+
+
+def flatness_uncertainty(
+    model: CalibrationModel,
+    x: np.ndarray,
+    meas: Measurements,
+    subsets: list[ImageRows],
+    normal_inverse: np.ndarray,
+) -> np.ndarray | None:
+    """The wall flatness' share of the covariance (None when the wall is declared flat):
+    b^2 dx dx^T, b the declared tolerance and dx the shift of the estimate a dome of unit
+    depth causes, through the camera pose errors it is equivalent to
+    (`lightcal.core.wall_flatness`): dx = -N^-1 sum_i J_i^T s_i, s_i = d r_i / d b by
+    central differences (one perturbed view each way), on each image's rows `subsets`."""
+    depth = meas.wall_flatness_m
+    if not depth > 0.0 or meas.footprints_at is None:
+        return None
+    render = _renderer(model, x)
+    footprints_at = meas.footprints_at
+    points = np.array(
+        [
+            model.images[s.image].footprints.subset(s.rows).centers_now().mean(axis=0)
+            for s in subsets
+        ]
+    )
+    views = [model.images[s.image].view for s in subsets]
+    directions = bow_pose_perturbations(views, points)
+    h = 1e-4  # a 0.1 mm dome: linear, and far above round-off
+    T = np.zeros(model.layout.n)
+    for sub, view, dp in zip(subsets, views, directions, strict=True):
+        i, rows = sub.image, sub.rows
+        values = []
+        for sign in (1.0, -1.0):
+            v = perturbed_view(view, sign * h * dp)
+            values.append(render(i, v, footprints_at(i, v, rows)))
+        s = -(values[0] - values[1]) / (2.0 * h) / model.sigmas[i][rows]
+        s[~np.isfinite(s)] = 0.0
+        T += sub.row_scale * (sub.J.T @ s)
+    dx = -normal_inverse @ T
+    return depth**2 * np.outer(dx, dx)
 
 
 def intrinsics_uncertainty(
@@ -244,6 +286,13 @@ def check_fit(model: CalibrationModel, x: np.ndarray, meas: Measurements) -> Fit
         terms.append(
             f"camera intrinsics ({intrinsics.parameters} parameters' calibration covariance, "
             f"{intrinsics.poses_moved} of {intrinsics.images} images' poses moved with them)"
+        )
+    flatness = flatness_uncertainty(model, x, meas, ev.subsets, N)
+    if flatness is not None:
+        components.append(("wall flatness", flatness))
+        terms.append(
+            f"wall flatness (a dome of {significant_digits(1e3 * meas.wall_flatness_m)} mm, "
+            "`wall.flatness_mm`)"
         )
     statistical = sum((c for _, c in components), np.zeros((n, n)))
     P = pose_indices(model)

@@ -47,6 +47,8 @@ class Measurements:
         footprints_with: (i, dK, view, rows) -> `Footprints` of rows of image i's selected
             pixels seen from `view` by the camera whose intrinsic parameters are moved by
             dK (p,) (None: unknown).
+        wall_flatness_m: the wall's declared flatness tolerance (`wall.flatness_mm`), m;
+            0: flat (`lightcal.core.wall_flatness`).
     """
 
     noise: list[tuple[float, float] | None]
@@ -56,6 +58,7 @@ class Measurements:
     intrinsics_covariance: np.ndarray | None = None
     pose_intrinsics_jacobians: list[np.ndarray | None] | None = None
     footprints_with: Callable[[int, np.ndarray, View, np.ndarray], Footprints] | None = None
+    wall_flatness_m: float = 0.0
 
 
 def model_only(model: CalibrationModel) -> Measurements:
@@ -131,4 +134,5 @@ def measurements_for(
         project.camera.intrinsics_covariance,
         jacobians,
         footprints_with,
+        project.spec.wall.flatness_mm / 1000.0,
     )
