@@ -4,6 +4,30 @@ Renders images of a flat wall lit by a rig of lights from a seeded random set of
 poses, adds sensor noise, and writes the images, the camera file, the light's profile file,
 a ready-to-run project (measured poses with pose noise, an initial guess that is off) and
 truth.json (see `lightcal.synthetic.dataset`). One progress line per image goes to stderr.
+
+Departures (`lightcal.synthetic.departures`, issue 24): options that make data depart from
+what the project declares in one everyday way, each recorded in truth.json under
+"departures" (name -> parameters) and none by default:
+
+- `--ambient FRACTION`: room light, a uniform value on every pixel: FRACTION times the
+  brightest beam value of the median image (lower median of the images' beam peaks),
+  scaled by each image's exposure; the project estimates no offset.
+- `--undeclared-vignetting K1 K2`: the images carry V = 1 + K1 r^2 + K2 r^4 (the
+  convention of `--vignetting`), the project declares the `radiance` sensor model.
+- `--rid-rim AMPLITUDE`: the true profile is the declared one times
+  1 + AMPLITUDE exp(-((theta - theta_half) / w)^2), w = 0.15 theta_half; the project
+  gets the plain profile.
+- `--gamma G`: the stored value above black is W (x / W)^(1/G), x the linear value above
+  black, W = white - black; the project declares linear data.
+- `--pose-error-mm MM`, `--pose-error-deg DEG`: the measured poses get an extra random
+  error of these sigmas on top of `--pose-noise-mm/deg`, whose covariance the project
+  still declares.
+- `--bow-mm MM`: the wall is z = MM/1000 max(0, 1 - |(x, y) - (x0, y0)|^2 / R^2), R = 1 m
+  around where the views look: MM > 0 bulges towards the cameras, MM < 0 is a bowl.
+- `--albedo-texture AMPLITUDE`: the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth
+  random field in [-1, 1] with 10-30 cm features, the same in every view.
+- `--attenuation C`: a medium (clear water): each value is multiplied by
+  exp(-C (d_light + d_camera)), C in 1/m.
 """
 
 from __future__ import annotations
@@ -19,6 +43,7 @@ from lightcal.synthetic.light_models import LIGHT_MODELS
 
 if TYPE_CHECKING:
     from lightcal.core.wall import WallReflectance
+    from lightcal.synthetic.departures import Departures
 
 T = TypeVar("T")
 
@@ -50,6 +75,15 @@ _OPTIONS = {
     "dist": "--distortion",
     "width": "--width",
     "height": "--height",
+    "ambient_fraction": "--ambient",
+    "undeclared_vignetting": "--undeclared-vignetting",
+    "rid_rim_amplitude": "--rid-rim",
+    "gamma": "--gamma",
+    "pose_error_m": "--pose-error-mm",
+    "pose_error_deg": "--pose-error-deg",
+    "bow_m": "--bow-mm",
+    "albedo_texture_amplitude": "--albedo-texture",
+    "attenuation_per_m": "--attenuation",
 }
 
 
@@ -161,12 +195,131 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument(
         "--pose-noise-deg", type=float, default=0.05, help="camera rotation error sigma (0.05)"
     )
+    _register_departures(p)
     g = p.add_argument_group("output")
     g.add_argument("--format", choices=("png", "tiff"), default="png", help="image files (png)")
     g.add_argument("--seed", type=int, default=0, help="random seed (0)")
     g.add_argument("--force", action="store_true", help="replace the dataset in OUT_DIR")
     g.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
+
+
+def _register_departures(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(
+        "departures",
+        "data that departs from what project.json declares, recorded in truth.json under "
+        '"departures" (none by default)',
+    )
+    g.add_argument(
+        "--ambient",
+        type=float,
+        default=0.0,
+        metavar="FRACTION",
+        help="room light: add FRACTION x the brightest beam value of the median image to "
+        "every pixel, scaled by each image's exposure; the project estimates no offset (0)",
+    )
+    g.add_argument(
+        "--undeclared-vignetting",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("K1", "K2"),
+        help="the images carry the fall-off V = 1 + K1 r^2 + K2 r^4 (as --vignetting) "
+        "while the project declares --sensor radiance (none)",
+    )
+    g.add_argument(
+        "--rid-rim",
+        type=float,
+        default=0.0,
+        metavar="AMPLITUDE",
+        help="the light's true profile has a bright rim: the declared one x (1 + AMPLITUDE "
+        "exp(-((theta - theta_half) / w)^2)), w = 0.15 theta_half; the project gets the "
+        "plain profile (0)",
+    )
+    g.add_argument(
+        "--gamma",
+        type=float,
+        default=1.0,
+        metavar="G",
+        help="tone curve: the stored value above black is W (x / W)^(1/G), x the linear "
+        "value, W = white - black; the project declares linear data (1)",
+    )
+    g.add_argument(
+        "--pose-error-mm",
+        type=float,
+        default=0.0,
+        metavar="MM",
+        help="extra camera centre error sigma beyond --pose-noise-mm, whose covariance the "
+        "project still declares (0)",
+    )
+    g.add_argument(
+        "--pose-error-deg",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="extra camera rotation error sigma beyond --pose-noise-deg (0)",
+    )
+    g.add_argument(
+        "--bow-mm",
+        type=float,
+        default=0.0,
+        metavar="MM",
+        help="the wall is not flat: z = MM/1000 max(0, 1 - r^2 / (1 m)^2), r from where the "
+        "views look; MM > 0 bulges towards the cameras, < 0 a bowl; |MM| <= 100 (0)",
+    )
+    g.add_argument(
+        "--albedo-texture",
+        type=float,
+        default=0.0,
+        metavar="AMPLITUDE",
+        help="the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth random field in "
+        "[-1, 1] with 10-30 cm features; 0 <= AMPLITUDE < 1 (0)",
+    )
+    g.add_argument(
+        "--attenuation",
+        type=float,
+        default=0.0,
+        metavar="C",
+        help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m (0)",
+    )
+
+
+def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
+    """The departures of the options (millimetres checked before they become metres)."""
+    from lightcal.synthetic.departures import MAX_BOW_M, Departures
+
+    if not (math.isfinite(args.pose_error_mm) and args.pose_error_mm >= 0.0):
+        raise InputError(
+            "--pose-error-mm", f"expected a finite value >= 0, got {args.pose_error_mm:g}"
+        )
+    limit_mm = MAX_BOW_M * 1000.0
+    if not (math.isfinite(args.bow_mm) and abs(args.bow_mm) <= limit_mm):
+        raise InputError(
+            "--bow-mm", f"expected a value within +-{limit_mm:g} mm, got {args.bow_mm:g}"
+        )
+    if args.undeclared_vignetting is not None and sensor_model != "radiance":
+        raise InputError(
+            "--undeclared-vignetting",
+            f"applies to --sensor radiance only, got --sensor {sensor_model}",
+        )
+    if args.rid_rim > 0.0 and args.light == "isotropic":
+        raise InputError(
+            "--rid-rim", "expected a light with a half-intensity angle, got --light isotropic"
+        )
+    vignetting = args.undeclared_vignetting
+    return _build(
+        lambda: Departures(
+            ambient_fraction=args.ambient,
+            undeclared_vignetting=None if vignetting is None else (vignetting[0], vignetting[1]),
+            rid_rim_amplitude=args.rid_rim,
+            gamma=args.gamma,
+            pose_error_m=args.pose_error_mm / 1000.0,
+            pose_error_deg=args.pose_error_deg,
+            bow_m=args.bow_mm / 1000.0,
+            albedo_texture_amplitude=args.albedo_texture,
+            attenuation_per_m=args.attenuation,
+        )
+    )
 
 
 def _build(make: Callable[[], T]) -> T:
@@ -210,6 +363,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--width/--height", f"expected > 0, got {args.width} x {args.height}")
     if not args.pose_noise_mm >= 0.0:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
+    departures = _departures(args, sensor_model)
     fx = 0.9 * args.width if args.fx is None else args.fx
     camera = _build(
         lambda: Camera.from_params(
@@ -263,6 +417,7 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed,
             image_format=args.format,
             wall=_wall(args),
+            departures=departures,
         )
     )
 

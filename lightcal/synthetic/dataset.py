@@ -25,12 +25,21 @@ sensor (`lightcal.synthetic.scenes.apply_sensor`) adds noise, the black level, r
 Everything the truth renders with (camera, RIDs, fall-off map, exposures) is read back from
 the files just written, so it is exactly what `load_project` gives a calibration.
 
+Departures (`SynthConfig.departures`, `lightcal.synthetic.departures`): data that departs
+from what its project declares in one everyday way (room light, undeclared vignetting, a
+rimmed light profile, a tone curve, poses worse than declared, a bowed wall, an albedo
+texture, an absorbing medium). The images are then made by `lightcal.synthetic.imaging`,
+the light scale is still chosen from the true rig on the model's flat wall, and truth.json
+records each departure's parameters under "departures" (absent without departures:
+`lightcal.synthetic.departures.read_departures`).
+
 The dataset is built in a hidden folder beside `out_dir` and renamed into place when
 complete. With `force`, an existing folder's dataset files are replaced one by one
 (each atomically), `project.json` last: other files in the folder are left alone.
 Randomness: `np.random.default_rng(seed)` spawns one stream per purpose (views, exposures,
-rig, pose noise, initial guess, sensor noise), so the same configuration and seed give
-byte-identical datasets.
+rig, pose noise, initial guess, sensor noise, then the albedo texture and the extra pose
+error of the departures), so the same configuration and seed give byte-identical datasets,
+and a departure leaves the draws of the others unchanged.
 """
 
 from __future__ import annotations
@@ -50,10 +59,8 @@ from numpy.typing import NDArray
 from lightcal import __version__
 from lightcal.core.camera import Camera
 from lightcal.core.pose import describe_pose
-from lightcal.core.render import render_image
 from lightcal.core.rid import IsotropicRID
 from lightcal.core.scene import Light, Rig, View
-from lightcal.core.vignetting import RadialVignetting
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
@@ -72,14 +79,13 @@ from lightcal.io.project import (
     load_project,
     save_project,
 )
-from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
 from lightcal.synthetic.dataset_files import (
     CAMERA_NAME,
     IMAGE_SUFFIX,
     IMAGES_DIR,
     PROJECT_NAME,
+    TRUTH_FORMAT,
     TRUTH_NAME,
-    VIGNETTING_NAME,
     ImageFormat,
     camera_dict,
     check_target,
@@ -89,15 +95,21 @@ from lightcal.synthetic.dataset_files import (
     pose_kind,
     pose_spec,
     publish,
+    read_truth,
     rid_file,
+    sensor_truth,
     view_geometry,
+    vignetting_file,
 )
+from lightcal.synthetic.departure_truth import departures_truth
+from lightcal.synthetic.departures import Departures
+from lightcal.synthetic.imaging import AmbientLevels, make_imaging
+from lightcal.synthetic.rid_rim import rimmed_rid
 from lightcal.synthetic.scenes import (
     RigConfig,
     SceneConfig,
     SensorConfig,
     apply_sensor,
-    conversion_gain,
     describe_rid,
     initial_guess,
     noise_model,
@@ -110,11 +122,15 @@ from lightcal.synthetic.scenes import (
     white_level,
 )
 
-__all__ = ["ImageFormat", "SynthConfig", "SynthDataset", "read_truth", "write_dataset"]
-
-TRUTH_FORMAT = "lightcal.synth_truth"
-"""The `format` tag of truth.json."""
-
+__all__ = [
+    "TRUTH_FORMAT",
+    "Departures",
+    "ImageFormat",
+    "SynthConfig",
+    "SynthDataset",
+    "read_truth",
+    "write_dataset",
+]
 
 Progress = Callable[[str], None]
 
@@ -138,6 +154,7 @@ class SynthConfig:
         image_format: "png" (16-bit) or "tiff" (16-bit, uncompressed).
         wall: The wall's true reflectance (the project written says Lambertian, as a
             user's first project would; truth.json records the true model).
+        departures: How the data departs from what the project declares (none by default).
     """
 
     camera: Camera
@@ -151,6 +168,7 @@ class SynthConfig:
     seed: int = 0
     image_format: ImageFormat = "png"
     wall: WallReflectance = LAMBERTIAN
+    departures: Departures = field(default_factory=Departures)
 
     def __post_init__(self) -> None:
         for name in ("pose_noise_m", "pose_noise_deg", "init_offset_m", "init_offset_deg"):
@@ -161,6 +179,11 @@ class SynthConfig:
             raise InputError("seed", f"expected an integer >= 0, got {self.seed!r}")
         if self.image_format not in IMAGE_SUFFIX:
             raise InputError("image_format", f"expected 'png' or 'tiff', got {self.image_format!r}")
+        if self.departures.undeclared_vignetting is not None and self.sensor.model != "radiance":
+            raise InputError(
+                "undeclared_vignetting",
+                f"applies to the radiance sensor model only, got {self.sensor.model!r}",
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,31 +270,20 @@ def _write_into(
 ) -> SynthDataset:
     root = np.random.default_rng(config.seed)
     rng_views, rng_exposure, rng_rig, rng_pose, rng_init, rng_sensor = root.spawn(6)
+    rng_texture, rng_pose_error = root.spawn(2)  # the departures': the six above unchanged
     sensor = config.sensor
+    departures = config.departures
     project_path = folder / PROJECT_NAME
 
     # Files the truth is rendered from, read back as a calibration will read them.
     write_camera(config.camera, folder / CAMERA_NAME)
     camera = read_camera(folder / CAMERA_NAME)
-    vignetting_rel: str | None = None
-    vignetting: NDArray[np.float64] | None = None
-    if sensor.vignetting_coeffs is not None:
-        model = RadialVignetting.centered(
-            np.array(sensor.vignetting_coeffs), width=camera.width, height=camera.height
-        )
-        save_radial_vignetting(folder / VIGNETTING_NAME, model)
-        vignetting_rel = VIGNETTING_NAME
-        vignetting = load_vignetting(
-            folder / VIGNETTING_NAME, width=camera.width, height=camera.height
-        )
-        if not np.all(vignetting > 0.0):
-            raise InputError(
-                "vignetting_coeffs",
-                f"the fall-off reaches {float(vignetting.min()):.3g} inside the image; "
-                "expected V > 0 everywhere",
-            )
+    vignetting_rel, vignetting = vignetting_file(sensor, camera, folder)
     rid_spec = rid_file(config.rig, folder)
     rid = build_rid(rid_spec, folder, project_path, "lights[0].rid")
+    true_rid = rid
+    if departures.rid_rim_amplitude > 0.0:
+        true_rid = rimmed_rid(rid, departures.rid_rim_amplitude)
 
     # The scene.
     poses = sample_views(config.scene, rng_views)
@@ -283,7 +295,7 @@ def _write_into(
         for v, e in zip(poses, exposure_specs, strict=True)
     ]
     relative_rig = sample_rig(config.rig, rng_rig)
-    relative_rig = Rig(tuple(light.replace(rid=rid) for light in relative_rig.lights))
+    relative_rig = Rig(tuple(light.replace(rid=true_rid) for light in relative_rig.lights))
     peak = peak_signal(camera, views, relative_rig, sensor=sensor.model, vignetting=vignetting)
     k = signal_scale(peak, sensor)
     rig = Rig(tuple(light.replace(scale=light.scale * k) for light in relative_rig.lights))
@@ -296,6 +308,16 @@ def _write_into(
         )
         for v in views
     ]
+    if departures.pose_error_m > 0.0 or departures.pose_error_deg > 0.0:
+        measured = [
+            perturb_view(
+                v,
+                rng_pose_error,
+                position_sigma_m=departures.pose_error_m,
+                angle_sigma_rad=math.radians(departures.pose_error_deg),
+            )
+            for v in measured
+        ]
     initial = [
         initial_guess(
             light,
@@ -305,8 +327,23 @@ def _write_into(
         )
         for light in rig.lights
     ]
+    if true_rid is not rid:  # the initial guess has the declared profile
+        initial = [light.replace(rid=rid) for light in initial]
 
     # The images.
+    imaging = make_imaging(
+        camera,
+        views,
+        rig,
+        departures,
+        rng_texture,
+        sensor=sensor.model,
+        vignetting=vignetting,
+        wall=config.wall,
+    )
+    ambient: AmbientLevels | None = None
+    if departures.ambient_fraction > 0.0:
+        ambient = imaging.ambient(views, departures.ambient_fraction)
     n = len(views)
     digits = max(2, len(str(n - 1)))
     suffix = IMAGE_SUFFIX[config.image_format]
@@ -316,10 +353,11 @@ def _write_into(
     for i, view in enumerate(views):
         started = time.perf_counter()
         name = f"view_{i:0{digits}d}"
-        signal = render_image(
-            camera, view, rig, sensor=sensor.model, vignetting=vignetting, wall=config.wall
+        beam = imaging.beam(view)
+        signal, sensor_input = imaging.expose(
+            beam, 0.0 if ambient is None else ambient.levels_dn[i]
         )
-        dn, saturated = apply_sensor(signal, sensor, rng_sensor)
+        dn, saturated = apply_sensor(sensor_input, sensor, rng_sensor, gamma=departures.gamma)
         path = folder / IMAGES_DIR / f"{name}{suffix}"
         atomic_write_bytes(path, encode_image(dn, config.image_format))
         image_paths.append(path)
@@ -391,30 +429,29 @@ def _write_into(
     rid_truth = describe_rid(rid)
     if rid_spec.path is not None:
         rid_truth["path"] = rid_spec.path
+    departure_truth = departures_truth(
+        departures,
+        imaging,
+        ambient=ambient,
+        view_names=[v["name"] for v in view_truth],
+        declared_rid=rid,
+        declared_rid_truth=rid_truth,
+        pose_noise_m=config.pose_noise_m,
+        pose_noise_deg=config.pose_noise_deg,
+        sensor=sensor,
+    )
+    if true_rid is not rid:
+        rid_truth = describe_rid(true_rid)
     truth = {
         "format": TRUTH_FORMAT,
         "version": 1,
         "lightcal_version": __version__,
         "seed": config.seed,
         "camera": camera_dict(camera),
-        "sensor": {
-            "model": sensor.model,
-            "bit_depth": sensor.bit_depth,
-            "black_level_dn": black,
-            "white_level_dn": white_level(sensor),
-            "full_well_e": sensor.full_well_e,
-            "read_noise_e": sensor.read_noise_e,
-            "conversion_gain_dn_per_e": conversion_gain(sensor),
-            "noise": sensor.noise,
-            "noise_model": {"gain": gain, "read_variance": read_variance},
-            "exposure_target": sensor.exposure_target,
-            "vignetting_coeffs": (
-                None if sensor.vignetting_coeffs is None else list(sensor.vignetting_coeffs)
-            ),
-            "vignetting_path": vignetting_rel,
-        },
+        "sensor": sensor_truth(sensor, vignetting_rel),
         "views": view_truth,
         "wall": config.wall.describe(),
+        **({"departures": departure_truth} if departure_truth else {}),
         "lights": [
             {
                 "name": light.name,
@@ -461,17 +498,3 @@ def _write_into(
         initial_lights=initial,
         vignetting=vignetting,
     )
-
-
-def read_truth(path: str | Path) -> dict[str, Any]:
-    """The content of a truth.json (a plain dictionary, format checked)."""
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError as exc:
-        raise InputError(p, "file not found: expected a lightcal synth truth.json") from exc
-    except json.JSONDecodeError as exc:
-        raise InputError(p, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
-    if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT:
-        raise InputError(p, f"expected a truth file with format {TRUTH_FORMAT!r}")
-    return data

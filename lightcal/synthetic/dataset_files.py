@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import math
 import re
 import secrets
@@ -22,15 +23,21 @@ from numpy.typing import NDArray
 from lightcal.core.camera import Camera
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, View
+from lightcal.core.vignetting import RadialVignetting
 from lightcal.errors import InputError
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
 from lightcal.io.project import InitialSpec, PoseSpec, RIDSpec
+from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
 from lightcal.synthetic.scenes import (
     AZIMUTH_STEP_DEG,
     RigConfig,
+    SensorConfig,
+    conversion_gain,
     elliptical_beam_table,
+    noise_model,
     symmetric_profile_table,
+    white_level,
 )
 
 ImageFormat = Literal["png", "tiff"]
@@ -48,6 +55,9 @@ IMAGE_SUFFIX = {"png": ".png", "tiff": ".tif"}
 """File suffix of each image format."""
 
 _STALE_IMAGE = re.compile(r"view_\d+\.(png|tif)")
+
+TRUTH_FORMAT = "lightcal.synth_truth"
+"""The `format` tag of truth.json."""
 
 
 # ------------------------------------------------------------------------- the folder
@@ -204,3 +214,62 @@ def camera_dict(camera: Camera) -> dict[str, Any]:
         "height": camera.height,
         "dist": camera.dist_opencv.tolist(),
     }
+
+
+def vignetting_file(
+    sensor: SensorConfig, camera: Camera, folder: Path
+) -> tuple[str | None, NDArray[np.float64] | None]:
+    """Write the "map" model's fall-off file and read it back.
+
+    Returns:
+        Its path relative to `folder` and its (H, W) map; (None, None) for other models.
+    """
+    if sensor.vignetting_coeffs is None:
+        return None, None
+    model = RadialVignetting.centered(
+        np.array(sensor.vignetting_coeffs), width=camera.width, height=camera.height
+    )
+    save_radial_vignetting(folder / VIGNETTING_NAME, model)
+    vignetting = load_vignetting(folder / VIGNETTING_NAME, width=camera.width, height=camera.height)
+    if not np.all(vignetting > 0.0):
+        raise InputError(
+            "vignetting_coeffs",
+            f"the fall-off reaches {float(vignetting.min()):.3g} inside the image; "
+            "expected V > 0 everywhere",
+        )
+    return VIGNETTING_NAME, vignetting
+
+
+def sensor_truth(sensor: SensorConfig, vignetting_rel: str | None) -> dict[str, Any]:
+    """The "sensor" entry of truth.json."""
+    gain, read_variance = noise_model(sensor)
+    return {
+        "model": sensor.model,
+        "bit_depth": sensor.bit_depth,
+        "black_level_dn": sensor.black_level,
+        "white_level_dn": white_level(sensor),
+        "full_well_e": sensor.full_well_e,
+        "read_noise_e": sensor.read_noise_e,
+        "conversion_gain_dn_per_e": conversion_gain(sensor),
+        "noise": sensor.noise,
+        "noise_model": {"gain": gain, "read_variance": read_variance},
+        "exposure_target": sensor.exposure_target,
+        "vignetting_coeffs": (
+            None if sensor.vignetting_coeffs is None else list(sensor.vignetting_coeffs)
+        ),
+        "vignetting_path": vignetting_rel,
+    }
+
+
+def read_truth(path: str | Path) -> dict[str, Any]:
+    """The content of a truth.json (a plain dictionary, format checked)."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise InputError(p, "file not found: expected a lightcal synth truth.json") from exc
+    except json.JSONDecodeError as exc:
+        raise InputError(p, f"not valid JSON: {exc.msg}", line=exc.lineno) from exc
+    if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT:
+        raise InputError(p, f"expected a truth file with format {TRUTH_FORMAT!r}")
+    return data

@@ -195,6 +195,8 @@ def apply_sensor(
     signal_dn: np.ma.MaskedArray | NDArray[np.float64],
     config: SensorConfig,
     rng: np.random.Generator,
+    *,
+    gamma: float = 1.0,
 ) -> tuple[NDArray[np.uint16], NDArray[np.bool_]]:
     """Turn the expected signal into raw sensor values.
 
@@ -203,10 +205,15 @@ def apply_sensor(
     [0, 2^bits - 1]. Masked (invalid) pixels have no signal: black level plus read noise.
     Without noise the value is round(signal + black).
 
+    With `gamma` G != 1 a tone curve acts on the (noisy) linear value x above black
+    before rounding: x -> W (max(x, 0) / W)^(1/G), W = white - black the usable range, so
+    the black and white levels stay where they are (the `gamma` departure).
+
     Args:
         signal_dn: (H, W) expected value above the black level, DN (masked where invalid).
         config: The sensor.
         rng: Randomness (unused without noise).
+        gamma: G > 0 of the response curve (1: linear).
 
     Returns:
         dn: (H, W) uint16 raw values.
@@ -225,6 +232,9 @@ def apply_sensor(
         raw = electrons * g + black
     else:
         raw = signal + black
+    if gamma != 1.0:
+        usable = white - black
+        raw = black + usable * (np.clip(raw - black, 0.0, None) / usable) ** (1.0 / gamma)
     raw = np.rint(raw)
     saturated = raw >= white
     dn = np.clip(raw, 0.0, white).astype(np.uint16)

@@ -1,0 +1,260 @@
+"""From a view to its expected signal, with the departures of `lightcal.synthetic.departures`.
+
+Without departures a view's expected signal above black is the renderer's image
+(`lightcal.core.render.render_image`) of the true rig, exactly as before departures
+existed. With them, in this order:
+
+1. **The beam** (`Imaging.beam`). A bowed wall is rendered by the point-sampled
+   height-field renderer (`lightcal.synthetic.height_field`), a flat one by
+   `render_image` (one light at a time with attenuation). Each light's contribution is
+   multiplied by exp(-C d_light) and the pixel by exp(-C d_camera) (`attenuation`), and
+   by the albedo 1 + A t(x, y) (`albedo_texture`), all at the pixel centre's point on the
+   wall (its footprint centre to second order in the footprint's size).
+2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
+   times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
+   is added to every pixel, also those that do not see the wall; then everything is
+   multiplied by the undeclared fall-off V (`undeclared_vignetting`).
+
+The sensor (`lightcal.synthetic.sensor.apply_sensor`) then adds noise, the black level,
+the response curve (`gamma`) and rounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lightcal.core.camera import Camera
+from lightcal.core.footprint import SensorModel
+from lightcal.core.render import render_image
+from lightcal.core.scene import Rig, View
+from lightcal.core.vignetting import RadialVignetting
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
+from lightcal.errors import InputError
+from lightcal.synthetic.departures import BOW_RADIUS_M, Departures
+from lightcal.synthetic.height_field import (
+    BowedWall,
+    point_sensor_weights,
+    shade_height_field,
+    surface_points,
+)
+from lightcal.synthetic.texture import AlbedoTexture, sample_albedo_texture
+
+__all__ = ["AmbientLevels", "Imaging", "ambient_levels", "make_imaging", "view_target_center"]
+
+
+@dataclass(frozen=True, eq=False)
+class Imaging:
+    """How a view becomes its expected signal above black, DN (module docstring).
+
+    Attributes:
+        camera: The intrinsics.
+        rig: The true lights, scales in DN at exposure 1.
+        sensor: The declared (and true) sensor fall-off model.
+        vignetting: (H, W) its map for "map", else None.
+        wall: The wall's true reflectance.
+        wall_shape: The bowed wall, or None for the plane z = 0.
+        texture: The albedo texture, or None.
+        attenuation_per_m: C of the medium, 1/m (0: none).
+        undeclared_vignetting: (H, W) the undeclared fall-off V, or None.
+    """
+
+    camera: Camera
+    rig: Rig
+    sensor: SensorModel = "radiance"
+    vignetting: NDArray[np.float64] | None = None
+    wall: WallReflectance = LAMBERTIAN
+    wall_shape: BowedWall | None = None
+    texture: AlbedoTexture | None = None
+    attenuation_per_m: float = 0.0
+    undeclared_vignetting: NDArray[np.float64] | None = None
+
+    def _render(self, view: View, rig: Rig) -> np.ma.MaskedArray:
+        return render_image(
+            self.camera, view, rig, sensor=self.sensor, vignetting=self.vignetting, wall=self.wall
+        )
+
+    def beam(self, view: View) -> np.ma.MaskedArray:
+        """(H, W) the lights' signal, masked where the pixel does not see the wall."""
+        plain = self.wall_shape is None and self.texture is None
+        if plain and self.attenuation_per_m == 0.0:
+            return self._render(view, self.rig)
+        if self.wall_shape is not None:
+            shading = shade_height_field(
+                self.camera,
+                view,
+                self.rig,
+                self.wall_shape,
+                sensor=self.sensor,
+                vignetting=self.vignetting,
+                wall=self.wall,
+            )
+            per_light, points, valid = shading.values, shading.points_world, shading.valid
+        else:
+            points, valid = surface_points(self.camera, view, BowedWall(0.0))
+            groups = [Rig.single(light) for light in self.rig.lights]
+            if self.attenuation_per_m == 0.0:
+                groups = [self.rig]
+            images = [self._render(view, group) for group in groups]
+            for image in images:
+                valid &= ~np.ma.getmaskarray(image)
+            per_light = np.stack([image.filled(np.nan) for image in images])
+        if self.attenuation_per_m > 0.0:
+            c = self.attenuation_per_m
+            total = np.zeros(points.shape[:2])
+            for light, values in zip(self.rig.lights, per_light, strict=True):
+                d_light = np.linalg.norm(points - light.position_world(view), axis=-1)
+                total += values * np.exp(-c * d_light)
+            total *= np.exp(-c * np.linalg.norm(points - view.center_world, axis=-1))
+        else:
+            total = per_light.sum(axis=0)
+        if self.texture is not None:
+            total = total * self.texture.factor(points[..., :2])
+        return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
+
+    def ambient(self, views: list[View], fraction: float) -> AmbientLevels:
+        """The ambient levels of `views` for room light of `fraction` (`ambient_levels`
+        of the views' beam peaks: every view is rendered once more)."""
+        peaks = [float(self.beam(view).max()) for view in views]
+        return ambient_levels(fraction, peaks, [view.exposure for view in views])
+
+    def expose(
+        self, beam: np.ma.MaskedArray, ambient_dn: float
+    ) -> tuple[np.ma.MaskedArray, np.ma.MaskedArray | NDArray[np.float64]]:
+        """Add the room light and the undeclared fall-off to a view's beam (H, W).
+
+        Args:
+            beam: The view's `beam`.
+            ambient_dn: The view's ambient level (exposure included), DN.
+
+        Returns:
+            signal: (H, W) the expected signal, masked where the beam is.
+            sensor_input: (H, W) what the sensor records: `signal` itself, or without a
+                mask when the room light also lights the pixels that do not see the wall.
+        """
+        if ambient_dn == 0.0 and self.undeclared_vignetting is None:
+            return beam, beam
+        mask = np.ma.getmaskarray(beam)
+        total = beam.filled(0.0)
+        if ambient_dn > 0.0:
+            falloff: NDArray[np.float64] | float = 1.0
+            if self.sensor in ("map", "cos4"):
+                falloff, _ = point_sensor_weights(self.camera, self.sensor, self.vignetting)
+            total = total + ambient_dn * falloff
+        if self.undeclared_vignetting is not None:
+            total = total * self.undeclared_vignetting
+        signal = np.ma.masked_array(np.where(mask, np.nan, total), mask=mask)
+        return signal, (total if ambient_dn > 0.0 else signal)
+
+
+@dataclass(frozen=True)
+class AmbientLevels:
+    """The room light of each view (the `ambient` departure).
+
+    Attributes:
+        fraction: F.
+        reference: Index of the median image (the lower median of the beam peaks).
+        reference_peak_dn: The brightest beam value of that image, DN.
+        reference_exposure: Its relative exposure.
+        per_exposure_dn: The ambient level at relative exposure 1, DN:
+            F reference_peak_dn / exposure of the reference.
+        levels_dn: (n_views,) each view's level, per_exposure_dn times its exposure.
+    """
+
+    fraction: float
+    reference: int
+    reference_peak_dn: float
+    reference_exposure: float
+    per_exposure_dn: float
+    levels_dn: tuple[float, ...]
+
+
+def ambient_levels(fraction: float, peaks_dn: list[float], exposures: list[float]) -> AmbientLevels:
+    """The ambient level of every view (`Departures.ambient_fraction`).
+
+    Args:
+        fraction: F >= 0.
+        peaks_dn: (n,) the brightest beam value of each view, DN.
+        exposures: (n,) the views' relative exposures.
+    """
+    order = np.argsort(np.asarray(peaks_dn), kind="stable")
+    ref = int(order[(len(order) - 1) // 2])
+    per_exposure = fraction * peaks_dn[ref] / exposures[ref]
+    return AmbientLevels(
+        fraction=fraction,
+        reference=ref,
+        reference_peak_dn=float(peaks_dn[ref]),
+        reference_exposure=float(exposures[ref]),
+        per_exposure_dn=float(per_exposure),
+        levels_dn=tuple(float(per_exposure * g) for g in exposures),
+    )
+
+
+def view_target_center(views: list[View]) -> tuple[float, float]:
+    """(x0, y0) the mean of the points where the views' optical axes meet z = 0, metres."""
+    hits = []
+    for view in views:
+        axis = view.R_camera_world[2]  # the optical axis, world frame
+        center = view.center_world
+        hits.append(center[:2] - center[2] / axis[2] * axis[:2])
+    x0, y0 = np.mean(hits, axis=0)
+    return float(x0), float(y0)
+
+
+def make_imaging(
+    camera: Camera,
+    views: list[View],
+    rig: Rig,
+    departures: Departures,
+    rng_texture: np.random.Generator,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: NDArray[np.float64] | None = None,
+    wall: WallReflectance = LAMBERTIAN,
+) -> Imaging:
+    """The imaging of a dataset: its true scene and the departures' fixed parts.
+
+    Args:
+        camera: The intrinsics.
+        views: The true views (the bow is centred where they look).
+        rig: The true lights, scales in DN.
+        departures: What departs from the project.
+        rng_texture: Randomness of the albedo texture (unused without one).
+        sensor: The sensor fall-off model.
+        vignetting: (H, W) the map of "map".
+        wall: The wall's true reflectance.
+
+    Raises:
+        InputError: the undeclared fall-off reaches 0 or below inside the image.
+    """
+    wall_shape = None
+    if departures.bow_m != 0.0:
+        wall_shape = BowedWall(departures.bow_m, view_target_center(views), BOW_RADIUS_M)
+    texture = None
+    if departures.albedo_texture_amplitude > 0.0:
+        texture = sample_albedo_texture(departures.albedo_texture_amplitude, rng_texture)
+    undeclared = None
+    if departures.undeclared_vignetting is not None:
+        model = RadialVignetting.centered(
+            np.array(departures.undeclared_vignetting), width=camera.width, height=camera.height
+        )
+        undeclared = model.image()
+        if not np.all(undeclared > 0.0):
+            raise InputError(
+                "undeclared_vignetting",
+                f"the fall-off reaches {float(undeclared.min()):.3g} inside the image; "
+                "expected V > 0 everywhere",
+            )
+    return Imaging(
+        camera=camera,
+        rig=rig,
+        sensor=sensor,
+        vignetting=vignetting,
+        wall=wall,
+        wall_shape=wall_shape,
+        texture=texture,
+        attenuation_per_m=departures.attenuation_per_m,
+        undeclared_vignetting=undeclared,
+    )
