@@ -138,6 +138,16 @@ def test_ambient_adds_the_stated_level_scaled_by_exposure(tmp_path: Path):
     assert sensor.offset == 0.0 and sensor.estimate_offset is False
 
 
+def test_ambient_goes_through_the_declared_fall_off_map(tmp_path: Path):
+    sensor = SensorConfig(noise=False, model="map", vignetting_coeffs=(-0.3, 0.05))
+    plain, departed = pair(tmp_path, Departures(ambient_fraction=0.2), sensor=sensor)
+    assert plain.vignetting is not None
+    levels = read_departures(read_truth(departed.truth_path))["ambient"]["levels_dn"]
+    for i in range(4):
+        difference = image(departed, i) - image(plain, i)
+        assert np.all(np.abs(difference - levels[i] * plain.vignetting) <= 1.0)
+
+
 # --------------------------------------------------------------------------------- gamma
 
 

@@ -197,9 +197,9 @@ class SynthDataset:
         image_paths: One per view.
         camera: The camera (as read back from camera.yaml).
         views: The true views, with the relative exposures of the project.
-        measured_views: The views the project states (pose noise added).
-        rig: The true lights, scales in DN.
-        initial_lights: The project's initial guesses.
+        measured_views: The views the project states (pose noise and error added).
+        rig: The true lights, scales in DN (a `rid_rim` departure's rimmed profile).
+        initial_lights: The project's initial guesses (the declared profile).
         vignetting: (H, W) fall-off map of the "map" model, else None.
     """
 
