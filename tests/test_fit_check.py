@@ -233,3 +233,40 @@ def test_intrinsics_term_covers_the_truth() -> None:
     assert np.all((np.abs(errors / sigmas) < 2.0).mean(axis=0) >= 0.85)
     # Without the term: the depth error (4-5 mm) is an order above its sigma.
     assert (np.abs(errors / withouts) < 1.0).mean(axis=0)[2] < 0.2
+
+
+def test_a_light_that_lights_nothing_is_undetermined_never_plus_minus_0() -> None:
+    """A solution whose light points away from the wall: no pixel responds to its pose,
+    so the result is not converged, says why, and its sigmas are null, not 0."""
+    from lightcal.core.solver import SolveOutcome
+    from lightcal.io.result_file import result_to_file
+    from lightcal.pipeline.result_text import light_lines
+
+    camera = cs.small_camera()
+    truth = cs.symmetric_light()
+    rng = np.random.default_rng(7)
+    images = cs.observe(camera, cs.views(12, seed=7), Rig.single(truth), rng=rng, noise=NOISE)
+    away = truth.replace(R_camera_light=truth.R_camera_light @ np.diag([1.0, -1.0, -1.0]))
+    model = CalibrationModel(images, [LightUnknown(away)], SolverOptions())
+    x = model.layout.x0
+    outcome = SolveOutcome(
+        x, 2, "stopped", True, 3, 4, 0.5 * float(np.sum(model.residuals(x) ** 2)), 0.1
+    )
+    result = summarise(model, outcome)
+    assert not result.converged
+    assert result.undetermined[0] == (
+        "the data do not determine light.x_m, light.y_m, light.z_m, light.a_rad, light.b_rad, "
+        "light.log_scale: no pixel responds to them, or only together (the normal matrix is "
+        "singular there); their sigmas are undetermined"
+    )
+    assert result.undetermined[1] == (
+        "light 'light' lights none of the selected pixels at the solution (it points away or "
+        "sits behind the wall): its pose is not determined"
+    )
+    assert any("lights none of the selected pixels" in w for w in result.warnings)
+    light = result.lights[0]
+    assert np.all(np.isnan(light.sigma.t_camera_light))
+    assert "± undetermined" in light_lines(light)[1]
+    file = result_to_file(result)
+    assert file.lights[0].sigma.position_m == [None, None, None]
+    assert file.undetermined == result.undetermined

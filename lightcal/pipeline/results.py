@@ -261,8 +261,9 @@ def summarise(
     dark = dark_light_warnings(model, x, fit.light_shares)
     undetermined = (
         [
-            f"the data do not determine {', '.join(lay.names[k] for k in unknown)}: the normal "
-            "matrix is singular there (no pixel responds to them); its sigma is undetermined"
+            f"the data do not determine {', '.join(lay.names[k] for k in unknown)}: no pixel "
+            "responds to them, or only together (the normal matrix is singular there); their "
+            "sigmas are undetermined"
         ]
         if unknown
         else []
