@@ -145,8 +145,9 @@ def test_residuals_are_weighted_differences():
     ("options", "message"),
     [
         ({"loss": "l2"}, r"^loss: expected one of linear, huber, soft_l1, cauchy, got 'l2'$"),
-        ({"f_scale": 0.0}, r"^f_scale: expected a finite value > 0, got 0.0$"),
-        ({"f_scale": math.inf}, r"^f_scale: expected a finite value > 0, got inf$"),
+        ({"f_scale": 0.0}, r'^f_scale: expected "auto" or a finite value > 0, got 0.0$'),
+        ({"f_scale": math.inf}, r'^f_scale: expected "auto" or a finite value > 0, got inf$'),
+        ({"f_scale": "huber"}, r"^f_scale: expected \"auto\" or a finite value > 0, got 'huber'$"),
         ({"max_iterations": 0}, r"^max_iterations: expected >= 1, got 0$"),
         ({"compress": 0}, r"^compress: expected true, false or null, got 0$"),
     ],

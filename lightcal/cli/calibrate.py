@@ -88,6 +88,13 @@ def run(args: argparse.Namespace) -> int:
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         console.print(f"wall: {result.wall['model']} ({params})", highlight=False)
+    if cal.outcome.f_scale_used is not None:
+        solver = project.spec.solver
+        how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"
+        console.print(
+            f"robust loss {solver.loss}: f_scale = {cal.outcome.f_scale_used:.4g} ({how})",
+            highlight=False,
+        )
     for w in result.warnings:
         console.print(f"warning: {w}", style="yellow", highlight=False)
     if args.report is not None:

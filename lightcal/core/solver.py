@@ -6,16 +6,19 @@ iteration is reported through the solver's callback (`IterationReport`); the cal
 stop the solve (`StopIteration`), which is how `lightcal.core.session.SolverSession`
 steps, pauses and stops it.
 
+A robust loss with `f_scale: auto` solves in two stages: the linear loss from the start,
+then the robust loss from that solution with f_scale from its residuals (`auto_f_scale`).
+
 The solver is three modules: `solver_options` (`SolverOptions`, `IterationReport`,
-`robust_cost`), `calibration_model` (`CalibrationModel`) and this one (`SolveOutcome`,
-`run_least_squares`), which also exports the names of the other two.
+`robust_cost`, `auto_f_scale`), `calibration_model` (`CalibrationModel`) and this one
+(`SolveOutcome`, `run_least_squares`), which also exports the names of the other two.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,6 +29,7 @@ from lightcal.core.solver_options import (
     DEFAULT_POSITION_BOUND_M,
     IterationReport,
     SolverOptions,
+    auto_f_scale,
     robust_cost,
 )
 
@@ -39,6 +43,7 @@ __all__ = [
     "IterationReport",
     "SolveOutcome",
     "SolverOptions",
+    "auto_f_scale",
     "robust_cost",
     "run_least_squares",
 ]
@@ -53,6 +58,9 @@ class SolveOutcome:
     solve started when a caller found the start by a solve of its own, in words (empty:
     the initial guess or the given x0); `start_costs`: that solve's cost per iteration,
     scaled to this problem's pixels (its last iterate is this solve's iteration 0).
+    `f_scale_used`: the robust loss's f_scale in noise sigmas, the given one or the one
+    `f_scale: auto` took from the linear stage's residuals; None with the linear loss, or
+    when the solve stopped before the robust stage.
     """
 
     x: np.ndarray
@@ -67,6 +75,7 @@ class SolveOutcome:
     weights_at: np.ndarray | None = None
     start: str = ""
     start_costs: list[float] = field(default_factory=list)
+    f_scale_used: float | None = None
 
     @classmethod
     def stopped(
@@ -99,6 +108,7 @@ def run_least_squares(
     x0: np.ndarray | None = None,
     *,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    f_scale: float | None = None,
 ) -> SolveOutcome:
     """Minimise the model's cost from x0 (default: the layout's initial vector).
 
@@ -107,8 +117,34 @@ def run_least_squares(
     (`CalibrationModel.reweights`), the first solve uses the data's sigmas; after it
     converges, the sigmas are re-derived from the rendered values and trf runs again
     from there, its iterations numbered on (the cost changes with the weights).
+
+    A robust loss with `SolverOptions.f_scale` "auto" first solves with the linear loss
+    (iteration 0 and the first iterations are that loss's); once it converges, f_scale
+    is `auto_f_scale` of its residuals (or `f_scale`, when given: a caller comparing the
+    costs of several solves keeps one) and the robust loss continues from its solution,
+    its iterations numbered on. Robust losses give pixels beyond about f_scale less
+    weight: with f_scale = 1 noise sigma and a misfit of 100 sigma every pixel is an
+    outlier, and trf crawls away from the fit (on real photos, to the search box's edge).
     """
     opts = model.options
+    auto = opts.loss != "linear" and opts.f_scale == "auto"
+    try:
+        if auto:
+            model.options = replace(opts, loss="linear")
+        return _solve(model, x0, on_iteration, opts, f_scale)
+    finally:
+        model.options = opts
+
+
+def _solve(
+    model: CalibrationModel,
+    x0: np.ndarray | None,
+    on_iteration: Callable[[IterationReport], None] | None,
+    opts: SolverOptions,
+    f_scale: float | None,
+) -> SolveOutcome:
+    """`run_least_squares` with `model.options` those of its first stage (`opts` with the
+    linear loss for a robust loss's f_scale "auto"); `opts` the solve's own."""
     x_start = model.layout.x0 if x0 is None else np.asarray(x0, dtype=np.float64)
     lo, hi = model.parameter_bounds()
     x_start = np.clip(x_start, lo + 1e-12, hi - 1e-12)
@@ -135,7 +171,21 @@ def run_least_squares(
         return SolveOutcome.stopped(
             history, "stopped before the first iteration", time_s=solver_time()
         )
+    linear_first = model.options.loss != opts.loss
+    # None until a robust loss runs: the linear loss has no f_scale.
+    f_used = None if opts.loss == "linear" or isinstance(opts.f_scale, str) else float(opts.f_scale)
     res, hit_limit = _trf(model, x_start, (lo, hi), 0, emit)
+    if linear_first and res.status > 0 and not hit_limit:
+        # The linear stage converged: its residuals set f_scale, and the robust loss goes
+        # on from its solution (the cost changes with the loss, as with the weights).
+        x_linear = np.asarray(res.x)
+        compressed = model.compressed
+        r = model.residuals(x_linear)
+        f_used = auto_f_scale(r, opts.loss) if f_scale is None else float(f_scale)
+        model.options = replace(opts, f_scale=f_used)
+        if compressed:
+            model.set_weights_at(None)  # drops the QR-compressed evaluations (linear costs)
+        res, hit_limit = _trf(model, x_linear, (lo, hi), history[-1].iteration, emit)
     if model.reweights and res.status > 0 and not hit_limit:
         model.set_weights_at(np.asarray(res.x))
         res, hit_limit = _trf(model, np.asarray(res.x), (lo, hi), history[-1].iteration, emit)
@@ -155,6 +205,7 @@ def run_least_squares(
         time_s=solver_time(),
         history=history,
         weights_at=None if model.weights_at is None else model.weights_at.copy(),
+        f_scale_used=f_used,
     )
 
 
@@ -198,7 +249,7 @@ def _trf(
             bounds=bounds,
             method="trf",
             loss=opts.loss,
-            f_scale=opts.f_scale,
+            f_scale=_number(opts.f_scale, opts.loss),
             x_scale="jac",
             ftol=opts.tolerance,
             xtol=opts.tolerance,
@@ -209,3 +260,12 @@ def _trf(
     if converged_ahead:
         res.status, res.success, res.message = 2, True, CONVERGED_AHEAD
     return res, hit_limit
+
+
+def _number(f_scale: float | str, loss: str) -> float:
+    """The f_scale handed to least_squares: a number (the linear loss ignores it; a robust
+    loss's "auto" is resolved by `run_least_squares` before trf runs)."""
+    if isinstance(f_scale, str):
+        assert loss == "linear", "f_scale auto reached trf with a robust loss"
+        return 1.0
+    return float(f_scale)

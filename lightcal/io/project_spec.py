@@ -10,15 +10,24 @@ the first (most specific) problem; `project_schema` is what `lightcal schema` pr
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
+from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
 
 PROJECT_VERSION: Literal[1] = 1
@@ -365,7 +374,13 @@ class WallSpec(_Model):
 
 class SolverSpec(_Model):
     loss: Literal["linear", "huber", "soft_l1", "cauchy"] = _SOLVER.loss
-    f_scale: float = Field(default=_SOLVER.f_scale, gt=0)
+    f_scale: Annotated[float, Field(gt=0)] | Literal["auto"] = Field(
+        default=_SOLVER.f_scale,
+        description="a robust loss's inlier scale, in noise sigmas; auto: solve with the "
+        "linear loss first and take "
+        + ", ".join(f"{c:g} ({loss})" for loss, c in AUTO_F_SCALE_FACTORS.items())
+        + " times the robust spread (1.4826 MAD) of its residuals. The linear loss ignores it",
+    )
     max_iterations: int = Field(default=_SOLVER.max_iterations, ge=1)
     estimate_gains: bool = _SOLVER.estimate_gains
     rid_subsamples: int = Field(default=_SOLVER.rid_subsamples, ge=1, le=16)
@@ -374,6 +389,20 @@ class SolverSpec(_Model):
     multistart: int = Field(default=0, ge=0, description="extra random starts")
     multistart_position_m: float = Field(default=0.3, gt=0)
     multistart_angle_deg: float = Field(default=30.0, gt=0)
+
+    @field_validator("f_scale", mode="before")
+    @classmethod
+    def _auto_or_positive(cls, value: Any) -> Any:
+        """One message for every wrong f_scale (not one per form the field may take)."""
+        if value == "auto" and isinstance(value, str):
+            return value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f'Input should be a number > 0 or "auto", got {value!r}')
+        if not math.isfinite(value):
+            raise ValueError(f'Input should be a finite number > 0 or "auto", got {value}')
+        if value <= 0:
+            raise ValueError(f'Input should be greater than 0 or "auto", got {value}')
+        return value
 
     def to_options(self, sensor: SensorSpec) -> SolverOptions:
         """The core's solver options (the offset and its estimation from `sensor`)."""

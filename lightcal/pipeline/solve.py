@@ -116,6 +116,8 @@ def solve(
     """Solve from the initial guess and `multistart` random starts; keep the best.
 
     A large model's first solve starts where its subsample's solution is (`coarse_start`).
+    With a robust loss's f_scale "auto", every start uses the f_scale the first one took
+    from its linear stage (`run_least_squares`): costs compare only under one f_scale.
 
     `on_iteration` sees every start's iterations (each numbered from 0); `on_start(k, n)`
     is called before start k of n (0: the initial guess).
@@ -129,6 +131,7 @@ def solve(
     if coarse is not None:
         best.start, best.start_costs = coarse[1], coarse[2]
     rng = np.random.default_rng(seed)
+    f_scale = best.f_scale_used if model.options.f_scale == "auto" else None
     for k in range(1, n_starts):
         x0 = perturbed_start(
             model, rng, shift_m=multistart_position_m, angle_deg=multistart_angle_deg
@@ -136,7 +139,7 @@ def solve(
         if on_start is not None:
             on_start(k, n_starts)
         try:
-            out = run_least_squares(model, x0, on_iteration=on_iteration)
+            out = run_least_squares(model, x0, on_iteration=on_iteration, f_scale=f_scale)
         except ValueError:
             continue
         if out.cost < best.cost:
