@@ -15,8 +15,9 @@ N = J^T J and g = J^T r (0 at the solution of these very rows; not on a subsampl
     dx_c = N^-1 J^T S gamma        (the shift of the estimate the cause accounts for),
     dchi2_c = gamma^T M gamma      (the decrease of the cost it brings).
 
-dx_c is the omitted-variable bias of the estimate under cause c; dchi2_c is tested by an
-F test against the residual variance left by the extended fit, and its size is measured
+dx_c is the omitted-variable bias of the estimate under cause c; gamma is tested by a
+heteroscedasticity-consistent (White) Wald test, which holds whatever the residuals'
+variance does across pixels, and its size is measured
 relative to the signal: the fitted change's energy |C gamma|^2 over the rendered values'
 energy sum (m_render - offset)^2 (`AlternativeTest.relative_effect`). Columns the model
 already spans (a constant ambient when the offset is estimated) drop out of M: its
@@ -53,6 +54,9 @@ class GramBlocks:
         KtK: (n, n) K^T K.
         signs: (k,) the sign each coefficient must have (+1, -1; 0: free), or None
             (all free): a glossy highlight adds light, absorption takes it away.
+        StDS, StDJ, JtDJ: (k, k), (k, n), (n, n) the same Grams weighted by the squared
+            residuals D = diag(r^2), for the heteroscedasticity-consistent test; None:
+            the F test (which assumes every residual has the same variance).
     """
 
     StS: np.ndarray
@@ -62,6 +66,9 @@ class GramBlocks:
     CtK: np.ndarray
     KtK: np.ndarray
     signs: np.ndarray | None = None
+    StDS: np.ndarray | None = None
+    StDJ: np.ndarray | None = None
+    JtDJ: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -94,8 +101,11 @@ class AlternativeFit:
     Attributes:
         k: columns that are not in the model's span (the F test's numerator dof).
         delta_chi2: decrease of the cost (solver units).
-        f_statistic, p_value: the F test of that decrease against the residual variance
-            left by the extended fit (p = 1 when k = 0).
+        f_statistic, p_value: the test of the cause's coefficients: the
+            heteroscedasticity-consistent Wald statistic over k (chi^2 with k degrees of
+            freedom) when the blocks carry the residual-weighted Grams, else the F test of
+            the cost decrease against the residual variance left by the extended fit
+            (p = 1 when k = 0).
         relative_effect: |C gamma - K dx| / sqrt(sum (m_render - offset)^2): the RMS of
             the rendered values' change (the cause's correction net of what the refitted
             model parameters take back) relative to the signal's.
@@ -158,6 +168,8 @@ def fit_alternative(rows: RowSet, blocks: GramBlocks) -> AlternativeFit:
         return empty
     if delta <= 0.0:
         f_stat, p = 0.0, 1.0
+    elif blocks.StDS is not None and blocks.StDJ is not None and blocks.JtDJ is not None:
+        f_stat, p = _robust_wald(blocks, d, Ninv_JtS, M, V[:, use], gamma_scaled)
     elif rss1 > 0.0:
         f_stat = (delta / k) / (rss1 / dof2)
         p = float(special.fdtrc(k, dof2, f_stat))
@@ -174,6 +186,38 @@ def fit_alternative(rows: RowSet, blocks: GramBlocks) -> AlternativeFit:
     else:
         bic_gain = math.inf if delta > 0 else -math.inf
     return AlternativeFit(k, delta, f_stat, p, relative, shift, bic_gain)
+
+
+def _robust_wald(
+    blocks: GramBlocks,
+    d: np.ndarray,
+    A: np.ndarray,
+    M: np.ndarray,
+    Vu: np.ndarray,
+    gamma: np.ndarray,
+) -> tuple[float, float]:
+    """(W / k, p) of the heteroscedasticity-consistent Wald test of gamma (White's
+    sandwich): with the columns' part outside J's span S~ = S d - J A (A = N^-1 J^T S d),
+    Cov(gamma) = M^+ (S~^T D S~) M^+, D = diag(r^2), and W = gamma^T Cov^+ gamma on the
+    r used directions Vu (k, r) of M, chi^2 with r degrees of freedom under "no effect".
+    Unlike the F test it holds when the residuals' variance varies with the signal (a
+    sensor's shot noise under unit weights), which would otherwise make any column that
+    weighs bright pixels look significant."""
+    assert blocks.StDS is not None and blocks.StDJ is not None and blocks.JtDJ is not None
+    StDS = blocks.StDS * np.outer(d, d)
+    StDJ = blocks.StDJ * d[:, None]
+    cross = StDJ @ A
+    meat = StDS - cross - cross.T + A.T @ blocks.JtDJ @ A
+    meat_u = Vu.T @ (0.5 * (meat + meat.T)) @ Vu
+    b = Vu.T @ (M @ gamma)
+    r = Vu.shape[1]
+    try:
+        wald = float(b @ np.linalg.solve(meat_u, b))
+    except np.linalg.LinAlgError:
+        wald = float(b @ np.linalg.pinv(meat_u) @ b)
+    if not math.isfinite(wald) or wald < 0.0:
+        return math.inf, 0.0
+    return wald / r, float(special.chdtrc(r, wald))
 
 
 def _signed_minimiser(
@@ -215,10 +259,15 @@ def gram_of_columns(
     signs: np.ndarray | None = None,
 ) -> GramBlocks:
     """The Gram blocks of columns S (N, k) in solver units with rows J (N, n), r (N,);
-    sigma (N,) turns S and J back into value units; signs as `GramBlocks.signs`."""
+    sigma (N,) turns S and J back into value units; signs as `GramBlocks.signs`; the
+    residual-weighted Grams for the heteroscedasticity-consistent test."""
     C = S * sigma[:, None]
     K = J * sigma[:, None]
-    return GramBlocks(S.T @ S, S.T @ J, S.T @ r, C.T @ C, C.T @ K, K.T @ K, signs)
+    DS = S * (r * r)[:, None]
+    DJ = J * (r * r)[:, None]
+    return GramBlocks(
+        S.T @ S, S.T @ J, S.T @ r, C.T @ C, C.T @ K, K.T @ K, signs, DS.T @ S, DS.T @ J, DJ.T @ J
+    )
 
 
 def mahalanobis(shift: np.ndarray, covariance: np.ndarray) -> float:
