@@ -28,6 +28,7 @@ from lightcal.core.wall import PlasticWall
 from lightcal.errors import InputError
 from lightcal.io.project import SensorSpec, SolverSpec
 from lightcal.io.project_spec import parse_project
+from lightcal.io.result_file import read_result
 from lightcal.pipeline.solve import solve
 from tests import calib_scenes as cs
 
@@ -403,3 +404,5 @@ def test_cli_prints_the_f_scale(npy_project: Path, tmp_path: Path, capsys, f_sca
     err = " ".join(capsys.readouterr().err.split())
     assert code == 0, err
     assert "robust loss huber: f_scale = " in err and expected in err
+    used = read_result(tmp_path / "r.json").f_scale_used
+    assert used is not None and f"f_scale = {used:.4g} " in err

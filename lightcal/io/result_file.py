@@ -24,7 +24,8 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
   words with their sizes; ``uncertainty_breakdown`` the same per term and light as
-  numbers; ``undetermined``: what the data do not determine (sigmas null there).
+  numbers; ``undetermined``: what the data do not determine (sigmas null there);
+  ``f_scale_used``: the robust loss's f_scale (null with the linear loss).
 """
 
 from __future__ import annotations
@@ -133,6 +134,10 @@ class ResultFile(_Model):
         default_factory=list,
         description="what the data do not determine (a result with any is not converged)",
     )
+    f_scale_used: float | None = Field(
+        default=None,
+        description="the robust loss's f_scale the solve used, noise sigmas (null: linear loss)",
+    )
     start: str = Field(
         default="",
         description="where the iterations began when not at the initial guess (empty: there)",
@@ -181,6 +186,7 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
         uncertainty=result.uncertainty_terms,
         uncertainty_breakdown=_nan_to_none(result.uncertainty_breakdown),
         undetermined=result.undetermined,
+        f_scale_used=result.f_scale_used,
         start=result.start,
     )
 

@@ -167,6 +167,8 @@ class CalibrationResult:
     uncertainty_breakdown: list[dict] = field(default_factory=list)
     # What the data do not determine, in words (a result with any is not converged).
     undetermined: list[str] = field(default_factory=list)
+    # The robust loss's f_scale (noise sigmas) the solve used; None with the linear loss.
+    f_scale_used: float | None = None
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
     start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
 
@@ -307,6 +309,7 @@ def summarise(
         uncertainty_terms=_sized_terms(unc.terms, breakdown),
         uncertainty_breakdown=breakdown,
         undetermined=undetermined,
+        f_scale_used=outcome.f_scale_used,
         start=outcome.start,
         start_costs=outcome.start_costs,
     )
