@@ -130,20 +130,8 @@ def cause_tests(
                 f_statistic=f_stat,
                 p_value=float(special.fdtrc(fit.k, dof2, f_stat)),
             )
-    out.append(
-        CauseTest(
-            "images",
-            fit.k,
-            fit.delta_chi2,
-            fit.f_statistic,
-            fit.p_value,
-            fit.relative_effect,
-            fit.bic_gain,
-            math.nan,
-            math.nan,
-            math.nan,
-        )
-    )
+    # Its shift is the jackknife's (`diagnose`): none of its own.
+    out.append(_as_test("images", fit, math.nan, (math.nan, math.nan)))
     return out, shifts
 
 
@@ -155,7 +143,14 @@ def _cause_test(
     statistical_pose_cov: np.ndarray,
     P: np.ndarray,
 ) -> CauseTest:
-    position, axis = pose_shift(model, x, fit.shift)
+    shift_sigma = mahalanobis(fit.shift[P], statistical_pose_cov)
+    return _as_test(name, fit, shift_sigma, pose_shift(model, x, fit.shift))
+
+
+def _as_test(
+    name: str, fit: AlternativeFit, shift_sigma: float, shift: tuple[float, float]
+) -> CauseTest:
+    """The `CauseTest` of a fitted cause, its shift in sigmas, m and deg given."""
     return CauseTest(
         name,
         fit.k,
@@ -164,9 +159,9 @@ def _cause_test(
         fit.p_value,
         fit.relative_effect,
         fit.bic_gain,
-        mahalanobis(fit.shift[P], statistical_pose_cov),
-        position,
-        axis,
+        shift_sigma,
+        shift[0],
+        shift[1],
     )
 
 
