@@ -26,8 +26,18 @@ if [ "$browser" = 1 ]; then
   fi
 fi
 
-# Mitsuba 3, the independent renderer the wall models are checked against.
-if [ "$reference" = 1 ]; then extras="${extras:+$extras,}reference"; fi
+# Mitsuba 3, the independent renderer the wall models and the honesty tests are checked
+# against. Its fast llvm_ad_rgb variant needs an LLVM newer than Debian 12's default 15
+# (which aborts it); without one the tests fall back to scalar_rgb, ~5x slower.
+if [ "$reference" = 1 ]; then
+  extras="${extras:+$extras,}reference"
+  if command -v apt-get >/dev/null && ! dpkg -s libllvm19 >/dev/null 2>&1; then
+    echo "setup: installing Debian's libllvm19 for Mitsuba's llvm variant"
+    if [ "$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi
+    { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null; } \
+      || echo "setup: libllvm19 not installed: the Mitsuba tests use scalar_rgb" >&2
+  fi
+fi
 
 PY="${PYTHON:-python3}"
 if [ ! -x .venv/bin/python ]; then
