@@ -81,8 +81,23 @@ class AngleTrend:
     effect: float
 
     @property
+    def relative_spread(self) -> float:
+        """RMS of the bins' relative residuals (pixel-weighted)."""
+        total = float(self.count.sum())
+        if not total > 0:
+            return 0.0
+        return math.sqrt(float(np.sum(self.count * self.mean_relative**2)) / total)
+
+    @property
     def significant(self) -> bool:
-        return self.p_value < P_ALARM and self.effect >= MIN_EFFECT
+        """A structure against the angle that is significant and large enough to matter:
+        p < `P_ALARM`, `MIN_EFFECT` sigmas and `RELATIVE_FLOOR` of the signal (for the
+        report's plot; the verdict is the causes')."""
+        return (
+            self.p_value < P_ALARM
+            and self.effect >= MIN_EFFECT
+            and self.relative_spread >= RELATIVE_FLOOR
+        )
 
     def to_dict(self) -> dict:
         return {
@@ -94,6 +109,7 @@ class AngleTrend:
             "f_statistic": _finite(self.f_statistic),
             "p_value": _finite(self.p_value),
             "effect_sigma": _finite(self.effect),
+            "relative_spread": _finite(self.relative_spread),
             "significant": self.significant,
         }
 

@@ -315,8 +315,9 @@ def angle_residual_figure(
 ) -> np.ndarray:
     """Mean relative residual (%) against the mirror and the incidence angle.
 
-    Two panels from a result's ``fit`` (`lightcal.core.misfit.FitDiagnosis.to_dict`): the
-    bins' mean (m_obs - m_render) / m_render, with the F-test's verdict in each title. A
+    Two panels from a result's ``fit`` (`lightcal.core.misfit.FitDiagnosis.to_dict`): each
+    bin's sum (m_obs - m_render) / sum (m_render - offset), with the F-test's verdict in
+    each title ("structure" only when it is also at least 0.3 % of the signal). A
     glossy wall shows a peak at small mirror angles; a wall fitted with the right model
     stays flat at 0. `size` is in layout points.
     """
