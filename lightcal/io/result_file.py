@@ -16,10 +16,14 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   those iterations began when not at the initial guess (a large problem's first solve on
   a subsample of its pixels), in words; empty otherwise.
 - ``parameters``: ``names``, ``x`` and ``covariance`` of the solver's parameter vector.
-- ``fit``: is the fit explained by the noise? ``adequate``, ``noise_source`` (model, image or
-  none), ``chi2``, ``dof``, ``expected_chi2``, ``chi2_per_dof``, ``p_value``, the residuals
-  against the ``mirror`` and ``incidence`` angles (bins, means, F test) and ``findings``
-  (what the tests saw and what to try). docs/model.md, "Is the fit explained by the noise?".
+- ``fit``: is the fit explained by the noise, and does a misfit matter? ``adequate`` (no
+  finding), ``explained_by_noise``, ``noise_source`` (model, image or none), ``chi2``,
+  ``dof``, ``expected_chi2``, ``chi2_per_dof``, ``p_value``, ``excess_relative``,
+  ``jackknife_ratio``, ``causes`` (every candidate cause's test: columns, statistic,
+  p-value, relative effect, BIC gain, pose shift in sigmas, mm and deg, significant,
+  material), ``floors``, the residuals against the ``mirror`` and ``incidence`` angles
+  (for the plot), ``findings`` (what matters and what to try) and ``notes`` (what was
+  seen but is too small to act on). docs/model.md, "Is the fit explained by the noise?".
 - ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
@@ -113,7 +117,8 @@ class ResultFile(_Model):
     warnings: list[str]
     parameters: Parameters
     fit: dict[str, Any] | None = Field(
-        default=None, description="the fit test: adequate, chi2, angle structure, findings"
+        default=None,
+        description="the fit test: adequate, chi2, the candidate causes, findings and notes",
     )
     wall: dict[str, Any] = Field(
         default_factory=lambda: {"model": "lambertian"},
