@@ -115,8 +115,7 @@ def cause_tests(
             out.append(_cause_test(model, x, name, fit, statistical_pose_cov, P))
             shifts[name] = fit.shift
     N_full = model.normal_matrix(x)
-    r_full = model.residuals(x)
-    rss = float(r_full @ r_full)
+    rss = ev.rss
     fit = _image_cause(ev, N_full, P, rss, model.m)
     if fit.k > 0:
         adjusted = max(fit.delta_chi2 - max(expected_extra, 0.0), 0.0)

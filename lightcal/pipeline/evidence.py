@@ -65,6 +65,7 @@ class PixelEvidence:
         signal: (m,) float32 m_render - offset (every light).
         signal2: sum over every pixel of (m_render - offset)^2.
         residual2: sum over every pixel of (m_obs - m_render)^2 (value units).
+        rss: sum over every pixel of r^2, the solver's weighted residuals.
         tested: the rows the other causes are tested on (`TestedRows`).
     """
 
@@ -79,11 +80,12 @@ class PixelEvidence:
     signal: np.ndarray
     signal2: float
     residual2: float
+    rss: float
     tested: TestedRows
 
 
 #: Most pixels per image the candidate causes of a misfit are tested on (a seeded subset).
-CAUSE_ROWS = 10_000
+CAUSE_ROWS = 4000
 
 
 @dataclass(frozen=True)
@@ -135,7 +137,7 @@ def pixel_evidence(
     shares = [np.zeros(len(rig.lights))]
     grams: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     signal_all = np.empty(model.m, dtype=np.float32)
-    sums = [0.0, 0.0]  # signal^2, residual^2
+    sums = [0.0, 0.0, 0.0]  # signal^2, residual^2 (value units), r^2 (solver units)
 
     def exposure(i: int) -> float:
         return float(model.images[i].view.exposure)
@@ -171,8 +173,8 @@ def pixel_evidence(
         if middle is not None:
             add_weighted_gram(A, n, ratio, middle)
         J_i, r_i, sigma_i = A[:, :n], A[:, n], model.sigmas[i]
-        Js = J_i * sigma_i[:, None]
-        grams.append((J_i.T @ J_i, J_i.T @ r_i, Js.T @ Js))
+        grams.append((J_i.T @ J_i, J_i.T @ r_i, _value_gram(J_i, sigma_i)))
+        sums[2] += float(r_i @ r_i)
         signal = lit.sum(axis=0)
         signal_all[rows] = signal
         residual = r_i * sigma_i
@@ -209,8 +211,20 @@ def pixel_evidence(
         signal_all,
         sums[0],
         sums[1],
+        sums[2],
         tested,
     )
+
+
+def _value_gram(J: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """J^T diag(sigma^2) J (n, n) of J (N, n), by blocks of rows (a scaled copy of a
+    dense image's J would be another (N, n) array at the checks' peak)."""
+    n = J.shape[1]
+    out = np.zeros((n, n))
+    for c in _chunks(J.shape[0]):
+        K = J[c] * sigma[c, None]
+        out += K.T @ K
+    return out
 
 
 def _no_features() -> PixelFeatures:
