@@ -66,6 +66,8 @@ def test_glossy_wall_as_lambertian_exits_3(glossy, tmp_path, capsys) -> None:
     assert "it looks glossy (a correction of" in text
     assert "; try `wall: {model: plastic}` (or `auto`)" in text
     assert "exit code 3 (--allow-misfit: 0)" in text
+    assert "the sigmas include: pixel noise (the sensor's noise model)" in text
+    assert "systematic: the shift the gloss cause accounts for" in text
     result = read_result(out)
     assert result.converged
     assert result.fit is not None and result.fit["adequate"] is False

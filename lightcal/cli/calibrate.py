@@ -95,6 +95,10 @@ def run(args: argparse.Namespace) -> int:
             f"robust loss {solver.loss}: f_scale = {cal.outcome.f_scale_used:.4g} ({how})",
             highlight=False,
         )
+    if result.uncertainty_terms:
+        console.print("the sigmas include:", highlight=False)
+        for term in result.uncertainty_terms:
+            console.print(f"  {term}", highlight=False, soft_wrap=True)
     for w in result.warnings:
         console.print(f"warning: {w}", style="yellow", highlight=False)
     if args.report is not None:
