@@ -100,3 +100,37 @@ def test_angle_figure_without_a_panel_says_too_few_pixels():
     assert fig.shape == (340, 900, 3)
     right = fig[:, 450:]
     assert (right < 100).any()
+
+
+def test_cause_figure_colours_findings_and_quiet_causes() -> None:
+    from lightcal.io.cause_figure import _FINDING, _QUIET, _SIGNIFICANT, cause_figure
+
+    def cause(name: str, shift: float | None, significant: bool, material: bool) -> dict:
+        return {
+            "cause": name,
+            "shift_sigma": shift,
+            "relative_effect": 0.01,
+            "significant": significant,
+            "material": material,
+        }
+
+    fit = {
+        "causes": [
+            cause("gloss", 30.0, True, True),
+            cause("ambient", 3.0, True, False),
+            cause("vignetting", 0.5, False, False),
+            cause("images", None, True, True),
+        ],
+        "jackknife_ratio": 5.0,
+        "floors": {"shift_sigma": 1.0},
+    }
+    fig = cause_figure(fit, scale=1.0)
+    assert fig is not None and fig.dtype == np.uint8 and fig.shape[2] == 3
+
+    def count(colour: tuple[int, int, int]) -> int:
+        return int(np.count_nonzero(np.all(fig == np.array(colour, dtype=np.uint8), axis=2)))
+
+    # Bars as long as their log shift: gloss and the jackknife red, ambient orange.
+    assert count(_FINDING) > 2 * count(_SIGNIFICANT) > 0
+    assert count(_QUIET) > 0
+    assert cause_figure({"causes": []}) is None

@@ -38,6 +38,7 @@ from lightcal.core.misfit_verdict import (
     RELATIVE_FLOOR,
     SHIFT_FLOOR_SIGMA,
     CauseTest,
+    is_material,
     verdict,
 )
 from lightcal.core.quantiles import quantiles
@@ -195,7 +196,13 @@ class FitDiagnosis:
                 "jackknife_ratio": JACKKNIFE_FLOOR,
                 "p_alarm": P_ALARM,
             },
-            "causes": [c.to_dict() for c in self.causes],
+            "causes": [
+                {
+                    **c.to_dict(),
+                    "material": not self.explained and is_material(c, self.jackknife_ratio),
+                }
+                for c in self.causes
+            ],
             "mirror": None if self.mirror is None else self.mirror.to_dict(),
             "incidence": None if self.incidence is None else self.incidence.to_dict(),
             "findings": list(self.findings),

@@ -24,6 +24,7 @@ __all__ = [
     "RELATIVE_FLOOR",
     "SHIFT_FLOOR_SIGMA",
     "CauseTest",
+    "is_material",
     "percent",
     "significant_digits",
     "verdict",
@@ -141,7 +142,8 @@ class CauseTest:
         }
 
 
-def _material(c: CauseTest, jackknife_ratio: float) -> bool:
+def is_material(c: CauseTest, jackknife_ratio: float) -> bool:
+    """`CauseTest.material`, for `images` judged by the jackknife ratio (its shift)."""
     if c.name == "images":
         return (
             c.significant
@@ -176,7 +178,7 @@ def verdict(d: FitDiagnosis, wall_model: str) -> tuple[list[str], list[str]]:
     what was seen but is too small to act on."""
     findings: list[str] = []
     notes: list[str] = []
-    material = [c for c in d.causes if not d.explained and _material(c, d.jackknife_ratio)]
+    material = [c for c in d.causes if not d.explained and is_material(c, d.jackknife_ratio)]
     if material:
         c = material[0]
         cause = CAUSES[c.name]
