@@ -1008,7 +1008,10 @@ def _result_text_after_run(project: Path, state: Path) -> tuple[str, bool]:
         _idle(a)
         _set(a.panels.solve.run_button, True)
         _idle(a, 120)
-        return a.panels.result.result_md.content, bool(a.panels.result.fit_plot.visible)
+        panel = a.panels.result
+        # Both pictures of the fit test show with a tested result.
+        assert bool(panel.cause_plot.visible) == bool(panel.fit_plot.visible)
+        return panel.result_md.content, bool(panel.fit_plot.visible)
     finally:
         a.close()
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from lightcal.io.cause_figure import cause_figure
 from lightcal.io.figures import angle_residual_figure
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
@@ -28,6 +29,10 @@ class ResultPanel(TabPanel):
         # Residuals against the mirror / incidence angle (the fit test's picture).
         self.fit_plot = gui.add_image(
             np.full((8, 8, 3), 255, dtype=np.uint8), label="residuals vs angle", visible=False
+        )
+        # The candidate causes of a misfit: how far each would move the pose.
+        self.cause_plot = gui.add_image(
+            np.full((8, 8, 3), 255, dtype=np.uint8), label="misfit causes", visible=False
         )
         self.download_result = gui.add_button("Download result (JSON)", icon=viser.Icon.DOWNLOAD)
         self.download_report = gui.add_button("Download report (zip)", icon=viser.Icon.DOWNLOAD)
@@ -57,3 +62,7 @@ class ResultPanel(TabPanel):
         if fit:
             self.fit_plot.image = angle_residual_figure(fit, size=(720, 300), scale=1)
         self.fit_plot.visible = bool(fit)
+        causes = cause_figure(fit, scale=1) if fit else None
+        if causes is not None:
+            self.cause_plot.image = causes
+        self.cause_plot.visible = causes is not None
