@@ -21,6 +21,7 @@ from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.cause_figure import cause_figure
 from lightcal.io.figures import (
     angle_residual_figure,
     convergence_figure,
@@ -143,6 +144,11 @@ def write_report(
         p = out / "fit_vs_angle.png"
         write_png(p, angle_residual_figure(result.fit))
         written.append(p)
+        causes = cause_figure(result.fit)
+        if causes is not None:
+            p = out / "fit_causes.png"
+            write_png(p, causes)
+            written.append(p)
     p = out / "summary.md"
     atomic_write_text(p, _summary_markdown(project, result, rms_rows))
     written.append(p)
@@ -228,4 +234,7 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
     if fit:
         lines.append("![residuals against angle](fit_vs_angle.png)")
         lines.append("")
+        if fit.get("causes"):
+            lines.append("![how far each candidate cause would move the pose](fit_causes.png)")
+            lines.append("")
     return lines

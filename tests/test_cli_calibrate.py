@@ -61,7 +61,7 @@ def test_calibrate_with_report(dataset, tmp_path, capsys):
     assert np.linalg.norm(np.array(est.position_m) - truth.t_camera_light) < 0.01
     names = [f"view_{i:02d}" for i in range(N_VIEWS)]
     expected = {f"residual_{n}.png" for n in names} | {f"images_{n}.png" for n in names}
-    expected |= {"convergence.png", "summary.md", "fit_vs_angle.png"}
+    expected |= {"convergence.png", "summary.md", "fit_vs_angle.png", "fit_causes.png"}
     assert {p.name for p in report.iterdir()} == expected
     for p in report.iterdir():
         assert p.stat().st_size > 0
