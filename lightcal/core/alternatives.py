@@ -15,13 +15,16 @@ N = J^T J and g = J^T r (0 at the solution of these very rows; not on a subsampl
     dx_c = N^-1 J^T S gamma        (the shift of the estimate the cause accounts for),
     dchi2_c = gamma^T M gamma      (the decrease of the cost it brings).
 
-dx_c is the omitted-variable bias of the estimate under cause c; gamma is tested by a
+dx_c is the omitted-variable bias of the estimate under cause c. gamma is tested by a
 heteroscedasticity-consistent (White) Wald test, which holds whatever the residuals'
-variance does across pixels, and its size is measured
-relative to the signal: the fitted change's energy |C gamma|^2 over the rendered values'
-energy sum (m_render - offset)^2 (`AlternativeTest.relative_effect`). Columns the model
-already spans (a constant ambient when the offset is estimated) drop out of M: its
-eigenvalues below `RANK_TOL` of the largest are not inverted, and k_c counts the rest.
+variance does across pixels (`GramBlocks.StDS`; the F test of dchi2_c without them).
+Its size is the rendered values' net change |C gamma - K dx_c| (K = J sigma: what the
+refitted model parameters take back) relative to the signal's sqrt(sum (m_render -
+offset)^2) (`AlternativeFit.relative_effect`). Where physics fixes a coefficient's sign
+(`GramBlocks.signs`), gamma is the sign-constrained minimiser and dchi2_c its decrease.
+Columns the model already spans (a constant ambient when the offset is estimated) drop
+out of M: its eigenvalues below `RANK_TOL` of the largest are not inverted, and k_c
+counts the rest.
 
 Everything here is linear algebra on Gram matrices (`GramBlocks`); what the columns are
 is `lightcal.core.misfit_causes`.
