@@ -11,10 +11,13 @@ import argparse
 import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 import traceback
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from types import FrameType
 
 from lightcal import __version__
 from lightcal.cli import collector
@@ -78,12 +81,58 @@ def _silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    """SIGTERM's handler: the same as Ctrl-C (KeyboardInterrupt in the main thread)."""
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """While a command runs, SIGTERM (`kill`, a service manager, a CI timeout) ends it as
+    Ctrl-C does: the code unwinds, temporary files are removed and the command says
+    "interrupted" with exit code 130, instead of dying at once (-15) with a hidden `.tmp`
+    of its output left behind. The previous handler comes back afterwards. Only in the
+    main thread (Python delivers signals there; tests may call `main` from others).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def is_interruption(exc: BaseException) -> bool:
+    """Whether `exc` is, or was caused while handling, a KeyboardInterrupt.
+
+    Ctrl-C (or SIGTERM) arriving while a numba kernel is being dispatched makes Python
+    raise the KeyboardInterrupt inside the dispatcher's C code, which then reports
+    `SystemError: CPUDispatcher(<kernel>) returned a result with an exception set`: the
+    KeyboardInterrupt is that error's `__context__` (or `__cause__`). It is an
+    interruption, not a bug in lightcal.
+    """
+    seen: set[int] = set()
+    pending: list[BaseException] = [exc]
+    while pending:
+        current = pending.pop()
+        if id(current) in seen:
+            continue
+        seen.add(id(current))
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        pending.extend(e for e in (current.__cause__, current.__context__) if e is not None)
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one `lightcal` command; returns its exit code.
 
     0 success, 1 a solve that did not converge or an internal error, 2 an input error
     (`lightcal <command>: error: <file>[:<line>]: <what was expected>`) or a usage error
-    (argparse's `usage:` lines), 3 a misfit (see `lightcal calibrate`), 130 Ctrl-C. A
+    (argparse's `usage:` lines), 3 a misfit (see `lightcal calibrate`), 130 Ctrl-C or
+    SIGTERM (`lightcal <command>: interrupted`, temporary files removed). A
     reader that closes the pipe early (`lightcal schema | head -1`) ends it quietly with 0.
     """
     _usable_streams()
@@ -92,31 +141,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = "--debug" in words  # anywhere: `lightcal calibrate ... --debug` too
     words = [w for w in words if w != "--debug"]
     try:
-        parser = build_parser()
-        args = parser.parse_args(words)
-        command = f"lightcal {args.command}"
-        return int(args.func(args))
-    except LightcalError as exc:
-        _say(f"{command}: error: {exc}")
-        return 2
+        with _sigterm_as_interrupt():
+            parser = build_parser()
+            args = parser.parse_args(words)
+            command = f"lightcal {args.command}"
+            return int(args.func(args))
     except KeyboardInterrupt:
         _say(f"{command}: interrupted")
         return 130
-    except BrokenPipeError:
+    except Exception as exc:
+        if not is_interruption(exc):  # (an error while unwinding from Ctrl-C is Ctrl-C)
+            return _report_error(exc, command, debug=debug)
+        _say(f"{command}: interrupted")
+        return 130
+
+
+def _report_error(exc: Exception, command: str, *, debug: bool) -> int:
+    """Say what went wrong in one line (see `main`); returns the exit code."""
+    if isinstance(exc, LightcalError):
+        _say(f"{command}: error: {exc}")
+        return 2
+    if isinstance(exc, BrokenPipeError):
         _silence_stdout()
         return 0
-    except OSError as exc:  # the file system said no (permissions, a full disk, ...)
+    if isinstance(exc, OSError):  # the file system said no (permissions, a full disk, ...)
         where = exc.filename if exc.filename is not None else "a file"
         _say(f"{command}: error: {where}: {exc.strerror or exc}")
         return 2
-    except Exception as exc:  # an internal error: one line, the traceback on request
-        if debug:
-            traceback.print_exc()
-        _say(
-            f"{command}: internal error: {type(exc).__name__}: {exc} "
-            "(a bug in lightcal: run again with --debug for the traceback and report it)"
-        )
-        return 1
+    # an internal error: one line, the traceback on request
+    if debug:
+        traceback.print_exception(exc)
+    _say(
+        f"{command}: internal error: {type(exc).__name__}: {exc} "
+        "(a bug in lightcal: run again with --debug for the traceback and report it)"
+    )
+    return 1
 
 
 def entry() -> int:

@@ -3,7 +3,10 @@
 The data goes to a temporary file in the same folder (same file system, so the final
 `os.replace` is atomic), is flushed and fsync'ed, and only then replaces the target.
 If anything fails on the way (including an exception raised by the iterable that
-produces the data), the temporary file is removed and the old file is left untouched.
+produces the data, and a KeyboardInterrupt: Ctrl-C, or SIGTERM in the CLI), the temporary
+file is removed and the old file is left untouched. The temporary file's name is chosen
+before it is created and removed by that name on any exit, so an interruption between
+creating it and the cleanup code leaves nothing behind either.
 `atomic_create_bytes` is the same for a file that must not exist yet: the temporary
 file is hard-linked to the target, which fails instead of replacing a file.
 """
@@ -38,14 +41,14 @@ def atomic_write_bytes(
             is unchanged and no temporary file is left behind.
     """
     target = Path(path)
-    temp = _temporary_copy(target, data)
+    temp = _temporary_name(target)
     try:
+        _write_new(temp, data)
         with contextlib.suppress(FileNotFoundError):
             temp.chmod(target.stat().st_mode & 0o7777)
         temp.replace(target)
     except BaseException:
-        with contextlib.suppress(OSError):
-            temp.unlink()
+        _remove(temp)
         raise
     _fsync_folder(target.parent)
 
@@ -63,40 +66,48 @@ def atomic_create_bytes(path: str | Path, data: bytes | bytearray | memoryview) 
             left behind.
     """
     target = Path(path)
-    temp = _temporary_copy(target, data)
+    temp = _temporary_name(target)
     try:
+        _write_new(temp, data)
         try:
             os.link(temp, target)
         except FileExistsError:
             raise
         except OSError:  # no hard links on this file system: exclusive create instead
             fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _NEW_FILE_MODE)
-            with os.fdopen(fd, "wb") as stream:
-                stream.write(data)
+            try:
+                with os.fdopen(fd, "wb") as stream:
+                    stream.write(data)
+            except BaseException:  # the file is ours: no half of it stays
+                _remove(target)
+                raise
     finally:
-        with contextlib.suppress(OSError):
-            temp.unlink()
+        _remove(temp)
     _fsync_folder(target.parent)
 
 
-def _temporary_copy(target: Path, data: bytes | bytearray | memoryview | Iterable[bytes]) -> Path:
-    """A new hidden file beside `target` holding `data`, flushed to disk."""
-    temp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+def _temporary_name(target: Path) -> Path:
+    """A new hidden name beside `target` (48 random bits: no other file has it)."""
+    return target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+
+
+def _write_new(temp: Path, data: bytes | bytearray | memoryview | Iterable[bytes]) -> None:
+    """Create `temp` holding `data`, flushed to disk (the caller removes it on failure)."""
     fd = os.open(temp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _NEW_FILE_MODE)
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            if isinstance(data, bytes | bytearray | memoryview):
-                stream.write(data)
-            else:
-                for chunk in data:
-                    stream.write(chunk)
-            stream.flush()
-            os.fsync(stream.fileno())
-    except BaseException:
-        with contextlib.suppress(OSError):
-            temp.unlink()
-        raise
-    return temp
+    with os.fdopen(fd, "wb") as stream:
+        if isinstance(data, bytes | bytearray | memoryview):
+            stream.write(data)
+        else:
+            for chunk in data:
+                stream.write(chunk)
+        stream.flush()
+        os.fsync(stream.fileno())
+
+
+def _remove(temp: Path) -> None:
+    """Remove a temporary file if it is there (after a rename it is not)."""
+    with contextlib.suppress(OSError):
+        temp.unlink()
 
 
 def atomic_write_text(path: str | Path, text: str, *, encoding: str = "utf-8") -> None:
