@@ -591,7 +591,7 @@ COMMAND_CASES: list[tuple[str, str, str]] = [
     (
         "export: folder missing",
         "export {r} --format opencv --out {t}/no/x.yaml",
-        "lightcal export: error: {t}/no/x.yaml: cannot write: folder '{t}/no' does not exist",
+        "lightcal export: error: {t}/no/x.yaml: --out: the folder {t}/no does not exist; create it first",
     ),
     (
         "export: onto an existing file",

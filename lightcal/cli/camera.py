@@ -121,6 +121,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from lightcal.io.board_file import read_board
     from lightcal.io.camera_file import write_camera
     from lightcal.io.images import read_image
+    from lightcal.io.outputs import check_output_file
 
     board = read_board(args.board)
     if not isinstance(board, Chessboard | CharucoBoard):
@@ -131,6 +132,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
         )
     paths = _expand(list(args.images))
     all_names = _display_names(paths)
+    # Before any work: --out is never the board file or one of the photos it reads.
+    inputs = {args.board.resolve(): "the board file"}
+    for path, name in zip(paths, all_names, strict=True):
+        inputs.setdefault(path.resolve(), f"image {name}")
+    check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the calibration")
     images = []
     names = []
     unreadable: dict[str, str] = {}
@@ -169,7 +175,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def run_import(args: argparse.Namespace) -> int:
     from lightcal.io.camera_file import read_camera, write_camera
+    from lightcal.io.outputs import check_output_file
 
+    inputs = {args.file.resolve(): "the camera file"}
+    check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the import")
     camera = read_camera(args.file, camera_id=args.camera_id)
     write_camera(camera, args.out)
     print(_describe(camera))

@@ -33,15 +33,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.io.export import export_result
+    from lightcal.io.outputs import check_output_file, project_inputs
     from lightcal.io.result_file import read_result
 
-    result = read_result(args.result)
+    # Before any work: --out is never a file this export reads (the result, the project
+    # and the files it names, such as a light's IES), even with --force.
+    inputs = {args.result.resolve(): "the result file"}
+    project = None
     if args.project is not None:
-        from lightcal.cli.progress import ensure_kernels
-        from lightcal.io.export import with_given_rids
         from lightcal.io.project import load_project
 
         project = load_project(args.project)
+        inputs.update(project_inputs(project))
+    check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the export")
+    result = read_result(args.result)
+    if project is not None:
+        from lightcal.cli.progress import ensure_kernels
+        from lightcal.io.export import with_given_rids
+
         ensure_kernels()  # analytic RIDs are sampled with the compiled evaluator
         rids = {unknown.initial.name: unknown.initial.rid for unknown in project.lights}
         result = with_given_rids(result, rids)

@@ -29,7 +29,13 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_write_bytes
     from lightcal.io.figures import image_pair_figure, write_png
-    from lightcal.io.outputs import check_output_folder, inside, project_inputs, safe_names
+    from lightcal.io.outputs import (
+        check_output_file,
+        check_output_folder,
+        inside,
+        project_inputs,
+        safe_names,
+    )
     from lightcal.io.project import load_project
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
@@ -37,6 +43,19 @@ def run(args: argparse.Namespace) -> int:
 
     project = load_project(args.project)
     result = read_result(args.result)
+    # Before any work: --out holds no input of the project, and no render replaces the
+    # result file (even with --force).
+    check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
+    files = safe_names(project.names)  # image names come from the data: one plain part each
+    if args.out.is_dir():
+        for file in files:
+            for kind in ("rendered.tif", "compare.png"):
+                check_output_file(
+                    inside(args.out, f"{file}_{kind}"),
+                    option="--out",
+                    inputs={args.result.resolve(): "the result file"},
+                    inputs_of="the render",
+                )
     ensure_kernels()
     by_name = {lr.name: lr for lr in result.lights}
     lights = []
@@ -58,7 +77,6 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
-    check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
@@ -71,7 +89,6 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
             wall=wall,
         )
-    files = safe_names(project.names)  # image names come from the data: one plain part each
     for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)
         buf = io.BytesIO()

@@ -3,7 +3,8 @@
 - `project_inputs`: every file a project reads (the project, images, masks, camera, RID,
   vignetting and response files), by role.
 - `check_output_file` / `check_output_folder`: an output path is refused when it is an
-  input of the project (or a folder holding one, for folders written into), a folder
+  input of the project or the command (the result, board or camera file it reads: never
+  replaced, even with `--force`), or a folder holding one (for folders written into), a folder
   where a file is expected (or the reverse), in a folder that does not exist or is not
   writable, has a name longer than the file system allows, or replaces existing results
   without `force`. Checked before the work starts, so a long solve never ends in an
@@ -75,11 +76,19 @@ def _check_parent(path: Path, option: str) -> None:
 
 
 def check_output_file(
-    path: Path, *, option: str, inputs: dict[Path, str] | None = None, force: bool = True
+    path: Path,
+    *,
+    option: str,
+    inputs: dict[Path, str] | None = None,
+    force: bool = True,
+    inputs_of: str = "the project",
 ) -> Path:
     """Validate a file the command will write (see the module docstring); returns it.
 
+    inputs: every file the command reads, resolved, with its role; never replaced, even
+        with `force`.
     force: False refuses an existing file (results the user may want to keep).
+    inputs_of: whose inputs they are, for the message ("the project", "the export").
     """
     path = Path(path)
     _check_name(path, option)
@@ -89,7 +98,7 @@ def check_output_file(
         raise InputError(path, f"{option}: is not a regular file; expected a file to write")
     for p, role in (inputs or {}).items():
         if _same_file(path, p):
-            raise InputError(path, f"{option}: is {role}, an input of the project; write elsewhere")
+            raise InputError(path, f"{option}: is {role}, an input of {inputs_of}; write elsewhere")
     _check_parent(path, option)
     if path.exists() and not force:
         raise InputError(path, f"{option}: exists; use --force to replace it")
