@@ -182,3 +182,17 @@ def test_render_never_replaces_the_result_even_with_force(data, tmp_path, capsys
         "render; write elsewhere"
     )
     assert sorted(p.name for p in out.iterdir()) == ["view_02_rendered.tif"]
+
+
+def test_export_never_replaces_an_input_with_a_mitsuba_texture(data, tmp_path, capsys):
+    """The texture written beside --out (`<stem>_rid_0.png`) is checked as --out is."""
+    result = tmp_path / "scene_rid_0.png"
+    shutil.copy(data / "result.json", result)
+    out = tmp_path / "scene.xml"
+    argv = ["export", str(result), "--format", "mitsuba", "--out", str(out), "--force"]
+    argv += ["--project", str(data / "project.json")]
+    assert _refused(argv, result, capsys) == (
+        f"lightcal export: error: {result}: --out: is the result file, an input of the "
+        "export; write elsewhere"
+    )
+    assert not out.exists()

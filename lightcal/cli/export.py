@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.io.export import export_result
+    from lightcal.io.export import export_files, export_result
     from lightcal.io.outputs import check_output_file, project_inputs
     from lightcal.io.result_file import read_result
 
@@ -54,6 +54,10 @@ def run(args: argparse.Namespace) -> int:
         ensure_kernels()  # analytic RIDs are sampled with the compiled evaluator
         rids = {unknown.initial.name: unknown.initial.rid for unknown in project.lights}
         result = with_given_rids(result, rids)
+    # The files --out refers to (Mitsuba's textures, beside it) are no input either.
+    files = export_files(result, args.format, args.out, source=args.result, light_name=args.light)
+    for path in list(files)[1:]:
+        check_output_file(path, option="--out", inputs=inputs, inputs_of="the export")
     written = export_result(
         result,
         args.format,
