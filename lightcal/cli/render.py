@@ -43,20 +43,6 @@ def run(args: argparse.Namespace) -> int:
 
     project = load_project(args.project)
     result = read_result(args.result)
-    # Before any work: --out holds no input of the project, and no render replaces the
-    # result file (even with --force).
-    check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
-    files = safe_names(project.names)  # image names come from the data: one plain part each
-    if args.out.is_dir():
-        for file in files:
-            for kind in ("rendered.tif", "compare.png"):
-                check_output_file(
-                    inside(args.out, f"{file}_{kind}"),
-                    option="--out",
-                    inputs={args.result.resolve(): "the result file"},
-                    inputs_of="the render",
-                )
-    ensure_kernels()
     by_name = {lr.name: lr for lr in result.lights}
     lights = []
     for unknown in project.lights:
@@ -77,6 +63,20 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
+    # Before any work: --out holds no input of the project, and no render replaces the
+    # result file (even with --force).
+    check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
+    files = safe_names(project.names)  # image names come from the data: one plain part each
+    if args.out.is_dir():
+        for file in files:
+            for kind in ("rendered.tif", "compare.png"):
+                check_output_file(
+                    inside(args.out, f"{file}_{kind}"),
+                    option="--out",
+                    inputs={args.result.resolve(): "the result file"},
+                    inputs_of="the render",
+                )
+    ensure_kernels()
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
