@@ -148,3 +148,18 @@ def test_project_with_a_few_anchors_still_loads(tiny_dataset: Path) -> None:
     finally:
         path.unlink()
     assert len(loaded.views) == len(project["images"])
+
+
+def test_a_camera_file_bomb_is_refused_with_the_file_named(tmp_path) -> None:
+    from lightcal.io.camera_file import read_camera
+
+    lines = ["a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]"]
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 10)]
+    path = tmp_path / "camera.yaml"
+    path.write_text("\n".join(lines) + "\ncamera_matrix: *a9\n")
+    with pytest.raises(InputError) as info:
+        read_camera(path)
+    assert str(info.value) == (
+        f"{path}: the camera file has too many YAML aliases (they repeat over 100,000 "
+        "values): expected a plain camera file"
+    )

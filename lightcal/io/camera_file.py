@@ -49,6 +49,7 @@ from lightcal.io.camera_mapping import (
     build_camera,
     camera_from_mapping,
 )
+from lightcal.io.document import check_bounds
 from lightcal.io.image_header import MAX_IMAGE_SIDE
 from lightcal.io.text_files import check_regular_file, read_text
 
@@ -211,12 +212,15 @@ def _looks_like_opencv_yaml(text: str) -> bool:
 
 def _load_plain_yaml(path: Path, text: str) -> Any:
     try:
-        return yaml.safe_load(text)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         problem = getattr(error, "problem", None) or str(error)
         line = None if mark is None else mark.line + 1
         raise InputError(path, f"not valid YAML: {problem}", line=line) from error
+    # Bounded like every other document lightcal reads (an alias bomb, a deep nesting).
+    check_bounds(data, path=path, what="camera file")
+    return data
 
 
 _CV_ERROR = re.compile(r"error: \(-?\d+:(?P<kind>[^)]*)\) (?P<detail>.*)", re.DOTALL)
