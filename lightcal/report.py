@@ -22,6 +22,7 @@ from lightcal.core.solver import CalibrationModel
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.cause_figure import cause_figure
+from lightcal.io.escaping import markdown_prose, markdown_text
 from lightcal.io.figures import (
     angle_residual_figure,
     convergence_figure,
@@ -158,16 +159,16 @@ def write_report(
 def _summary_markdown(
     project: Project, result: CalibrationResult, rms_rows: list[tuple[str, float]]
 ) -> str:
-    lines = [f"# lightcal report: {project.path.name}", ""]
+    lines = [f"# lightcal report: {markdown_text(project.path.name)}", ""]
     status = "converged" if result.converged else "NOT converged"
     lines.append(
         f"Solver {status} after {result.iterations} iterations: "
-        f"{stop_reason(result.status, result.message)}; "
+        f"{markdown_prose(stop_reason(result.status, result.message))}; "
         f"{sum(result.pixels_used)} pixels; {result.time_s:.2f} s."
     )
     lines.append("")
     for lr in result.lights:
-        lines.append(f"## {lr.name} ({lr.pose_kind})")
+        lines.append(f"## {markdown_text(lr.name)} ({markdown_text(lr.pose_kind)})")
         lines.append("")
         lines.append(f"- position (camera frame): {position_text(lr)}")
         if axis_text(lr):
@@ -180,7 +181,7 @@ def _summary_markdown(
     if result.warnings:
         lines.append("## Warnings")
         lines.append("")
-        lines.extend(f"- {w}" for w in result.warnings)
+        lines.extend(f"- {markdown_prose(w)}" for w in result.warnings)
         lines.append("")
     lines.append("## Images")
     lines.append("")
@@ -189,15 +190,14 @@ def _summary_markdown(
     sel_rms = dict(zip(result.image_names, result.per_image_rms, strict=True))
     used = dict(zip(result.image_names, result.pixels_used, strict=True))
     for name, rms in rms_rows:
-        lines.append(
-            f"| {name} | {used.get(name, 0)} | {sel_rms.get(name, math.nan):.4g} | {rms:.4g} |"
-        )
+        sel = sel_rms.get(name, math.nan)
+        lines.append(f"| {markdown_text(name)} | {used.get(name, 0)} | {sel:.4g} | {rms:.4g} |")
     lines.append("")
     lines.append("![convergence](convergence.png)")
     lines.append("")
     if result.start:
         drawn = " (its iterations are the grey curve)" if result.start_costs else ""
-        lines.append(f"Iteration 0 is {result.start}{drawn}.")
+        lines.append(f"Iteration 0 is {markdown_prose(result.start)}{drawn}.")
         lines.append("")
     return "\n".join(lines)
 
@@ -211,7 +211,10 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         for k, v in wall.items()
         if isinstance(v, float)
     )
-    lines.append(f"- wall: {wall.get('model', 'lambertian')}" + (f" ({params})" if params else ""))
+    lines.append(
+        f"- wall: {markdown_text(wall.get('model', 'lambertian'))}"
+        + (f" ({params})" if params else "")
+    )
     fit = result.fit
     if fit:
         if not fit["adequate"]:
@@ -225,11 +228,11 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
             f"- fit: {verdict} (noise from {fit['noise_source']}; chi2 {fit['chi2']:.4g}, "
             f"expected {fit['expected_chi2']:.4g}, ratio {ratio:.3f})"
         )
-        lines.extend(f"  - {f}" for f in fit["findings"])
-        lines.extend(f"  - note: {n}" for n in fit.get("notes", []))
+        lines.extend(f"  - {markdown_prose(f)}" for f in fit["findings"])
+        lines.extend(f"  - note: {markdown_prose(n)}" for n in fit.get("notes", []))
     if result.uncertainty_terms:
         lines.append("- the sigmas include:")
-        lines.extend(f"  - {t}" for t in result.uncertainty_terms)
+        lines.extend(f"  - {markdown_prose(t)}" for t in result.uncertainty_terms)
     lines.append("")
     if fit:
         lines.append("![residuals against angle](fit_vs_angle.png)")

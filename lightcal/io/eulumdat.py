@@ -60,6 +60,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lightcal.errors import InputError
+from lightcal.io.escaping import plain_line
 from lightcal.io.photometric_table import (
     PhotometricTable,
     Symmetry,
@@ -82,6 +83,7 @@ _SYMMETRY_OF_ISYM: dict[int, Symmetry] = {
 _ISYM_OF_SYMMETRY = {symmetry: isym for isym, symmetry in _SYMMETRY_OF_ISYM.items()}
 _LINES_PER_LAMP_SET = 6
 _N_DIRECT_RATIOS = 10
+_MAX_TEXT_CHARS = 78  # EULUMDAT text lines (company, luminaire name): at most 78
 _AXIAL_MC = 24
 """C-planes declared for an axially symmetric table written by `write_ldt` (Dc = 15)."""
 
@@ -352,7 +354,7 @@ def write_ldt(
         return format_number(value, digits)
 
     out = [
-        company,
+        plain_line(company, max_chars=_MAX_TEXT_CHARS),
         "1" if isym == 1 else "3",
         str(isym),
         str(c_angles.size),
@@ -360,9 +362,9 @@ def write_ldt(
         str(gamma.size),
         num(_spacing(gamma, None)),
         "",
-        " ".join(table.luminaire.split()),
+        plain_line(table.luminaire, max_chars=_MAX_TEXT_CHARS),
         "",
-        path.name,
+        plain_line(path.name, max_chars=_MAX_TEXT_CHARS),
         "",
         *["0"] * 9,
         "0",

@@ -38,6 +38,7 @@ from lightcal.core.camera_frames import (
 )
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
+from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import (
     FRAME_NOTE,
     LightRID,
@@ -78,14 +79,15 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
         "export.yaml",
         cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML,
     )
-    fs.write("lightcal_version", result.lightcal_version)
+    # cv2 quotes and escapes strings itself, but cuts them at a NUL and refuses long ones
+    fs.write("lightcal_version", plain_line(result.lightcal_version))
     fs.write("frame", FRAME_NOTE)
     fs.write("lights_count", len(result.lights))
     fs.startWriteStruct("lights", cv2.FileNode_SEQ)
     for light in result.lights:
         sigma = light.sigma  # every sigma is known: `export_files` refuses undetermined
         fs.startWriteStruct("", cv2.FileNode_MAP)
-        fs.write("name", light.name)
+        fs.write("name", plain_line(light.name))
         fs.write("pose_kind", light.pose_kind)
         fs.write("T_camera_light", light_transform(light))
         fs.write("position_m", np.array(light.position_m, dtype=np.float64).reshape(3, 1))
@@ -116,7 +118,9 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
 
 # ---------------------------------------------------------------------------- blender
 
-_BLENDER_TEMPLATE = '''"""Calibrated lights from lightcal {version} for Blender.
+# Strings from the result reach the snippet only as `repr` literals (LIGHTCAL_VERSION,
+# LIGHTS): never inside the docstring or a comment.
+_BLENDER_TEMPLATE = '''"""Calibrated lights from lightcal (version: LIGHTCAL_VERSION) for Blender.
 
 Run it in Blender's Python console or Text Editor. Each light is added as a child of
 the camera CAMERA_NAME (the scene's active camera when None), its matrix_local given in
@@ -131,6 +135,7 @@ half-intensity angle.
 import bpy
 from mathutils import Matrix
 
+LIGHTCAL_VERSION = {version}
 CAMERA_NAME = None
 
 LIGHTS = {lights}
@@ -180,7 +185,8 @@ def _blender_snippet(result: ResultFile, source: str | Path) -> bytes:
         spec["matrix_blendercam_light"] = tuple(tuple(float(v) for v in row) for row in M)
         specs.append(spec)
     lights = "[\n" + "".join(f"    {spec!r},\n" for spec in specs) + "]"
-    return _BLENDER_TEMPLATE.format(version=result.lightcal_version, lights=lights).encode()
+    version = repr(plain_line(result.lightcal_version))
+    return _BLENDER_TEMPLATE.format(version=version, lights=lights).encode()
 
 
 # ------------------------------------------------------------------------ photometric

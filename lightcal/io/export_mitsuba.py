@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,6 +13,7 @@ from lightcal.core.camera_frames import (
     mitsuba_from_opencv,
     mitsuba_spot_cone,
 )
+from lightcal.io.escaping import xml_attribute, xml_comment
 from lightcal.io.export_lights import LightRID, light_rid, light_transform
 from lightcal.io.result_file import ResultFile
 
@@ -94,7 +94,7 @@ def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pat
     files: dict[Path, bytes] = {}
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
-        f"<!-- lightcal {escape(result.lightcal_version)}: calibrated lights, camera frame.",
+        f"<!-- lightcal {xml_comment(result.lightcal_version)}: calibrated lights, camera frame.",
         "     The sensor sits at the origin in Mitsuba's camera convention (looking down +z,",
         "     +y up, +x to the image's left); each emitter's to_world is",
         "     diag(-1, -1, 1, 1) @ T_camera_light (OpenCV frame: x right, y down, z forward;",
@@ -112,7 +112,7 @@ def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pat
         rid = light_rid(light, source)
         M = mitsuba_from_opencv(light_transform(light))
         kind = "point" if light.pose_kind == "isotropic" else "spot"
-        lines.append(f'    <emitter type="{kind}" id={quoteattr(light.name)}>')
+        lines.append(f'    <emitter type="{kind}" id={xml_attribute(light.name)}>')
         intensity = 1.0
         if kind == "spot" and rid is not None:
             cutoff_rad, texture = spot_texture(rid)
@@ -124,7 +124,7 @@ def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pat
                 f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>',
                 f'        <float name="beam_width" value="{cutoff_deg!r}"/>',
                 '        <texture type="bitmap" name="texture">',
-                f'            <string name="filename" value={quoteattr(name)}/>',
+                f'            <string name="filename" value={xml_attribute(name)}/>',
                 '            <boolean name="raw" value="true"/>',
                 "        </texture>",
             ]

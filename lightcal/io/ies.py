@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lightcal.errors import InputError
+from lightcal.io.escaping import plain_line
 from lightcal.io.photometric_table import (
     PhotometricTable,
     Symmetry,
@@ -77,6 +78,7 @@ _KEYWORD_LINE = re.compile(r"\[\s*([^\]]*?)\s*\]\s?(.*)")
 _SEPARATORS = re.compile(r"[\s,]+")
 _PHOTOMETRIC_TYPE_NAMES = {2: "type B", 3: "type A"}
 _NUMBERS_PER_LINE = 10
+_MAX_LINE_CHARS = 256  # LM-63-2002: no line longer
 
 
 @dataclass
@@ -387,7 +389,12 @@ def write_ies(
 
     out = ["IESNA:LM-63-2002"]
     for key, value in entries.items():
-        parts = str(value).splitlines() or [""]
+        # Each line printable and within LM-63's 256 characters: no value adds a line
+        # of its own (a `TILT=`) or a control character.
+        parts = [
+            plain_line(part, max_chars=_MAX_LINE_CHARS - len("[MORE] ") - len(key))
+            for part in str(value).splitlines()
+        ] or [""]
         out.append(f"[{key}] {parts[0]}".rstrip())
         out += [f"[MORE] {part}".rstrip() for part in parts[1:]]
     lumens = "-1" if table.lamp_lumens is None else format_number(table.lamp_lumens, digits)
