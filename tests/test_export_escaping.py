@@ -49,6 +49,9 @@ HOSTILE = [
     "%YAML 1.0\n---\nname: x",
     "| a | b |\n# heading [link](http://x) ![img](http://x/i.png) <script>x</script>",
     "{version} {lights} %s",
+    '"',
+    '"a" , evil: "b"',  # cv2 writes a string in matching quotes as is
+    "'a\\' x: 'b'",
 ]
 
 BENIGN = "light"
@@ -272,3 +275,61 @@ def test_fuzz_every_format_escapes_random_names_and_versions(name, version, tmp_
         path = tmp_path / f"fuzz.{fmt}"
         path.write_bytes(_export(result, fmt, tmp_path))
         assert read(path).candela.shape[-1] >= 10
+
+
+def _summary(name: str):
+    """The report's Markdown summary of a one-light, one-image result named `name`."""
+    from types import SimpleNamespace as NS
+
+    from lightcal.report import _summary_markdown
+
+    light = NS(
+        name=name,
+        pose_kind="general",
+        pose=NS(
+            t_camera_light=[0.1, 0.0, 0.5],
+            axis_camera=[0.0, 0.0, 1.0],
+            roll_deg=1.0,
+            pitch_deg=2.0,
+            axis_angle_from_optical_axis_deg=2.2,
+        ),
+        sigma=NS(
+            t_camera_light=[1e-3] * 3,
+            roll_deg=0.1,
+            pitch_deg=0.1,
+            axis_angle_from_optical_axis_deg=0.1,
+        ),
+        scale=1.0,
+        scale_sigma=0.01,
+    )
+    result = NS(
+        converged=True,
+        iterations=3,
+        status=2,
+        message=name,
+        pixels_used=[10],
+        time_s=0.1,
+        lights=[light],
+        warnings=[f"light {name!r} is dim"],
+        image_names=[name],
+        per_image_rms=[0.1],
+        wall={"model": name},
+        fit=None,
+        uncertainty_terms=[name],
+        start=name,
+        start_costs=[],
+    )
+    project = NS(path=Path(name.replace("/", "_") or "p"))
+    return _summary_markdown(project, result, [(name, 0.1)])  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("hostile", HOSTILE)
+def test_report_summary_shows_hostile_names_as_text(hostile):
+    benign = _summary(BENIGN).splitlines()
+    lines = _summary(hostile).splitlines()
+    assert len(lines) == len(benign)  # no name adds a line, heading or list item
+    assert [line[:2] for line in lines] == [line[:2] for line in benign]
+    table = [line for line in lines if line.startswith("| ")]
+    assert all(line.replace("\\|", "").count("|") == 5 for line in table)
+    text = "\n".join(lines)
+    assert "<" not in text and "](http" not in text.replace("\\](http", "")

@@ -37,7 +37,11 @@ MAX_NAME_CHARS = 200
 _UNSAFE = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]")
 _BLANKS = re.compile(r"\s+")
 _MARKDOWN_LINKS = re.compile(r"([\\\[\]!])")
-_MARKDOWN_SPECIAL = re.compile(r"([\\`*_{}\[\]()#+\-.!|~])")
+# Markdown syntax a name could start: emphasis, code, links and images, tables, strike,
+# headings; `_` only at a word's edge (inside a word it is text: view_01); a list or
+# numbered-list marker only at the start.
+_MARKDOWN_SPECIAL = re.compile(r"([\\`*\[\]!|~#]|(?<![0-9A-Za-z])_|_(?![0-9A-Za-z]))")
+_MARKDOWN_LIST_MARKER = re.compile(r"^([-+]|\d+(?=[.)]))")
 
 
 def plain_line(text: object, *, max_chars: int = MAX_NAME_CHARS) -> str:
@@ -63,7 +67,10 @@ def xml_comment(text: object, *, max_chars: int = MAX_NAME_CHARS) -> str:
 def markdown_text(text: object, *, max_chars: int = 1000) -> str:
     """`text` shown literally in Markdown: one line, no HTML, no links, images or formatting."""
     plain = html.escape(plain_line(text, max_chars=max_chars), quote=False)
-    return _MARKDOWN_SPECIAL.sub(r"\\\1", plain)
+    plain = _MARKDOWN_SPECIAL.sub(r"\\\1", plain)
+    return _MARKDOWN_LIST_MARKER.sub(
+        lambda m: m.group(1) + "\\" if m.group(1)[0].isdigit() else "\\" + m.group(1), plain
+    )
 
 
 def markdown_prose(text: object, *, max_chars: int = 4000) -> str:

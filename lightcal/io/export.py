@@ -79,15 +79,14 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
         "export.yaml",
         cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML,
     )
-    # cv2 quotes and escapes strings itself, but cuts them at a NUL and refuses long ones
-    fs.write("lightcal_version", plain_line(result.lightcal_version))
+    fs.write("lightcal_version", _opencv_text(result.lightcal_version))
     fs.write("frame", FRAME_NOTE)
     fs.write("lights_count", len(result.lights))
     fs.startWriteStruct("lights", cv2.FileNode_SEQ)
     for light in result.lights:
         sigma = light.sigma  # every sigma is known: `export_files` refuses undetermined
         fs.startWriteStruct("", cv2.FileNode_MAP)
-        fs.write("name", plain_line(light.name))
+        fs.write("name", _opencv_text(light.name))
         fs.write("pose_kind", light.pose_kind)
         fs.write("T_camera_light", light_transform(light))
         fs.write("position_m", np.array(light.position_m, dtype=np.float64).reshape(3, 1))
@@ -114,6 +113,19 @@ def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
         fs.endWriteStruct()
     fs.endWriteStruct()
     return fs.releaseAndGetString().encode("utf-8")
+
+
+def _opencv_text(text: str) -> str:
+    """`text` as `plain_line` for `cv2.FileStorage.write`, which reads back the same.
+
+    cv2 quotes and escapes a string itself, but cuts it at a NUL, refuses one longer than
+    its buffer, and writes one that starts and ends with the same quote character as it
+    is (as if already quoted: `"a" b: "c"` would add a key): that one is quoted here.
+    """
+    line = plain_line(text)
+    if line and line[0] == line[-1] and line[0] in "\"'":
+        return '"' + line.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return line
 
 
 # ---------------------------------------------------------------------------- blender
