@@ -261,7 +261,8 @@ def test_a_light_that_lights_nothing_is_undetermined_never_plus_minus_0() -> Non
     )
     assert result.undetermined[1] == (
         "light 'light' lights none of the selected pixels at the solution (it points away or "
-        "sits behind the wall): its pose is not determined"
+        "sits behind the wall): its pose is not determined; start it nearer its true pose, or "
+        "calibrate the lights one at a time"
     )
     assert any("lights none of the selected pixels" in w for w in result.warnings)
     light = result.lights[0]

@@ -270,7 +270,7 @@ def summarise(
         if unknown
         else []
     )
-    undetermined += [w.split(":")[0] + ": its pose is not determined" for w in dark]
+    undetermined += dark  # a light that lights no selected pixel: its pose is not determined
     breakdown = _breakdown(model, unc.components, jacobians, unknown)
     offset_sigma = None
     if lay.offset_index is not None:
