@@ -171,6 +171,7 @@ from lightcal.synthetic.scenes import (
     sample_views,
     white_level,
 )
+from lightcal.synthetic.texture import AlbedoTexture, sample_albedo_texture
 
 if TYPE_CHECKING:
     import pytest
@@ -201,8 +202,6 @@ VIGNETTING_COEFFS = (-0.25, 0.05)
 INTERREFLECTION = {"distance_m": 0.7, "depth_m": 0.5, "albedo": ALBEDO, "max_depth": 5}
 BOW = {"depth_mm": 5.0, "radius_m": 1.0}
 ALBEDO_AMPLITUDE = 0.1
-ALBEDO_WAVELENGTHS_M = (0.2, 0.6)
-ALBEDO_WAVES = 6
 ATTENUATION_PER_M = 0.2
 
 DEFAULT_SPP: dict[str, int] = {name: 16 for name in SCENARIOS} | {"interreflection": 192}
@@ -587,61 +586,16 @@ def _dome(center_xy: tuple[float, float], bsdf: dict[str, Any]) -> dict[str, Any
     }
 
 
-@dataclass(frozen=True, eq=False)
-class AlbedoWaves:
-    """The albedo factor 1 + A t(x, y), t = sum_k w_k sin(k_k . (x, y) + phase_k), the
-    weights summing to 1 (|t| <= 1): `lightcal.synthetic.texture`'s definition.
-
-    Attributes:
-        amplitude: A.
-        wavevectors_per_m: (K, 2) rad / m.
-        phases_rad: (K,).
-        weights: (K,) positive, summing to 1.
-    """
-
-    amplitude: float
-    wavevectors_per_m: NDArray[np.float64]
-    phases_rad: NDArray[np.float64]
-    weights: NDArray[np.float64]
-
-    @classmethod
-    def sample(cls, amplitude: float, rng: np.random.Generator) -> AlbedoWaves:
-        """Wavelengths U(0.2, 0.6) m, directions and phases uniform, weights U(0.5, 1)."""
-        wavelengths = rng.uniform(*ALBEDO_WAVELENGTHS_M, size=ALBEDO_WAVES)
-        directions = rng.uniform(0.0, 2.0 * math.pi, size=ALBEDO_WAVES)
-        phases = rng.uniform(0.0, 2.0 * math.pi, size=ALBEDO_WAVES)
-        weights = rng.uniform(0.5, 1.0, size=ALBEDO_WAVES)
-        k = (2.0 * math.pi / wavelengths)[:, None] * np.stack(
-            [np.cos(directions), np.sin(directions)], axis=1
-        )
-        return cls(float(amplitude), k, phases, weights / weights.sum())
-
-    def factor(self, xy_m: NDArray[np.float64]) -> NDArray[np.float64]:
-        """1 + A t at wall points (..., 2), metres -> (...)."""
-        phase = np.asarray(xy_m, dtype=np.float64) @ self.wavevectors_per_m.T + self.phases_rad
-        return np.asarray(1.0 + self.amplitude * (np.sin(phase) @ self.weights))
-
-    def describe(self) -> dict[str, Any]:
-        """truth.json's `albedo_texture` fields (as `lightcal synth` writes them)."""
-        k = self.wavevectors_per_m
-        return {
-            "amplitude": self.amplitude,
-            "wavelengths_m": (2.0 * math.pi / np.linalg.norm(k, axis=1)).tolist(),
-            "directions_deg": np.degrees(np.arctan2(k[:, 1], k[:, 0])).tolist(),
-            "phases_rad": self.phases_rad.tolist(),
-            "weights": self.weights.tolist(),
-            "formula": "1 + amplitude * sum_k weights_k sin(2 pi / wavelength_k "
-            "(x cos(direction_k) + y sin(direction_k)) + phase_k), x, y on the wall in metres",
-        }
-
-    def bitmap(self, half_size: float, texel_m: float = 0.004) -> NDArray[np.float32]:
-        """(n, n) the albedo ALBEDO x factor at the texel centres of the wall rectangle
-        [-half_size, half_size]^2: Mitsuba's rectangle has uv = ((x, y) / half_size + 1) / 2
-        and the bitmap's row j holds v = (j + 1/2) / n."""
-        n = min(4096, math.ceil(2.0 * half_size / texel_m))
-        c = ((np.arange(n) + 0.5) / n * 2.0 - 1.0) * half_size
-        xy = np.stack(np.meshgrid(c, c), axis=-1)  # [j, i] = (x_i, y_j)
-        return (ALBEDO * self.factor(xy)).astype(np.float32)
+def albedo_bitmap(
+    texture: AlbedoTexture, half_size: float, texel_m: float = 0.004
+) -> NDArray[np.float32]:
+    """(n, n) float32 the albedo ALBEDO x the texture's factor at the texel centres of the
+    wall rectangle [-half_size, half_size]^2: Mitsuba's rectangle has
+    uv = ((x, y) / half_size + 1) / 2 and the bitmap's row j holds v = (j + 1/2) / n."""
+    n = min(4096, math.ceil(2.0 * half_size / texel_m))
+    c = ((np.arange(n) + 0.5) / n * 2.0 - 1.0) * half_size
+    xy = np.stack(np.meshgrid(c, c), axis=-1)  # [j, i] = (x_i, y_j)
+    return (ALBEDO * texture.factor(xy)).astype(np.float32)
 
 
 def medium_transmittance(
@@ -682,7 +636,7 @@ class _World:
     half_size: float
     wall_model: WallReflectance
     blockers: list[_Blocker]
-    texture: AlbedoWaves | None
+    texture: AlbedoTexture | None
     bow_center: tuple[float, float]
 
 
@@ -709,7 +663,7 @@ def _make_world(
             "reach (tested at the corners and centre, grown by 1 pixel)",
         )
     elif scenario == "albedo":
-        texture = AlbedoWaves.sample(ALBEDO_AMPLITUDE, rng_texture)
+        texture = sample_albedo_texture(ALBEDO_AMPLITUDE, rng_texture)
         found["albedo_texture"] = {
             **texture.describe(),
             "base_albedo": ALBEDO,
@@ -762,7 +716,7 @@ def _wall_shape(mi: Any, world: _World) -> dict[str, Any]:
             "diffuse_reflectance": {"type": "rgb", "value": [PLASTIC["albedo"]] * 3},
         }
     elif world.texture is not None:
-        bitmap = world.texture.bitmap(world.half_size)
+        bitmap = albedo_bitmap(world.texture, world.half_size)
         bsdf = _diffuse(
             {
                 "type": "bitmap",
