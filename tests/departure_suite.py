@@ -118,16 +118,22 @@ def run_case(case: Case, folder: Path, *, seed: int = 5) -> Outcome:
     project = write_case(case, folder, seed=seed)
     _, _, result = calibrate_project(load_project(project))
     truth = read_truth(project.parent / "truth.json")["lights"][0]
+    return Outcome(case, result, exit_code(result), first_cause(result), *errors(result, truth))
+
+
+def exit_code(result: CalibrationResult) -> int:
+    """What `lightcal calibrate` returns for the result: 1 not converged, 3 a finding, 0."""
+    return 1 if not result.converged else (3 if not result.fit_adequate else 0)
+
+
+def errors(result: CalibrationResult, truth: dict) -> tuple[float, float, float, float]:
+    """The first light's (position error, its 1-sigma norm (m), axis error, its 1-sigma
+    norm (deg)) against a truth.json light."""
     light = result.lights[0]
-    position_error = float(np.linalg.norm(light.pose.t_camera_light - truth["position_m"]))
+    position = float(np.linalg.norm(light.pose.t_camera_light - truth["position_m"]))
     cos = float(np.clip(light.pose.axis_camera @ np.array(truth["axis_camera"]), -1.0, 1.0))
-    exit_code = 1 if not result.converged else (3 if not result.fit_adequate else 0)
-    return Outcome(
-        case,
-        result,
-        exit_code,
-        first_cause(result),
-        position_error,
+    return (
+        position,
         float(np.linalg.norm(light.sigma.t_camera_light)),
         math.degrees(math.acos(cos)),
         math.degrees(float(np.linalg.norm(light.sigma.axis_camera))),

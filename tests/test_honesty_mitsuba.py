@@ -16,9 +16,7 @@ Skipped without Mitsuba (`pip install .[reference]`).
 from __future__ import annotations
 
 import json
-import math
 
-import numpy as np
 import pytest
 
 try:
@@ -33,6 +31,7 @@ from lightcal.io.project import load_project
 from lightcal.pipeline import calibrate_project
 from lightcal.pipeline.results import CalibrationResult
 from lightcal.synthetic.dataset import read_truth
+from tests.departure_suite import errors, exit_code
 from tests.mitsuba_datasets import session_dataset
 
 #: What a user would declare beyond the defaults, per scenario.
@@ -53,37 +52,20 @@ def _calibrate(
     return result, read_truth(project.parent / "truth.json")["lights"][0]
 
 
-def _errors(result: CalibrationResult, truth: dict) -> tuple[float, float, float, float]:
-    """(position error, its 1-sigma norm (m), axis error, its 1-sigma norm (deg))."""
-    light = result.lights[0]
-    position = float(np.linalg.norm(light.pose.t_camera_light - truth["position_m"]))
-    cos = float(np.clip(light.pose.axis_camera @ np.array(truth["axis_camera"]), -1.0, 1.0))
-    return (
-        position,
-        float(np.linalg.norm(light.sigma.t_camera_light)),
-        math.degrees(math.acos(cos)),
-        math.degrees(float(np.linalg.norm(light.sigma.axis_camera))),
-    )
-
-
-def _exit_code(result: CalibrationResult) -> int:
-    return 1 if not result.converged else (3 if not result.fit_adequate else 0)
-
-
 @pytest.mark.parametrize("sensor", ["realistic", "clean"])
 def test_a_lambertian_wall_has_no_finding(tmp_path_factory, sensor: str) -> None:
     result, truth = _calibrate(tmp_path_factory, "clean", sensor=sensor)
-    assert _exit_code(result) == 0, result.fit["findings"]
+    assert exit_code(result) == 0, result.fit["findings"]
     assert result.fit["findings"] == []
-    position, position_sigma, axis, axis_sigma = _errors(result, truth)
+    position, position_sigma, axis, axis_sigma = errors(result, truth)
     assert position <= 3.0 * position_sigma and axis <= 3.0 * axis_sigma
 
 
 def test_a_painted_wall_with_auto_exits_0(tmp_path_factory) -> None:
     result, truth = _calibrate(tmp_path_factory, "painted")
     assert result.wall["model"] == "plastic"
-    assert _exit_code(result) == 0, result.fit["findings"]
-    position, position_sigma, axis, axis_sigma = _errors(result, truth)
+    assert exit_code(result) == 0, result.fit["findings"]
+    position, position_sigma, axis, axis_sigma = errors(result, truth)
     assert position < 3e-3 and position <= 3.0 * position_sigma
     assert axis <= 3.0 * axis_sigma
 
@@ -102,12 +84,12 @@ def test_a_painted_wall_with_auto_exits_0(tmp_path_factory) -> None:
 def test_the_sigma_covers_every_departure(tmp_path_factory, scenario: str, named: str | None):
     """|error| <= 3 sigma; where the departure has a cause of its own, it is named first."""
     result, truth = _calibrate(tmp_path_factory, scenario)
-    position, position_sigma, axis, axis_sigma = _errors(result, truth)
+    position, position_sigma, axis, axis_sigma = errors(result, truth)
     summary = (scenario, position, position_sigma, axis, axis_sigma, result.fit["findings"])
     assert position <= 3.0 * position_sigma, summary
     assert axis <= 3.0 * axis_sigma, summary
     if named is not None:
-        assert _exit_code(result) == 3
+        assert exit_code(result) == 3
         assert next(c["cause"] for c in result.fit["causes"] if c["material"]) == named
     if scenario == "bowed":
         assert any(b["term"] == "wall flatness" for b in result.uncertainty_breakdown)
@@ -118,6 +100,6 @@ def test_the_declared_flatness_is_what_covers_the_bow(tmp_path_factory) -> None:
     project = session_dataset(tmp_path_factory, "bowed", seed=0)
     _, _, result = calibrate_project(load_project(project))
     truth = read_truth(project.parent / "truth.json")["lights"][0]
-    position, position_sigma, _, _ = _errors(result, truth)
-    assert _exit_code(result) == 0
+    position, position_sigma, _, _ = errors(result, truth)
+    assert exit_code(result) == 0
     assert position > 1.5 * position_sigma
