@@ -16,6 +16,7 @@ from pathlib import Path
 from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
 from lightcal.io.project import Project
+from lightcal.io.project_identity import project_identity
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal.pipeline.result_text import axis_text, position_text
@@ -129,7 +130,8 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
 
 def result_json_bytes(result: CalibrationResult, project: Project) -> bytes:
     """The result file (`lightcal calibrate --out` format) as bytes."""
-    return (result_to_file(result, project=project.path).model_dump_json(indent=2) + "\n").encode()
+    file = result_to_file(result, project=project.path, project_id=project_identity(project))
+    return (file.model_dump_json(indent=2) + "\n").encode()
 
 
 EXPORT_SUFFIX = {

@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.io.outputs import check_output_file, check_output_folder, project_inputs
     from lightcal.io.project import load_project
+    from lightcal.io.project_identity import project_identity
     from lightcal.io.result_file import result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
     from lightcal.pipeline.load import prepare_solve
@@ -81,7 +82,10 @@ def run(args: argparse.Namespace) -> int:
         project, loaded, model, on_iteration=on_iteration, on_start=on_start, on_stage=on_stage
     )
     model, result = cal.model, cal.result
-    write_result(result_to_file(result, project=project.path), args.out)
+    write_result(
+        result_to_file(result, project=project.path, project_id=project_identity(project)),
+        args.out,
+    )
     for lr in result.lights:
         for line in light_lines(lr):
             console.print(line, highlight=False, soft_wrap=True)

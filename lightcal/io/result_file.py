@@ -103,7 +103,15 @@ class ResultFile(_Model):
     version: int = RESULT_VERSION
     lightcal_version: str = __version__
     project: str | None = None
-    lights: list[LightResultModel]
+    project_id: str | None = Field(
+        default=None,
+        description=(
+            "the identity of the project calibrated (lightcal.io.project_identity: a hash "
+            "of its camera, image poses and lights); plan, render and export --project "
+            "refuse a result of another project"
+        ),
+    )
+    lights: list[LightResultModel] = Field(min_length=1)
     offset: float
     offset_sigma: float | None
     images: list[ImageResult]
@@ -149,8 +157,11 @@ class ResultFile(_Model):
     )
 
 
-def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
-    """Convert a `lightcal.pipeline.CalibrationResult` to the file model."""
+def result_to_file(
+    result, *, project: str | Path | None = None, project_id: str | None = None
+) -> ResultFile:
+    """Convert a `lightcal.pipeline.CalibrationResult` to the file model; `project` is the
+    project file's path, `project_id` its `project_identity`."""
     lights = [
         LightResultModel(
             name=lr.name,
@@ -171,6 +182,7 @@ def result_to_file(result, *, project: str | Path | None = None) -> ResultFile:
     ]
     return ResultFile(
         project=str(project) if project is not None else None,
+        project_id=project_id,
         lights=lights,
         offset=result.offset,
         offset_sigma=result.offset_sigma,
