@@ -49,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
     result = read_result(args.result)
     if project is not None:
         from lightcal.cli.progress import ensure_kernels
+        from lightcal.io.project_identity import check_result_of
+
+        check_result_of(project, args.result, result.project_id)
         from lightcal.io.export import with_given_rids
 
         ensure_kernels()  # analytic RIDs are sampled with the compiled evaluator

@@ -36,12 +36,14 @@ def _sig(entries: list[dict]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     import json
+    import math
 
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
     from lightcal.io.outputs import check_output_file, project_inputs
     from lightcal.io.project import load_project
+    from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import build_model, load_images, measurements_for
     from lightcal.pipeline.plan import (
@@ -54,6 +56,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.n < 1:
         raise InputError("--n", f"expected at least 1 view, got {args.n}")
+    if not math.isfinite(args.wall_size) or args.wall_size <= 0:
+        raise InputError(
+            "--wall-size", f"expected the wall's width in m (> 0), got {args.wall_size}"
+        )
     project = load_project(args.project)
     if args.out is not None:
         inputs = project_inputs(project)
@@ -63,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     names = x = None
     if args.result is not None:
         res = read_result(args.result)
+        check_result_of(project, args.result, res.project_id)
         names, x = res.parameters.names, res.parameters.x
     ensure_kernels()
     with stage_progress() as progress:

@@ -37,12 +37,14 @@ def run(args: argparse.Namespace) -> int:
         safe_names,
     )
     from lightcal.io.project import load_project
+    from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
     from lightcal.report import render_views
 
     project = load_project(args.project)
     result = read_result(args.result)
+    check_result_of(project, args.result, result.project_id)
     by_name = {lr.name: lr for lr in result.lights}
     lights = []
     for unknown in project.lights:

@@ -2,7 +2,10 @@
 
 Field names (also in the JSON Schema, `lightcal schema result`):
 
-- ``lights[]``: per light ``name``; ``pose_kind``; ``position_m`` (emitter position in the
+- ``version`` (1: other versions are refused), ``lightcal_version``, ``project`` (the
+  project file's path) and ``project_id`` (`lightcal.io.project_identity`: plan, render
+  and export --project refuse a result of another project).
+- ``lights[]`` (at least one, each name once): per light ``name``; ``pose_kind``; ``position_m`` (emitter position in the
   camera frame, m); ``R_camera_light`` (3x3, light -> camera); ``quaternion_wxyz`` (same
   rotation, scalar first, w >= 0); ``axis_camera`` (unit light axis in the camera frame);
   ``roll_deg``/``pitch_deg`` (the paper's angles: axis = R_x(roll) R_y(pitch) (0, 0, 1));
@@ -37,9 +40,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lightcal import __version__
+from lightcal.core.rotations import ORTHONORMAL_TOL
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
@@ -78,29 +83,75 @@ class LightResultModel(_Model):
     roll_deg: float
     pitch_deg: float
     axis_angle_from_optical_axis_deg: float
-    scale: float
+    scale: float = Field(gt=0)
     scale_sigma: float | None
     sigma: PoseSigma = Field(description="1-sigma uncertainties of the fields above")
     rid: dict[str, Any] | None = None
 
+    @field_validator("position_m", "axis_camera")
+    @classmethod
+    def _three_numbers(cls, value: list[float]) -> list[float]:
+        if len(value) != 3:
+            raise ValueError(f"expected 3 numbers (x, y, z in the camera frame), got {len(value)}")
+        return value
+
+    @field_validator("quaternion_wxyz")
+    @classmethod
+    def _four_numbers(cls, value: list[float]) -> list[float]:
+        if len(value) != 4:
+            raise ValueError(f"expected 4 numbers (w, x, y, z), got {len(value)}")
+        return value
+
+    @field_validator("R_camera_light")
+    @classmethod
+    def _rotation(cls, value: list[list[float]]) -> list[list[float]]:
+        shape = (len(value), *{len(row) for row in value})
+        if shape != (3, 3):
+            got = " x ".join(str(n) for n in shape) if len(shape) == 2 else "rows of unequal length"
+            raise ValueError(f"expected a 3 x 3 rotation matrix (light -> camera), got {got}")
+        matrix = np.array(value)
+        error = float(np.max(np.abs(matrix.T @ matrix - np.eye(3))))
+        if error > ORTHONORMAL_TOL or np.linalg.det(matrix) < 0:
+            raise ValueError(
+                f"expected a rotation matrix (light -> camera: max |R^T R - I| <= "
+                f"{ORTHONORMAL_TOL:g}, det +1), got max |R^T R - I| = {error:.3g}, "
+                f"det {np.linalg.det(matrix):.3g}"
+            )
+        return value
+
 
 class ImageResult(_Model):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
     name: str
-    rms: float = Field(description="RMS of observed - rendered pixel values")
-    pixels: int
-    gain: float
+    rms: float | None = Field(description="RMS of observed - rendered pixel values")
+    pixels: int = Field(ge=0)
+    gain: float = Field(gt=0, description="exposure gain relative to the first image")
 
 
 class Parameters(_Model):
     names: list[str]
     x: list[float]
-    covariance: list[list[float]]
+    covariance: list[list[float | None]] = Field(
+        description="(n, n); null where the data do not determine a parameter"
+    )
+
+    @model_validator(mode="after")
+    def _sizes(self) -> Parameters:
+        n = len(self.names)
+        if len(self.x) != n:
+            raise ValueError(f"x: expected {n} values, one per name, got {len(self.x)}")
+        if len(self.covariance) != n or any(len(row) != n for row in self.covariance):
+            rows = {len(row) for row in self.covariance}
+            got = f"{len(self.covariance)} x {'/'.join(str(r) for r in sorted(rows)) or 0}"
+            raise ValueError(f"covariance: expected {n} x {n} (one row per name), got {got}")
+        return self
 
 
 class ResultFile(_Model):
     """A lightcal calibration result (version 1)."""
 
-    version: int = RESULT_VERSION
+    version: int = Field(default=RESULT_VERSION, description="the file format's version")
     lightcal_version: str = __version__
     project: str | None = None
     project_id: str | None = Field(
@@ -156,6 +207,24 @@ class ResultFile(_Model):
         description="where the iterations began when not at the initial guess (empty: there)",
     )
 
+    @field_validator("version")
+    @classmethod
+    def _known_version(cls, value: int) -> int:
+        if value != RESULT_VERSION:
+            raise ValueError(
+                f"expected {RESULT_VERSION} (lightcal {__version__} reads result files of "
+                f"version {RESULT_VERSION}), got {value}"
+            )
+        return value
+
+    @model_validator(mode="after")
+    def _unique_lights(self) -> ResultFile:
+        names = [light.name for light in self.lights]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"lights: each light once by name, got {', '.join(twice)} twice")
+        return self
+
 
 def result_to_file(
     result, *, project: str | Path | None = None, project_id: str | None = None
@@ -175,7 +244,7 @@ def result_to_file(
         for lr in result.lights
     ]
     images = [
-        ImageResult(name=n, rms=r, pixels=p, gain=g)
+        ImageResult(name=n, rms=_nan_to_none(r), pixels=p, gain=g)
         for n, r, p, g in zip(
             result.image_names, result.per_image_rms, result.pixels_used, result.gains, strict=True
         )
@@ -233,7 +302,8 @@ def read_result(path: str | Path) -> ResultFile:
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(x) for x in err["loc"])
-        raise InputError(p, f"{loc}: {err['msg']}") from exc
+        msg = err["msg"].removeprefix("Value error, ")
+        raise InputError(p, f"{loc}: {msg}" if loc else msg) from exc
 
 
 def result_schema() -> dict[str, Any]:
