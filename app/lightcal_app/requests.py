@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from lightcal.core.solver import SolveOutcome
 from lightcal.io.project import Project
 from lightcal.pipeline import LoadedImages
+from lightcal.pipeline.solve import Calibration
 
 if TYPE_CHECKING:  # both import `state`, which imports this module
     from lightcal_app.session_file import SessionFile
@@ -48,10 +49,10 @@ class Pause(FromBrowser):
 
 @dataclass(frozen=True)
 class Finished:
-    """The solver's thread ended solve `gen` with `outcome`."""
+    """The solver's thread ended solve `gen` with `outcome` (a Calibration: the pipeline's)."""
 
     gen: int
-    outcome: SolveOutcome
+    outcome: SolveOutcome | Calibration
 
 
 class Reset(FromBrowser):

@@ -4,8 +4,12 @@
 one `SolverSession` (step, run, pause, reset), and what the state shows of it (the
 history, the display of the guess or the estimate, the result with uncertainties).
 The model is built by `lightcal.pipeline` (`starting_lights`, as `lightcal calibrate`
-does), from the images the user's selection leaves. It imports no viser: tests drive
-it with an `AppState` and a list for the messages.
+does), from the images the user's selection leaves, and solved by the same engine as
+`lightcal calibrate`: `lightcal.pipeline.calibrate` (multi-start, mirror exclusion,
+`wall: auto`, the fit test and the uncertainty) runs in the session, its iterations
+(every stage's, numbered on) passing the session's gate, so Step and Run walk through
+the very solve the CLI makes. It imports no viser: tests drive it with an `AppState`
+and a list for the messages.
 
 All methods but `on_iteration` run on the worker thread. The solver's own thread calls
 `on_iteration`, which records the iteration and waits until the worker has drawn it
@@ -30,6 +34,7 @@ from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
 from lightcal.pipeline.results import stop_reason
+from lightcal.pipeline.solve import Calibration, calibrate
 from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
 from lightcal_app.session_file import session_from_state
@@ -71,6 +76,9 @@ class SolveService:
         self._image_data: list[ImageData | None] = [None] * len(state.project.names)
         self._selection_done = -1
         self._iteration_offset = 0
+        self._stage_offset = 0  # added to the iterations of the pipeline's later stages
+        self._resuming = False  # the next iteration 0 is the restored estimate
+        self._stage_model: CalibrationModel | None = None  # the model being solved
         self._last_session_state = "idle"
         self._shown_at = 0.0  # time.monotonic() when the last iteration was drawn
 
@@ -253,18 +261,37 @@ class SolveService:
             )
             return False
         model, index = built
-        session = SolverSession(
-            model,
-            on_iteration=lambda rep: self.on_iteration(gen, model, rep),
-            on_finish=lambda out: st.request(Finished(gen, out)),
-        )
-        offset = 0
-        if (
+        with st.lock:
+            project, loaded = st.project, st.loaded
+        resumed = (
             resume is not None
-            and history
+            and bool(history)
             and resume.shape == (model.layout.n,)
             and saved_names == list(model.layout.names)
-        ):
+        )
+
+        def work(x0: np.ndarray, gate: Callable[[IterationReport], None]) -> Calibration:
+            # The CLI's engine; a restored estimate is where its first solve continues.
+            return calibrate(
+                project,
+                loaded,
+                model,
+                x0=x0 if resumed else None,
+                on_iteration=gate,
+                on_model=self._solving,
+                on_start=self._start_said,
+                on_stage=self._stage_said,
+            )
+
+        session = SolverSession(
+            model,
+            on_iteration=lambda rep: self.on_iteration(gen, rep),
+            on_finish=lambda out: st.request(Finished(gen, out)),
+            work=work,
+        )
+        offset = 0
+        if resumed:
+            assert resume is not None
             session.reset(resume)
             offset = history[-1].iteration
         with st.lock:
@@ -275,10 +302,31 @@ class SolveService:
             self._model_index = index
             self._model_setup_rev = rev
             self._iteration_offset = offset
+            self._stage_offset = offset  # a restored solve numbers on from its history
+            self._resuming = bool(offset)
+            self._stage_model = model
             if not offset:
                 st.history = []
             st.parameter_names = list(model.layout.names)
         return True
+
+    def _stage_said(self, text: str) -> None:
+        """The pipeline says what it runs next (a wall it tries, mirror exclusion): the
+        status shows it while the solve runs."""
+        with self.state.lock:
+            self.state.solver_message = f"({text})"
+            self.state.mark("status")
+
+    def _start_said(self, k: int, n: int) -> None:
+        if n > 1:
+            what = "the initial guess" if k == 0 else "a random start near it"
+            self._stage_said(f"start {k + 1} of {n}: {what}")
+
+    def _solving(self, model: CalibrationModel) -> None:
+        """The pipeline starts solving `model` (the first, a trimmed one or a wall's): the
+        iterations that follow are its (their x are its parameter vectors)."""
+        with self.state.lock:
+            self._stage_model = model
 
     def estimate_display(self, model: CalibrationModel, x: np.ndarray) -> Display:
         """What the page shows of the estimate `x` (n,)."""
@@ -294,9 +342,14 @@ class SolveService:
             self._model_setup_rev,
         )
 
-    def on_iteration(self, gen: int, model: CalibrationModel, rep: IterationReport) -> None:
-        """Called by the solver's thread: record, then wait until drawn."""
+    def on_iteration(self, gen: int, rep: IterationReport) -> None:
+        """Called by the solver's thread: record, then wait until drawn. Every stage of
+        the pipeline starts at its own iteration 0 (a random start, the mirror-trimmed
+        or another wall's model): numbered on after the last one shown."""
         st = self.state
+        model = self._stage_model
+        if model is None:
+            return
         display = self.estimate_display(model, rep.x)
         session = self.session
         running = session is not None and session.unlimited
@@ -309,10 +362,15 @@ class SolveService:
                     st.cond.wait_for(lambda: st.session_gen != gen or st.closing, timeout=left)
             if st.session_gen != gen:
                 return
-            if self._iteration_offset:
-                if rep.iteration == 0:
+            if rep.iteration == 0 and st.history:
+                if self._resuming:
+                    self._resuming = False
                     return  # the restored estimate, already in the history
-                rep = replace(rep, iteration=rep.iteration + self._iteration_offset)
+                # A later stage's start (a random start, the mirror-trimmed or another
+                # wall's model): numbered on after the last iteration shown.
+                self._stage_offset = st.history[-1].iteration + 1
+            if self._stage_offset:
+                rep = replace(rep, iteration=rep.iteration + self._stage_offset)
             st.history.append(rep)
             st.display = display
             st.solver_state = "running"
@@ -351,8 +409,9 @@ class SolveService:
         if self.session is not None:
             self.session.pause()
 
-    def finished(self, gen: int, outcome: SolveOutcome) -> None:
-        """The solve `gen` ended: its result with the uncertainties of the images."""
+    def finished(self, gen: int, outcome: SolveOutcome | Calibration) -> None:
+        """The solve `gen` ended: its result with the uncertainties of the images (the
+        pipeline's, when it ran the solve; computed here for a restored estimate)."""
         st = self.state
         with st.lock:
             if st.session_gen != gen or self.model is None:
@@ -360,16 +419,23 @@ class SolveService:
             model = self.model
             project, loaded = st.project, st.loaded
         result = None
+        if isinstance(outcome, Calibration):
+            model, result, outcome = outcome.model, outcome.result, outcome.outcome
         message = outcome.message
-        try:
-            # The fit test and the uncertainty with the images' noise and pose covariances.
-            result = summarise(model, outcome, measurements_for(project, loaded, model))
-        except Exception as exc:
-            log.warning("uncertainties failed", exc_info=True)
-            message = f"{outcome.message} (uncertainties failed: {type(exc).__name__})"
+        if result is None:
+            try:
+                # The fit test and the uncertainty with the images' noise and poses.
+                result = summarise(model, outcome, measurements_for(project, loaded, model))
+            except Exception as exc:
+                log.warning("uncertainties failed", exc_info=True)
+                message = f"{outcome.message} (uncertainties failed: {type(exc).__name__})"
         with st.lock:
             if st.session_gen != gen:
                 return
+            # The solved model (mirror-trimmed, or the wall `auto` chose) is the one the
+            # page draws and exports from now on.
+            self.model = self._stage_model = model
+            st.display = self.estimate_display(model, outcome.x)
             st.result = result
             # One vocabulary: idle, running, paused, converged, not converged (with why).
             converged = result.converged if result is not None else outcome.success
@@ -411,7 +477,7 @@ class SolveService:
     def interim_result(self) -> None:
         """Uncertainties at the current estimate while the solve is paused."""
         st = self.state
-        model, session = self.model, self.session
+        model, session = self._stage_model or self.model, self.session
         if model is None or session is None:
             return
         with st.lock:

@@ -6,13 +6,19 @@ controls open: `step()` lets exactly one more iteration through, `run()` all of 
 `pause()` closes the gate again, `stop()` ends the solve (the best estimate so far is
 kept), `reset()` stops and returns to the initial guess. Controls may be called from
 any thread; at most one solve runs at a time.
+
+Given a `work`, the session drives that instead: any solve of several stages that
+reports its iterations through one callback (the app runs `lightcal.pipeline.calibrate`
+so, the same solve as `lightcal calibrate`). Its iterations pass the same gate; `stop()`
+cancels it (`SolveCancelled` raised from the gate, no outcome: a multi-stage solve has
+no one best estimate to keep).
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -20,14 +26,26 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 
 SessionState = Literal["idle", "paused", "running", "finished", "stopped", "failed"]
 
+Work = Callable[[np.ndarray, Callable[[IterationReport], None]], Any]
+"""`work(x0, on_iteration)`: a solve from x0 (n,) reporting every iteration; returns its
+outcome (what `on_finish` receives)."""
+
+
+class SolveCancelled(Exception):
+    """Raised from the gate of a session with a `work` when `stop()` cancels it."""
+
 
 class SolverSession:
     """Drive a solve iteration by iteration.
 
     Args:
-        model: the calibration model (residuals, Jacobian, options).
+        model: the calibration model (residuals, Jacobian, options); its initial vector is
+            the start.
         on_iteration: called from the worker thread with each `IterationReport`.
-        on_finish: called from the worker thread with the `SolveOutcome` (also after stop).
+        on_finish: called from the worker thread with the `SolveOutcome` (also after stop),
+            or with what `work` returned (not after a stop: it cancels the work).
+        work: the solve to drive (see the module docstring); default `run_least_squares`
+            of the model.
     """
 
     def __init__(
@@ -35,18 +53,20 @@ class SolverSession:
         model: CalibrationModel,
         *,
         on_iteration: Callable[[IterationReport], None] | None = None,
-        on_finish: Callable[[SolveOutcome], None] | None = None,
+        on_finish: Callable[[Any], None] | None = None,
+        work: Work | None = None,
     ) -> None:
         self.model = model
         self._on_iteration = on_iteration
         self._on_finish = on_finish
+        self._work_fn = work
         self._cond = threading.Condition()
         self._state: SessionState = "idle"
         self._budget = 0  # iterations allowed through the gate; -1: unlimited
         self._stop = False
         self._thread: threading.Thread | None = None
         self.history: list[IterationReport] = []
-        self.outcome: SolveOutcome | None = None
+        self.outcome: Any = None  # a SolveOutcome, or what `work` returned
         self.error: BaseException | None = None
         self.x0 = model.layout.x0.copy()
 
@@ -157,12 +177,20 @@ class SolverSession:
             self._cond.notify_all()
             self._cond.wait_for(lambda: self._stop or self._budget != 0)
             if self._stop:
-                raise StopIteration
+                raise StopIteration if self._work_fn is None else SolveCancelled
             self._state = "running"
 
     def _work(self) -> None:
         try:
-            outcome = run_least_squares(self.model, self.x0, on_iteration=self._gate)
+            if self._work_fn is not None:
+                done = self._work_fn(self.x0.copy(), self._gate)
+            else:
+                done = run_least_squares(self.model, self.x0, on_iteration=self._gate)
+        except SolveCancelled:
+            with self._cond:
+                self._state = "stopped"
+                self._cond.notify_all()
+            return
         except BaseException as exc:  # reported to the caller through state/error
             with self._cond:
                 self.error = exc
@@ -170,10 +198,11 @@ class SolverSession:
                 self._cond.notify_all()
             return
         with self._cond:
-            if outcome.status == -2 and self.history:
-                outcome.x = self.history[-1].x.copy()
-            self.outcome = outcome
-            self._state = "stopped" if outcome.status == -2 else "finished"
+            if isinstance(done, SolveOutcome) and done.status == -2 and self.history:
+                done.x = self.history[-1].x.copy()
+            self.outcome = done
+            stopped = isinstance(done, SolveOutcome) and done.status == -2
+            self._state = "stopped" if stopped else "finished"
             self._cond.notify_all()
         if self._on_finish is not None:
-            self._on_finish(outcome)
+            self._on_finish(done)

@@ -27,6 +27,9 @@ from lightcal.pipeline.wall_choice import (
     without_mirror,
 )
 
+#: `SolveOutcome.status` of a solve its caller stopped (StopIteration from on_iteration).
+STOPPED = -2
+
 # The multi-start defaults are the project file's (defined once).
 _SOLVER_SPEC = SolverSpec()
 
@@ -109,11 +112,17 @@ def solve(
     multistart_position_m: float = _SOLVER_SPEC.multistart_position_m,
     multistart_angle_deg: float = _SOLVER_SPEC.multistart_angle_deg,
     seed: int = 0,
+    x0: np.ndarray | None = None,
     on_iteration: Callable[[IterationReport], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
     on_stage: Callable[[str], None] | None = None,
 ) -> SolveOutcome:
     """Solve from the initial guess and `multistart` random starts; keep the best.
+
+    `x0` (n,), when given, is where the first solve starts instead of the initial guess
+    (an estimate to continue from; the random starts stay around the initial guess). A
+    first solve its caller stopped (status -2, `on_iteration` raised StopIteration) is
+    returned as it is: no random start follows.
 
     A large model's first solve starts where its subsample's solution is (`coarse_start`).
     With a robust loss's f_scale "auto", every start uses the f_scale the first one took
@@ -125,11 +134,14 @@ def solve(
     n_starts = 1 + multistart
     if on_start is not None:
         on_start(0, n_starts)
-    coarse = coarse_start(model, on_stage)
-    x0 = None if coarse is None else coarse[0]
+    coarse = coarse_start(model, on_stage) if x0 is None else None
+    if coarse is not None:
+        x0 = coarse[0]
     best = run_least_squares(model, x0, on_iteration=on_iteration)
     if coarse is not None:
         best.start, best.start_costs = coarse[1], coarse[2]
+    if best.status == STOPPED:
+        return best
     rng = np.random.default_rng(seed)
     f_scale = best.f_scale_used if model.options.f_scale == "auto" else None
     for k in range(1, n_starts):
@@ -142,6 +154,8 @@ def solve(
             out = run_least_squares(model, x0, on_iteration=on_iteration, f_scale=f_scale)
         except ValueError:
             continue
+        if out.status == STOPPED:
+            break
         if out.cost < best.cost:
             best = out
     if multistart:
@@ -153,6 +167,7 @@ def solve_project(
     project: Project,
     model: CalibrationModel,
     *,
+    x0: np.ndarray | None = None,
     on_iteration: Callable[[IterationReport], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
     on_stage: Callable[[str], None] | None = None,
@@ -165,6 +180,7 @@ def solve_project(
         multistart_position_m=so.multistart_position_m,
         multistart_angle_deg=so.multistart_angle_deg,
         seed=project.selection.seed,
+        x0=x0,
         on_iteration=on_iteration,
         on_start=on_start,
         on_stage=on_stage,
@@ -185,9 +201,11 @@ def calibrate(
     loaded: LoadedImages,
     model: CalibrationModel,
     *,
+    x0: np.ndarray | None = None,
     on_iteration: Callable[[IterationReport], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
     on_stage: Callable[[str], None] | None = None,
+    on_model: Callable[[CalibrationModel], None] | None = None,
 ) -> Calibration:
     """Solve a project's model the way the project says, test the fit and summarise.
 
@@ -196,19 +214,32 @@ def calibrate(
     (where the Lambertian fit has a finding and the fit test's gloss or rough-matte cause
     is significant, also fit plastic or oren_nayar and keep the lowest BIC among the fits
     whose wall parameters are determined; docs/model.md). `on_stage` hears each extra
-    stage in words.
+    stage in words; `on_model` gets each model before it is solved (the trimmed one, each
+    wall's: their parameter vectors differ), so a caller drawing the iterations of
+    `on_iteration` knows which model an `x` belongs to. `lightcal calibrate` and the
+    app's Run both solve through here.
+
+    `x0`: where the first solve starts (`solve`). A solve its caller stopped (status -2)
+    ends the pipeline there: its result is summarised, no further stage runs.
     """
 
     def stage(text: str) -> None:
         if on_stage is not None:
             on_stage(text)
 
-    def run(m: CalibrationModel, x0: np.ndarray | None = None) -> SolveOutcome:
-        if x0 is None:
+    def run(m: CalibrationModel, start: np.ndarray | None = None) -> SolveOutcome:
+        if on_model is not None:
+            on_model(m)
+        if start is None:
             return solve_project(
-                project, m, on_iteration=on_iteration, on_start=on_start, on_stage=on_stage
+                project,
+                m,
+                x0=x0,
+                on_iteration=on_iteration,
+                on_start=on_start,
+                on_stage=on_stage,
             )
-        return run_least_squares(m, x0, on_iteration=on_iteration)
+        return run_least_squares(m, start, on_iteration=on_iteration)
 
     # Images the selection left without a usable pixel are out of the solve: say which.
     used = {im.name for im in model.images}
@@ -220,7 +251,7 @@ def calibrate(
     ]
     outcome = run(model)
     limit = project.spec.selection.exclude_mirror_deg
-    if limit:
+    if limit and outcome.status != STOPPED:
         stage(f"dropping pixels within {limit:g} deg of the mirror direction")
         trimmed, dropped = without_mirror(model, outcome.x, limit, project.path)
         notes.append(
@@ -230,7 +261,7 @@ def calibrate(
         outcome = run(trimmed, start_from(trimmed, model, outcome.x))
         model = trimmed
     result = summarise(model, outcome, measurements_for(project, loaded, model), notes=notes)
-    if project.spec.wall.model != "auto":
+    if project.spec.wall.model != "auto" or outcome.status == STOPPED:
         return Calibration(model, outcome, result)
     tried = [Candidate("lambertian", model, outcome, result, bic(result, model))]
     if result.fit_adequate:
@@ -247,6 +278,8 @@ def calibrate(
         stage(f"the fit test points at the wall: trying the {name} wall")
         candidate = wall_candidate(model, outcome.x, name)
         out = run(candidate, start_from(candidate, model, outcome.x))
+        if out.status == STOPPED:
+            return Calibration(candidate, out, summarise(candidate, out, notes=notes))
         res = summarise(candidate, out, measurements_for(project, loaded, candidate), notes=notes)
         tried.append(Candidate(name, candidate, out, res, bic(res, candidate)))
     determined = [c for c in tried if not undetermined_wall(c.result.wall)]

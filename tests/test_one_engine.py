@@ -1,0 +1,115 @@
+"""The page solves as the CLI does (issue 27): the app's Run drives
+`lightcal.pipeline.calibrate`, the engine of `lightcal calibrate`, so the same project
+gives the same result in both: multi-start, mirror exclusion, `wall: auto`, the fit test
+and the uncertainty included."""
+
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from lightcal_app import requests as rq
+from lightcal_app.solve_service import SolveService
+from lightcal_app.state import AppState
+
+from lightcal.cli.main import main
+from lightcal.io.project import load_project
+from lightcal.pipeline import CalibrationResult, build_model, calibrate, load_images
+
+SAMPLE = Path(__file__).resolve().parent.parent / "sample_data" / "project.json"
+
+
+def _cli(path: Path) -> CalibrationResult:
+    project = load_project(path)
+    loaded = load_images(project)
+    return calibrate(project, loaded, build_model(project, loaded)).result
+
+
+def _page(path: Path, *, steps: int = 0) -> tuple[CalibrationResult, list[int]]:
+    """Run (after `steps` Steps) in the app's solve service, without a browser; the
+    result and the iteration numbers the page drew."""
+    project = load_project(path)
+    state = AppState(project, load_images(project))
+    solve = SolveService(state, notify=lambda *a, **k: None, follow_iterations=False)
+    solve.setup_changed()
+    for _ in range(steps):
+        solve.start("step")
+        assert solve.session is not None and solve.session.wait(60)
+        solve.poll()
+    solve.start("run")
+    pause = threading.Event()
+    for _ in range(30_000):
+        with state.lock:
+            pending = list(state.requests)
+            state.requests.clear()
+        for req in pending:
+            if isinstance(req, rq.Finished):
+                solve.finished(req.gen, req.outcome)
+        solve.poll()
+        if not solve.running() and not pending:
+            break
+        pause.wait(0.01)
+    assert state.result is not None, state.solver_message
+    return state.result, [rep.iteration for rep in state.history]
+
+
+def _same(page: CalibrationResult, cli: CalibrationResult) -> None:
+    assert page.parameter_names == cli.parameter_names
+    np.testing.assert_allclose(page.x, cli.x, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(page.covariance, dtype=float),
+        np.asarray(cli.covariance, dtype=float),
+        rtol=1e-9,
+        atol=1e-18,
+    )
+    assert page.wall == cli.wall
+    assert page.converged == cli.converged
+    assert page.fit_adequate == cli.fit_adequate
+    assert page.warnings == cli.warnings
+    assert page.uncertainty_terms == cli.uncertainty_terms
+
+
+def test_the_sample_gives_the_same_result_in_page_and_cli() -> None:
+    page, iterations = _page(SAMPLE)
+    _same(page, _cli(SAMPLE))
+    assert iterations == sorted(iterations) and len(set(iterations)) == len(iterations)
+
+
+@pytest.fixture(scope="module")
+def painted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A plastic (painted) wall, the project asking for `wall: auto`, two random starts
+    and mirror exclusion: every stage of the pipeline runs."""
+    folder = tmp_path_factory.mktemp("painted") / "data"
+    argv = ["synth", str(folder), "--views", "6", "--width", "200", "--height", "150"]
+    argv += ["--wall", "plastic", "--roughness", "0.15", "--seed", "4", "--quiet"]
+    assert main(argv) == 0
+    path = folder / "project.json"
+    data = json.loads(path.read_text())
+    data["wall"] = {"model": "auto"}
+    data["solver"] = {**data.get("solver", {}), "multistart": 2}
+    data["selection"] = {**data.get("selection", {}), "exclude_mirror_deg": 3.0}
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_a_painted_wall_on_auto_gives_the_cli_answer_stepping_first(painted: Path) -> None:
+    cli = _cli(painted)
+    assert cli.wall["model"] == "plastic"  # auto found the paint: the stages all ran
+    page, iterations = _page(painted, steps=3)
+    _same(page, cli)
+    # Every stage drew its iterations, numbered on: starts, the trimmed and the walls'.
+    assert iterations == sorted(iterations) and len(set(iterations)) == len(iterations)
+    assert iterations[:4] == [0, 1, 2, 3]
+
+
+def test_two_lights_give_the_same_result_in_page_and_cli(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    folder = tmp_path_factory.mktemp("two") / "data"
+    argv = ["synth", str(folder), "--views", "5", "--width", "160", "--height", "120"]
+    assert main([*argv, "--lights", "2", "--seed", "2", "--quiet"]) == 0
+    path = folder / "project.json"
+    _same(_page(path)[0], _cli(path))
