@@ -5,6 +5,7 @@ and the uncertainty included."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 from pathlib import Path
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 from lightcal_app import requests as rq
 from lightcal_app.solve_service import SolveService
-from lightcal_app.state import AppState
+from lightcal_app.state import AppState, Display
 
 from lightcal.cli.main import main
 from lightcal.io.project import load_project
@@ -29,8 +30,14 @@ def _cli(path: Path) -> CalibrationResult:
 
 
 def _page(path: Path, *, steps: int = 0) -> tuple[CalibrationResult, list[int]]:
-    """Run (after `steps` Steps) in the app's solve service, without a browser; the
-    result and the iteration numbers the page drew."""
+    """The result and the iteration numbers the page drew (`_page_state`)."""
+    state = _page_state(path, steps=steps)
+    assert state.result is not None, state.solver_message
+    return state.result, [rep.iteration for rep in state.history]
+
+
+def _page_state(path: Path, *, steps: int = 0) -> AppState:
+    """Run (after `steps` Steps) in the app's solve service, without a browser."""
     project = load_project(path)
     state = AppState(project, load_images(project))
     solve = SolveService(state, notify=lambda *a, **k: None, follow_iterations=False)
@@ -52,8 +59,7 @@ def _page(path: Path, *, steps: int = 0) -> tuple[CalibrationResult, list[int]]:
         if not solve.running() and not pending:
             break
         pause.wait(0.01)
-    assert state.result is not None, state.solver_message
-    return state.result, [rep.iteration for rep in state.history]
+    return state
 
 
 def _same(page: CalibrationResult, cli: CalibrationResult) -> None:
@@ -113,3 +119,31 @@ def test_two_lights_give_the_same_result_in_page_and_cli(
     assert main([*argv, "--lights", "2", "--seed", "2", "--quiet"]) == 0
     path = folder / "project.json"
     _same(_page(path)[0], _cli(path))
+
+
+def test_the_overlays_render_the_wall_auto_chose(painted: Path) -> None:
+    """The guess renders the project's (matte) wall; after the page's solve picks
+    plastic, the overlays render its highlight: their residuals are the fitted wall's."""
+    from lightcal_app.overlays import OverlayImages
+
+    from lightcal.core.wall import LAMBERTIAN
+
+    project = load_project(painted)
+    loaded = load_images(project)
+    guess = AppState(project, loaded)
+    SolveService(guess, notify=lambda *a, **k: None, follow_iterations=False).setup_changed()
+    assert guess.display is not None and guess.display.wall is LAMBERTIAN
+    display = _page_state(painted).display
+    assert display is not None and display.source == "estimate"
+    assert display.wall.name == "plastic"
+    overlays = OverlayImages(project, loaded)
+
+    def rms(shown: Display) -> float:
+        squares = [
+            np.ma.mean(overlays.residual(i, overlays.render(i, shown)) ** 2)
+            for i in range(len(project.names))
+        ]
+        return float(np.sqrt(np.mean(squares)))
+
+    fitted, matte = rms(display), rms(dataclasses.replace(display, wall=LAMBERTIAN))
+    assert fitted < 0.3 * matte  # measured: 48 against 430

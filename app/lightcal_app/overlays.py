@@ -154,6 +154,7 @@ class OverlayImages:
             vignetting=self._vignetting,
             offset=0.0,
             rid_subsamples=self.project.solver.rid_subsamples,
+            wall=display.wall,
         )
         if sensor == "paper":
             # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.

@@ -217,6 +217,7 @@ class SolveService:
             project.solver.offset,
             "guess",
             rev,
+            project.wall.initial,
         )
         with st.lock:
             if st.session_gen == gen and st.project is project:
@@ -340,6 +341,7 @@ class SolveService:
             model.layout.offset(x),
             "estimate",
             self._model_setup_rev,
+            model.layout.wall_of(x),
         )
 
     def on_iteration(self, gen: int, rep: IterationReport) -> None:

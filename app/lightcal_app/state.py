@@ -18,6 +18,7 @@ import numpy as np
 from lightcal.core.scene import Rig
 from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
+from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal.pipeline.plan import PlannedView, Sigmas
@@ -168,6 +169,8 @@ class Display:
         setup_rev: the state's `setup_rev` of the guess and selection it was made from;
             after an edit of either (a newer `setup_rev`) it is out of date until the
             worker replaces it, and the widgets show the state's guess instead.
+        wall: the wall's reflectance the overlays render with (the estimate's: a
+            plastic wall `auto` chose renders its highlight).
     """
 
     rig: Rig
@@ -175,6 +178,7 @@ class Display:
     offset: float
     source: Literal["guess", "estimate"]
     setup_rev: int
+    wall: WallReflectance = LAMBERTIAN
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""
