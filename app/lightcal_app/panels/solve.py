@@ -110,7 +110,9 @@ class SolvePanel(TabPanel):
         }
         self.cost_plot.data = (it, log_cost)
         names = list(frame.parameter_names)
-        xs = np.array([h.x for h in hist]) if hist else np.zeros((0, len(names)))
+        # A later stage of the solve may add parameters (a wall `auto` tries): they come
+        # after the first model's, whose columns the plots draw.
+        xs = np.array([h.x[: len(names)] for h in hist]) if hist else np.zeros((0, len(names)))
         for plot, suffix, factor in (
             (self.position_plot, "_m", 1e3),
             (self.angle_plot, "_rad", 180.0 / math.pi),
