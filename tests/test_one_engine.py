@@ -47,6 +47,12 @@ def _page_state(path: Path, *, steps: int = 0) -> AppState:
         assert solve.session is not None and solve.session.wait(60)
         solve.poll()
     solve.start("run")
+    _settle(solve, state)
+    return state
+
+
+def _settle(solve: SolveService, state: AppState) -> None:
+    """What the worker does with the solve's requests (Finished), without a thread."""
     pause = threading.Event()
     for _ in range(30_000):
         with state.lock:
@@ -57,9 +63,9 @@ def _page_state(path: Path, *, steps: int = 0) -> AppState:
                 solve.finished(req.gen, req.outcome)
         solve.poll()
         if not solve.running() and not pending:
-            break
+            return
         pause.wait(0.01)
-    return state
+    raise AssertionError("the solve did not settle")
 
 
 def _same(page: CalibrationResult, cli: CalibrationResult) -> None:
@@ -147,3 +153,101 @@ def test_the_overlays_render_the_wall_auto_chose(painted: Path) -> None:
 
     fitted, matte = rms(display), rms(dataclasses.replace(display, wall=LAMBERTIAN))
     assert fitted < 0.3 * matte  # measured: 48 against 430
+
+
+def test_the_solve_tab_settings_give_the_cli_answer_of_the_edited_file(painted: Path) -> None:
+    """The painted project with `wall: lambertian` in its file: choosing `auto`, mirror
+    exclusion and the offset in the page solves what `lightcal calibrate` solves on the
+    file with those keys."""
+    from lightcal_app.actions import Actions
+    from lightcal_app.solve_settings import SolveSettings
+
+    data = json.loads(painted.read_text())
+    data["wall"] = {"model": "lambertian"}
+    data["selection"]["exclude_mirror_deg"] = None
+    matte = painted.parent / "matte.json"
+    matte.write_text(json.dumps(data))
+    data["wall"] = {"model": "auto"}
+    data["selection"]["exclude_mirror_deg"] = 2.5
+    data["sensor"] = {**data.get("sensor", {}), "estimate_offset": True}
+    edited = painted.parent / "edited.json"
+    edited.write_text(json.dumps(data))
+
+    project = load_project(matte)
+    state = AppState(project, load_images(project))
+    solve = SolveService(state, notify=lambda *a, **k: None, follow_iterations=False)
+    actions = Actions(state, planes=list, notify=lambda *a, **k: None)
+    settings = SolveSettings("auto", 2.5, True, project.spec.sensor.model, ("none",))
+    actions.set_solve_settings(settings)
+    assert state.solve_settings == settings and state.solve_project is not project
+    solve.setup_changed()
+    solve.start("run")
+    _settle(solve, state)
+    assert state.result is not None
+    cli = _cli(edited)
+    assert cli.wall["model"] == "plastic"
+    _same(state.result, cli)
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (
+            {"wall_model": "glass"},
+            "wall.model: expected one of lambertian, plastic, oren_nayar, auto",
+        ),
+        (
+            {"exclude_mirror_deg": 95.0},
+            "selection.exclude_mirror_deg: expected an angle in degrees from 0 (off) to below "
+            "90, got 95.0",
+        ),
+        (
+            {"fall_off": "map"},
+            "sensor.model: 'map' needs the project's vignetting file (sensor.vignetting)",
+        ),
+        (
+            {"estimate_rid": ("curve", "none")},
+            "lights.estimate_rid: expected one per light (1), got 2",
+        ),
+        (
+            {"estimate_rid": ("spline",)},
+            "lights.0.estimate_rid: expected one of none, cos_power, curve",
+        ),
+    ],
+)
+def test_settings_the_project_does_not_take_are_refused_by_their_key(
+    painted: Path, change: dict[str, object], expected: str
+) -> None:
+    from lightcal_app.actions import Actions
+    from lightcal_app.solve_settings import settings_of
+
+    from lightcal.errors import InputError
+
+    project = load_project(painted)
+    state = AppState(project, load_images(project))
+    actions = Actions(state, planes=list, notify=lambda *a, **k: None)
+    before = state.solve_settings
+    with pytest.raises(InputError) as refused:
+        actions.set_solve_settings(dataclasses.replace(settings_of(project), **change))
+    assert str(refused.value) == expected
+    assert state.solve_settings == before and state.solve_project is project
+
+
+def test_the_settings_travel_in_the_session_file(painted: Path) -> None:
+    from lightcal_app.session_file import apply_session, session_from_state
+    from lightcal_app.solve_settings import SolveSettings
+
+    project = load_project(painted)
+    loaded = load_images(project)
+    state = AppState(project, loaded)
+    chosen = SolveSettings("oren_nayar", 4.0, True, "cos4", ("cos_power",))
+    from lightcal_app.actions import Actions
+
+    Actions(state, planes=list, notify=lambda *a, **k: None).set_solve_settings(chosen)
+    saved = session_from_state(state)
+    fresh = AppState(project, loaded)
+    assert apply_session(fresh, type(saved).model_validate_json(saved.model_dump_json())) == []
+    assert fresh.solve_settings == chosen
+    assert fresh.solve_project.spec.wall.model == "oren_nayar"
+    assert fresh.solve_project.spec.sensor.model == "cos4"
+    assert fresh.solve_project.lights[0].estimate_rid == "cos_power"

@@ -28,6 +28,7 @@ from lightcal_app.requests import (
     Solve,
 )
 from lightcal_app.solve_service import Notify
+from lightcal_app.solve_settings import SolveSettings, check_settings, project_for_solve
 from lightcal_app.state import (
     ALL_DIRT,
     MAX_ITERATION_S,
@@ -123,6 +124,27 @@ class Actions:
                 st.selection_per_image[image] = settings
             st.resume_x = None
             st.resume_end = None
+            st.setup_changed(selection=True)
+
+    def set_solve_settings(self, settings: SolveSettings) -> None:
+        """What the solve fits (wall model, mirror exclusion, offset, fall-off, RID
+        estimates): the solve starts over on the project with those keys set. Refused
+        (InputError naming the project key) when the project does not accept them."""
+        st = self.state
+        with st.lock:
+            project = st.project
+            if settings == st.solve_settings:
+                return
+        check_settings(project, settings)
+        solve_project = project_for_solve(project, settings)
+        with st.lock:
+            if st.project is not project:
+                return  # another project arrived meanwhile
+            st.solve_settings = settings
+            st.solve_project = solve_project
+            st.resume_x = None
+            st.resume_end = None
+            # The fall-off changes which pixels are usable: the selection is redone.
             st.setup_changed(selection=True)
 
     def clear_selection_override(self, image: str) -> None:

@@ -132,7 +132,7 @@ class OverlayImages:
 
     def _binned_vignetting(self) -> np.ndarray | None:
         p = self.project
-        if p.spec.sensor.model != "map" or p.vignetting_path is None:
+        if p.vignetting_path is None:  # (with a file, the Solve tab may choose "map")
             return None
         from lightcal.io.vignetting_file import load_vignetting
 
@@ -145,7 +145,7 @@ class OverlayImages:
         """(h, w) rendered values of image `index` on the binned grid (masked off the wall)."""
         view = self.project.views[index]
         view = with_view(view, exposure=view.exposure * display.gains[index])
-        sensor = self.project.spec.sensor.model
+        sensor = display.fall_off or self.project.spec.sensor.model
         out = render_image(
             self.geo.render_camera,
             view,

@@ -16,6 +16,7 @@ import hashlib
 import json
 import os
 import time
+from dataclasses import asdict
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -24,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
-from lightcal.errors import InputError
+from lightcal.errors import InputError, LightcalError
 from lightcal.io.atomic import atomic_write_text
 from lightcal_app.limits import (
     MAX_BINNING,
@@ -35,6 +36,7 @@ from lightcal_app.limits import (
     MAX_SEED,
     POSITION_LIMIT_M,
 )
+from lightcal_app.solve_settings import SolveSettings, check_settings, project_for_solve
 from lightcal_app.state import (
     AppState,
     LightGuess,
@@ -106,6 +108,16 @@ class SolveModel(_Model):
     time_s: float = Field(default=0.0, ge=0.0, le=1e7)
 
 
+class SolveSettingsModel(_Model):
+    """What the solve fits (`lightcal_app.solve_settings.SolveSettings`)."""
+
+    wall_model: str = Field(max_length=40)
+    exclude_mirror_deg: float = Field(ge=0.0, lt=90.0)
+    estimate_offset: bool
+    fall_off: str = Field(max_length=40)
+    estimate_rid: list[Annotated[str, Field(max_length=40)]] = Field(max_length=64)
+
+
 class SessionFile(_Model):
     """One app session (version 1)."""
 
@@ -123,6 +135,8 @@ class SessionFile(_Model):
     show_selection: bool = True
     rays_image: Name = "none"
     ref_image: Count = 0
+    # Files before this field: the project's own settings.
+    solve_settings: SolveSettingsModel | None = None
     solve: SolveModel | None = None
 
 
@@ -198,6 +212,7 @@ def session_from_state(state: AppState) -> SessionFile:
         overlay_default=state.overlay_default,
         overlay_per_image=dict(state.overlay_per_image),
         show_selection=state.show_selection,
+        solve_settings=SolveSettingsModel.model_validate(asdict(state.solve_settings)),
         rays_image=state.rays_image,
         ref_image=state.ref_image,
         solve=solve,
@@ -306,6 +321,21 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
         state.rays_image = session.rays_image
     if session.ref_image < len(state.project.names):
         state.ref_image = session.ref_image
+    if session.solve_settings is not None:
+        saved = session.solve_settings
+        settings = SolveSettings(
+            saved.wall_model,
+            saved.exclude_mirror_deg,
+            saved.estimate_offset,
+            saved.fall_off,
+            tuple(saved.estimate_rid),
+        )
+        try:
+            check_settings(state.project, settings)
+            state.solve_project = project_for_solve(state.project, settings)
+            state.solve_settings = settings
+        except LightcalError as exc:
+            warnings.append(f"what the solve fits: {exc}; kept the project's")
     if session.solve is not None and session.solve.history:
         state.parameter_names = list(session.solve.parameter_names)
         state.history = [

@@ -153,7 +153,7 @@ class SolveService:
         """Select every image's pixels with the user's settings, regions and clicks."""
         st = self.state
         with st.lock:
-            project, loaded = st.project, st.loaded
+            project, loaded = st.solve_project, st.loaded
             rev = st.selection_rev
             settings = [st.selection_of(i) for i in range(len(project.names))]
             regions = list(st.regions)
@@ -166,7 +166,7 @@ class SolveService:
                 datas.append(None)
                 self.notify(None, f"Selection failed for {project.names[i]}", str(exc), error=True)
         with st.lock:
-            if st.project is not project:
+            if st.solve_project is not project:
                 return
             self._image_data = datas
             self._selection_done = rev
@@ -206,7 +206,7 @@ class SolveService:
         """Display the guess, with the scales fitted to the selection."""
         st = self.state
         with st.lock:
-            project = st.project
+            project = st.solve_project
             guess = list(st.guess)
             gen, rev = st.session_gen, st.setup_rev
             datas, _ = self.usable_images()
@@ -218,9 +218,10 @@ class SolveService:
             "guess",
             rev,
             project.wall.initial,
+            project.spec.sensor.model,
         )
         with st.lock:
-            if st.session_gen == gen and st.project is project:
+            if st.session_gen == gen and st.solve_project is project:
                 st.display = display
                 st.mark("overlays", "light", "widgets")
 
@@ -231,7 +232,7 @@ class SolveService:
         index of each of its images; None when no image has pixels."""
         st = self.state
         with st.lock:
-            project = st.project
+            project = st.solve_project
             guess = list(st.guess)
             datas, index = self.usable_images()
         if not datas:
@@ -263,7 +264,7 @@ class SolveService:
             return False
         model, index = built
         with st.lock:
-            project, loaded = st.project, st.loaded
+            project, loaded = st.solve_project, st.loaded
         resumed = (
             resume is not None
             and bool(history)
@@ -342,6 +343,7 @@ class SolveService:
             "estimate",
             self._model_setup_rev,
             model.layout.wall_of(x),
+            self.state.solve_project.spec.sensor.model,
         )
 
     def on_iteration(self, gen: int, rep: IterationReport) -> None:
@@ -419,7 +421,7 @@ class SolveService:
             if st.session_gen != gen or self.model is None:
                 return
             model = self.model
-            project, loaded = st.project, st.loaded
+            project, loaded = st.solve_project, st.loaded
         result = None
         if isinstance(outcome, Calibration):
             model, result, outcome = outcome.model, outcome.result, outcome.outcome

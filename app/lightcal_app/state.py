@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from lightcal.core.footprint import SensorModel
 from lightcal.core.scene import Rig
 from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
@@ -23,6 +24,7 @@ from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal.pipeline.plan import PlannedView, Sigmas
 from lightcal_app.requests import Request, SetupChanged
+from lightcal_app.solve_settings import SolveSettings, settings_of
 
 if TYPE_CHECKING:  # session_file imports this module
     from lightcal_app.session_file import SessionFile
@@ -171,6 +173,8 @@ class Display:
             worker replaces it, and the widgets show the state's guess instead.
         wall: the wall's reflectance the overlays render with (the estimate's: a
             plastic wall `auto` chose renders its highlight).
+        fall_off: the camera's fall-off model they render with (`sensor.model` of the
+            project solved); None: the loaded project's.
     """
 
     rig: Rig
@@ -179,6 +183,7 @@ class Display:
     source: Literal["guess", "estimate"]
     setup_rev: int
     wall: WallReflectance = LAMBERTIAN
+    fall_off: SensorModel | None = None
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""
@@ -226,6 +231,10 @@ class AppState:
             sel.strategy, sel.n_per_image, sel.grid_step, sel.binning, sel.seed
         )
         self.selection_per_image: dict[str, SelectionSettings] = {}
+        # What the solve fits (the Solve tab), and the project it solves (the loaded one
+        # with those keys set: `solve_settings.project_for_solve`).
+        self.solve_settings: SolveSettings = settings_of(project)
+        self.solve_project: Project = project
         self.regions: list[UserRegion] = []
         self.points: dict[str, list[tuple[int, int]]] = {}
         self.overlay_default: OverlayKind = "real"

@@ -87,6 +87,7 @@ class Panels:
             self.light.set_project(project)
             self.pixels.set_project(project)
             self.view.set_project(project)
+            self.solve.set_project(project)
             self.files.set_project(project)
             for key, handle in self.explain_figures.items():
                 handle.image = PROJECT_FIGURES[key](project)

@@ -8,8 +8,16 @@ from typing import Any
 import numpy as np
 import viser
 
+from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.solve_settings import (
+    FALL_OFFS,
+    RID_ESTIMATES,
+    WALL_MODELS,
+    SolveSettings,
+    settings_of,
+)
 from lightcal_app.state import MAX_ITERATION_S, Frame
 from lightcal_app.text import md_prose
 
@@ -56,6 +64,7 @@ class SolvePanel(TabPanel):
         )
         self.pace.on_update(self.guard(lambda e: ctl.set_pace(self.pace.value)))
         self.status_md = gui.add_markdown("")
+        self._build_settings(ctl.state.project)
         empty = np.zeros(0)
         # log10 of the cost on a linear axis: whole-number ticks that fit the axis (a
         # log-scale axis wrote 1,000,000,000 into 100 pixels and drew every minor tick).
@@ -74,6 +83,88 @@ class SolvePanel(TabPanel):
         self.pause_button.on_click(lambda e: ctl.pause(e.client))
         self.reset_button.on_click(lambda e: ctl.reset(e.client))
 
+    def _build_settings(self, project: Project) -> None:
+        """ "What the solve fits": the project keys of `SolveSettings`, one widget each
+        (an RID estimate per light), each named with the key a project file would set."""
+        settings = settings_of(project)
+        fall_offs = [f for f in FALL_OFFS if f != "map" or project.vignetting_path is not None]
+        with self.gui.add_folder("What the solve fits", expand_by_default=True) as folder:
+            self._settings_folder = folder
+            self.wall_model = self.gui.add_dropdown(
+                "wall",
+                WALL_MODELS,
+                initial_value=settings.wall_model,
+                hint="wall.model: matte (lambertian), painted (plastic), rough matte "
+                "(oren_nayar), or auto: lambertian, and the others where the fit test "
+                "points at the wall",
+            )
+            self.mirror = self.gui.add_number(
+                "exclude mirror (deg)",
+                initial_value=settings.exclude_mirror_deg,
+                min=0.0,
+                max=89.0,
+                step=0.5,
+                hint="selection.exclude_mirror_deg: drop pixels this close to the mirror "
+                "direction of the first estimate and solve again (0: keep all)",
+            )
+            self.offset = self.gui.add_checkbox(
+                "estimate offset (room light)",
+                settings.estimate_offset,
+                hint="sensor.estimate_offset: a constant added to every pixel (room light, a "
+                "black level left in the images) estimated with the light",
+            )
+            self.fall_off = self.gui.add_dropdown(
+                "camera fall-off",
+                fall_offs,
+                initial_value=settings.fall_off,
+                hint="sensor.model: radiance (none), cos4, paper (the paper's model) or "
+                "map (the project's vignetting file)",
+            )
+            self.rid_estimates = [
+                self.gui.add_dropdown(
+                    f"estimate RID: {u.initial.name}",
+                    RID_ESTIMATES,
+                    initial_value=value,
+                    hint="lights[].estimate_rid: also fit the light's profile (cos_power: "
+                    "one exponent; curve: a monotone curve) - symmetric lights only",
+                )
+                for u, value in zip(project.lights, settings.estimate_rid, strict=True)
+            ]
+        self._settings_lights = [u.initial.name for u in project.lights]
+        self._settings_fall_offs = fall_offs
+        changed = self.guard(lambda e: self.ctl.set_solve_settings(self._settings()))
+        handles: list[Any] = [self.wall_model, self.mirror, self.offset, self.fall_off]
+        for h in [*handles, *self.rid_estimates]:
+            h.on_update(changed)
+
+    def _settings(self) -> SolveSettings:
+        return SolveSettings(
+            wall_model=str(self.wall_model.value),
+            exclude_mirror_deg=float(self.mirror.value),
+            estimate_offset=bool(self.offset.value),
+            fall_off=str(self.fall_off.value),
+            estimate_rid=tuple(str(h.value) for h in self.rid_estimates),
+        )
+
+    def set_project(self, project: Project) -> None:
+        """Another project: its lights' RID widgets, its fall-off choices."""
+        fall_offs = [f for f in FALL_OFFS if f != "map" or project.vignetting_path is not None]
+        names = [u.initial.name for u in project.lights]
+        if names != self._settings_lights or fall_offs != self._settings_fall_offs:
+            self._settings_folder.remove()
+            self._build_settings(project)
+
+    def _show_settings(self) -> None:
+        st = self.ctl.state
+        with st.lock:
+            s = st.solve_settings
+        self.flag.assign(self.wall_model, s.wall_model)
+        self.flag.assign(self.mirror, s.exclude_mirror_deg)
+        self.flag.assign(self.offset, s.estimate_offset)
+        self.flag.assign(self.fall_off, s.fall_off)
+        for handle, value in zip(self.rid_estimates, s.estimate_rid, strict=False):
+            self.flag.assign(handle, value)
+
     def _parameter_plot(self, title: str) -> Any:
         empty = np.zeros(0)
         return self.gui.add_uplot(
@@ -87,6 +178,8 @@ class SolvePanel(TabPanel):
 
     def update(self, frame: Frame) -> None:
         d = frame.dirty
+        if d & {"widgets", "scene"}:
+            self._show_settings()
         if d & {"plots", "scene"}:
             self._update_plots(frame)
         if d & {"status", "plots", "scene"}:

@@ -1,0 +1,125 @@
+"""What the solve fits, as the page sets it: the project-file keys a user would otherwise
+edit by hand before `lightcal calibrate`.
+
+`SolveSettings` holds the wall model (`wall.model`, `auto` included), the mirror
+exclusion (`selection.exclude_mirror_deg`), the offset (`sensor.estimate_offset`: room
+light or a black level left in the images), the camera's fall-off (`sensor.model`) and
+each light's RID estimate (`lights[].estimate_rid`). `project_for_solve` makes the
+project the solve uses: the loaded project with those keys set, built by
+`lightcal.io.project.project_from_spec` exactly as a project file with them would be, so
+the page solves what `lightcal calibrate` solves on the edited file.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, get_args
+
+from lightcal.errors import InputError
+from lightcal.io.project import Project, project_from_spec
+from lightcal.io.project_spec import WallModelName, WallSpec
+
+FallOff = Literal["radiance", "cos4", "paper", "map"]
+RidEstimate = Literal["none", "cos_power", "curve"]
+
+WALL_MODELS: tuple[str, ...] = get_args(WallModelName)
+FALL_OFFS: tuple[str, ...] = get_args(FallOff)
+RID_ESTIMATES: tuple[str, ...] = get_args(RidEstimate)
+
+
+@dataclass(frozen=True)
+class SolveSettings:
+    """The project keys the Solve tab edits (see the module docstring).
+
+    Attributes:
+        wall_model: `wall.model`.
+        exclude_mirror_deg: `selection.exclude_mirror_deg`; 0: off (null in the file).
+        estimate_offset: `sensor.estimate_offset`.
+        fall_off: `sensor.model` ("map" only for a project with a vignetting file).
+        estimate_rid: per light, `lights[j].estimate_rid`.
+    """
+
+    wall_model: str
+    exclude_mirror_deg: float
+    estimate_offset: bool
+    fall_off: str
+    estimate_rid: tuple[str, ...]
+
+
+def settings_of(project: Project) -> SolveSettings:
+    """The settings as the project file has them."""
+    spec = project.spec
+    return SolveSettings(
+        wall_model=spec.wall.model,
+        exclude_mirror_deg=float(spec.selection.exclude_mirror_deg or 0.0),
+        estimate_offset=spec.sensor.estimate_offset,
+        fall_off=spec.sensor.model,
+        estimate_rid=tuple(ls.estimate_rid for ls in spec.lights),
+    )
+
+
+def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
+    """`settings` when each value is one the project accepts; InputError naming the
+    project key otherwise (values come from a page)."""
+    if settings.wall_model not in WALL_MODELS:
+        raise InputError("wall.model", f"expected one of {', '.join(WALL_MODELS)}")
+    mirror = settings.exclude_mirror_deg
+    if not (isinstance(mirror, int | float) and math.isfinite(mirror) and 0 <= mirror < 90):
+        raise InputError(
+            "selection.exclude_mirror_deg",
+            f"expected an angle in degrees from 0 (off) to below 90, got {mirror}",
+        )
+    if settings.fall_off not in FALL_OFFS:
+        raise InputError("sensor.model", f"expected one of {', '.join(FALL_OFFS)}")
+    if settings.fall_off == "map" and project.vignetting_path is None:
+        raise InputError(
+            "sensor.model", "'map' needs the project's vignetting file (sensor.vignetting)"
+        )
+    if len(settings.estimate_rid) != len(project.lights):
+        raise InputError(
+            "lights.estimate_rid",
+            f"expected one per light ({len(project.lights)}), got {len(settings.estimate_rid)}",
+        )
+    for j, value in enumerate(settings.estimate_rid):
+        if value not in RID_ESTIMATES:
+            raise InputError(
+                f"lights.{j}.estimate_rid", f"expected one of {', '.join(RID_ESTIMATES)}"
+            )
+        light = project.lights[j].initial
+        if value != "none" and not light.rid.symmetric:
+            raise InputError(
+                f"lights.{j}.estimate_rid",
+                f"light {light.name!r} has an RID without rotational symmetry: its RID "
+                "cannot be estimated (expected none)",
+            )
+    return settings
+
+
+def project_for_solve(project: Project, settings: SolveSettings) -> Project:
+    """The project with the settings' keys set (the project itself when they are its
+    own); InputError when the edited project is refused (an RID estimate of a light
+    that has no axis, ...), naming the key as the project file would."""
+    if settings == settings_of(project):
+        return project
+    spec = project.spec
+    wall = spec.wall
+    if settings.wall_model != wall.model:
+        # Another model: its default parameters (a model's own do not carry over).
+        wall = WallSpec(model=settings.wall_model, flatness_mm=wall.flatness_mm)  # type: ignore[arg-type]
+    edited = spec.model_copy(
+        update={
+            "wall": wall,
+            "selection": spec.selection.model_copy(
+                update={"exclude_mirror_deg": settings.exclude_mirror_deg or None}
+            ),
+            "sensor": spec.sensor.model_copy(
+                update={"estimate_offset": settings.estimate_offset, "model": settings.fall_off}
+            ),
+            "lights": [
+                ls.model_copy(update={"estimate_rid": value})
+                for ls, value in zip(spec.lights, settings.estimate_rid, strict=True)
+            ],
+        }
+    )
+    return project_from_spec(edited, project.path)
