@@ -1,0 +1,84 @@
+"""The Solve tab's "What the solve fits" in a real headless Chromium (issue 27): a user
+sets `wall: auto` in the page on a painted wall and gets the CLI's answer on the project
+file with that key."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from lightcal_app.server import LightcalApp, build_app
+
+from lightcal.cli.main import main
+from lightcal.io.project import load_project
+from lightcal.pipeline import build_model, calibrate, load_images
+from tests.test_app_browser import BROWSER_MARKS, SLOW_S, open_page, shot, wait_for
+
+pytestmark = BROWSER_MARKS
+
+
+@pytest.fixture(scope="module")
+def painted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A plastic wall; the project file says lambertian, as a first guess would."""
+    folder = tmp_path_factory.mktemp("painted_page") / "data"
+    argv = ["synth", str(folder), "--views", "6", "--width", "200", "--height", "150"]
+    argv += ["--wall", "plastic", "--roughness", "0.15", "--seed", "4", "--quiet"]
+    assert main(argv) == 0
+    return folder / "project.json"
+
+
+@pytest.fixture(scope="module")
+def app(painted: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[LightcalApp]:
+    state_dir = tmp_path_factory.mktemp("state")
+    a = build_app(painted, port=0, session_path=False, state_dir=state_dir)
+    assert a.wait_idle()
+    yield a
+    a.close()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    from playwright.sync_api import sync_playwright
+
+    from tests.test_app_browser import CHROMIUM, FLAGS
+
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS)
+        yield b
+        b.close()
+
+
+def test_wall_auto_chosen_in_the_page_gives_the_cli_answer(
+    app: LightcalApp, browser: Any, painted: Path
+) -> None:
+    page, _ = open_page(browser, app, size=(1280, 800))
+    page.get_by_role("tab", name="Solve").click()
+    page.get_by_label("wall", exact=True).click()
+    page.get_by_role("option", name="auto", exact=True).click()
+    wait_for(lambda: app.state.solve_settings.wall_model == "auto", "the page's wall: auto")
+    assert app.wait_idle(SLOW_S)
+    app.controller.set_pace(0.0)
+    page.get_by_role("button", name="Run").click()
+    wait_for(lambda: app.state.solver_state == "converged", "the solve to converge")
+    assert app.wait_idle(SLOW_S)
+    page.get_by_text("converged").first.wait_for()
+    shot(page, "app_wall_auto.png")
+
+    data = json.loads(painted.read_text())
+    data["wall"] = {"model": "auto"}
+    edited = painted.parent / "auto.json"
+    edited.write_text(json.dumps(data))
+    project = load_project(edited)
+    loaded = load_images(project)
+    cli = calibrate(project, loaded, build_model(project, loaded)).result
+    page_result = app.state.result
+    assert page_result is not None
+    assert cli.wall["model"] == page_result.wall["model"] == "plastic"
+    np.testing.assert_allclose(page_result.x, cli.x, rtol=1e-9, atol=1e-12)
+    # The overlays render the plastic wall the solve chose.
+    display = app.state.display
+    assert display is not None and display.wall.name == "plastic"
