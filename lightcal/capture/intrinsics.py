@@ -4,7 +4,11 @@
 with its exhaustive search, or `cv2.aruco.CharucoDetector`), calibrates, then rejects the
 views whose own reprojection RMS exceeds max(3 x the median over the views, `max_rms_px`)
 and calibrates again, until no view is rejected. Views without a detection are rejected
-with the reason. At least 3 usable views are required; 10 - 20 views with the board tilted
+with the reason, and so are copies of an earlier view (`view_variety.same_views`). At least
+3 usable views are required, showing the board at 3 different angles
+(`view_variety.angle_groups`: otherwise the focal length is undetermined and is refused,
+however small the residuals); a board tilted less than 10 degrees in every view is a
+warning (`IntrinsicsResult.warnings`). 10 - 20 views with the board tilted
 (20 - 45 degrees) in several directions and covering the image corners determine the
 focal length to better than 0.1 % (12 synthetic 800 x 600 views: 0.013 %, principal point
 within 0.2 px; tests/test_intrinsics.py). (`CALIB_CB_ACCURACY` was left out: on such views
@@ -22,6 +26,7 @@ unlike that it keeps the correlations (e.g. fx with fy, cx with the poses' tilt)
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -32,6 +37,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from lightcal.capture.boards import CharucoBoard, Chessboard
 from lightcal.capture.marker_pose import stretch_to_uint8
+from lightcal.capture.view_variety import (
+    DISTINCT_ANGLE_DEG,
+    EXPECTED_VIEWS,
+    MIN_ANGLES,
+    MIN_TILT_DEG,
+    angle_groups,
+    board_normals,
+    listing,
+    same_views,
+    tilts_deg,
+)
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 
@@ -62,6 +78,8 @@ class IntrinsicsResult:
         per_image_rms_px: (n_used,) reprojection RMS of each used view, in `used` order.
         used: Names of the views used in the final calibration.
         rejected: (name, reason) of every view left out, in input order.
+        warnings: What the user should know about the views (e.g. a board seen nearly
+            square-on in every view).
     """
 
     camera: Camera
@@ -69,6 +87,7 @@ class IntrinsicsResult:
     per_image_rms_px: tuple[float, ...]
     used: tuple[str, ...]
     rejected: tuple[tuple[str, str], ...]
+    warnings: tuple[str, ...] = ()
 
 
 def _detect_chessboard(
@@ -167,6 +186,16 @@ def _calibrate(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[float], NDArray[np.float64]]:
     """K (3, 3), dist (n_dist,), the per-view reprojection RMS (pixels) and the
     intrinsics' covariance (`calibration_covariance`)."""
+    K, dist, per_view, covariance, _ = _calibrate_views(views, image_size, n_dist)
+    return K, dist, per_view, covariance
+
+
+def _calibrate_views(
+    views: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    image_size: tuple[int, int],
+    n_dist: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], list[float], NDArray[np.float64], list[Any]]:
+    """`_calibrate`'s results and each view's fitted rotation vector (3,)."""
     object_points = [w.astype(np.float32) for w, _ in views]
     image_points = [p.astype(np.float32).reshape(-1, 1, 2) for _, p in views]
     _, K, dist, rvecs, tvecs = cv2.calibrateCamera(
@@ -185,7 +214,8 @@ def _calibrate(
         residual = projected.reshape(-1, 2) - points_image
         per_view.append(float(np.sqrt(np.mean(np.sum(residual**2, axis=1)))))
     K_out: NDArray[np.float64] = np.asarray(K, dtype=np.float64)
-    return K_out, dist, per_view, calibration_covariance(views, K_out, dist, rvecs, tvecs)
+    covariance = calibration_covariance(views, K_out, dist, rvecs, tvecs)
+    return K_out, dist, per_view, covariance, list(rvecs)
 
 
 def calibrate_intrinsics(
@@ -213,7 +243,8 @@ def calibrate_intrinsics(
 
     Raises:
         InputError: Bad arguments, a view that is not 2-D or not the size of the first,
-            or fewer than 3 usable views.
+            fewer than 3 usable views (copies of one view count once), or views that show
+            the board at fewer than 3 different angles.
     """
     if not isinstance(board, Chessboard | CharucoBoard):
         raise InputError(
@@ -221,7 +252,7 @@ def calibrate_intrinsics(
         )
     if n_dist not in _DIST_FLAGS:
         raise InputError("n_dist", f"expected 4, 5 or 8 distortion coefficients, got {n_dist!r}")
-    if not (isinstance(max_rms_px, int | float) and max_rms_px > 0.0):
+    if not (isinstance(max_rms_px, int | float) and math.isfinite(max_rms_px) and max_rms_px > 0):
         raise InputError("max_rms_px", f"expected a positive number of pixels, got {max_rms_px!r}")
     names = [f"image[{i}]" for i in range(len(images))] if sources is None else list(sources)
     if len(names) != len(images):
@@ -270,10 +301,30 @@ def calibrate_intrinsics(
             + (f" (rejected: {reasons})" if reasons else ""),
         )
 
+    n_found = len(views)
+    copies = same_views(views)
+    for j, (i, offset) in copies.items():
+        rejected.append(
+            (
+                view_names[j],
+                f"the same view as {view_names[i]} (every corner within {offset:.2f} px): "
+                "a copy adds no information; expected each photo from another angle",
+            )
+        )
+    copied = [view_names[j] for j in sorted(copies)]
+    views = [v for k, v in enumerate(views) if k not in copies]
+    view_names = [n for k, n in enumerate(view_names) if k not in copies]
+    if len(views) < MIN_VIEWS and copies:
+        raise InputError(
+            "images",
+            f"{n_found} views of the board but only {len(views)} distinct "
+            f"({listing(copied)} {'is' if len(copied) == 1 else 'are'} the same view as an "
+            f"earlier one): expected {EXPECTED_VIEWS}",
+        )
     if len(views) < MIN_VIEWS or image_size is None:
         raise too_few()
     while True:
-        K, dist, per_view, covariance = _calibrate(views, image_size, n_dist)
+        K, dist, per_view, covariance, rvecs = _calibrate_views(views, image_size, n_dist)
         limit = max(3.0 * float(np.median(per_view)), float(max_rms_px))
         bad = [i for i, rms in enumerate(per_view) if rms > limit]
         if not bad:
@@ -291,6 +342,24 @@ def calibrate_intrinsics(
         if len(views) < MIN_VIEWS:
             raise too_few()
 
+    normals = board_normals(rvecs)
+    groups = angle_groups(normals)
+    if len(groups) < MIN_ANGLES:
+        angles = "1 angle" if len(groups) == 1 else f"{len(groups)} different angles"
+        described = "; ".join(listing([view_names[k] for k in group]) for group in groups)
+        raise InputError(
+            "images",
+            f"the {len(views)} views show the board at only {angles} (board normals within "
+            f"{DISTINCT_ANGLE_DEG:g} degrees of each other: {described}): expected "
+            f"{EXPECTED_VIEWS}",
+        )
+    warnings = []
+    largest_tilt = float(np.max(tilts_deg(normals)))
+    if largest_tilt < MIN_TILT_DEG:
+        warnings.append(
+            f"the board is tilted at most {largest_tilt:.1f} degrees from square-on in "
+            f"every view: the focal length is poorly determined; take {EXPECTED_VIEWS}"
+        )
     n_points = np.array([w.shape[0] for w, _ in views], dtype=np.float64)
     rms = float(np.sqrt(np.sum(n_points * np.asarray(per_view) ** 2) / n_points.sum()))
     camera = Camera.from_params(
@@ -310,4 +379,5 @@ def calibrate_intrinsics(
         per_image_rms_px=tuple(per_view),
         used=tuple(view_names),
         rejected=in_input_order(rejected),
+        warnings=tuple(warnings),
     )

@@ -10,7 +10,14 @@ its initial guess. Paths in the project are relative to the project file's folde
 Masks: `masks/<name>.png` next to the project file, 8-bit, 255 on the pixels to exclude:
 every printed area of the board (all markers of an ArUco grid, detected or not, or the
 whole ChArUco board) projected with the image's pose and padded by `mask_margin_px`
-(`MarkerPose.marker_mask`), so that the calibration only uses the white wall.
+(`MarkerPose.marker_mask`), so that the calibration only uses the white wall. They are
+written into a hidden staging folder and moved into `masks/` only with the project file
+(`lightcal.capture.mask_staging`): a run that fails or is interrupted part-way leaves
+neither, so the corrected re-run is not refused.
+
+Every argument is checked before the first image is read. An image whose marker fit is
+not finite (a NaN or infinite reprojection RMS, pose or covariance: e.g. a board file
+that does not describe the printed board) is rejected with the reason, never accepted.
 
 Exposure: when every accepted image carries EXIF exposure settings, the project gets
 them (the calibration uses them relative to the first image); when none does, every
@@ -31,12 +38,25 @@ import cv2
 import numpy as np
 
 from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
+from lightcal.capture.exif_exposures import exposure_specs
+from lightcal.capture.init_checks import (
+    NOT_FINITE,
+    POSE_FLOOR_DEG,
+    POSE_FLOOR_M,
+    check_detection,
+    check_levels,
+    check_pose_floor,
+    fit_problem,
+    vector3,
+    with_pose_floor,
+)
 from lightcal.capture.marker_pose import (
     MarkerPose,
     estimate_pose,
     pose_intrinsics_jacobian,
     pose_report,
 )
+from lightcal.capture.mask_staging import MaskStaging
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes
@@ -47,7 +67,6 @@ from lightcal.io.images import SUPPORTED_EXTENSIONS, read_image
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import (
     CameraSpec,
-    ExposureSpec,
     ImageSpec,
     InitialSpec,
     LightSpec,
@@ -60,7 +79,16 @@ from lightcal.io.project import (
     save_project,
 )
 
-__all__ = ["MASKS_DIR", "ImageOutcome", "InitResult", "init_project", "list_images"]
+__all__ = [
+    "MASKS_DIR",
+    "POSE_FLOOR_DEG",
+    "POSE_FLOOR_M",
+    "ImageOutcome",
+    "InitResult",
+    "init_project",
+    "list_images",
+    "with_pose_floor",
+]
 
 MASKS_DIR = "masks"
 """Folder (next to the project file) of the marker masks."""
@@ -78,7 +106,8 @@ class ImageOutcome:
         pose: The marker pose, None when the image was rejected.
         reason: Why the image was rejected, None when it was accepted.
         exposure: EXIF exposure settings, None when absent (or the image was rejected).
-        mask_path: The mask written for an accepted image, else None.
+        mask_path: The mask of an accepted image (in `masks/`, where it is moved with
+            the project file at the end of `init_project`), else None.
         d_pose_d_intrinsics: (6, p) how the pose moves with the camera's intrinsics
             (`marker_pose.pose_intrinsics_jacobian`), when the camera file has an
             intrinsics covariance, else None.
@@ -195,13 +224,6 @@ def _rid_spec(
     return spec
 
 
-def _vector3(name: str, values: Sequence[float]) -> list[float]:
-    out = [float(v) for v in values]
-    if len(out) != 3 or not all(math.isfinite(v) for v in out):
-        raise InputError(name, f"expected three finite numbers, got {list(values)!r}")
-    return out
-
-
 def _camera_for(image: LinearImage, camera: Camera, name: str) -> Camera:
     """The camera of the image as read (binned when the reader binned a raw file)."""
     height, width = image.shape
@@ -222,62 +244,6 @@ def _encode_mask(mask: np.ndarray) -> bytes:
     if not ok:  # pragma: no cover - OpenCV always encodes an 8-bit PNG
         raise InputError("mask", "OpenCV could not encode a PNG")
     return bytes(encoded.tobytes())
-
-
-def _exposure_specs(
-    outcomes: Sequence[ImageOutcome], warnings: list[str]
-) -> list[float | ExposureSpec | None]:
-    """The project's exposure entries of the accepted images (see the module docstring)."""
-    exposures = [o.exposure for o in outcomes]
-    known = [e for e in exposures if e is not None]
-    if not known:
-        return [None] * len(outcomes)
-    if len(known) < len(exposures):
-        missing = [o.path.name for o in outcomes if o.exposure is None]
-        warnings.append(
-            f"EXIF exposure found in {len(known)} of {len(exposures)} images (missing in "
-            f"{', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}): ignored, every "
-            "image gets exposure 1; give the exposures in the project or estimate per-image "
-            "gains (solver.estimate_gains)"
-        )
-        return [1.0] * len(outcomes)
-    reference = known[0]
-    try:
-        factors = [e.relative_factor(reference) for e in known]
-    except InputError as exc:
-        warnings.append(
-            f"EXIF exposure settings are inconsistent across the images ({exc.source} "
-            f"{exc.detail}): ignored, every image gets exposure 1"
-        )
-        return [1.0] * len(outcomes)
-    if all(e.exposure_time_s is not None for e in known):
-        specs: list[float | ExposureSpec | None] = []
-        for e in known:
-            assert e.exposure_time_s is not None
-            settings: dict[str, float] = {"exposure_time_s": e.exposure_time_s}
-            if e.iso is not None:
-                settings["iso"] = e.iso
-            if e.f_number is not None:
-                settings["f_number"] = e.f_number
-            specs.append(ExposureSpec(**settings))
-        return specs
-    return list(factors)
-
-
-#: Default systematic error of marker-based camera poses (see `init_project`): the
-#: sample data's marker poses are 0.3-0.55 mm off while their reprojection fits predict
-#: 0.01-0.04 mm, and printed-marker poses are typically good to about half a millimetre.
-POSE_FLOOR_M = 0.0005
-POSE_FLOOR_DEG = 0.05
-
-
-def with_pose_floor(covariance: np.ndarray, floor_m: float, floor_deg: float) -> np.ndarray:
-    """(6, 6) a pose covariance (delta rad, centre m) plus the systematic floor."""
-    for name, v in (("pose floor (m)", floor_m), ("pose floor (deg)", floor_deg)):
-        if not (math.isfinite(v) and v >= 0.0):
-            raise InputError(name, f"expected a finite value >= 0, got {v!r}")
-    floor = np.diag([math.radians(floor_deg) ** 2] * 3 + [floor_m**2] * 3)
-    return np.asarray(covariance, dtype=np.float64) + floor
 
 
 def init_project(
@@ -328,23 +294,21 @@ def init_project(
         What was written, with one outcome per image.
 
     Raises:
-        InputError: No images, no usable image, an unreadable camera, board or light file,
-            a chessboard as board, or an initial guess behind the wall.
+        InputError: A bad argument (checked before any image is read), no images, no
+            usable image, an unreadable camera, board or light file, a chessboard as
+            board, or an initial guess behind the wall. Nothing is left written then.
     """
     out = Path(out_path)
     folder = out.parent
     if not folder.is_dir():
         raise InputError(out, f"cannot write: folder {str(folder)!r} does not exist")
-    if isinstance(min_markers, bool) or not isinstance(min_markers, int) or min_markers < 1:
-        raise InputError("min_markers", f"expected an int >= 1, got {min_markers!r}")
-    if not (math.isfinite(mask_margin_px) and mask_margin_px >= 0.0):
-        raise InputError("mask_margin_px", f"expected a value >= 0 pixels, got {mask_margin_px!r}")
-    if not (math.isfinite(max_rms_px) and max_rms_px > 0.0):
-        raise InputError("max_rms_px", f"expected a value > 0 pixels, got {max_rms_px!r}")
-    position = _vector3("initial_position_m", initial_position_m)
-    axis = _vector3("initial_axis_camera", initial_axis_camera)
+    check_detection(min_markers, mask_margin_px, max_rms_px)
+    position = vector3("initial_position_m", initial_position_m)
+    axis = vector3("initial_axis_camera", initial_axis_camera)
     if math.hypot(*axis) == 0.0:
         raise InputError("initial_axis_camera", "expected a non-zero direction, got (0, 0, 0)")
+    check_pose_floor(pose_floor_m, pose_floor_deg, ("pose_floor_m", "pose_floor_deg"))
+    check_levels(black_level, white_level)
 
     paths = list_images(image_dir)
     camera_file = Path(camera_path)
@@ -361,24 +325,63 @@ def init_project(
     print_polygons = board.outline_world()
 
     masks_dir = folder / MASKS_DIR
-    outcomes: list[ImageOutcome] = []
-    for path, name in zip(paths, _names(paths), strict=True):
-        outcome = _process_image(
-            path,
-            name,
-            camera,
-            board,
-            print_polygons,
-            masks_dir,
-            min_markers=min_markers,
-            mask_margin_px=mask_margin_px,
-            max_rms_px=max_rms_px,
+    with MaskStaging(masks_dir) as staging:
+        outcomes: list[ImageOutcome] = []
+        for path, name in zip(paths, _names(paths), strict=True):
+            outcome = _process_image(
+                path,
+                name,
+                camera,
+                board,
+                print_polygons,
+                staging.folder,
+                masks_dir,
+                min_markers=min_markers,
+                mask_margin_px=mask_margin_px,
+                max_rms_px=max_rms_px,
+                black_level=black_level,
+                white_level=white_level,
+            )
+            outcomes.append(outcome)
+            if on_image is not None:
+                on_image(outcome)
+        result = _write_project(
+            outcomes,
+            staging,
+            image_dir=image_dir,
+            out=out,
+            camera_file=camera_file,
+            rid=rid,
+            position=position,
+            axis=axis,
+            no_light_given=light_file is None and half_angle_deg is None,
             black_level=black_level,
             white_level=white_level,
+            pose_floor_m=pose_floor_m,
+            pose_floor_deg=pose_floor_deg,
         )
-        outcomes.append(outcome)
-        if on_image is not None:
-            on_image(outcome)
+        staging.commit()
+    return result
+
+
+def _write_project(
+    outcomes: list[ImageOutcome],
+    staging: MaskStaging,
+    *,
+    image_dir: str | Path,
+    out: Path,
+    camera_file: Path,
+    rid: RIDSpec,
+    position: list[float],
+    axis: list[float],
+    no_light_given: bool,
+    black_level: float | None,
+    white_level: float | None,
+    pose_floor_m: float,
+    pose_floor_deg: float,
+) -> InitResult:
+    """Check the project (with the staged masks), then move the masks in and write it."""
+    folder = out.parent
 
     accepted = [o for o in outcomes if o.accepted]
     if not accepted:
@@ -390,47 +393,57 @@ def init_project(
         )
 
     warnings: list[str] = []
-    if light_file is None and half_angle_deg is None:
+    if no_light_given:
         warnings.append(
             "no light file nor half angle given: the light is assumed to have a cos^m profile "
             "of half angle 30 degrees (give its IES/LDT file or half angle for a true fit)"
         )
-    exposures = _exposure_specs(accepted, warnings)
-    images = []
-    for o, exposure in zip(accepted, exposures, strict=True):
-        assert o.pose is not None and o.mask_path is not None
-        images.append(
-            ImageSpec(
-                path=_relative(o.path, folder),
-                name=o.name,
-                T_camera_world=PoseSpec(
-                    R=o.pose.R_camera_world.tolist(),
-                    t=o.pose.t_camera_world.tolist(),
-                    covariance=with_pose_floor(
-                        o.pose.covariance, pose_floor_m, pose_floor_deg
-                    ).tolist(),
-                    d_pose_d_intrinsics=(
-                        None if o.d_pose_d_intrinsics is None else o.d_pose_d_intrinsics.tolist()
-                    ),
-                ),
-                exposure=exposure,
-                mask=_relative(o.mask_path, folder),
-            )
-        )
-    spec = ProjectFile(
-        camera=CameraSpec(path=_relative(camera_file, folder)),
-        sensor=SensorSpec(black_level=black_level, white_level=white_level),
-        images=images,
-        lights=[
-            LightSpec(
-                name="light",
-                rid=rid,
-                initial=InitialSpec(position_m=position, axis_camera=axis),
-            )
-        ],
+    exposures = exposure_specs(
+        [o.path.name for o in accepted], [o.exposure for o in accepted], warnings
     )
-    # The project must load (files present, initial light in front of the wall).
-    project_from_spec(spec, out.resolve())
+
+    def project(mask_folder: Path) -> ProjectFile:
+        images = []
+        for o, exposure in zip(accepted, exposures, strict=True):
+            assert o.pose is not None and o.mask_path is not None
+            images.append(
+                ImageSpec(
+                    path=_relative(o.path, folder),
+                    name=o.name,
+                    T_camera_world=PoseSpec(
+                        R=o.pose.R_camera_world.tolist(),
+                        t=o.pose.t_camera_world.tolist(),
+                        covariance=with_pose_floor(
+                            o.pose.covariance, pose_floor_m, pose_floor_deg
+                        ).tolist(),
+                        d_pose_d_intrinsics=(
+                            None
+                            if o.d_pose_d_intrinsics is None
+                            else o.d_pose_d_intrinsics.tolist()
+                        ),
+                    ),
+                    exposure=exposure,
+                    mask=_relative(mask_folder / o.mask_path.name, folder),
+                )
+            )
+        return ProjectFile(
+            camera=CameraSpec(path=_relative(camera_file, folder)),
+            sensor=SensorSpec(black_level=black_level, white_level=white_level),
+            images=images,
+            lights=[
+                LightSpec(
+                    name="light",
+                    rid=rid,
+                    initial=InitialSpec(position_m=position, axis_camera=axis),
+                )
+            ],
+        )
+
+    # The project must load (files present, initial light in front of the wall): checked
+    # with the staged masks, before anything is moved into masks/.
+    project_from_spec(project(staging.folder), out.resolve())
+    spec = project(staging.masks_dir)
+    staging.publish([o.mask_path.name for o in accepted if o.mask_path is not None])
     save_project(spec, out)
     return InitResult(project_path=out, spec=spec, images=outcomes, warnings=warnings)
 
@@ -441,6 +454,7 @@ def _process_image(
     camera: Camera,
     board: ArucoGridBoard | CharucoBoard,
     print_polygons: np.ndarray,
+    staging_dir: Path,
     masks_dir: Path,
     *,
     min_markers: int,
@@ -449,7 +463,11 @@ def _process_image(
     black_level: float | None,
     white_level: float | None,
 ) -> ImageOutcome:
-    """Read, detect, check and mask one image; an input problem rejects it with the reason."""
+    """Read, detect, check and mask one image; an input problem rejects it with the reason.
+
+    The mask is written into `staging_dir`; the outcome names its final place in
+    `masks_dir` (see `MaskStaging`).
+    """
     try:
         image = read_image(path, black_level=black_level, white_level=white_level)
         image_camera = _camera_for(image, camera, name)
@@ -458,20 +476,9 @@ def _process_image(
         )
     except InputError as exc:
         return ImageOutcome(name, path, None, exc.detail)
-    if pose.reprojection_rms_px > max_rms_px:
-        return ImageOutcome(
-            name,
-            path,
-            None,
-            f"marker reprojection RMS {pose.reprojection_rms_px:.3f} px, expected at most "
-            f"{max_rms_px:g} px",
-        )
-    height, width = image.shape
-    everything = dataclasses.replace(pose, mask_polygons_world=print_polygons)
-    mask = everything.marker_mask(height, width, margin_px=mask_margin_px)
-    masks_dir.mkdir(exist_ok=True)
-    mask_path = masks_dir / f"{name}.png"
-    atomic_write_bytes(mask_path, _encode_mask(mask))
+    problem = fit_problem(pose, max_rms_px)
+    if problem is not None:
+        return ImageOutcome(name, path, None, problem)
     d_pose = None
     if camera.intrinsics_covariance is not None:
         d_pose = pose_intrinsics_jacobian(
@@ -481,4 +488,11 @@ def _process_image(
             binning=1 if image_camera is camera else image.binning,
             source=name,
         )
-    return ImageOutcome(name, path, pose, None, image.exposure, mask_path, d_pose)
+        if not np.all(np.isfinite(d_pose)):
+            return ImageOutcome(name, path, None, NOT_FINITE)
+    height, width = image.shape
+    everything = dataclasses.replace(pose, mask_polygons_world=print_polygons)
+    mask = everything.marker_mask(height, width, margin_px=mask_margin_px)
+    filename = f"{name}.png"
+    atomic_write_bytes(staging_dir / filename, _encode_mask(mask))
+    return ImageOutcome(name, path, pose, None, image.exposure, masks_dir / filename, d_pose)

@@ -9,9 +9,14 @@
   a COLMAP cameras.txt (principal point shifted by half a pixel, see
   `lightcal.io.camera_file.read_camera`) to the format of `--out`.
 
-IMAGES may name files or folders (every image directly in a folder, sorted by name).
-Images are read as grey values (camera raw: demosaiced luminance at full size); 8-bit
-images need no response curve here, only the corners matter.
+IMAGES may name files or folders (every image directly in a folder, sorted by name;
+a photo named twice is refused). Images are read as grey values (camera raw: demosaiced
+luminance at full size); 8-bit images need no response curve here, only the corners matter.
+
+Every option is checked before any photo is read (`--out`'s suffix and place,
+`--max-rms-px`, `--camera-id`). Photos that cannot determine the intrinsics are refused
+(copies of one view, the board at fewer than 3 different angles) or warned about (the
+board nearly square-on in every view): see `lightcal.capture.view_variety`.
 """
 
 from __future__ import annotations
@@ -21,8 +26,13 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lightcal.errors import InputError
+
 if TYPE_CHECKING:
     from lightcal.core.camera import Camera
+
+CAMERA_SUFFIXES = (".yaml", ".yml", ".xml", ".json")
+"""Suffixes `lightcal.io.camera_file.write_camera` writes (`--out`)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -72,10 +82,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.set_defaults(func=run_import)
 
 
+def _check_out_suffix(out: Path) -> None:
+    """`--out` in a format `write_camera` writes (its own message), before any work."""
+    if out.suffix.lower() not in CAMERA_SUFFIXES:
+        raise InputError(
+            out, f"unsupported file suffix {out.suffix!r}: expected .yaml, .yml, .xml or .json"
+        )
+
+
 def _expand(inputs: list[Path]) -> list[Path]:
-    """Files as given; folders replaced by their image files (sorted)."""
+    """Files as given; folders replaced by their image files (sorted). A photo reached
+    twice (named twice, or named and in a folder named) is refused: it would count as
+    two views."""
     from lightcal.capture.project_init import list_images
-    from lightcal.errors import InputError
 
     paths: list[Path] = []
     for item in inputs:
@@ -85,6 +104,13 @@ def _expand(inputs: list[Path]) -> list[Path]:
             paths.append(item)
         else:
             raise InputError(item, "image file not found")
+    seen: set[Path] = set()
+    for path in paths:
+        if path.resolve() in seen:
+            raise InputError(
+                path, "given twice: expected each photo once (a copy adds no information)"
+            )
+        seen.add(path.resolve())
     return paths
 
 
@@ -117,12 +143,16 @@ def _describe_sigma(camera: Camera) -> str:
 def run_calibrate(args: argparse.Namespace) -> int:
     from lightcal.capture.boards import CharucoBoard, Chessboard
     from lightcal.capture.intrinsics import calibrate_intrinsics
-    from lightcal.errors import InputError
     from lightcal.io.board_file import read_board
     from lightcal.io.camera_file import write_camera
     from lightcal.io.images import read_image
     from lightcal.io.outputs import check_output_file
 
+    # Before any work: every option's value (--out: below, once the inputs are known).
+    if not (math.isfinite(args.max_rms_px) and args.max_rms_px > 0.0):
+        raise InputError(
+            "--max-rms-px", f"expected a finite value > 0 pixels, got {args.max_rms_px:g}"
+        )
     board = read_board(args.board)
     if not isinstance(board, Chessboard | CharucoBoard):
         raise InputError(
@@ -137,6 +167,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     for path, name in zip(paths, all_names, strict=True):
         inputs.setdefault(path.resolve(), f"image {name}")
     check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the calibration")
+    _check_out_suffix(args.out)
     images = []
     names = []
     unreadable: dict[str, str] = {}
@@ -163,6 +194,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
             print(f"{name}: reprojection RMS {rms[name]:.3f} px")
         else:
             print(f"{name}: rejected: {reasons[name]}")
+    for warning in result.warnings:
+        print(f"warning: {warning}")
     write_camera(result.camera, args.out)
     print(_describe(result.camera))
     print(_describe_sigma(result.camera))
@@ -177,9 +210,21 @@ def run_import(args: argparse.Namespace) -> int:
     from lightcal.io.camera_file import read_camera, write_camera
     from lightcal.io.outputs import check_output_file
 
+    if args.camera_id is not None and args.file.suffix.lower() != ".txt":
+        raise InputError(
+            "--camera-id",
+            f"applies only to a COLMAP cameras.txt, got {args.file.name} (it holds one camera)",
+        )
     inputs = {args.file.resolve(): "the camera file"}
     check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the import")
-    camera = read_camera(args.file, camera_id=args.camera_id)
+    _check_out_suffix(args.out)
+    try:
+        camera = read_camera(args.file, camera_id=args.camera_id)
+    except InputError as exc:  # the reader names its argument camera_id: say the option
+        if "camera_id" not in exc.detail:
+            raise
+        detail = exc.detail.replace("camera_id", "--camera-id")
+        raise InputError(exc.source, detail, line=exc.line) from exc
     write_camera(camera, args.out)
     print(_describe(camera))
     print(f"camera written to {args.out}")

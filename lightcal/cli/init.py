@@ -3,12 +3,27 @@
 Detects the board in every image, prints one line per image (markers, reprojection RMS
 and camera position, or why it was rejected), writes the marker masks and the project
 file (see `lightcal.capture.project_init`).
+
+Every option is checked before any image is read (`check_options`; the messages name the
+option as typed), and so are the outputs (never an input, never replacing a project or
+masks without `--force`). A run that fails or is interrupted part-way leaves no project
+and no `masks/` behind (`lightcal.capture.mask_staging`).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
+
+from lightcal.errors import InputError
+
+PROJECT_SUFFIXES = (".json", ".yaml", ".yml")
+"""Suffixes of `--out`: JSON, or YAML for .yaml/.yml."""
+
+MAX_MASK_MARGIN_PX = 100.0
+"""Largest `--mask-margin-px`: a wider padding would mask most of the wall (and dilating
+by it takes long)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -81,6 +96,51 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _numbers(values: list[float] | tuple[float, ...]) -> str:
+    return " ".join(f"{v:g}" for v in values)
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Every option's value, before any work; raises InputError naming the option.
+    (`--out` and the masks folder: `run`, once the inputs are known.)"""
+    for option, value, unit in (
+        ("--pose-floor-mm", args.pose_floor_mm, "mm"),
+        ("--pose-floor-deg", args.pose_floor_deg, "degrees"),
+    ):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise InputError(option, f"expected a finite value >= 0 {unit}, got {value:g}")
+    if args.min_markers < 1:
+        raise InputError("--min-markers", f"expected an integer >= 1, got {args.min_markers}")
+    margin = args.mask_margin_px
+    if not (math.isfinite(margin) and 0.0 <= margin <= MAX_MASK_MARGIN_PX):
+        raise InputError(
+            "--mask-margin-px",
+            f"expected a padding of 0 to {MAX_MASK_MARGIN_PX:g} pixels, got {margin:g}",
+        )
+    if not (math.isfinite(args.max_rms_px) and args.max_rms_px > 0.0):
+        raise InputError(
+            "--max-rms-px", f"expected a finite value > 0 pixels, got {args.max_rms_px:g}"
+        )
+    half = args.half_angle_deg
+    if half is not None and not (math.isfinite(half) and 0.0 < half < 90.0):
+        raise InputError("--half-angle-deg", f"expected a value in (0, 90) degrees, got {half:g}")
+    for option, values, unit in (
+        ("--initial-position", args.initial_position, " (metres)"),
+        ("--initial-axis", args.initial_axis, ""),
+    ):
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(option, f"expected three finite numbers{unit}, got {_numbers(values)}")
+    black, white = args.black_level, args.white_level
+    if black is not None and not (math.isfinite(black) and black >= 0.0):
+        raise InputError("--black-level", f"expected a finite value >= 0, got {black:g}")
+    if white is not None and not (math.isfinite(white) and white > 0.0):
+        raise InputError("--white-level", f"expected a finite value > 0, got {white:g}")
+    if black is not None and white is not None and not white > black:
+        raise InputError(
+            "--white-level", f"expected a value above --black-level ({black:g}), got {white:g}"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     from lightcal.capture.project_init import ImageOutcome, init_project
 
@@ -90,8 +150,10 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.capture.project_init import MASKS_DIR
     from lightcal.io.outputs import check_output_file, check_output_folder
 
-    # Before any work: the project and its masks never replace existing ones without
-    # --force, and never an input (the photos, camera, board and light files).
+    # Before any work: every option's value; the project and its masks never replace
+    # existing ones without --force, and never an input (the photos, camera, board and
+    # light files).
+    check_options(args)
     inputs = {
         p.resolve(): f"input {p.name}"
         for p in [args.camera, args.board, args.light_ies]
@@ -99,6 +161,12 @@ def run(args: argparse.Namespace) -> int:
         if p is not None and p.is_file()
     }
     check_output_file(args.out, option="--out", inputs=inputs, force=args.force)
+    if args.out.suffix.lower() not in PROJECT_SUFFIXES:
+        raise InputError(
+            args.out,
+            f"--out: unsupported project file suffix {args.out.suffix!r}: expected .json, "
+            ".yaml or .yml",
+        )
     masks = args.out.parent / MASKS_DIR
     if masks.exists():
         check_output_folder(masks, option="the masks folder", inputs=inputs, force=args.force)
