@@ -82,3 +82,11 @@ def test_wall_auto_chosen_in_the_page_gives_the_cli_answer(
     # The overlays render the plastic wall the solve chose.
     display = app.state.display
     assert display is not None and display.wall.name == "plastic"
+    # The plots, for a person to look at: the axis as roll and pitch, labels unclipped.
+    for size in ((1280, 800), (1920, 1080)):
+        view, _ = open_page(browser, app, size=size)
+        view.get_by_role("tab", name="Solve").click()
+        view.get_by_text("light axis: roll and pitch (deg)").wait_for()
+        view.mouse.move(size[0] - 150, size[1] // 2)  # over the panel
+        view.mouse.wheel(0, 3000)
+        shot(view, f"app_solve_plots_{size[0]}x{size[1]}.png")

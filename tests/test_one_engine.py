@@ -251,3 +251,23 @@ def test_the_settings_travel_in_the_session_file(painted: Path) -> None:
     assert fresh.solve_project.spec.wall.model == "oren_nayar"
     assert fresh.solve_project.spec.sensor.model == "cos4"
     assert fresh.solve_project.lights[0].estimate_rid == "cos_power"
+
+
+def test_the_solve_tab_plots_the_axis_as_roll_and_pitch(painted: Path) -> None:
+    """One convention: the angle plot's last point is the result's roll and pitch."""
+    state = _page_state(painted)
+    assert state.result is not None
+    project = load_project(painted)
+    solve = SolveService(
+        AppState(project, load_images(project)),
+        notify=lambda *a, **k: None,
+        follow_iterations=False,
+    )
+    assert solve.light_angles_deg([h.x for h in state.history]) is None  # no solve yet
+    solve.setup_changed()
+    assert solve.ensure_session()
+    angles = solve.light_angles_deg([h.x for h in state.history])
+    assert angles is not None and [name for name, _ in angles] == ["light"]
+    last = angles[0][1][-1]
+    pose = state.result.lights[0].pose
+    np.testing.assert_allclose(last, [pose.roll_deg, pose.pitch_deg], atol=1e-9)

@@ -26,6 +26,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from lightcal.core.light_axis import paper_angles_from_axis
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.scene import Rig
 from lightcal.core.session import SolverSession
@@ -71,6 +72,9 @@ class SolveService:
         self.follow_timeout_s = 10.0
         self.session: SolverSession | None = None
         self.model: CalibrationModel | None = None
+        # The model the solve began with: the parameter vector's layout of the history
+        # (a later stage's x begins with the same parameters).
+        self.first_model: CalibrationModel | None = None
         self._model_index: list[int] = []  # project image of each model image
         self._model_setup_rev = -1  # the state's setup_rev when the model was built
         self._image_data: list[ImageData | None] = [None] * len(state.project.names)
@@ -300,7 +304,7 @@ class SolveService:
             if st.session_gen != gen:
                 return False
             self.session = session
-            self.model = model
+            self.model = self.first_model = model
             self._model_index = index
             self._model_setup_rev = rev
             self._iteration_offset = offset
@@ -329,6 +333,27 @@ class SolveService:
         iterations that follow are its (their x are its parameter vectors)."""
         with self.state.lock:
             self._stage_model = model
+
+    def light_angles_deg(self, xs: list[np.ndarray]) -> list[tuple[str, np.ndarray]] | None:
+        """Per light with an axis, (name, (T, 2) roll and pitch in degrees) of each x of
+        the history (the result's convention, as the Light tab shows them); None when
+        no solve's layout is known."""
+        model = self.first_model
+        if model is None:
+            return None
+        n = model.layout.n
+        if any(len(x) < n for x in xs):
+            return None
+        rigs = [model.layout.rig(np.asarray(x[:n], dtype=np.float64)) for x in xs]
+        out = []
+        for j, unknown in enumerate(model.unknowns):
+            if unknown.kind() == "isotropic":
+                continue
+            angles = np.array(
+                [paper_angles_from_axis(rig.lights[j].R_camera_light[:, 2]) for rig in rigs]
+            ).reshape(-1, 2)
+            out.append((unknown.initial.name, np.degrees(angles)))
+        return out
 
     def estimate_display(self, model: CalibrationModel, x: np.ndarray) -> Display:
         """What the page shows of the estimate `x` (n,)."""

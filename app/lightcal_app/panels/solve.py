@@ -21,6 +21,10 @@ from lightcal_app.solve_settings import (
 from lightcal_app.state import MAX_ITERATION_S, Frame
 from lightcal_app.text import md_prose
 
+#: uPlot's padding (top, right, bottom, left), px: room for the top tick's label and the
+#: last iteration's, which uPlot centres on the plot's edges (and so cut in half).
+PLOT_PADDING = (12, 14, 0, 0)
+
 COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
 
 
@@ -75,9 +79,10 @@ class SolvePanel(TabPanel):
             axes=({}, {"size": 48}),
             scales={"x": {"time": False, "range": (None, None)}},
             aspect=1.6,
+            padding=PLOT_PADDING,
         )
         self.position_plot = self._parameter_plot("position (mm, camera frame)")
-        self.angle_plot = self._parameter_plot("axis angles (deg)")
+        self.angle_plot = self._parameter_plot("light axis: roll and pitch (deg)")
         self.step_button.on_click(lambda e: ctl.step(e.client))
         self.run_button.on_click(lambda e: ctl.run(e.client))
         self.pause_button.on_click(lambda e: ctl.pause(e.client))
@@ -174,6 +179,7 @@ class SolvePanel(TabPanel):
             axes=({}, {"size": 64}),
             scales={"x": {"time": False, "range": (None, None)}},
             aspect=1.6,
+            padding=PLOT_PADDING,
         )
 
     def update(self, frame: Frame) -> None:
@@ -206,29 +212,38 @@ class SolvePanel(TabPanel):
         # A later stage of the solve may add parameters (a wall `auto` tries): they come
         # after the first model's, whose columns the plots draw.
         xs = np.array([h.x[: len(names)] for h in hist]) if hist else np.zeros((0, len(names)))
-        for plot, suffix, factor in (
-            (self.position_plot, "_m", 1e3),
-            (self.angle_plot, "_rad", 180.0 / math.pi),
-        ):
-            cols = [k for k, n in enumerate(names) if n.endswith(suffix)]
-            if not cols or not hist:
-                plot.data = (np.zeros(0), np.zeros(0))
-                plot.series = ({"label": "iteration"}, {"label": "-"})
-                continue
-            series: list[Any] = [{"label": "iteration"}] + [
-                {
-                    "label": names[k].removesuffix(suffix),
-                    "stroke": COLOURS[c % len(COLOURS)],
-                    "width": 2,
-                }
-                for c, k in enumerate(cols)
-            ]
-            values = xs[:, cols] * factor
-            lo, hi = float(values.min()), float(values.max())
-            pad = max(0.05 * (hi - lo), 1e-3 * max(abs(lo), abs(hi)), 1e-6)
-            plot.scales = {
-                "x": {"time": False, "range": x_range},
-                "y": {"range": (lo - pad, hi + pad)},
-            }
-            plot.series = tuple(series)
-            plot.data = (it, *(values[:, c] for c in range(len(cols))))
+        cols = [k for k, n in enumerate(names) if n.endswith("_m")]
+        position = [(names[k].removesuffix("_m"), xs[:, k] * 1e3) for k in cols] if hist else []
+        # The axis as the result and the Light tab give it (roll, pitch), not the
+        # solver's own angles.
+        angles = self.ctl.solve.light_angles_deg([h.x for h in hist]) if hist else None
+        axis = [
+            (f"{name} {what}", values[:, c])
+            for name, values in angles or []
+            for c, what in enumerate(("roll", "pitch"))
+        ]
+        for plot, curves in ((self.position_plot, position), (self.angle_plot, axis)):
+            self._draw_curves(plot, it, x_range, curves)
+
+    @staticmethod
+    def _draw_curves(
+        plot: Any, it: np.ndarray, x_range: tuple[float, float], curves: list[tuple[str, Any]]
+    ) -> None:
+        """One uPlot of labelled curves over the iterations (empty without curves)."""
+        if not curves:
+            plot.data = (np.zeros(0), np.zeros(0))
+            plot.series = ({"label": "iteration"}, {"label": "-"})
+            return
+        series: list[Any] = [{"label": "iteration"}] + [
+            {"label": label, "stroke": COLOURS[c % len(COLOURS)], "width": 2}
+            for c, (label, _) in enumerate(curves)
+        ]
+        values = np.stack([np.asarray(v, dtype=np.float64) for _, v in curves], axis=1)
+        lo, hi = float(values.min()), float(values.max())
+        pad = max(0.05 * (hi - lo), 1e-3 * max(abs(lo), abs(hi)), 1e-6)
+        plot.scales = {
+            "x": {"time": False, "range": x_range},
+            "y": {"range": (lo - pad, hi + pad)},
+        }
+        plot.series = tuple(series)
+        plot.data = (it, *(values[:, c] for c in range(values.shape[1])))
