@@ -3,13 +3,16 @@
 `render_views` renders every image of a project with the calibrated lights;
 `write_report` writes, per image, the residual map (real minus rendered, diverging
 colours with a scale) and the real and rendered images side by side, plus the
-convergence plot and a short Markdown summary.
+convergence plot and a short Markdown summary, into a folder that shows one complete
+report at a time (written aside, moved in at the end).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
+import re
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -20,7 +23,7 @@ from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
-from lightcal.io.atomic import atomic_write_text
+from lightcal.io.atomic import atomic_folder, atomic_write_text, signals_held
 from lightcal.io.cause_figure import cause_figure
 from lightcal.io.escaping import markdown_prose, markdown_text
 from lightcal.io.figures import (
@@ -83,9 +86,17 @@ def write_report(
     *,
     progress: ProgressFn | None = None,
 ) -> list[Path]:
-    """Write the report into `folder` (created); returns the files written."""
+    """Write the report into `folder`; returns the files written (in `folder`).
+
+    The report is written aside and moved in complete (`lightcal.io.atomic.atomic_folder`):
+    a new folder appears with every file or not at all (an interruption removes the
+    partial one). Into an existing folder, the files move in under a lock, one run at a
+    time: those of an earlier report written there (listed at the end of its summary.md)
+    that this one does not write are removed, and nothing else in the folder is touched.
+    Two runs given the same folder leave the complete report of one of them, never a mix.
+    """
     out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     x = np.asarray(result.x)
     rig = model.layout.rig(x)
     names = project.names
@@ -102,7 +113,7 @@ def write_report(
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 
-    def figures(i: int) -> tuple[list[Path], float]:
+    def figures(folder: Path, i: int) -> tuple[list[Path], float]:
         """Image i's residual map and real/rendered pair, written; and its RMS."""
         # The user's masks (markers, stray light) are not wall: not in the residuals.
         img, excluded, rendered = loaded.images[i], loaded.excluded[i], renders[i]
@@ -113,47 +124,90 @@ def write_report(
         residual = real - rendered
         rms = float(np.sqrt(np.ma.mean(residual**2))) if residual.count() else math.nan
         title = f"{names[i]}: real - rendered (RMS {rms:.4g})"
-        maps = inside(out, f"residual_{files[i]}.png")
+        maps = inside(folder, f"residual_{files[i]}.png")
         write_png(maps, residual_figure(residual, title=title))
-        pair = inside(out, f"images_{files[i]}.png")
+        pair = inside(folder, f"images_{files[i]}.png")
         write_png(pair, image_pair_figure(real, rendered, title=names[i]))
         return [maps, pair], rms
 
     written: list[Path] = []
-    rms_rows = []
-    # Two images at a time: the colour maps, resampling and PNG encoding run in NumPy and
-    # OpenCV, which release the interpreter (the sample's 24 figures: 2.8 -> 1.7-1.9 s).
-    with ThreadPoolExecutor(max_workers=FIGURE_THREADS) as pool:
-        for i, (paths, rms) in enumerate(pool.map(figures, range(len(names)))):
-            if progress is not None:
-                progress("writing figures", i, len(names))
-            written.extend(paths)
-            rms_rows.append((names[i], rms))
-    if progress is not None:
-        progress("writing figures", len(names), len(names))
-    p = out / "convergence.png"
-    write_png(
-        p,
-        convergence_figure(
-            [h.cost for h in result.history],
-            earlier=result.start_costs,
-            earlier_label="the first solve, on a subsample (cost x m / its pixels)",
-        ),
-    )
-    written.append(p)
-    if result.fit:
-        p = out / "fit_vs_angle.png"
-        write_png(p, angle_residual_figure(result.fit))
+    with atomic_folder(out, earlier_files=_report_files) as staging:
+        rms_rows = []
+        # Two images at a time: the colour maps, resampling and PNG encoding run in NumPy
+        # and OpenCV, which release the interpreter (the sample's 24 figures: 2.8 -> 1.7-1.9 s).
+        with ThreadPoolExecutor(max_workers=FIGURE_THREADS) as pool:
+            try:
+                done = pool.map(functools.partial(figures, staging), range(len(names)))
+                for i, (paths, rms) in enumerate(done):
+                    if progress is not None:
+                        progress("writing figures", i, len(names))
+                    written.extend(paths)
+                    rms_rows.append((names[i], rms))
+            except BaseException:  # no figure may be written once the folder is removed
+                with signals_held():
+                    pool.shutdown(wait=True, cancel_futures=True)
+                raise
+        if progress is not None:
+            progress("writing figures", len(names), len(names))
+        p = staging / "convergence.png"
+        write_png(
+            p,
+            convergence_figure(
+                [h.cost for h in result.history],
+                earlier=result.start_costs,
+                earlier_label="the first solve, on a subsample (cost x m / its pixels)",
+            ),
+        )
         written.append(p)
-        causes = cause_figure(result.fit)
-        if causes is not None:
-            p = out / "fit_causes.png"
-            write_png(p, causes)
+        if result.fit:
+            p = staging / "fit_vs_angle.png"
+            write_png(p, angle_residual_figure(result.fit))
             written.append(p)
-    p = out / "summary.md"
-    atomic_write_text(p, _summary_markdown(project, result, rms_rows))
-    written.append(p)
-    return written
+            causes = cause_figure(result.fit)
+            if causes is not None:
+                p = staging / "fit_causes.png"
+                write_png(p, causes)
+                written.append(p)
+        p = staging / SUMMARY
+        written.append(p)
+        summary = _summary_markdown(project, result, rms_rows)
+        atomic_write_text(p, summary + _file_list([w.name for w in written]))
+    return [out / p.name for p in written]
+
+
+SUMMARY = "summary.md"
+"""The report's summary, which also lists the report's files (`_file_list`)."""
+
+_FILE_LIST = "<!-- lightcal report files (the next report written here replaces them):"
+
+_REPORT_FILE = re.compile(
+    r"(residual|images)_[A-Za-z0-9._+-]+\.png|(convergence|fit_vs_angle|fit_causes)\.png"
+    r"|summary\.md"
+)
+"""The names a report's files can have (what `_report_files` may name)."""
+
+
+def _file_list(names: list[str]) -> str:
+    """The end of summary.md: the report's files, in a comment Markdown does not show."""
+    return "\n".join(["", _FILE_LIST, *names, "-->", ""])
+
+
+def _report_files(folder: Path) -> set[str]:
+    """The files of the report in `folder`, as its summary.md lists them (none when
+    there is no summary, or it comes from a lightcal that did not list them): only names
+    a report's file can have."""
+    summary = folder / SUMMARY
+    try:
+        if not summary.is_file() or summary.stat().st_size > 10_000_000:
+            return set()
+        text = summary.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return set()
+    start = text.rfind(_FILE_LIST)
+    if start < 0:
+        return set()
+    listed = text[start + len(_FILE_LIST) :].partition("-->")[0].split()
+    return {name for name in listed if _REPORT_FILE.fullmatch(name)}
 
 
 def _summary_markdown(

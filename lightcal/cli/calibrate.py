@@ -1,4 +1,17 @@
-"""`lightcal calibrate PROJECT --out result.json [--report DIR]`."""
+"""`lightcal calibrate PROJECT --out result.json [--report DIR]`.
+
+The result is written first, then the report. The report folder shows one run's
+complete report, never a mix (`lightcal.report.write_report`): written into a hidden
+sibling folder and renamed into place when complete; into an existing folder (--force,
+or another run's report that appeared meanwhile) its files move in under a lock file
+naming the process, replacing those of the earlier report (listed in its summary.md)
+and nothing else. A second run finding the lock held waits for it (at most 30 s), then
+fails with a message naming the other process. An interruption (Ctrl-C, SIGTERM) leaves
+the complete result, if it was written, and no partial report.
+
+Progress and messages go to stderr; a reader closing it early (`2>&1 | head -3`) does
+not stop the solve: the result and report are written and the exit code is the same.
+"""
 
 from __future__ import annotations
 
@@ -14,7 +27,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("calibrate", help="estimate the light pose(s) of a project")
     p.add_argument("project", type=Path, help="project file (JSON or YAML)")
     p.add_argument("--out", type=Path, required=True, help="result JSON to write")
-    p.add_argument("--report", type=Path, help="folder for residual maps, renders, plots")
+    p.add_argument(
+        "--report",
+        type=Path,
+        help="folder for residual maps, renders, plots; written aside and moved in "
+        "complete (an earlier report's files there are replaced, other files kept; "
+        "one run at a time)",
+    )
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary")
     p.add_argument(
         "--force", action="store_true", help="write the report into a non-empty --report folder"

@@ -8,6 +8,7 @@ the user's input (`LightcalError`) are caught here, once, and printed as one lin
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import importlib
 import os
@@ -18,6 +19,7 @@ import traceback
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import FrameType
+from typing import IO
 
 from lightcal import __version__
 from lightcal.cli import collector
@@ -70,19 +72,51 @@ def _usable_streams() -> None:
 
 def _say(line: str) -> None:
     """One line on stderr, whatever became of it."""
-    with contextlib.suppress(OSError, ValueError):
+    try:
         print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        silence(sys.stderr)
 
 
-def _silence_stdout() -> None:
-    """After a broken pipe: the rest of stdout (and the flush at exit) goes nowhere."""
-    with contextlib.suppress(OSError, ValueError):
+def silence(stream: IO[str]) -> bool:
+    """After a broken pipe: the rest of `stream` (and its flush at exit) goes nowhere.
+
+    Its file descriptor becomes os.devnull, so the command goes on and nothing it writes
+    there fails again (nor does the interpreter's flush at exit, which would turn the
+    exit code into 120). Returns whether it could be done (not for a stream without a
+    file descriptor).
+    """
+    try:
         devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+    except OSError:
+        return False
+    try:
+        os.dup2(devnull, stream.fileno())
+    except (OSError, ValueError):
+        return False
+    finally:
+        os.close(devnull)
+    return True
+
+
+def _flush_or_silence() -> None:
+    """stdout and stderr flushed; the one whose reader has gone (a broken pipe) silenced."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            silence(stream)
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+_command = "lightcal"
+"""The command being run (`lightcal calibrate`): what `_interrupted_exit` names."""
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
-    """SIGTERM's handler: the same as Ctrl-C (KeyboardInterrupt in the main thread)."""
+    """SIGTERM's (and SIGINT's) handler while a command runs: Ctrl-C, KeyboardInterrupt
+    in the main thread."""
     raise KeyboardInterrupt
 
 
@@ -91,17 +125,23 @@ def _sigterm_as_interrupt() -> Iterator[None]:
     """While a command runs, SIGTERM (`kill`, a service manager, a CI timeout) ends it as
     Ctrl-C does: the code unwinds, temporary files are removed and the command says
     "interrupted" with exit code 130, instead of dying at once (-15) with a hidden `.tmp`
-    of its output left behind. The previous handler comes back afterwards. Only in the
-    main thread (Python delivers signals there; tests may call `main` from others).
+    of its output left behind. SIGINT raises KeyboardInterrupt too (whatever `entry` set
+    for the exit). A signal the parent set to be ignored (`nohup`, `cmd &`) stays
+    ignored. The previous handlers come back afterwards. Only in the main thread (Python
+    delivers signals there; tests may call `main` from others).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    previous = {}
+    for signum in _SIGNALS:
+        if signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, _raise_interrupt)
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
 
 
 def is_interruption(exc: BaseException) -> bool:
@@ -132,11 +172,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 1 a solve that did not converge or an internal error, 2 an input error
     (`lightcal <command>: error: <file>[:<line>]: <what was expected>`) or a usage error
     (argparse's `usage:` lines), 3 a misfit (see `lightcal calibrate`), 130 Ctrl-C or
-    SIGTERM (`lightcal <command>: interrupted`, temporary files removed). A
-    reader that closes the pipe early (`lightcal schema | head -1`) ends it quietly with 0.
+    SIGTERM (`lightcal <command>: interrupted`, temporary files removed; through `entry`
+    also when the signal comes after the work, while the process exits).
+
+    A reader that closes a pipe early: when the command's output is what it reads
+    (`lightcal schema | head -1`), the command ends quietly with 0. Progress and
+    messages on stderr (`lightcal calibrate ... 2>&1 | head -3`) are dropped from then
+    on, and the command goes on: it writes its files and exits with its own code.
     """
+    global _command
     _usable_streams()
-    command = "lightcal"
+    command = _command = "lightcal"
     words = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in words  # anywhere: `lightcal calibrate ... --debug` too
     words = [w for w in words if w != "--debug"]
@@ -144,7 +190,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with _sigterm_as_interrupt():
             parser = build_parser()
             args = parser.parse_args(words)
-            command = f"lightcal {args.command}"
+            command = _command = f"lightcal {args.command}"
             return int(args.func(args))
     except KeyboardInterrupt:
         _say(f"{command}: interrupted")
@@ -162,7 +208,7 @@ def _report_error(exc: Exception, command: str, *, debug: bool) -> int:
         _say(f"{command}: error: {exc}")
         return 2
     if isinstance(exc, BrokenPipeError):
-        _silence_stdout()
+        _flush_or_silence()
         return 0
     if isinstance(exc, OSError):  # the file system said no (permissions, a full disk, ...)
         where = exc.filename if exc.filename is not None else "a file"
@@ -187,11 +233,56 @@ def entry() -> int:
     back with the process. `lightcal app` sets the collector for a server once it has
     started. `main` itself leaves the collector alone (tests call it many times in one
     process).
+
+    Signals outside `main`'s work (`_interrupted_exit`): Ctrl-C or SIGTERM before the
+    command starts, after it has returned or during the interpreter's exit ends the
+    process at once with "lightcal <command>: interrupted" and 130, never a traceback
+    nor -15 (the command's files are complete and closed by then; stdout is flushed).
+    Once the standard streams are flushed for the last time (`_final_flush`, lightcal's
+    last atexit step), the command is over: a signal then is ignored, and the command's
+    own exit code stands. The handlers stay for the rest of the process (a test calling
+    `entry` must restore them).
     """
+    _interrupt_ends_the_process()
     collector.for_a_command()
     code = main()
     collector.for_the_exit()
     return code
+
+
+def _interrupt_ends_the_process() -> None:
+    """SIGINT and SIGTERM end the process as `_interrupted_exit` says, from now on (`main`
+    raises KeyboardInterrupt instead while the command runs); unless ignored by the
+    parent."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in _SIGNALS:
+        if signal.getsignal(signum) is not signal.SIG_IGN:
+            signal.signal(signum, _interrupted_exit)
+    atexit.register(_final_flush)
+
+
+def _interrupted_exit(signum: int, frame: FrameType | None) -> None:
+    """A signal outside the command's work: "interrupted", stdout flushed, exit 130 now
+    (nothing else to unwind: no command is writing; the interpreter's own exit, which a
+    signal would otherwise cut with a traceback or -15, is skipped)."""
+    try:
+        with contextlib.suppress(Exception):  # a stream busy in the code interrupted, or broken
+            _say(f"{_command}: interrupted")
+            sys.stdout.flush()
+    finally:
+        os._exit(130)
+
+
+def _final_flush() -> None:
+    """The last words of the process: the standard streams flushed (a broken pipe
+    silenced), then SIGINT and SIGTERM ignored for the rest of the interpreter's exit
+    (its teardown, which may not run the Python code that says "interrupted"; and any
+    atexit step registered before `entry`)."""
+    _flush_or_silence()
+    for signum in _SIGNALS:
+        if signal.getsignal(signum) is _interrupted_exit:
+            signal.signal(signum, signal.SIG_IGN)
 
 
 if __name__ == "__main__":

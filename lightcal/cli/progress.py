@@ -1,4 +1,10 @@
-"""Terminal progress for long CLI work (rich), quiet when not a terminal."""
+"""Terminal progress for long CLI work (rich), quiet when not a terminal.
+
+`console` (stderr) is where commands print their progress and messages. A reader that
+closes it early (`lightcal calibrate ... 2>&1 | head -3`) silences it, and the command
+goes on: it writes its files and exits with its own code (rich's default ends the
+program with exit 1, which lost the solve and its result).
+"""
 
 from __future__ import annotations
 
@@ -9,10 +15,25 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 
+from lightcal.cli.main import silence
+
 if TYPE_CHECKING:  # rich.progress is imported when a bar is drawn (a terminal, not --quiet)
     from rich.progress import Progress, TaskID
 
-console = Console(stderr=True)
+
+class _Console(Console):
+    """rich's Console, except on a broken pipe: the rest goes to os.devnull, no exit."""
+
+    def on_broken_pipe(self) -> None:
+        """The stream's reader has gone: what is not written yet and all that follows
+        goes nowhere (quiet where the stream cannot be redirected); the command goes on.
+        The progress display and prints share this (`Progress(console=console)`)."""
+        del self._buffer[:]
+        if not silence(self.file):
+            self.quiet = True
+
+
+console = _Console(stderr=True)
 
 
 class StageProgress:
