@@ -271,3 +271,20 @@ def test_the_solve_tab_plots_the_axis_as_roll_and_pitch(painted: Path) -> None:
     last = angles[0][1][-1]
     pose = state.result.lights[0].pose
     np.testing.assert_allclose(last, [pose.roll_deg, pose.pitch_deg], atol=1e-9)
+
+
+def test_one_status_in_both_tabs_when_the_fit_test_finds_a_misfit(painted: Path) -> None:
+    """A painted wall solved as matte: converged, and both tabs say the misfit matters."""
+    from lightcal_app.results import MISFIT_WORDS, result_markdown
+
+    data = json.loads(painted.read_text())
+    data["wall"] = {"model": "lambertian"}
+    matte = painted.parent / "matte_status.json"
+    matte.write_text(json.dumps(data))
+    state = _page_state(matte)
+    assert state.result is not None and state.result.converged
+    assert not state.result.fit_adequate
+    assert state.solver_state == "converged"
+    assert state.solver_message.endswith(f"; {MISFIT_WORDS}")
+    head = result_markdown(state.result, state=state.solver_state).splitlines()[0]
+    assert head.startswith(f"**converged, {MISFIT_WORDS}**: ")

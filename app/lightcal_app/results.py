@@ -39,6 +39,14 @@ def previous_markdown(previous: PreviousResult) -> str:
     return "\n".join(lines)
 
 
+MISFIT_WORDS = (
+    "but the fit test found a misfit that moves the pose beyond its statistical sigma "
+    "(the Result tab says what and how much; the sigmas include it)"
+)
+"""What the Solve tab's status and the Result tab's head add to "converged" when the fit
+test has a finding: one status in both tabs, as `lightcal calibrate` prints it."""
+
+
 def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
     """The Result panel's text."""
     if result is None:
@@ -46,7 +54,9 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
             "No result yet. Press **Step** or **Run** in the Solve tab; the estimate with its "
             "uncertainties (1 sigma) appears here when the solver pauses or finishes."
         )
-    if result.converged:
+    if result.converged and not result.fit_adequate:
+        head = f"converged, {MISFIT_WORDS}"
+    elif result.converged:
         head = "converged"
     elif state in ("paused", "running"):
         head = f"not converged ({state}: the estimate so far)"

@@ -38,6 +38,7 @@ from lightcal.pipeline.results import stop_reason
 from lightcal.pipeline.solve import Calibration, calibrate
 from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
+from lightcal_app.results import MISFIT_WORDS
 from lightcal_app.session_file import session_from_state
 from lightcal_app.state import MAX_ITERATION_S, AppState, Display, LightGuess, PreviousResult
 
@@ -472,6 +473,8 @@ class SolveService:
             st.solver_message = stop_reason(outcome.status, outcome.message) + (
                 message.removeprefix(outcome.message)  # e.g. "(uncertainties failed: ...)"
             )
+            if result is not None and result.converged and not result.fit_adequate:
+                st.solver_message += f"; {MISFIT_WORDS}"
             self._last_session_state = st.solver_state
             st.finished_snapshot = session_from_state(st) if result is not None else None
             st.mark("result", "status", changed=True)
