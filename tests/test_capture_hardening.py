@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import lightcal.capture.project_init as project_init
+from lightcal.capture.boards import ArucoGridBoard
 from lightcal.capture.intrinsics import calibrate_intrinsics
 from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.cli.main import main
@@ -300,6 +301,31 @@ def test_only_non_finite_fits_is_an_input_error_not_a_crash(
         f"lightcal init: error: {wall / 'photos'}: no usable images: all 3 were rejected "
         f"({reasons})\n"
     )
+    assert _listing(wall) == before
+
+
+def test_a_wrong_board_file_gives_nan_fits_that_are_refused(
+    wall: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A real construction: the printed 7 x 5 grid described as 12 x 3 (same dictionary,
+    marker size and gap) puts the markers' ids at the wrong places; the pose then sends
+    some of them behind the camera, where the projection is NaN: the RMS is NaN."""
+    write_board(
+        ArucoGridBoard("DICT_4X4_50", 12, 3, 0.07, 0.06, origin_world_m=(-0.42, 0.29)),
+        wall / "board.yaml",
+    )
+    before = _listing(wall)
+    assert main(_init(wall)) == 2
+    captured = capsys.readouterr()
+    assert captured.out.splitlines()[1:] == [
+        f"wall_1.png: rejected: {NAN_REASON}",
+        f"wall_2.png: rejected: {NAN_REASON}",
+    ]
+    assert captured.err.startswith(
+        f"lightcal init: error: {wall / 'photos'}: no usable images: all 3 were rejected ("
+    )
+    assert f"wall_1.png: {NAN_REASON}; wall_2.png: {NAN_REASON})\n" in captured.err
+    assert "internal error" not in captured.err
     assert _listing(wall) == before
 
 
