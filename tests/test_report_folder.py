@@ -162,6 +162,31 @@ def test_a_run_whose_folder_appears_meanwhile_leaves_its_own_complete_report(
     assert _hidden(tmp_path) == []
 
 
+def test_a_folder_appearing_just_before_the_rename_is_joined(
+    runs: tuple[Run, Run], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The folder did not exist when looked at, and another run's report was renamed
+    into place just before this one's rename (which then fails): this run moves its
+    files in under the lock instead."""
+    a, b = runs
+    folder = tmp_path / "report"
+    a.write(folder)
+    real_lexists = os.path.lexists
+    looked: list[object] = []
+
+    def lexists_once_false(path: object) -> bool:
+        if Path(path) == folder and not looked:  # type: ignore[arg-type]
+            looked.append(path)
+            return False
+        return real_lexists(path)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(atomic.os.path, "lexists", lexists_once_false)
+    b.write(folder)
+    assert looked
+    assert _names(folder) == b.files == _listed(folder)
+    assert _hidden(tmp_path) == []
+
+
 def test_a_writer_waits_for_the_lock_then_writes(
     runs: tuple[Run, Run], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -226,7 +226,8 @@ REPO = Path(__file__).resolve().parents[1]
 #: print - as "report written to ..." is about to be printed;
 #: returned - after `main` returned (`entry` freezes the collector);
 #: atexit - in an atexit step of the interpreter's exit (one registered by the command);
-#: teardown - after lightcal's last flush (an atexit step registered before `entry`).
+#: teardown - after lightcal's last flush (an atexit step registered before `entry`);
+#: start - before the command starts (`entry` sets the collector).
 DRIVER = """
 import atexit, os, signal, sys
 moment, signum = sys.argv[1], getattr(signal, sys.argv[2])
@@ -262,6 +263,12 @@ elif moment in ("returned", "atexit"):
     collector.for_the_exit = for_the_exit
 elif moment == "teardown":
     atexit.register(send)
+elif moment == "start":
+    real_start = collector.for_a_command
+    def for_a_command():
+        send()
+        real_start()
+    collector.for_a_command = for_a_command
 sys.argv = ["lightcal", *sys.argv[3:]]
 sys.exit(entry())
 """
@@ -325,6 +332,15 @@ def test_a_signal_after_the_last_flush_leaves_the_commands_exit_code(
     assert "; result written to " in " ".join(err.split())
     assert _complete_result(out)
     assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_a_signal_before_the_command_starts_exits_130(
+    signame: str, tiny_dataset: Path, tmp_path: Path
+) -> None:
+    code, err, out, folder = _calibrate_with("start", signame, tiny_dataset, tmp_path)
+    assert (code, err) == (130, "lightcal: interrupted\n")
+    assert not out.exists() and not folder.exists()
 
 
 def test_a_signal_while_the_report_moves_in_waits_for_it(

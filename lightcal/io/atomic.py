@@ -234,13 +234,13 @@ def atomic_folder(
 
     Raises:
         InputError: Another process holds the lock for longer than `LOCK_WAIT_S`.
-        OSError: The file system said no; `target` keeps what it had, no hidden folder
-            is left behind.
+        OSError: The file system said no; no hidden folder is left behind (`target`
+            keeps what it had, unless moving files into an existing one failed midway).
     """
     target = Path(target)
     staging = _temporary_name(target)
-    staging.mkdir()
     try:
+        staging.mkdir()  # (a name no other folder has: removing it below is safe)
         yield staging
         _move_folder(staging, target, earlier_files)
     finally:
