@@ -117,13 +117,35 @@ def test_a_painted_wall_on_auto_gives_the_cli_answer_stepping_first(painted: Pat
     assert iterations[:4] == [0, 1, 2, 3]
 
 
-def test_two_lights_give_the_same_result_in_page_and_cli(
-    tmp_path_factory: pytest.TempPathFactory,
+VARIANTS: list[tuple[str, list[str], dict[str, object]]] = [
+    ("two lights", ["--lights", "2"], {}),
+    ("an isotropic light", ["--light", "isotropic"], {}),
+    ("a light without symmetry", ["--light", "table2d"], {}),
+    ("an IES light", ["--light", "ies"], {}),
+    ("its RID estimated", [], {"lights.0.estimate_rid": "curve"}),
+    ("a robust loss", ["--ambient", "0.05"], {"solver.loss": "huber"}),
+    ("room light estimated", ["--ambient", "0.05"], {"sensor.estimate_offset": True}),
+    ("cos4 fall-off", ["--sensor", "cos4"], {}),
+    ("two random starts", [], {"solver.multistart": 2}),
+]
+
+
+@pytest.mark.parametrize(("case", "flags", "keys"), VARIANTS, ids=[v[0] for v in VARIANTS])
+def test_every_kind_of_project_gives_the_same_result_in_page_and_cli(
+    tmp_path_factory: pytest.TempPathFactory, case: str, flags: list[str], keys: dict[str, object]
 ) -> None:
-    folder = tmp_path_factory.mktemp("two") / "data"
+    folder = tmp_path_factory.mktemp("variant") / "data"
     argv = ["synth", str(folder), "--views", "5", "--width", "160", "--height", "120"]
-    assert main([*argv, "--lights", "2", "--seed", "2", "--quiet"]) == 0
+    assert main([*argv, *flags, "--seed", "2", "--quiet"]) == 0
     path = folder / "project.json"
+    data = json.loads(path.read_text())
+    for key, value in keys.items():
+        *parents, last = key.split(".")
+        node = data
+        for part in parents:
+            node = node[int(part)] if part.isdigit() else node.setdefault(part, {})
+        node[last] = value
+    path.write_text(json.dumps(data))
     _same(_page(path)[0], _cli(path))
 
 
