@@ -330,7 +330,7 @@ def test_the_pace_is_bounded_and_must_be_a_number(synthetic: SyntheticProject) -
 
 
 def test_only_run_is_paced_a_step_shows_at_once(synthetic: SyntheticProject) -> None:
-    from lightcal_app.solve_service import pace_wait_s
+    from lightcal_app.solve_display import pace_wait_s
 
     assert pace_wait_s(True, 0.5, 0.2) == pytest.approx(0.3)
     assert pace_wait_s(True, 0.5, 0.7) == 0.0

@@ -277,6 +277,8 @@ def test_the_settings_travel_in_the_session_file(painted: Path) -> None:
 
 def test_the_solve_tab_plots_the_axis_as_roll_and_pitch(painted: Path) -> None:
     """One convention: the angle plot's last point is the result's roll and pitch."""
+    from lightcal_app.solve_display import light_angles_deg
+
     state = _page_state(painted)
     assert state.result is not None
     project = load_project(painted)
@@ -285,10 +287,10 @@ def test_the_solve_tab_plots_the_axis_as_roll_and_pitch(painted: Path) -> None:
         notify=lambda *a, **k: None,
         follow_iterations=False,
     )
-    assert solve.light_angles_deg([h.x for h in state.history]) is None  # no solve yet
+    assert light_angles_deg(solve.first_model, [h.x for h in state.history]) is None
     solve.setup_changed()
     assert solve.ensure_session()
-    angles = solve.light_angles_deg([h.x for h in state.history])
+    angles = light_angles_deg(solve.first_model, [h.x for h in state.history])
     assert angles is not None and [name for name, _ in angles] == ["light"]
     last = angles[0][1][-1]
     pose = state.result.lights[0].pose

@@ -301,7 +301,7 @@ class FilesService:
             st.setup_rev += 1
             st.selection_rev += 1
             st.mark(*ALL_DIRT, changed=True)
-        self.solve.compute_selection()
+        self.solve.selection.compute()
         self.solve.show_guess()
         self.solve.restore_estimate()
         body = f"Restored from {source}." + "".join(f"\n- {w}" for w in warnings)

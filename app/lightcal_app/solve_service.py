@@ -26,7 +26,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from lightcal.core.light_axis import paper_angles_from_axis
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.scene import Rig
 from lightcal.core.session import SolverSession
@@ -36,25 +35,14 @@ from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
 from lightcal.pipeline.results import stop_reason
 from lightcal.pipeline.solve import Calibration, calibrate
-from lightcal_app.pixel_selection import footprint_centers, select_image
 from lightcal_app.requests import Finished
 from lightcal_app.results import MISFIT_WORDS
+from lightcal_app.selection_service import Notify, SelectionService
 from lightcal_app.session_file import session_from_state
-from lightcal_app.state import MAX_ITERATION_S, AppState, Display, LightGuess, PreviousResult
+from lightcal_app.solve_display import estimate_display, pace_wait_s
+from lightcal_app.state import AppState, Display, LightGuess, PreviousResult
 
 log = logging.getLogger("lightcal.app")
-
-Notify = Callable[..., None]
-"""`notify(client, title, body, *, error=False)`: a message in the page."""
-
-
-def pace_wait_s(running: bool, min_iteration_s: float, shown_s: float) -> float:
-    """How long the next iteration waits so that the last one stayed `min_iteration_s`
-    (at most MAX_ITERATION_S) on the page, `shown_s` after it was drawn; only Run is
-    paced (`running`): a Step shows its iteration as soon as it is computed."""
-    if not running:
-        return 0.0
-    return max(min(min_iteration_s, MAX_ITERATION_S) - shown_s, 0.0)
 
 
 class SolveService:
@@ -78,8 +66,7 @@ class SolveService:
         self.first_model: CalibrationModel | None = None
         self._model_index: list[int] = []  # project image of each model image
         self._model_setup_rev = -1  # the state's setup_rev when the model was built
-        self._image_data: list[ImageData | None] = [None] * len(state.project.names)
-        self._selection_done = -1
+        self.selection = SelectionService(state, notify=notify)
         self._iteration_offset = 0
         self._stage_offset = 0  # added to the iterations of the pipeline's later stages
         self._resuming = False  # the next iteration 0 is the restored estimate
@@ -92,20 +79,15 @@ class SolveService:
     def setup_changed(self) -> None:
         """The guess or the selection changed: the solve starts over."""
         self.drop()
-        st = self.state
-        with st.lock:
-            need = st.selection_rev != self._selection_done
-        if need:
-            self.compute_selection()
+        if self.selection.stale():
+            self.selection.compute()
         self.show_guess()
 
     def project_changed(self) -> None:
         """The state shows another project: select its pixels, show its guess."""
         self.drop()
-        with self.state.lock:
-            self._image_data = [None] * len(self.state.project.names)
-            self._selection_done = -1
-        self.compute_selection()
+        self.selection.forget()
+        self.selection.compute()
         self.show_guess()
 
     def drop(self) -> None:
@@ -154,45 +136,6 @@ class SolveService:
             session.state == "running" or session.state != self._last_session_state
         )
 
-    def compute_selection(self) -> None:
-        """Select every image's pixels with the user's settings, regions and clicks."""
-        st = self.state
-        with st.lock:
-            project, loaded = st.solve_project, st.loaded
-            rev = st.selection_rev
-            settings = [st.selection_of(i) for i in range(len(project.names))]
-            regions = list(st.regions)
-            points = [list(st.points.get(n, [])) for n in project.names]
-        datas: list[ImageData | None] = []
-        for i in range(len(project.names)):
-            try:
-                datas.append(select_image(project, loaded, i, settings[i], regions, points[i]))
-            except LightcalError as exc:
-                datas.append(None)
-                self.notify(None, f"Selection failed for {project.names[i]}", str(exc), error=True)
-        with st.lock:
-            if st.solve_project is not project:
-                return
-            self._image_data = datas
-            self._selection_done = rev
-            st.selected = [
-                d.footprints.pixels if d is not None else np.zeros((0, 2), np.int64) for d in datas
-            ]
-            st.selected_binning = [s.binning if s.strategy == "all" else 1 for s in settings]
-            st.selected_wall_points = [
-                footprint_centers(d) if d is not None else np.zeros((0, 3)) for d in datas
-            ]
-            st.mark("selection", "light", "status")
-
-    def usable_images(self) -> tuple[list[ImageData], list[int]]:
-        """The selected images with pixels, and their project indices."""
-        datas, index = [], []
-        for i, d in enumerate(self._image_data):
-            if d is not None and len(d.observed) > 0:
-                datas.append(d)
-                index.append(i)
-        return datas, index
-
     def _lights(
         self, project: Project, guess: list[LightGuess], datas: list[ImageData]
     ) -> list[LightUnknown]:
@@ -214,7 +157,7 @@ class SolveService:
             project = st.solve_project
             guess = list(st.guess)
             gen, rev = st.session_gen, st.setup_rev
-            datas, _ = self.usable_images()
+            datas, _ = self.selection.usable()
         units = self._lights(project, guess, datas)
         display = Display(
             Rig(tuple(u.initial for u in units)),
@@ -239,7 +182,7 @@ class SolveService:
         with st.lock:
             project = st.solve_project
             guess = list(st.guess)
-            datas, index = self.usable_images()
+            datas, index = self.selection.usable()
         if not datas:
             return None
         model = CalibrationModel(
@@ -335,41 +278,15 @@ class SolveService:
         with self.state.lock:
             self._stage_model = model
 
-    def light_angles_deg(self, xs: list[np.ndarray]) -> list[tuple[str, np.ndarray]] | None:
-        """Per light with an axis, (name, (T, 2) roll and pitch in degrees) of each x of
-        the history (the result's convention, as the Light tab shows them); None when
-        no solve's layout is known."""
-        model = self.first_model
-        if model is None:
-            return None
-        n = model.layout.n
-        if any(len(x) < n for x in xs):
-            return None
-        rigs = [model.layout.rig(np.asarray(x[:n], dtype=np.float64)) for x in xs]
-        out = []
-        for j, unknown in enumerate(model.unknowns):
-            if unknown.kind() == "isotropic":
-                continue
-            angles = np.array(
-                [paper_angles_from_axis(rig.lights[j].R_camera_light[:, 2]) for rig in rigs]
-            ).reshape(-1, 2)
-            out.append((unknown.initial.name, np.degrees(angles)))
-        return out
-
     def estimate_display(self, model: CalibrationModel, x: np.ndarray) -> Display:
         """What the page shows of the estimate `x` (n,)."""
-        gains = np.ones(len(self.state.project.names))
-        g_model = model.layout.gain_factors(x)
-        for k, i in enumerate(self._model_index):
-            gains[i] = g_model[k]
-        return Display(
-            model.layout.rig(x),
-            tuple(float(g) for g in gains),
-            model.layout.offset(x),
-            "estimate",
-            self._model_setup_rev,
-            model.layout.wall_of(x),
-            self.state.solve_project.spec.sensor.model,
+        return estimate_display(
+            model,
+            x,
+            n_images=len(self.state.project.names),
+            model_index=self._model_index,
+            setup_rev=self._model_setup_rev,
+            fall_off=self.state.solve_project.spec.sensor.model,
         )
 
     def on_iteration(self, gen: int, rep: IterationReport) -> None:

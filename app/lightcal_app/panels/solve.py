@@ -11,6 +11,7 @@ import viser
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
+from lightcal_app.solve_display import light_angles_deg
 from lightcal_app.solve_settings import (
     FALL_OFFS,
     RID_ESTIMATES,
@@ -216,7 +217,7 @@ class SolvePanel(TabPanel):
         position = [(names[k].removesuffix("_m"), xs[:, k] * 1e3) for k in cols] if hist else []
         # The axis as the result and the Light tab give it (roll, pitch), not the
         # solver's own angles.
-        angles = self.ctl.solve.light_angles_deg([h.x for h in hist]) if hist else None
+        angles = light_angles_deg(self.ctl.solve.first_model, [h.x for h in hist]) if hist else None
         axis = [
             (f"{name} {what}", values[:, c])
             for name, values in angles or []
