@@ -914,6 +914,37 @@ def test_demo_mode_shows_the_true_light(synthetic: SyntheticProject, tmp_path: P
         build_app(proj.path, port=0, demo=True, session_path=False, state_dir=tmp_path / "state")
 
 
+def test_a_demo_starts_from_the_guess_and_keeps_the_users_session(tmp_path: Path) -> None:
+    """`--demo` with the default autosave: a solved session beside the project is neither
+    reopened nor overwritten; the demo autosaves to its own file."""
+    proj = make_project(tmp_path / "p", n_views=3, width=64, height=48)
+    own = proj.path.with_name(f"{proj.path.stem}.session.json")
+    a = build_app(proj.path, port=0, state_dir=tmp_path / "state")
+    try:
+        _idle(a)
+        _set(a.panels.solve.run_button, True)
+        _idle(a, 120)
+        assert a.state.solver_state == "converged"
+        a.controller.save_session()
+        _idle(a)
+    finally:
+        a.close()
+    saved = own.read_bytes()
+    assert b'"converged"' in saved
+    demo = build_app(proj.path, port=0, demo=True, state_dir=tmp_path / "state")
+    try:
+        _idle(demo)
+        assert demo.state.history == [] and demo.state.solver_state == "idle"
+        _set(demo.panels.solve.step_button, True)
+        _idle(demo)
+        demo.controller.save_session()
+        _idle(demo)
+    finally:
+        demo.close()
+    assert own.read_bytes() == saved
+    assert proj.path.with_name(f"{proj.path.stem}.demo-session.json").is_file()
+
+
 def test_explanation_panel_has_pictures() -> None:
     from lightcal_app.explain import PROJECT_FIGURES, SECTIONS, load_figure
 

@@ -111,7 +111,10 @@ def build_app(
         project_path: the project file.
         host: interface to bind (127.0.0.1: this machine only).
         port: TCP port (0: any free port; viser takes the next free one when busy).
-        demo: show the true light from `truth.json` beside the project.
+        demo: show the true light from `truth.json` beside the project; with the default
+            `session_path`, start from the project's guess (no restore) and autosave to
+            `<stem>.demo-session.json`, so a demo neither reopens a solved session nor
+            overwrites the user's.
         session_path: the autosave file; True: the default (beside the project), False
             or None: no autosave.
         restore: restore the autosaved session when it exists.
@@ -139,8 +142,14 @@ def build_app(
                 f"lights: {len(truth)} true lights but the project has {len(project.lights)}",
             )
     state_dir = state_dir if state_dir is not None else default_state_dir()
-    if session_path is True:
-        session_file: Path | None = default_session_path(path, state_dir)
+    if session_path is True and demo:
+        # A demo starts from the project's guess every time, and autosaves beside the
+        # user's own session, never over it.
+        own = default_session_path(path, state_dir)
+        session_file: Path | None = own.with_name(own.name.replace(".session.", ".demo-session."))
+        restore = False
+    elif session_path is True:
+        session_file = default_session_path(path, state_dir)
     elif session_path is False or session_path is None:
         session_file = None
     else:
