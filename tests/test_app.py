@@ -1168,3 +1168,14 @@ def test_looking_through_an_image_turns_the_rays_off(app: LightcalApp) -> None:
     _idle(app)
     assert app.state.rays_image == "none"
     assert app.panels.view.rays.value == "none"
+
+
+def test_the_busy_line_keeps_its_place(app: LightcalApp) -> None:
+    """Working or idle, the busy line is one visible line: the panel does not jump."""
+    from lightcal_app.panels import IDLE_LINE
+
+    line = app.panels.work_md
+    app.panels.show_work("rendering the overlays")
+    assert line.visible and line.content == "**Working**: rendering the overlays..."
+    app.panels.show_work("")
+    assert line.visible and line.content == IDLE_LINE

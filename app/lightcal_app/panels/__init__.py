@@ -26,6 +26,10 @@ from lightcal_app.text import md_prose
 __all__ = ["Panels", "pose_angles_deg", "rotation_from_angles_deg"]
 
 
+IDLE_LINE = "Ready: nothing running."
+"""The busy line's text when the server is idle."""
+
+
 class Panels:
     """Builds the GUI and keeps it in step with the state.
 
@@ -53,7 +57,8 @@ class Panels:
             "scene (a few seconds)..."
         )
         # What the server is doing right now (set by the worker before the work starts).
-        self.work_md = gui.add_markdown("", visible=False)
+        # Always one line, so that the panel below does not jump when work starts.
+        self.work_md = gui.add_markdown(IDLE_LINE)
         self.tabs = gui.add_tab_group()
         light_tab = self.tabs.add_tab("Light", viser.Icon.BULB)
         self.light = LightPanel(server, controller, flag, light_tab)
@@ -76,10 +81,9 @@ class Panels:
         self._messages_shown: str | None = None
 
     def show_work(self, text: str) -> None:
-        """The busy line: "Working: <text>..." while the server works, hidden when idle."""
-        if text:
-            self.work_md.content = f"**Working**: {md_prose(text)}..."
-        self.work_md.visible = bool(text)
+        """The busy line: "Working: <text>..." while the server works, `IDLE_LINE` when
+        idle (one line either way: the panel does not shift)."""
+        self.work_md.content = f"**Working**: {md_prose(text)}..." if text else IDLE_LINE
 
     def set_project(self, project: Project) -> None:
         """Options that depend on the project (after an upload)."""
