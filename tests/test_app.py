@@ -945,6 +945,29 @@ def test_a_demo_starts_from_the_guess_and_keeps_the_users_session(tmp_path: Path
     assert proj.path.with_name(f"{proj.path.stem}.demo-session.json").is_file()
 
 
+def test_fresh_keeps_the_earlier_session_aside(tmp_path: Path) -> None:
+    """`--fresh` does not restore the autosave, and does not let the next autosave
+    replace it either: it is renamed beside it, and the page says where."""
+    proj = make_project(tmp_path / "p", n_views=3, width=64, height=48)
+    session = tmp_path / "state" / "autosave.session.json"
+    session.parent.mkdir()
+    session.write_text("{}")  # what it holds does not matter: it is not read
+    a = build_app(
+        proj.path, port=0, state_dir=tmp_path / "state", session_path=session, restore=False
+    )
+    try:
+        _idle(a)
+        kept = sorted(session.parent.glob("autosave.session.*.json"))
+        assert len(kept) == 1 and kept[0].read_text() == "{}"
+        assert not session.exists() or session.read_text() != "{}"
+        notes = dict(a.controller.startup_notes)
+        assert notes["Session kept"] == (
+            f"The earlier session was not restored; it is kept as {kept[0].name}."
+        )
+    finally:
+        a.close()
+
+
 def test_explanation_panel_has_pictures() -> None:
     from lightcal_app.explain import PROJECT_FIGURES, SECTIONS, load_figure
 

@@ -92,6 +92,26 @@ class LightcalApp:
         self.server.stop()
 
 
+def keep_aside(path: Path) -> Path:
+    """Rename `path` to a new name beside it, `<name>.<UTC time>[-n].json`; returns it."""
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    stem = path.name.removesuffix(".json")
+    for n in range(1000):
+        target = path.with_name(f"{stem}.{stamp}{f'-{n}' if n else ''}.json")
+        try:
+            os.link(path, target)  # never replaces: fails when the name is taken
+        except FileExistsError:
+            continue
+        except OSError:  # a file system without hard links
+            if target.exists():
+                continue
+            path.rename(target)
+            return target
+        path.unlink()
+        return target
+    raise InputError(path, "cannot keep the earlier session aside: 1000 names taken")
+
+
 def build_app(
     project_path: str | Path,
     *,
@@ -156,6 +176,12 @@ def build_app(
         session_file = Path(session_path)
     restored: SessionFile | None = None
     notes: list[tuple[str, str]] = []
+    if not restore and not demo and session_file is not None and session_file.is_file():
+        # Not restored, and not lost either: the autosave would replace it.
+        kept = keep_aside(session_file)
+        notes.append(
+            ("Session kept", f"The earlier session was not restored; it is kept as {kept.name}.")
+        )
     if restore and session_file is not None and session_file.is_file():
         try:
             restored = read_session(session_file)
