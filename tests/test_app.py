@@ -246,37 +246,80 @@ def test_legend_picture_shows_both_ends() -> None:
     assert bar[-1, 0] > bar[-1, 2]  # red end (positive)
 
 
+class _Widget:
+    """What `Programmatic` uses of a viser handle: its value and viser's stamp of it."""
+
+    def __init__(self, value: str) -> None:
+        self._value = value
+        self.update_timestamp = 0.0
+        self.clock = 0.0
+
+    @property
+    def value(self) -> str:
+        return self._value
+
+    @value.setter
+    def value(self, value: str) -> None:  # a panel's write, or a browser's value
+        self.clock += 1.0
+        self._value, self.update_timestamp = value, self.clock
+
+
 def test_a_redraw_leaves_alone_a_widget_a_user_edited_until_its_callback_ends() -> None:
     flag = Programmatic()
-    w = SimpleNamespace(value="real")  # what `assign` uses of a viser handle
+    w = _Widget("real")
     flag.assign(w, "real")
-    w.value = "residual"  # a browser's value, stored by viser before its callback runs
+    w.value = "residual"  # a browser's value, stamped by viser before its callback runs
+    assert flag.pending(w)
     flag.assign(w, "real")  # a redraw from the state as it was before the edit
     assert w.value == "residual"
-    flag.release(w, "residual")  # the callback ended (here: the value was refused)
+    stamp = flag.begin(w)  # its callback starts ...
+    assert stamp is not None
+    flag.done(w, stamp)  # ... and ends (here: the value was refused)
+    assert not flag.pending(w)
     flag.assign(w, "real")
     assert w.value == "real"
     flag.assign(w, "depth")  # the state changed: written
     assert w.value == "depth"
-    other = SimpleNamespace(value="real")  # every widget has its own record
+    other = _Widget("real")  # every widget has its own record
     flag.assign(other, "residual")
     assert other.value == "residual" and w.value == "depth"
-    # An edit's callback ends: a next edit, right after, is left alone as well.
+    # A second callback of an edit applied already has nothing to do.
     w.value = "real"
-    assert not flag.taken(w)  # the user's: its callback applies it
-    flag.release(w, "real")
-    assert flag.taken(w)  # a second callback of the same edit, late, has nothing to do
+    stamp = flag.begin(w)
+    assert stamp is not None
+    flag.done(w, stamp)
+    assert flag.begin(w) is None
+    # The callback of an older edit ends while a newer one is on its way: left alone.
     w.value = "residual"
-    flag.assign(w, "real")
-    assert w.value == "residual" and not flag.taken(w)
-    # The callback of an older edit ends while a newer one is on its way: still left alone.
+    older = flag.begin(w)
+    assert older is not None
     w.value = "depth"
-    flag.release(w, "residual")
+    flag.done(w, older)
     flag.assign(w, "residual")
     assert w.value == "depth"
-    flag.release(w, "depth")
+    newer = flag.begin(w)
+    assert newer is not None and newer > older
+    flag.done(w, newer)
     flag.assign(w, "real")  # that edit was refused: the state's value again
     assert w.value == "real"
+
+
+def test_an_edit_back_to_the_written_value_is_still_an_edit() -> None:
+    """A, B, A: the user changes a widget and changes it back before any callback ran.
+    Its value equals the panels' last write, yet it is an edit (newer stamp): a redraw
+    from a state that took B meanwhile must not overwrite it, and its callback applies A.
+    Comparing values, as before, lost this edit."""
+    flag = Programmatic()
+    w = _Widget("real")
+    flag.assign(w, "real")
+    w.value = "residual"  # edit 1
+    first = flag.begin(w)  # edit 1's callback applies "residual" to the state ...
+    w.value = "real"  # ... while edit 2 arrives
+    assert first is not None
+    flag.done(w, first)
+    flag.assign(w, "residual")  # the redraw of the state edit 1 made
+    assert w.value == "real"  # edit 2 is left alone
+    assert flag.begin(w) is not None  # and its callback has an edit to apply
 
 
 def test_truth_file_errors(tmp_path: Path) -> None:
@@ -765,6 +808,7 @@ def test_a_browser_edit_survives_a_redraw_before_its_callback(app: LightcalApp) 
     # viser stores a browser's value, then queues the widget's callbacks on a worker
     # thread: a redraw can come in between, from the state as it was before the edit.
     handle._impl.value = "residual"
+    handle._impl.update_timestamp = time.time()  # viser stamps it on its event loop
     app.state.mark("widgets")
     _idle(app)
     assert handle.value == "residual"

@@ -133,6 +133,7 @@ def test_position_limit_is_in_metres() -> None:
 def test_a_choice_that_is_not_offered_is_refused(app: LightcalApp) -> None:
     before = app.state.ref_image
     app.panels.light.ref_image._impl.value = "../../etc/passwd"  # what a forged message sets
+    app.panels.light.ref_image._impl.update_timestamp = time.time()  # (stamped by viser)
     for cb in app.panels.light.ref_image._impl.update_cb:
         cb(GuiEvent(client=None, client_id=None, target=app.panels.light.ref_image))
     assert app.wait_idle()
@@ -462,7 +463,8 @@ def test_late_callbacks_never_lose_the_last_edit(app: LightcalApp, seed: int) ->
         for k in range(150):
             key = r.choice(sorted(widgets))
             handle, value_of = widgets[key]
-            handle._impl.value = value_of(r)  # what viser stores from the message
+            handle._impl.value = value_of(r)  # what viser stores from the message,
+            handle._impl.update_timestamp = time.time()  # stamped on its event loop
             last[key] = handle._impl.value
             for cb in handle._impl.update_cb:
                 pending.append(pool.submit(late, cb, handle, r.uniform(0.0, 0.05)))

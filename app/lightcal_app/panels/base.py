@@ -6,6 +6,16 @@ requests); each panel's `update` writes the state back into its widgets during a
 redraw. Those writes fire the widgets' own callbacks with `client None`; a thread-local
 flag, shared by all panels, makes those callbacks ignore them, so they are not taken
 for user edits.
+
+Users' edits are one ordered stream, told apart from the panels' writes by time, not by
+value: viser stamps a widget (`update_timestamp`) when a browser's value arrives, on its
+event loop, in arrival order, and again when a panel writes it. `Programmatic` keeps per
+widget the stamp of the last value that is no pending edit (the panels' write, or an edit
+its callback applied). A newer stamp is a user's edit on its way: a redraw leaves that
+widget alone, and its callback, whenever viser's thread pool runs it, applies the
+widget's latest value under one lock (one edit at a time) and records its stamp; a late
+callback of an edit applied already finds nothing newer and does nothing. An edit back to
+the value the panels last wrote (A, B, A) is still an edit: its stamp is newer.
 """
 
 from __future__ import annotations
@@ -37,27 +47,24 @@ def rounded(v: float, digits: int) -> float:
 
 
 class Programmatic:
-    """The panels' own widget writes, told apart from users' edits.
+    """The panels' own widget writes, told apart from users' edits (see the module).
 
     - A thread-local flag: writes inside `writing()` are not user edits (their callbacks
       ignore them, see `TabPanel.guard`).
-    - Per widget, its last value that did not come from a user (a redraw's, or one
-      written inside `writing()`). A widget that holds another value was edited by a
-      user since, and that edit is on its way to the state: viser stores a browser's
-      value, then runs the widget's callbacks on a worker thread, which reads it back.
-      A redraw in between leaves such a widget alone (`assign`), so it does not undo the
-      edit before the callback has read it. The callback's end `release`s the widget:
-      the next redraw writes it from the state again, whatever it holds (a refused or a
-      normalised value). A callback that starts when its widget holds no pending edit
-      any more does nothing (`taken`): an earlier one applied the value.
+    - Per widget, the viser stamp (`update_timestamp`) of its last value that is no
+      pending edit. `pending`: the widget holds a newer one, a user's edit whose callback
+      has not applied it yet: `assign` leaves it alone. `begin` / `done` bracket the
+      callback that applies it; `stream()` makes those callbacks one ordered stream.
     """
 
     def __init__(self) -> None:
         self._local = threading.local()
         self._lock = threading.Lock()
-        # id(handle) -> (the handle, its last value not from a user). Handles are
-        # unhashable; the reference kept here keeps an id from passing to a newer widget.
-        self._written: dict[int, tuple[Any, Any]] = {}
+        self._stream = threading.RLock()
+        # id(handle) -> (the handle, the stamp of its last value that is no pending edit).
+        # Handles are unhashable; the reference kept here keeps an id from passing to a
+        # newer widget.
+        self._applied: dict[int, tuple[Any, float]] = {}
 
     @contextmanager
     def writing(self) -> Iterator[None]:
@@ -71,42 +78,57 @@ class Programmatic:
     def active(self) -> bool:
         return bool(getattr(self._local, "on", False))
 
+    @contextmanager
+    def stream(self) -> Iterator[None]:
+        """One user edit applied at a time (callbacks run in viser's thread pool)."""
+        with self._stream:
+            yield
+
+    @staticmethod
+    def stamp(handle: Any) -> float:
+        """When the widget's value last changed (viser's `update_timestamp`)."""
+        return float(getattr(handle, "update_timestamp", 0.0))
+
+    def pending(self, handle: Any) -> bool:
+        """The widget holds a user's edit that no callback has applied yet."""
+        with self._lock:
+            seen = self._applied.get(id(handle))
+        return seen is not None and self.stamp(handle) > seen[1]
+
     def assign(self, handle: Any, value: Any) -> None:
         """Set a widget's value (viser sends it to every browser and fires its callbacks),
-        unless it holds that value already or a user's edit of it has not reached the
-        state yet (see the class)."""
-        current = handle.value
-        with self._lock:
-            seen = self._written.get(id(handle))
-        if seen is not None and not _same(current, seen[1]):
-            return  # a user's edit on its way to the state: its callback releases it
-        if not _same(current, value):
+        unless it holds that value already or a user's edit of it is on its way."""
+        if self.pending(handle):
+            return  # its callback applies it, then a redraw writes the state back
+        if not _same(handle.value, value):
             handle.value = value
         self.record(handle)
 
     def record(self, handle: Any) -> None:
-        """The widget's value is not a user's (written by a panel, or by viser itself, e.g.
-        when new options no longer hold the old value)."""
+        """The widget's value is no user's pending edit (written by a panel, or by viser
+        itself, e.g. when new options no longer hold the old value)."""
         with self._lock:
-            self._written[id(handle)] = (handle, handle.value)
+            seen = self._applied.get(id(handle))
+            stamp = max(self.stamp(handle), seen[1] if seen is not None else 0.0)
+            self._applied[id(handle)] = (handle, stamp)
 
-    def taken(self, handle: Any) -> bool:
-        """The widget holds a value that is no user's pending edit: one an earlier
-        callback read and brought to the state, or one the panels wrote. A callback that
-        starts after that (viser's pool runs them late) has no edit of its own left to
-        apply, and must not take the panels' value for one."""
+    def begin(self, handle: Any) -> float | None:
+        """A callback starts: the stamp of the user's edit it is to apply, or None when
+        there is none (an earlier callback applied the widget's value already)."""
         with self._lock:
-            seen = self._written.get(id(handle))
-        return seen is not None and _same(handle.value, seen[1])
+            seen = self._applied.get(id(handle))
+        stamp = self.stamp(handle)
+        if seen is not None and stamp <= seen[1]:
+            return None
+        return stamp
 
-    def release(self, handle: Any, edited: Any) -> None:
-        """A user's edit of `handle` to the value `edited` reached the state (or was
-        refused): the next redraw writes the state's value (a normalised one, or the old
-        one after a refusal). A widget that holds another value by now was edited again,
-        and stays left alone until that edit's callback ends."""
+    def done(self, handle: Any, stamp: float) -> None:
+        """The edit stamped `stamp` reached the state (or was refused): the next redraw
+        writes the state's value, unless a newer edit is on its way."""
         with self._lock:
-            if _same(handle.value, edited):
-                self._written[id(handle)] = (handle, edited)
+            seen = self._applied.get(id(handle))
+            if seen is None or stamp > seen[1]:
+                self._applied[id(handle)] = (handle, stamp)
 
 
 class TabPanel:
@@ -125,36 +147,39 @@ class TabPanel:
         self.flag = flag
 
     def guard(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
-        """`fn` called for user edits only (not for the panel's own writes)."""
+        """`fn` called for user edits only (not for the panel's own writes), one at a
+        time, each edit once (see the module)."""
 
         def cb(event: Any) -> None:
             if event.client is None and self.flag.active():
                 self.flag.record(event.target)  # the panels' own write, not an edit
                 return
             button = isinstance(event.target, _BUTTONS)  # a click, not a value
-            if not button and self.flag.taken(event.target):
-                return
-            edited = event.target.value
-            try:
-                fn(event)
-            except LightcalError as exc:
-                # Refused in the page, with the reason; the widgets show the state again.
-                self.ctl.notify(event.client, "Value refused", str(exc), error=True)
-            except (ValueError, TypeError, KeyError, IndexError, OverflowError):
-                # A value no widget of this page can send (a choice not offered, a string
-                # for a number): a page speaking for itself. Refused; nothing changed.
-                self.ctl.notify(
-                    event.client,
-                    "Value refused",
-                    f"{str(edited)[:60]!r} is not a value this control takes",
-                    error=True,
-                )
-            finally:
-                # The edit is in the state, or refused: the next redraw (one is marked
-                # here, after the release) writes the widget from the state again.
-                if not button:
-                    self.flag.release(event.target, edited)
-                self.ctl.state.mark("widgets")
+            with self.flag.stream():
+                stamp = None if button else self.flag.begin(event.target)
+                if not button and stamp is None:
+                    return  # an earlier callback applied this widget's value
+                edited = event.target.value
+                try:
+                    fn(event)
+                except LightcalError as exc:
+                    # Refused in the page, with the reason; the widgets show the state again.
+                    self.ctl.notify(event.client, "Value refused", str(exc), error=True)
+                except (ValueError, TypeError, KeyError, IndexError, OverflowError):
+                    # A value no widget of this page can send (a choice not offered, a
+                    # string for a number): a page speaking for itself. Refused.
+                    self.ctl.notify(
+                        event.client,
+                        "Value refused",
+                        f"{str(edited)[:60]!r} is not a value this control takes",
+                        error=True,
+                    )
+                finally:
+                    # The edit is in the state, or refused: the next redraw (one is marked
+                    # here, after `done`) writes the widget from the state again.
+                    if stamp is not None:
+                        self.flag.done(event.target, stamp)
+                    self.ctl.state.mark("widgets")
 
         return cb
 
