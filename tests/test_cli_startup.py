@@ -69,12 +69,16 @@ def test_the_command_entry_runs_main_then_freezes_the_collector(
     """`lightcal` (console script, `python -m lightcal`) is `entry`: main's exit code, full
     collections made rarer while it runs, the collector frozen for the exit (the
     interpreter's final collections skipped); `main` alone leaves the collector as is."""
+    import atexit
     import gc
+    import signal
 
+    import lightcal.cli.main as cli_main
     from lightcal.cli.main import entry, main
 
     thresholds = gc.get_threshold()
     frozen = gc.get_freeze_count()
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     monkeypatch.setattr(sys, "argv", ["lightcal", "schema"])
     try:
         assert main(["schema"]) == 0
@@ -86,6 +90,11 @@ def test_the_command_entry_runs_main_then_freezes_the_collector(
     finally:
         gc.unfreeze()
         gc.set_threshold(*thresholds)
+        # entry() installs the end-of-process signal handlers and its last atexit step:
+        # this process is pytest's, whose Ctrl-C must stay pytest's.
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+        atexit.unregister(cli_main._final_flush)
 
 
 def test_the_solver_imports_scipy_optimize_while_the_images_decode() -> None:
