@@ -11,7 +11,8 @@ Measures, on the sample project (sample_data/project.json, else a synthetic 12-i
 - step: one solver iteration with the residual overlays of every image re-rendered and
   sent, measured server-side from the Step request until that iteration is drawn
   (target: under 200 ms for 12 images), split into solver, pictures and sending;
-- the size of the pictures sent (long side and JPEG bytes).
+- the size of the pictures sent (long side and JPEG bytes);
+- the report download: zip size and time, screen-size figures and full size (after Run).
 """
 
 from __future__ import annotations
@@ -102,6 +103,30 @@ def time_steps(app: LightcalApp, n: int) -> list[dict[str, float]]:
     return out
 
 
+def time_report(app: LightcalApp) -> None:
+    """The report download (Result tab): its size and time at screen size (the default)
+    and at the CLI's print size, after Run to the end. Target: < 8 MB on the sample."""
+    from lightcal_app.results import report_zip_bytes
+
+    app.controller.set_pace(0.0)
+    app.controller.run()
+    app.wait_idle(300)
+    st = app.state
+    model, result = app.controller.solve.model, st.result
+    if model is None or result is None:
+        print("report: no result to report on")
+        return
+    sizes = {}
+    for full in (False, True):
+        t0 = time.perf_counter()
+        content = report_zip_bytes(st.project, st.loaded, model, result, full_size=full)
+        sizes[full] = len(content)
+        what = "full-size figures" if full else "screen-size figures (default)"
+        took = time.perf_counter() - t0
+        print(f"report zip, {what}: {len(content) / 1e6:.1f} MB in {took:.1f} s")
+    print(f"report zip: full size / default = {sizes[True] / sizes[False]:.1f}x; target < 8 MB")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("project", nargs="?", type=Path)
@@ -137,6 +162,7 @@ def main() -> None:
                 f"(pictures {med['pictures_s'] * 1e3:.0f} ms, sending {med['send_s'] * 1e3:.0f} "
                 f"ms, rest: solver iteration) over {len(rest)} steps; target < 200 ms"
             )
+            time_report(app)
             rgb = app.controller.scene.frusta[0].image
             _, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(rgb[..., ::-1]))
             print(

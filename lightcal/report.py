@@ -27,6 +27,7 @@ from lightcal.io.atomic import atomic_folder, atomic_write_text, signals_held
 from lightcal.io.cause_figure import cause_figure
 from lightcal.io.escaping import markdown_prose, markdown_text
 from lightcal.io.figures import (
+    PRINT_SCALE,
     angle_residual_figure,
     convergence_figure,
     image_pair_figure,
@@ -85,8 +86,12 @@ def write_report(
     result: CalibrationResult,
     *,
     progress: ProgressFn | None = None,
+    image_scale: float = PRINT_SCALE,
 ) -> list[Path]:
     """Write the report into `folder`; returns the files written (in `folder`).
+
+    `image_scale`: the per-image figures' pixels per layout point (2, the default, for
+    print; 1 makes them a quarter of the pixels and bytes: the app's report download).
 
     The report is written aside and moved in complete (`lightcal.io.atomic.atomic_folder`):
     a new folder appears with every file or not at all (an interruption removes the
@@ -125,9 +130,9 @@ def write_report(
         rms = float(np.sqrt(np.ma.mean(residual**2))) if residual.count() else math.nan
         title = f"{names[i]}: real - rendered (RMS {rms:.4g})"
         maps = inside(folder, f"residual_{files[i]}.png")
-        write_png(maps, residual_figure(residual, title=title))
+        write_png(maps, residual_figure(residual, title=title, scale=image_scale))
         pair = inside(folder, f"images_{files[i]}.png")
-        write_png(pair, image_pair_figure(real, rendered, title=names[i]))
+        write_png(pair, image_pair_figure(real, rendered, title=names[i], scale=image_scale))
         return [maps, pair], rms
 
     written: list[Path] = []

@@ -461,9 +461,19 @@ def test_run_finds_the_true_light_and_reports_it(app: LightcalApp, tmp_path: Pat
     assert st.messages[-2][0] == "Preparing the report"
     assert st.messages[-1][0] == "Report ready"
     assert st.messages[-1][1].startswith("project.report.zip (")
-    names = zipfile.ZipFile(io.BytesIO(d.content)).namelist()
+    report = zipfile.ZipFile(io.BytesIO(d.content))
+    names = report.namelist()
     assert "report/summary.md" in names and "report/result.json" in names
     assert sum(n.startswith("report/residual_") for n in names) == 4
+    # Screen-size figures by default; "full-size figures" gives the CLI's print size.
+    small = cv2.imdecode(np.frombuffer(report.read("report/residual_v00.png"), np.uint8), 1)
+    _set(app.panels.result.report_full_size, True)
+    _set(app.panels.result.download_report, True)
+    _idle(app, 120)
+    full = zipfile.ZipFile(io.BytesIO(st.downloads[-1].content)).read("report/residual_v00.png")
+    big = cv2.imdecode(np.frombuffer(full, np.uint8), 1)
+    assert big.shape[1] > 1.9 * small.shape[1]  # twice the map, the bar a little less
+    _set(app.panels.result.report_full_size, False)
     # Reset goes back to the initial guess.
     _set(app.panels.solve.reset_button, True)
     _idle(app)

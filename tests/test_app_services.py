@@ -396,7 +396,7 @@ def test_worker_says_what_it_does_while_it_does_it(synthetic: SyntheticProject) 
         assert shown == ["drawing the pictures", ""]  # the first round draws everything
         state.request(rq.PrepareDownload("report"))
         assert worker.wait_idle(10)
-        assert seen_during == ["building the report (every image rendered at full size)"]
+        assert seen_during == ["building the report (every image rendered)"]
         with state.lock:
             state.request(rq.SetupChanged())
             state.mark("overlays")

@@ -134,3 +134,19 @@ def test_cause_figure_colours_findings_and_quiet_causes() -> None:
     assert count(_FINDING) > 2 * count(_SIGNIFICANT) > 0
     assert count(_QUIET) > 0
     assert cause_figure({"causes": []}) is None
+
+
+def test_a_residual_map_is_stepped_block_means_and_its_bar_alike():
+    """Each map pixel is the mean of the residuals it covers (noise of +-1 over a 4 px
+    block averages to 0), shown in one of 2 RESIDUAL_STEPS + 1 colour bands."""
+    from lightcal.io.figures import RESIDUAL_STEPS
+
+    checker = np.where((np.indices((400, 1200)).sum(axis=0) % 2) == 0, 1.0, -1.0)
+    fig = residual_figure(checker + 3.0, title="t", vmax=5.0, width_pt=300, scale=1)
+    body = fig[30 : 30 + 100, 10 : 10 + 300].reshape(-1, 3)
+    assert len(np.unique(body, axis=0)) == 1  # all +3: the checker averaged out
+    ramp = residual_figure(
+        np.linspace(-5, 5, 300)[None, :].repeat(50, axis=0), title="t", vmax=5.0, width_pt=300
+    )
+    colours = np.unique(ramp[60:100, 20:620].reshape(-1, 3), axis=0)
+    assert len(colours) == 2 * RESIDUAL_STEPS + 1

@@ -366,11 +366,19 @@ class Actions:
         return region
 
     def request_download(
-        self, what: DownloadKind, client: Any = None, export_format: str | None = None
+        self,
+        what: DownloadKind,
+        client: Any = None,
+        export_format: str | None = None,
+        *,
+        full_size: bool = False,
     ) -> None:
-        """Queue a download: "result", "report", "session" or "export" (in a format of
-        `lightcal.io.export.FORMATS`)."""
-        self.state.request(PrepareDownload(what, export_format=export_format, client=client))
+        """Queue a download: "result", "report" (its figures at print size with
+        `full_size`), "session" or "export" (in a format of `lightcal.io.export.FORMATS`)."""
+        request = PrepareDownload(
+            what, export_format=export_format, full_size=bool(full_size), client=client
+        )
+        self.state.request(request)
 
     def save_session(self, client: Any = None) -> None:
         self.state.request(SaveSession(client=client))

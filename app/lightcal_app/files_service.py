@@ -237,11 +237,11 @@ class FilesService:
             name, content = export_download(result, project, req.export_format or "")
             self._send(client, name, content)
         elif req.what == "report":
-            self.notify(client, "Preparing the report", "Rendering every image at full size...")
+            self.notify(client, "Preparing the report", "Rendering every image...")
             proj = project_with_selection(project, settings, regions)
             name = f"{stem}.report.zip"
             try:
-                content = report_zip_bytes(proj, loaded, model, result)
+                content = report_zip_bytes(proj, loaded, model, result, full_size=req.full_size)
             except Exception as exc:  # said in place of "Preparing the report"
                 log.warning("report failed", exc_info=True)
                 self.notify(client, "Report failed", f"{type(exc).__name__}: {exc}", error=True)

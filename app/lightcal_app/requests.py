@@ -65,6 +65,7 @@ class PrepareDownload(FromBrowser):
 
     what: DownloadKind
     export_format: str | None = None  # with what="export": one of lightcal.io.export.FORMATS
+    full_size: bool = False  # with what="report": the figures at print size (4x the bytes)
 
 
 class SaveSession(FromBrowser):
@@ -176,6 +177,6 @@ def work_of(request: Request) -> str:
     """What the worker does for `request`, in a few words (the page's busy line)."""
     if isinstance(request, PrepareDownload):
         if request.what == "report":
-            return "building the report (every image rendered at full size)"
+            return "building the report (every image rendered)"
         return f"preparing the {request.what} download"
     return _WORK.get(type(request), "working")

@@ -182,15 +182,24 @@ def export_download(result: CalibrationResult, project: Project, fmt: str) -> tu
 
 
 def report_zip_bytes(
-    project: Project, loaded: LoadedImages, model: CalibrationModel, result: CalibrationResult
+    project: Project,
+    loaded: LoadedImages,
+    model: CalibrationModel,
+    result: CalibrationResult,
+    *,
+    full_size: bool = False,
 ) -> bytes:
-    """The report folder (`lightcal calibrate --report`) plus the result JSON, zipped."""
+    """The report folder (`lightcal calibrate --report`) plus the result JSON, zipped.
+    The per-image figures at screen size (`write_report`'s image_scale 1: the sample's
+    zip 9 MB instead of 37 MB), or at the CLI's print size with `full_size`."""
+    from lightcal.io.figures import PRINT_SCALE
     from lightcal.report import write_report
 
     buf = io.BytesIO()
     with tempfile.TemporaryDirectory(prefix="lightcal-report-") as tmp:
         folder = Path(tmp) / "report"
-        files = write_report(folder, project, loaded, model, result)
+        scale = PRINT_SCALE if full_size else 1.0
+        files = write_report(folder, project, loaded, model, result, image_scale=scale)
         with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
             for f in files:
                 zf.write(f, f"report/{f.name}")

@@ -36,6 +36,12 @@ class ResultPanel(TabPanel):
         )
         self.download_result = gui.add_button("Download result (JSON)", icon=viser.Icon.DOWNLOAD)
         self.download_report = gui.add_button("Download report (zip)", icon=viser.Icon.DOWNLOAD)
+        self.report_full_size = gui.add_checkbox(
+            "full-size figures",
+            False,
+            hint="the report's image figures at print size, as lightcal calibrate --report "
+            "writes them (about 4x the download)",
+        )
         # The result in other tools' formats (`lightcal export`): OpenCV, Blender, ...
         self.export_format = gui.add_dropdown(
             "export as",
@@ -49,7 +55,11 @@ class ResultPanel(TabPanel):
             lambda e: ctl.request_download("export", e.client, str(self.export_format.value))
         )
         self.download_result.on_click(lambda e: ctl.request_download("result", e.client))
-        self.download_report.on_click(lambda e: ctl.request_download("report", e.client))
+        self.download_report.on_click(
+            lambda e: ctl.request_download(
+                "report", e.client, full_size=bool(self.report_full_size.value)
+            )
+        )
 
     def update(self, frame: Frame) -> None:
         if not frame.dirty & {"result", "scene"}:
