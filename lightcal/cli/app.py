@@ -11,6 +11,8 @@ otherwise; viser's share tunnel is never used.
 from __future__ import annotations
 
 import argparse
+import ipaddress
+import re
 import sys
 from pathlib import Path
 
@@ -92,12 +94,63 @@ def sample_project_for_app() -> Path:
     return copy.folder / "project.json"
 
 
+_HOST_NAME = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)(\.(?!-)[A-Za-z0-9-]{1,63}(?<!-))*\.?")
+
+
+def check_address(host: str, port: int) -> None:
+    """--host is an IP address or a host name (or empty: every interface) and --port a TCP
+    port (0: any free one); checked before the project is read and the server started."""
+    if not 0 <= port <= 65535:
+        raise InputError("--port", f"expected a TCP port from 0 to 65535, got {port}")
+    if host in EXPOSED_HOSTS:
+        return
+    try:
+        ipaddress.ip_address(host.strip("[]"))
+    except ValueError:
+        # (a name's last label is never all digits: 999.1.1.1 is a mistyped address)
+        last = host.rstrip(".").rsplit(".", 1)[-1]
+        if len(host) > 253 or not _HOST_NAME.fullmatch(host) or last.isdigit():
+            raise InputError(
+                "--host", f"expected an IP address or a host name, got {host!r}"
+            ) from None
+
+
+def check_files(args: argparse.Namespace, path: Path) -> None:
+    """Before the images are read and the kernels compiled: the project loads, --demo's
+    truth file matches it, and --session and --state-dir can be written without touching
+    an input: the app writes its autosave to --session (and renames a session it cannot
+    read to `.bad`), so it must never be the project, its images or the truth file."""
+    from lightcal_app.demo_truth import read_truth_lights, truth_path_for
+
+    from lightcal.io.outputs import check_output_file, project_inputs
+    from lightcal.io.project import load_project
+
+    project = load_project(path)
+    if args.demo:
+        truth = read_truth_lights(truth_path_for(path))
+        if len(truth) != len(project.lights):
+            raise InputError(
+                truth_path_for(path),
+                f"lights: {len(truth)} true lights but the project has {len(project.lights)}",
+            )
+    if args.session is not None:
+        inputs = project_inputs(project)
+        if args.demo:
+            inputs.setdefault(truth_path_for(path).resolve(), "the truth file")
+        check_output_file(args.session, option="--session", inputs=inputs, inputs_of="the app")
+    state = args.state_dir
+    if state is not None and (state.exists() or state.is_symlink()) and not state.is_dir():
+        raise InputError(state, "--state-dir: is not a folder; expected a folder to write into")
+
+
 def run(args: argparse.Namespace) -> int:
     from lightcal_app.server import build_app, serve_forever
 
     from lightcal.cli.progress import ensure_kernels
 
+    check_address(args.host, args.port)
     path = args.project if args.project is not None else sample_project_for_app()
+    check_files(args, path)
     if args.host in EXPOSED_HOSTS:
         print(
             f"lightcal app: warning: --host {args.host or '(all)'} exposes the app to every "

@@ -14,6 +14,8 @@ import argparse
 import shlex
 from pathlib import Path
 
+from lightcal.errors import InputError
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -24,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "the commands that calibrate it and open it in the app."
         ),
     )
-    p.add_argument("path", type=Path, metavar="PATH", help="folder to write (new or empty)")
+    p.add_argument("path", metavar="PATH", help="folder to write (new or empty)")
     p.add_argument(
         "--force",
         action="store_true",
@@ -37,7 +39,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from lightcal.resources import write_sample_project
 
-    copy = write_sample_project(args.path, force=args.force)
+    if not args.path.strip():  # ("" would be the current folder)
+        raise InputError("PATH", f"expected the path of a folder to write, got {args.path!r}")
+    for parent in Path(args.path).parents:  # the nearest existing one must be a folder
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(
+                    args.path, f"{parent} is a file, not a folder; choose a new folder"
+                )
+            break
+    try:
+        copy = write_sample_project(Path(args.path), force=args.force)
+    except OSError as exc:  # (the OS names the hidden folder the copy is staged in)
+        raise InputError(
+            args.path, f"cannot write the sample project there: {exc.strerror or exc}"
+        ) from exc
     print(f"lightcal sample: wrote {_files(len(copy.written))} to {copy.folder}")
     if copy.kept:
         shown = ", ".join(p.as_posix() for p in copy.kept[:5])

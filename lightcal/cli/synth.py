@@ -47,6 +47,9 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 
+MAX_POSE_MM = 100.0
+"""Largest --pose-noise-mm and --pose-error-mm."""
+
 DEFAULT_VIGNETTING = (-0.25, 0.05)
 """Radial fall-off of `--sensor map` without `--vignetting`: V = 0.8 in the corners."""
 
@@ -72,6 +75,16 @@ _OPTIONS = {
     "init_offset_deg": "--init-offset-deg",
     "seed": "--seed",
     "K": "--fx/--fy/--cx/--cy",
+    "size": "--width/--height",
+    "fx": "--fx",
+    "fy": "--fy",
+    "cx": "--cx",
+    "cy": "--cy",
+    "roughness": "--roughness",
+    "ior": "--ior",
+    "albedo": "--albedo",
+    "sigma_deg": "--sigma-deg",
+    "wall": "--wall",
     "dist": "--distortion",
     "width": "--width",
     "height": "--height",
@@ -182,12 +195,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="lambertian",
         help="the wall's true reflectance (lambertian); the project still says lambertian",
     )
-    g.add_argument("--roughness", type=float, default=0.3, help="plastic: GGX alpha (0.3)")
-    g.add_argument("--ior", type=float, default=1.5, help="plastic: coat index of refraction (1.5)")
+    g.add_argument("--roughness", type=float, default=None, help="plastic: GGX alpha (0.3)")
     g.add_argument(
-        "--albedo", type=float, default=0.8, help="plastic: diffuse albedo of the base (0.8)"
+        "--ior", type=float, default=None, help="plastic: coat index of refraction (1.5)"
     )
-    g.add_argument("--sigma-deg", type=float, default=20.0, help="oren_nayar: roughness (20)")
+    g.add_argument(
+        "--albedo", type=float, default=None, help="plastic: diffuse albedo of the base (0.8)"
+    )
+    g.add_argument("--sigma-deg", type=float, default=None, help="oren_nayar: roughness (20)")
     g = p.add_argument_group("measurement error")
     g.add_argument(
         "--pose-noise-mm", type=float, default=0.5, help="camera centre error sigma (0.5)"
@@ -292,6 +307,10 @@ def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
         raise InputError(
             "--pose-error-mm", f"expected a finite value >= 0, got {args.pose_error_mm:g}"
         )
+    if args.pose_error_mm > MAX_POSE_MM:
+        raise InputError(
+            "--pose-error-mm", f"expected at most {MAX_POSE_MM:g} mm, got {args.pose_error_mm:g}"
+        )
     limit_mm = MAX_BOW_M * 1000.0
     if not (math.isfinite(args.bow_mm) and abs(args.bow_mm) <= limit_mm):
         raise InputError(
@@ -330,22 +349,40 @@ def _build(make: Callable[[], T]) -> T:
         raise InputError(_OPTIONS.get(exc.source, exc.source), exc.detail) from exc
 
 
-def _wall(args: argparse.Namespace) -> WallReflectance:
-    """The true wall of --wall and its options."""
-    from lightcal.core.wall import LAMBERTIAN, OrenNayarWall, PlasticWall
+def _check_scene(args: argparse.Namespace) -> None:
+    """The single-value scene options (SceneConfig takes them as ranges)."""
+    from lightcal.synthetic.views import MAX_TILT_DEG
 
-    try:
-        if args.wall == "plastic":
-            return PlasticWall.from_albedo(args.roughness, args.ior, args.albedo)
-        if args.wall == "oren_nayar":
-            return OrenNayarWall(math.radians(args.sigma_deg))
-    except ValueError as exc:
-        raise InputError("--wall", str(exc)) from exc
-    return LAMBERTIAN
+    if not (0.0 <= args.tilt_deg <= MAX_TILT_DEG):  # (NaN too)
+        raise InputError(
+            "--tilt-deg",
+            f"expected a value in [0, {MAX_TILT_DEG:g}] degrees, got {args.tilt_deg:g}",
+        )
+    if not (-180.0 <= args.roll_deg <= 180.0):
+        raise InputError(
+            "--roll-deg", f"expected a value in [-180, 180] degrees, got {args.roll_deg:g}"
+        )
+    if math.isfinite(args.pose_noise_mm) and args.pose_noise_mm > MAX_POSE_MM:
+        raise InputError(
+            "--pose-noise-mm", f"expected at most {MAX_POSE_MM:g} mm, got {args.pose_noise_mm:g}"
+        )
+
+
+def _wall(args: argparse.Namespace) -> WallReflectance:
+    """The true wall of --wall and its options (errors renamed after the options)."""
+    from lightcal.synthetic.walls import WALL_PARAMETERS, true_wall
+
+    names = [name for parameters in WALL_PARAMETERS.values() for name in parameters]
+    return _build(lambda: true_wall(args.wall, {name: getattr(args, name) for name in names}))
 
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.core.camera import Camera
+    from lightcal.synthetic.camera_limits import (
+        check_distortion,
+        check_image_size,
+        check_intrinsics,
+    )
     from lightcal.synthetic.dataset import SynthConfig, write_dataset
     from lightcal.synthetic.scenes import RigConfig, SceneConfig, SensorConfig
 
@@ -359,10 +396,17 @@ def run(args: argparse.Namespace) -> int:
     coeffs = None
     if sensor_model == "map":
         coeffs = tuple(args.vignetting) if args.vignetting is not None else DEFAULT_VIGNETTING
-    if args.width <= 0 or args.height <= 0:
-        raise InputError("--width/--height", f"expected > 0, got {args.width} x {args.height}")
+    if not args.out_dir.strip():
+        raise InputError("OUT_DIR", f"expected the path of a dataset folder, got {args.out_dir!r}")
+    _build(lambda: check_image_size(args.width, args.height))
+    _build(
+        lambda: check_intrinsics(
+            args.width, args.height, fx=args.fx, fy=args.fy, cx=args.cx, cy=args.cy
+        )
+    )
     if not args.pose_noise_mm >= 0.0:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
+    _check_scene(args)
     departures = _departures(args, sensor_model)
     fx = 0.9 * args.width if args.fx is None else args.fx
     camera = _build(
@@ -376,6 +420,7 @@ def run(args: argparse.Namespace) -> int:
             dist=tuple(args.distortion),
         )
     )
+    _build(lambda: check_distortion(camera))
     scene = _build(
         lambda: SceneConfig(
             n_views=args.views,
@@ -424,14 +469,25 @@ def run(args: argparse.Namespace) -> int:
     def progress(line: str) -> None:
         print(f"lightcal synth: {line}", file=sys.stderr, flush=True)
 
-    from lightcal.cli.progress import ensure_kernels
+    from pathlib import Path
 
+    from lightcal.cli.progress import ensure_kernels
+    from lightcal.synthetic.dataset_files import check_target
+
+    check_target(Path(args.out_dir), force=args.force)  # before compiling and rendering
     ensure_kernels(quiet=args.quiet)
-    dataset = _build(
-        lambda: write_dataset(
-            args.out_dir, config, force=args.force, progress=None if args.quiet else progress
+    try:
+        dataset = _build(
+            lambda: write_dataset(
+                args.out_dir, config, force=args.force, progress=None if args.quiet else progress
+            )
         )
-    )
+    except MemoryError:
+        raise InputError(
+            "--width/--height",
+            f"not enough memory to render {args.views} images of {args.width} x {args.height} "
+            "pixels; expected smaller images",
+        ) from None
     print(
         f"wrote {len(dataset.image_paths)} images, {dataset.project_path} and {dataset.truth_path}"
     )

@@ -49,7 +49,7 @@ import math
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +110,7 @@ from lightcal.synthetic.scenes import (
     SceneConfig,
     SensorConfig,
     apply_sensor,
+    check_in_front,
     describe_rid,
     initial_guess,
     noise_model,
@@ -133,6 +134,7 @@ __all__ = [
 ]
 
 Progress = Callable[[str], None]
+_LARGEST = dict(pose_noise_m=0.1, pose_noise_deg=10.0, init_offset_m=5.0, init_offset_deg=180.0)
 
 
 @dataclass(frozen=True)
@@ -171,10 +173,12 @@ class SynthConfig:
     departures: Departures = field(default_factory=Departures)
 
     def __post_init__(self) -> None:
-        for name in ("pose_noise_m", "pose_noise_deg", "init_offset_m", "init_offset_deg"):
-            value = getattr(self, name)
+        for name, high in _LARGEST.items():
+            value, unit = getattr(self, name), "m" if name.endswith("_m") else "degrees"
             if not (math.isfinite(value) and value >= 0.0):
                 raise InputError(name, f"expected a finite value >= 0, got {value!r}")
+            if value > high:
+                raise InputError(name, f"expected at most {high:g} {unit}, got {value:g}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InputError("seed", f"expected an integer >= 0, got {self.seed!r}")
         if self.image_format not in IMAGE_SUFFIX:
@@ -250,18 +254,12 @@ def write_dataset(
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    folder = out_dir
-    return SynthDataset(
-        folder=folder,
-        project_path=folder / PROJECT_NAME,
-        truth_path=folder / TRUTH_NAME,
-        image_paths=[folder / p.relative_to(staging) for p in dataset.image_paths],
-        camera=dataset.camera,
-        views=dataset.views,
-        measured_views=dataset.measured_views,
-        rig=dataset.rig,
-        initial_lights=dataset.initial_lights,
-        vignetting=dataset.vignetting,
+    return replace(  # the staged dataset, at its final place
+        dataset,
+        folder=out_dir,
+        project_path=out_dir / PROJECT_NAME,
+        truth_path=out_dir / TRUTH_NAME,
+        image_paths=[out_dir / p.relative_to(staging) for p in dataset.image_paths],
     )
 
 
@@ -305,6 +303,7 @@ def _write_into(
             rng_pose,
             position_sigma_m=config.pose_noise_m,
             angle_sigma_rad=math.radians(config.pose_noise_deg),
+            field="pose_noise_m",
         )
         for v in views
     ]
@@ -315,6 +314,7 @@ def _write_into(
                 rng_pose_error,
                 position_sigma_m=departures.pose_error_m,
                 angle_sigma_rad=math.radians(departures.pose_error_deg),
+                field="pose_error_m",
             )
             for v in measured
         ]
@@ -329,6 +329,7 @@ def _write_into(
     ]
     if true_rid is not rid:  # the initial guess has the declared profile
         initial = [light.replace(rid=rid) for light in initial]
+    check_in_front(initial, measured)  # (as the project will, before the rendering)
 
     # The images.
     imaging = make_imaging(
@@ -378,13 +379,12 @@ def _write_into(
             }
         )
         if progress is not None:
-            geometry = view_geometry(view)
+            done = view_truth[-1]
             progress(
-                f"{name}{suffix} {i + 1}/{n}: distance {geometry['distance_m']:.2f} m, "
-                f"tilt {geometry['tilt_deg']:.1f} deg, exposure 1/{1.0 / times_s[i]:.0f} s, "
-                f"peak {view_truth[-1]['peak_signal_dn']:.0f} DN above black, "
-                f"{view_truth[-1]['saturated_pixels']} saturated "
-                f"({time.perf_counter() - started:.1f} s)"
+                f"{name}{suffix} {i + 1}/{n}: distance {done['distance_m']:.2f} m, tilt "
+                f"{done['tilt_deg']:.1f} deg, exposure 1/{1.0 / times_s[i]:.0f} s, peak "
+                f"{done['peak_signal_dn']:.0f} DN above black, {done['saturated_pixels']} "
+                f"saturated ({time.perf_counter() - started:.1f} s)"
             )
 
     # The project: the measured poses with the covariance of their error.

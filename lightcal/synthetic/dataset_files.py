@@ -67,6 +67,14 @@ def check_target(out_dir: Path, *, force: bool) -> bool:
     """Whether `out_dir` already holds files (allowed only with `force`)."""
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, "exists and is not a folder: expected a new or empty folder")
+    for parent in out_dir.parents:  # the nearest existing one must be a folder
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(
+                    out_dir,
+                    f"{parent} is a file, not a folder: expected a new or empty folder",
+                )
+            break
     occupied = out_dir.is_dir() and any(out_dir.iterdir())
     if occupied and not force:
         raise InputError(
@@ -85,7 +93,10 @@ def make_staging(out_dir: Path) -> Path:
         staging.mkdir()
         (staging / IMAGES_DIR).mkdir()
     except OSError as exc:
-        raise InputError(out_dir, f"cannot create the dataset folder: {exc}") from exc
+        # (the OS error names the staging folder, which the user never asked for)
+        raise InputError(
+            out_dir, f"cannot create the dataset folder in {parent}: {exc.strerror or exc}"
+        ) from exc
     return staging
 
 

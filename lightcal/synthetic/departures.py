@@ -62,6 +62,23 @@ MAX_BOW_M = 0.1
 """Largest |depth| of `bow`, metres: the slope at the disc's rim stays <= 2 depth / R = 0.2."""
 
 
+MAX_AMPLITUDE = 10.0
+"""Largest `ambient_fraction` and `rid_rim_amplitude`: beyond, the beam is lost under them
+(and huge values overflow the sensor's noise)."""
+
+GAMMA_RANGE = (0.1, 10.0)
+"""Accepted `gamma`: beyond, every value above black is stored as black or as white."""
+
+MAX_ATTENUATION_PER_M = 2.0
+"""Largest `attenuation_per_m`, 1/m: beyond, exp(-C d) leaves no beam over metres."""
+
+MAX_POSE_ERROR_M = 0.1
+"""Largest `pose_error_m`, metres."""
+
+MAX_POSE_ERROR_DEG = 10.0
+"""Largest `pose_error_deg`, degrees."""
+
+
 def _check(name: str, value: float, ok: bool, expected: str) -> None:
     if not (math.isfinite(value) and ok):
         raise InputError(name, f"expected {expected}, got {value:g}")
@@ -125,6 +142,17 @@ class Departures:
             value = getattr(self, name)
             _check(name, value, value >= 0.0, "a finite value >= 0")
         _check("gamma", self.gamma, self.gamma > 0.0, "a finite value > 0")
+        for name, high, unit in (
+            ("ambient_fraction", MAX_AMPLITUDE, ""),
+            ("rid_rim_amplitude", MAX_AMPLITUDE, ""),
+            ("attenuation_per_m", MAX_ATTENUATION_PER_M, " per metre"),
+            ("pose_error_m", MAX_POSE_ERROR_M, " m"),
+            ("pose_error_deg", MAX_POSE_ERROR_DEG, " degrees"),
+        ):
+            value = getattr(self, name)
+            _check(name, value, value <= high, f"at most {high:g}{unit}")
+        low, high = GAMMA_RANGE
+        _check("gamma", self.gamma, low <= self.gamma <= high, f"a value in [{low:g}, {high:g}]")
         _check(
             "bow_m",
             self.bow_m,

@@ -27,7 +27,7 @@ from lightcal.core.rid import (
     Table2DRID,
 )
 from lightcal.core.rotations import matrix_from_rotvec
-from lightcal.core.scene import Light, Rig
+from lightcal.core.scene import Light, Rig, View
 from lightcal.errors import InputError
 from lightcal.synthetic.light_models import LIGHT_MODELS, LightModel
 from lightcal.synthetic.sampling import (
@@ -270,3 +270,18 @@ def describe_rid(rid: RID) -> dict[str, object]:
             "values": rid.values.tolist(),
         }
     raise InputError("rid", f"expected one of the lightcal RID models, got {type(rid).__name__}")
+
+
+def check_in_front(lights: list[Light], views: list[View]) -> None:
+    """Every light is in front of the wall in every view (world z > 0), as a project
+    demands of its initial guesses: checked before the images are rendered."""
+    for light in lights:
+        for i, view in enumerate(views):
+            z = float(light.position_world(view)[2])
+            if z <= 0.0:
+                raise InputError(
+                    "lights",
+                    f"the initial guess of light {light.name!r} is on or behind the wall in "
+                    f"view {i} (world z = {z:.3g} m); expected it in front (z > 0): a larger "
+                    "--distance, or a smaller --light-radius-m or --init-offset-m",
+                )

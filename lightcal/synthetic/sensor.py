@@ -25,6 +25,12 @@ from lightcal.core.scene import Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.errors import InputError
 
+MAX_FULL_WELL_E = 1e7
+"""Largest full well, electrons (real sensors: 1e3 to 1e6)."""
+
+MAX_EXPOSURE_TARGET = 10.0
+"""Largest `exposure_target`: ten times the usable range already saturates most pixels."""
+
 
 @dataclass(frozen=True)
 class SensorConfig:
@@ -70,6 +76,23 @@ class SensorConfig:
         if not (math.isfinite(self.exposure_target) and self.exposure_target > 0.0):
             raise InputError(
                 "exposure_target", f"expected a value > 0, got {self.exposure_target!r}"
+            )
+        if self.full_well_e > MAX_FULL_WELL_E:
+            raise InputError(
+                "full_well_e",
+                f"expected at most {MAX_FULL_WELL_E:g} electrons, got {self.full_well_e:g}",
+            )
+        if self.read_noise_e > self.full_well_e:
+            raise InputError(
+                "read_noise_e",
+                f"expected at most the full well ({self.full_well_e:g} electrons), "
+                f"got {self.read_noise_e:g}",
+            )
+        if self.exposure_target > MAX_EXPOSURE_TARGET:
+            raise InputError(
+                "exposure_target",
+                f"expected at most {MAX_EXPOSURE_TARGET:g} (values above 1 saturate), "
+                f"got {self.exposure_target:g}",
             )
         if self.model not in ("radiance", "cos4", "paper", "map"):
             raise InputError("model", f"expected radiance, cos4, paper or map, got {self.model!r}")

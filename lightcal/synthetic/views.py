@@ -24,7 +24,10 @@ from lightcal.synthetic.sampling import (
     rotation_z,
 )
 
-_MAX_TILT_DEG = 80.0
+MAX_VIEWS = 10_000
+"""Most views of a scene (a project of more exceeds the project file's size limit)."""
+
+MAX_TILT_DEG = 80.0
 """Largest accepted camera tilt: beyond it the wall is seen too grazingly to be useful."""
 
 
@@ -53,8 +56,10 @@ class SceneConfig:
 
     def __post_init__(self) -> None:
         check_positive_int("n_views", self.n_views)
+        if self.n_views > MAX_VIEWS:
+            raise InputError("n_views", f"expected at most {MAX_VIEWS} images, got {self.n_views}")
         check_range("distance_range_m", self.distance_range_m, low=1e-3, high=1e3)
-        check_range("tilt_range_deg", self.tilt_range_deg, low=0.0, high=_MAX_TILT_DEG)
+        check_range("tilt_range_deg", self.tilt_range_deg, low=0.0, high=MAX_TILT_DEG)
         check_range("roll_range_deg", self.roll_range_deg, low=-180.0, high=180.0)
         if not (math.isfinite(self.target_spread_m) and self.target_spread_m >= 0.0):
             raise InputError(
@@ -122,7 +127,12 @@ def sample_exposure_times(config: SceneConfig, rng: np.random.Generator) -> NDAr
 
 
 def perturb_view(
-    view: View, rng: np.random.Generator, *, position_sigma_m: float, angle_sigma_rad: float
+    view: View,
+    rng: np.random.Generator,
+    *,
+    position_sigma_m: float,
+    angle_sigma_rad: float,
+    field: str = "position_sigma_m",
 ) -> View:
     """The pose a marker detector or SfM would report: the true one plus Gaussian error.
 
@@ -134,12 +144,24 @@ def perturb_view(
         rng: Randomness.
         position_sigma_m: Standard deviation of each centre coordinate, metres (>= 0).
         angle_sigma_rad: Standard deviation of each rotation-vector component, radians (>= 0).
+        field: What the error names when the sigma puts the camera on or behind the wall.
 
     Returns:
         The perturbed view, same exposure.
+
+    Raises:
+        InputError: The perturbed camera is on or behind the wall (a sigma too large for
+            the distance to the wall).
     """
     delta = rng.normal(0.0, 1.0, size=3) * angle_sigma_rad
     shift = rng.normal(0.0, 1.0, size=3) * position_sigma_m
     R = matrix_from_rotvec(delta) @ view.R_camera_world
     center = view.center_world + shift
+    if center[2] <= 0.0:
+        raise InputError(
+            field,
+            f"the error of {position_sigma_m * 1000.0:g} mm puts a measured camera on or behind "
+            f"the wall (the true camera is {view.center_world[2]:.3g} m in front of it); "
+            "expected a sigma much smaller than the distance to the wall",
+        )
     return View(R, -R @ center, view.exposure)
