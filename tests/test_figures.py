@@ -139,7 +139,7 @@ def test_cause_figure_colours_findings_and_quiet_causes() -> None:
 def test_a_residual_map_is_stepped_block_means_and_its_bar_alike():
     """Each map pixel is the mean of the residuals it covers (noise of +-1 over a 4 px
     block averages to 0), shown in one of 2 RESIDUAL_STEPS + 1 colour bands."""
-    from lightcal.io.figures import RESIDUAL_STEPS
+    from lightcal.colormap import RESIDUAL_STEPS
 
     checker = np.where((np.indices((400, 1200)).sum(axis=0) % 2) == 0, 1.0, -1.0)
     fig = residual_figure(checker + 3.0, title="t", vmax=5.0, width_pt=300, scale=1)

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
+from lightcal.colormap import diverging_rgb, grey_rgb, means_to_width, robust_vmax, stepped
 from lightcal.core.quantiles import percentile
 from lightcal.io.atomic import atomic_write_bytes
 
@@ -116,32 +116,6 @@ def _fit_to(rgb: np.ndarray, width: int) -> np.ndarray:
     return cv2.resize(rgb, (width, max(1, round(h * width / w))), interpolation=interp)
 
 
-#: Colour steps of a residual map on each side of zero: each colour is a band of
-#: vmax / RESIDUAL_STEPS (read like contours; and a map of noise compresses ~5x better).
-RESIDUAL_STEPS = 8
-
-
-def _stepped(values: np.ndarray, vmax: float) -> np.ndarray:
-    """`values` rounded to the nearest of 2 RESIDUAL_STEPS + 1 levels in [-vmax, vmax]
-    (NaN kept)."""
-    if not (math.isfinite(vmax) and vmax > 0):
-        return values
-    step = vmax / RESIDUAL_STEPS
-    with np.errstate(invalid="ignore"):
-        return np.clip(np.round(values / step), -RESIDUAL_STEPS, RESIDUAL_STEPS) * step
-
-
-def _block_nanmean(values: np.ndarray, b: int) -> np.ndarray:
-    """(H // b, W // b) mean of the finite values of each b x b block (NaN: none)."""
-    h, w = values.shape
-    v = values[: h // b * b, : w // b * b].reshape(h // b, b, w // b, b)
-    finite = np.isfinite(v)
-    count = finite.sum(axis=(1, 3))
-    total = np.where(finite, v, 0.0).sum(axis=(1, 3))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
-
-
 def residual_figure(
     residual: np.ndarray,
     *,
@@ -151,9 +125,8 @@ def residual_figure(
     width_pt: int = 700,
     scale: float = PRINT_SCALE,
 ) -> np.ndarray:
-    """A residual map (real minus rendered) with a diverging colour bar and its scale:
-    each map pixel the mean residual of the image pixels it covers, in one of
-    2 RESIDUAL_STEPS + 1 colour bands (the bar is stepped alike).
+    """A residual map (real minus rendered) with a diverging colour bar and its scale,
+    each pixel a block mean in one of 2 RESIDUAL_STEPS + 1 bands (`lightcal.colormap`).
 
     Args:
         residual: (H, W) residuals (masked/NaN where invalid; masked pixels are grey).
@@ -163,15 +136,9 @@ def residual_figure(
         width_pt: width of the map in layout points.
     """
     pen = _Pen(scale)
-    # Each map pixel is the mean residual of the image pixels it covers (not a mean of
-    # their colours): the noise averages out, the systematic structure stays, and the
-    # PNG compresses several times better than a map of pixel noise.
-    values = np.ma.filled(np.ma.asarray(residual, dtype=np.float64), np.nan)
-    b = math.ceil(values.shape[1] / pen.px(width_pt))
-    if b >= 2:
-        values = _block_nanmean(values, b)
+    values = means_to_width(residual, pen.px(width_pt))
     vmax = robust_vmax(values) if vmax is None else vmax
-    body = _fit_to(diverging_rgb(_stepped(values, vmax), vmax), pen.px(width_pt))
+    body = _fit_to(diverging_rgb(stepped(values, vmax), vmax), pen.px(width_pt))
     h, w = body.shape[:2]
     bar_w, pad, top = pen.px(16), pen.px(10), pen.px(30)
     labels = [f"{vmax * (1 - 2 * f):+.3g}" for f in (0.0, 0.25, 0.5, 0.75, 1.0)]
@@ -181,7 +148,7 @@ def residual_figure(
     pen.text(fig, title, (pad, pen.px(20)), _LABEL_TEXT)
     ramp = np.linspace(vmax, -vmax, h)[:, None].repeat(bar_w, axis=1)
     x0 = pad * 2 + w
-    fig[top : top + h, x0 : x0 + bar_w] = diverging_rgb(_stepped(ramp, vmax), vmax)
+    fig[top : top + h, x0 : x0 + bar_w] = diverging_rgb(stepped(ramp, vmax), vmax)
     pen.text(fig, unit, (x0, top - pen.px(6)), _TICK_TEXT)
     for frac, label in zip((0.0, 0.25, 0.5, 0.75, 1.0), labels, strict=True):
         y = top + round(frac * (h - 1))
