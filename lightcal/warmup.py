@@ -332,6 +332,43 @@ def default_jobs() -> int:
     return max(1, min(2, cores or 1))
 
 
+TICK_S = 3.0
+"""How often the progress line says how many kernels are cached while workers compile."""
+
+
+class KernelCounter:
+    """How many of lightcal's numba kernels the worker processes have put in numba's disk
+    cache so far (read from the cache's index files: a few ms)."""
+
+    def __init__(self) -> None:
+        import pkgutil
+
+        import lightcal.core
+
+        for info in pkgutil.walk_packages(lightcal.core.__path__, "lightcal.core."):
+            try:
+                importlib.import_module(info.name)  # defines its kernels; compiles nothing
+            except Exception:  # a module that cannot load here counts no kernel
+                continue
+        self.dispatchers = list(_dispatchers().values())
+        self.start = self.cached()
+
+    def cached(self) -> int:
+        """How many of the kernels numba's cache holds now."""
+        count = 0
+        for d in self.dispatchers:
+            try:
+                count += _cached(d)
+            except Exception:  # an index being written right now: counted next time
+                continue
+        return count
+
+    def text(self) -> str:
+        """How many kernels were compiled since the counter was made, in words."""
+        k = max(self.cached() - self.start, 0)
+        return f"{k} kernel{'s' if k != 1 else ''} compiled so far"
+
+
 def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None) -> bool:
     """Compile the shared kernels, then the families, in `jobs` worker processes; numba's
     cache on disk is what they leave behind. False if the workers could not run (then the
@@ -348,21 +385,32 @@ def _compile_in_processes(tmp: Path, jobs: int, progress: WarmupProgress | None)
     try:
         # First what every family shares, the flux and the renderer side by side: workers
         # that took families at once would compile the same kernels in each.
-        if progress is not None:
-            progress(SHARED_LABEL, 0, total)
+        counter = KernelCounter() if progress is not None else None
+
+        def tell(label: str, done: int) -> None:
+            # The kernels the workers have put in numba's cache so far: the line moves
+            # every few seconds, not once per family (the shared stage alone takes
+            # minutes on a busy two-core machine).
+            if progress is not None and counter is not None:
+                progress(f"{label} ({counter.text()})", done, total)
+
         shared = [pool.submit(_compile_flux_kernels), pool.submit(_compile_render_kernels, tmp)]
-        for future in shared:
-            future.result()
+        while True:
+            tell(SHARED_LABEL, 0)
+            finished, unfinished = wait(shared, timeout=TICK_S)
+            for future in finished:
+                future.result()
+            if not unfinished:
+                break
         pending = {
             pool.submit(_run_family_in_worker, family, tmp / f"family{i}"): family
             for i, family in enumerate(FAMILIES)
         }
         done = 0
         while pending:
-            if progress is not None:
-                running = [f.label for f in list(pending.values())[:jobs]]
-                progress(" + ".join(running), done, total)
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            running = [f.label for f in list(pending.values())[:jobs]]
+            tell(" + ".join(running), done)
+            finished, _ = wait(pending, timeout=TICK_S, return_when=FIRST_COMPLETED)
             for future in finished:
                 del pending[future]
                 future.result()

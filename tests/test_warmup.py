@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import textwrap
@@ -212,8 +213,15 @@ def test_warm_up_in_two_processes_reports_both_families_then_done(
     monkeypatch.setattr(warmup, "_run_family", counting)  # the workers use the real one
     calls: list[tuple[str, int, int]] = []
     warmup.warm_up(lambda *a: calls.append(a), jobs=2)
-    assert calls[0] == (warmup.SHARED_LABEL, 0, 2)  # the kernels every family shares
-    assert calls[1] == ("sparse + isotropic", 0, 2)
+    # The kernels every family shares, then the families side by side; every line
+    # says how many kernels the workers have compiled so far (it moves every few s).
+    labels = [c[0] for c in calls]
+    assert labels[0] == f"{warmup.SHARED_LABEL} (0 kernels compiled so far)"
+    families = [k for k, label in enumerate(labels) if label.startswith("sparse + isotropic")]
+    assert families and all(c[1] == 0 for c in calls[: families[0]])
+    assert all(label.startswith(warmup.SHARED_LABEL) for label in labels[: families[0]])
+    counts = [int(re.search(r"\((\d+) kernels? compiled so far\)", lb)[1]) for lb in labels[:-1]]
+    assert counts == sorted(counts)  # (0 here: the kernels are cached already)
     assert ("sparse", 0, 2) not in calls  # the workers ran: no in-process fallback
     assert calls[-1] == ("done", 2, 2)
     assert [c[1] for c in calls] == sorted(c[1] for c in calls)  # done only grows
@@ -308,3 +316,20 @@ def test_an_interrupted_warm_up_leaves_no_compiling_workers(tmp_path: Path) -> N
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_the_kernel_counter_counts_what_the_workers_cached_since_it_started(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The progress line's count: kernels found in numba's cache that were not there when
+    the counter was made (the workers write the cache; the parent reads its index)."""
+    cached: set[int] = set()
+    monkeypatch.setattr(warmup, "_cached", lambda d: id(d) in cached)
+    counter = warmup.KernelCounter()
+    kernels = counter.dispatchers
+    assert len(kernels) > 20  # every kernel of lightcal.core, imported (none compiled)
+    assert counter.text() == "0 kernels compiled so far"
+    cached.add(id(kernels[0]))
+    assert counter.text() == "1 kernel compiled so far"
+    cached.update(id(k) for k in kernels[1:5])
+    assert counter.text() == "5 kernels compiled so far"
