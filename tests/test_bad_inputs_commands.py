@@ -778,12 +778,12 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
     (
         "plan: --n 0",
         "plan {d}/project.json --n 0",
-        _error("plan", "--n: expected at least 1 view, got 0"),
+        _error("plan", "--n: expected 1 to 20 views (plan again after taking them), got 0"),
     ),
     (
         "plan: --n -3",
         "plan {d}/project.json --n -3",
-        _error("plan", "--n: expected at least 1 view, got -3"),
+        _error("plan", "--n: expected 1 to 20 views (plan again after taking them), got -3"),
     ),
     (
         "plan: --n x",
@@ -968,6 +968,79 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error(
             "export", "{k}/bin.json: the project file is not UTF-8 text (byte 2): save it as UTF-8"
         ),
+    ),
+    (
+        "export: --format opencv into a .png",
+        "export {r} --format opencv --out {n}.png",
+        _error(
+            "export",
+            "{n}.png: --out: expected a .yaml, .yml, .xml or .json file for --format opencv, "
+            "got .png",
+        ),
+    ),
+    (
+        "export: --format blender into a .yaml",
+        "export {r} --format blender --out {n}.yaml",
+        _error("export", "{n}.yaml: --out: expected a .py file for --format blender, got .yaml"),
+    ),
+    (
+        "export: --format mitsuba without a suffix",
+        "export {r} --format mitsuba --out {n}",
+        _error("export", "{n}: --out: expected a .xml file for --format mitsuba, got no suffix"),
+    ),
+    (
+        "export: --light with --format opencv",
+        "export {r} --format opencv --out {n}.yaml --light light",
+        _error("export", "--light: applies to --format ies or ldt only, not opencv"),
+    ),
+    (
+        "export: --project a result",
+        "export {r} --format ies --out {n}.ies --project {r}",
+        _error("export", "{r}: a result file of lightcal calibrate, not a project file"),
+    ),
+    (
+        "export: --out empty",
+        "export {r} --format opencv --out ''",
+        _usage("export", "argument --out: expected a path, got ''"),
+    ),
+    (
+        "plan: --n a billion",
+        "plan {d}/project.json --n 1000000000",
+        _error(
+            "plan", "--n: expected 1 to 20 views (plan again after taking them), got 1000000000"
+        ),
+    ),
+    (
+        "plan: --result a project",
+        "plan {d}/project.json --result {d}/project.json",
+        _error(
+            "plan",
+            "{d}/project.json: a project file, not a result: expected the result JSON of "
+            "lightcal calibrate",
+        ),
+    ),
+    (
+        "calibrate: a PNG as the project",
+        "calibrate {k}/pic.png --out {n}.json",
+        _error("calibrate", "{k}/pic.png: a PNG image; expected a project file (a text file)"),
+    ),
+    (
+        "calibrate: --out the truth file (not a result)",
+        "calibrate {d}/project.json --out {d}/truth.json",
+        _error(
+            "calibrate",
+            "{d}/truth.json: --out: exists and is not a lightcal result; use --force to replace it",
+        ),
+    ),
+    (
+        "calibrate: --out empty",
+        "calibrate {d}/project.json --out ''",
+        _usage("calibrate", "argument --out: expected a path, got ''"),
+    ),
+    (
+        "render: --result a PNG",
+        "render {d}/project.json --result {k}/pic.png --out {n}",
+        _error("render", "{k}/pic.png: a PNG image; expected a result file (a text file)"),
     ),
     (
         "export: --force with a value",

@@ -196,3 +196,23 @@ def test_export_never_replaces_an_input_with_a_mitsuba_texture(data, tmp_path, c
         "export; write elsewhere"
     )
     assert not out.exists()
+
+
+def test_calibrate_replaces_an_earlier_result_and_only_that(
+    tiny_dataset: Path, tmp_path: Path
+) -> None:
+    """Run again, calibrate replaces its earlier result; any other existing file needs
+    --force (and an input of the project is never replaced)."""
+    out = tmp_path / "result.json"
+    argv = ["calibrate", str(tiny_dataset / "project.json"), "--quiet", "--out", str(out)]
+    assert main(argv) in (0, 3)
+    first = out.read_bytes()
+    assert main(argv) in (0, 3)  # an earlier result: replaced without --force
+    assert out.read_bytes() != first  # (the time taken differs)
+    notes = tmp_path / "notes.json"
+    notes.write_text('{"mine": true}')
+    argv[-1] = str(notes)
+    assert main(argv) == 2
+    assert notes.read_text() == '{"mine": true}'
+    assert main([*argv, "--force"]) in (0, 3)
+    assert "lightcal_version" in notes.read_text()

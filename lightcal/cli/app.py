@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from lightcal.cli import collector
+from lightcal.cli.arguments import path_arg
 from lightcal.errors import InputError
 
 EXPOSED_HOSTS = ("0.0.0.0", "::", "")
@@ -31,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "project",
         nargs="?",
-        type=Path,
+        type=path_arg,
         help="project file (JSON or YAML); default: the bundled sample project "
         "(sample_data/ of a source checkout; installed: a copy in ~/.local/share/lightcal)",
     )
@@ -50,12 +51,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fresh", action="store_true", help="do not restore the autosaved session")
     p.add_argument(
         "--session",
-        type=Path,
+        type=path_arg,
         help="autosave file (default: <project>.session.json beside the project)",
     )
     p.add_argument(
         "--state-dir",
-        type=Path,
+        type=path_arg,
         help="folder for uploads and sessions of read-only projects "
         "(default: $XDG_STATE_HOME/lightcal)",
     )

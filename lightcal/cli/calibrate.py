@@ -16,8 +16,9 @@ not stop the solve: the result and report are written and the exit code is the s
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import TYPE_CHECKING
+
+from lightcal.cli.arguments import path_arg
 
 if TYPE_CHECKING:
     from lightcal.core.solver import IterationReport
@@ -25,18 +26,21 @@ if TYPE_CHECKING:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("calibrate", help="estimate the light pose(s) of a project")
-    p.add_argument("project", type=Path, help="project file (JSON or YAML)")
-    p.add_argument("--out", type=Path, required=True, help="result JSON to write")
+    p.add_argument("project", type=path_arg, help="project file (JSON or YAML)")
+    p.add_argument("--out", type=path_arg, required=True, help="result JSON to write")
     p.add_argument(
         "--report",
-        type=Path,
+        type=path_arg,
         help="folder for residual maps, renders, plots; written aside and moved in "
         "complete (an earlier report's files there are replaced, other files kept; "
         "one run at a time)",
     )
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary")
     p.add_argument(
-        "--force", action="store_true", help="write the report into a non-empty --report folder"
+        "--force",
+        action="store_true",
+        help="write the report into a non-empty --report folder; replace an --out that is "
+        "not an earlier result (an earlier result is always replaced)",
     )
     p.add_argument(
         "--allow-misfit",
@@ -53,10 +57,11 @@ EXIT_MISFIT = 3
 
 def run(args: argparse.Namespace) -> int:
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
+    from lightcal.errors import InputError
     from lightcal.io.outputs import check_output_file, check_output_folder, project_inputs
     from lightcal.io.project import load_project
     from lightcal.io.project_identity import project_identity
-    from lightcal.io.result_file import result_to_file, write_result
+    from lightcal.io.result_file import is_result_file, result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
     from lightcal.pipeline.load import prepare_solve
     from lightcal.pipeline.result_text import light_lines
@@ -66,6 +71,11 @@ def run(args: argparse.Namespace) -> int:
     # Before any work: a long solve must not end in an unwritable or forbidden path.
     inputs = project_inputs(project)
     check_output_file(args.out, option="--out", inputs=inputs)
+    if args.out.exists() and not args.force and not is_result_file(args.out):
+        # An earlier result is replaced (a solve run again); any other file is the user's.
+        raise InputError(
+            args.out, "--out: exists and is not a lightcal result; use --force to replace it"
+        )
     if args.report is not None:
         check_output_folder(args.report, option="--report", inputs=inputs, force=args.force)
     ensure_kernels(quiet=args.quiet)

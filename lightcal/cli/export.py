@@ -8,22 +8,37 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from lightcal.cli.arguments import path_arg
 
 FORMATS = ("opencv", "blender", "mitsuba", "ies", "ldt")
+
+#: The file name endings each format's --out may have (what the tools that read them expect).
+SUFFIXES = {
+    "opencv": (".yaml", ".yml", ".xml", ".json"),
+    "blender": (".py",),
+    "mitsuba": (".xml",),
+    "ies": (".ies",),
+    "ldt": (".ldt",),
+}
+
+
+def _either(words: tuple[str, ...]) -> str:
+    """ "a", "a or b", "a, b or c"."""
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} or {words[-1]}"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "export", help="write a result as OpenCV YAML, a Blender snippet, Mitsuba XML, IES or LDT"
     )
-    p.add_argument("result", type=Path, help="result JSON of calibrate")
+    p.add_argument("result", type=path_arg, help="result JSON of calibrate")
     p.add_argument("--format", required=True, choices=FORMATS, help="what to write")
-    p.add_argument("--out", type=Path, required=True, help="the file to write")
+    p.add_argument("--out", type=path_arg, required=True, help="the file to write")
     p.add_argument("--light", default=None, help="the light to write as ies/ldt")
     p.add_argument(
         "--project",
-        type=Path,
+        type=path_arg,
         default=None,
         help="take the RID of lights the calibration did not estimate from this project",
     )
@@ -32,12 +47,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcal.errors import InputError
     from lightcal.io.export import export_files, export_result
     from lightcal.io.outputs import check_output_file, project_inputs
     from lightcal.io.result_file import read_result
 
-    # Before any work: --out is never a file this export reads (the result, the project
-    # and the files it names, such as a light's IES), even with --force.
+    # Before any work: the options fit the format, and --out is never a file this export
+    # reads (the result, the project and the files it names, such as a light's IES),
+    # even with --force.
     inputs = {args.result.resolve(): "the result file"}
     project = None
     if args.project is not None:
@@ -46,6 +63,15 @@ def run(args: argparse.Namespace) -> int:
         project = load_project(args.project)
         inputs.update(project_inputs(project))
     check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the export")
+    suffixes = SUFFIXES[args.format]
+    if args.out.suffix.lower() not in suffixes:
+        raise InputError(
+            args.out,
+            f"--out: expected a {_either(suffixes)} file for --format {args.format}, "
+            f"got {args.out.suffix or 'no suffix'}",
+        )
+    if args.light is not None and args.format not in ("ies", "ldt"):
+        raise InputError("--light", f"applies to --format ies or ldt only, not {args.format}")
     result = read_result(args.result)
     if project is not None:
         from lightcal.cli.progress import ensure_kernels

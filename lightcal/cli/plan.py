@@ -4,19 +4,26 @@ next camera poses (lightcal.pipeline.plan), with the predicted sigmas before and
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from lightcal.cli.arguments import path_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="suggest the next camera poses that shrink the uncertainty")
-    p.add_argument("project", type=Path, help="project file (JSON or YAML)")
-    p.add_argument("--result", type=Path, help="result JSON of a solve (default: initial guess)")
+    p.add_argument("project", type=path_arg, help="project file (JSON or YAML)")
+    p.add_argument(
+        "--result", type=path_arg, help="result JSON of a solve (default: initial guess)"
+    )
     p.add_argument("--n", type=int, default=3, help="how many views to suggest (default 3)")
     p.add_argument("--wall-size", type=float, default=3.0, help="wall width/height, m (3)")
-    p.add_argument("--out", type=Path, help="write the plan as JSON here")
+    p.add_argument("--out", type=path_arg, help="write the plan as JSON here")
     p.add_argument("--force", action="store_true", help="replace an existing --out file")
     p.set_defaults(func=run)
 
+
+MAX_VIEWS = 20
+"""The most views one plan suggests: each is chosen given the ones before it, and a
+plan is meant to be taken, then planned again from the new estimate."""
 
 _NOISE_WORDS = {
     "model": "the sensor's noise model (sensor.noise of the project)",
@@ -54,8 +61,10 @@ def run(args: argparse.Namespace) -> int:
         start_vector,
     )
 
-    if args.n < 1:
-        raise InputError("--n", f"expected at least 1 view, got {args.n}")
+    if not 1 <= args.n <= MAX_VIEWS:
+        raise InputError(
+            "--n", f"expected 1 to {MAX_VIEWS} views (plan again after taking them), got {args.n}"
+        )
     if not math.isfinite(args.wall_size) or args.wall_size <= 0:
         raise InputError(
             "--wall-size", f"expected the wall's width in m (> 0), got {args.wall_size}"

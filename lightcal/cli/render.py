@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from lightcal.cli.arguments import path_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="render a project's images with calibrated lights")
-    p.add_argument("project", type=Path)
-    p.add_argument("--result", type=Path, required=True, help="result JSON of calibrate")
-    p.add_argument("--out", type=Path, required=True, help="folder for the renders")
+    p.add_argument("project", type=path_arg)
+    p.add_argument("--result", type=path_arg, required=True, help="result JSON of calibrate")
+    p.add_argument("--out", type=path_arg, required=True, help="folder for the renders")
     p.add_argument(
         "--force", action="store_true", help="write into a non-empty --out (replacing renders)"
     )

@@ -441,6 +441,8 @@ def parse_project(data: Any, source: str | Path) -> ProjectFile:
     """Validate a project document (already parsed JSON/YAML); InputError on any problem."""
     if not isinstance(data, dict):
         raise InputError(source, "expected a mapping (JSON object) at the top level")
+    if {"lightcal_version", "parameters"} <= data.keys() and "camera" not in data:
+        raise InputError(source, "a result file of lightcal calibrate, not a project file")
     version = data.get("version", PROJECT_VERSION)
     if version != PROJECT_VERSION:
         raise InputError(

@@ -5,13 +5,13 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``version`` (1: other versions are refused), ``lightcal_version``, ``project`` (the
   project file's path) and ``project_id`` (`lightcal.io.project_identity`: plan, render
   and export --project refuse a result of another project).
-- ``lights[]`` (at least one, each name once): per light ``name``; ``pose_kind``; ``position_m`` (emitter position in the
-  camera frame, m); ``R_camera_light`` (3x3, light -> camera); ``quaternion_wxyz`` (same
-  rotation, scalar first, w >= 0); ``axis_camera`` (unit light axis in the camera frame);
-  ``roll_deg``/``pitch_deg`` (the paper's angles: axis = R_x(roll) R_y(pitch) (0, 0, 1));
-  ``axis_angle_from_optical_axis_deg``; ``scale``; ``sigma`` (1-sigma of each of those,
-  from the Jacobian at the solution, scaled by the residual variance); ``rid`` (the
-  estimated profile when the RID was estimated).
+- ``lights[]`` (at least one, each name once): per light ``name``; ``pose_kind``;
+  ``position_m`` (emitter position in the camera frame, m); ``R_camera_light`` (3x3, light
+  -> camera); ``quaternion_wxyz`` (same rotation, scalar first, w >= 0); ``axis_camera``
+  (unit light axis in the camera frame); ``roll_deg``/``pitch_deg`` (the paper's angles:
+  axis = R_x(roll) R_y(pitch) (0, 0, 1)); ``axis_angle_from_optical_axis_deg``; ``scale``;
+  ``sigma`` (1-sigma of each of those, from the Jacobian at the solution, scaled by the
+  residual variance); ``rid`` (the estimated profile when the RID was estimated).
 - ``offset``, ``offset_sigma``, ``gains`` (per image, relative to the first).
 - ``images[]``: ``name``, ``rms`` (RMS of observed minus rendered, pixel units), ``pixels``.
 - ``iterations``, ``nfev``, ``status`` (scipy's, -2 stopped by the user, 0 iteration
@@ -293,10 +293,24 @@ def write_result(result_file: ResultFile, path: str | Path) -> None:
     atomic_write_text(Path(path), result_file.model_dump_json(indent=2) + "\n")
 
 
+def is_result_file(path: str | Path) -> bool:
+    """Whether `path` holds a lightcal result (JSON with its `lightcal_version`,
+    `parameters` and `lights`): what `calibrate --out` may replace without --force."""
+    try:
+        data = read_document(Path(path), what="result file", as_json=True)
+    except InputError:
+        return False
+    return isinstance(data, dict) and {"lightcal_version", "parameters", "lights"} <= data.keys()
+
+
 def read_result(path: str | Path) -> ResultFile:
     """Read a result JSON; InputError naming the file on any problem."""
     p = Path(path)
     data = read_document(p, what="result file", as_json=True)
+    if isinstance(data, dict) and "lights" in data and {"camera", "images"} <= data.keys():
+        raise InputError(
+            p, "a project file, not a result: expected the result JSON of lightcal calibrate"
+        )
     try:
         return ResultFile.model_validate(data)
     except ValidationError as exc:
