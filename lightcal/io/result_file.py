@@ -61,13 +61,41 @@ class PoseSigma(_Model):
     """1-sigma of each pose quantity; null where the data do not determine it (the
     result is then not converged: `undetermined` says why)."""
 
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
     position_m: list[float | None]
     R_camera_light: list[list[float | None]]
     quaternion_wxyz: list[float | None]
     axis_camera: list[float | None]
-    roll_deg: float | None
-    pitch_deg: float | None
-    axis_angle_from_optical_axis_deg: float | None
+    roll_deg: float | None = Field(ge=0)
+    pitch_deg: float | None = Field(ge=0)
+    axis_angle_from_optical_axis_deg: float | None = Field(ge=0)
+
+    @field_validator("position_m", "axis_camera")
+    @classmethod
+    def _three(cls, value: list[float | None]) -> list[float | None]:
+        return _sized(value, 3)
+
+    @field_validator("quaternion_wxyz")
+    @classmethod
+    def _four(cls, value: list[float | None]) -> list[float | None]:
+        return _sized(value, 4)
+
+    @field_validator("R_camera_light")
+    @classmethod
+    def _three_by_three(cls, value: list[list[float | None]]) -> list[list[float | None]]:
+        if len(value) != 3 or any(len(row) != 3 for row in value):
+            raise ValueError("expected 3 x 3 sigmas, one per entry of R_camera_light")
+        return value
+
+
+def _sized(value: list[float | None], n: int) -> list[float | None]:
+    """`value` when it has `n` sigmas (each >= 0 or null); ValueError otherwise."""
+    if len(value) != n:
+        raise ValueError(f"expected {n} sigmas, got {len(value)}")
+    if any(v is not None and v < 0 for v in value):
+        raise ValueError("expected sigmas >= 0 (or null: undetermined)")
+    return value
 
 
 class LightResultModel(_Model):
