@@ -9,11 +9,14 @@ screenshots (1280 x 800 and 1920 x 1080) land in test-artifacts/ for a person to
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from lightcal_app.photo_project import PhotoKind
+from lightcal_app.photo_service import PhotoService
 from lightcal_app.server import LightcalApp
 
 from tests.photo_fixtures import BLANK_NAME, BLANK_REASON, Photos, angle_deg, write_photos
@@ -55,7 +58,11 @@ def photos(tmp_path_factory: pytest.TempPathFactory) -> Photos:
     return write_photos(tmp_path_factory.mktemp("photos"))
 
 
-def _upload(page: Any, lightcal_app: LightcalApp, kind: str, path: Path) -> None:
+def _photos_are(service: PhotoService, n: int) -> bool:
+    return len(service.staged().wall_photos) == n
+
+
+def _upload(page: Any, lightcal_app: LightcalApp, kind: PhotoKind, path: Path) -> None:
     """Choose `path` in the hidden file input of the photo panel's `kind` button."""
     handle = lightcal_app.panels.files.photos.uploads[kind]
     page.locator(f"#file_upload_{handle._impl.uuid}").set_input_files(str(path))
@@ -85,7 +92,7 @@ def test_a_project_from_photos_uploaded_in_the_page(
     # same button before that would leave viser's progress notification spinning).
     for k, path in enumerate(photos.photos):
         _upload(page, app, "wall", path)
-        wait_for(lambda k=k: len(service.staged().wall_photos) == k + 1, f"photo {k + 1} to arrive")
+        wait_for(partial(_photos_are, service, k + 1), f"photo {k + 1} to arrive")
         page.get_by_text(f"wall photos ({k + 1})").wait_for()
     page.get_by_text("Missing:").first.wait_for()
     _upload(page, app, "camera", photos.camera)

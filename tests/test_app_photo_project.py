@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import subprocess
 import sys
 import zipfile
@@ -20,23 +21,24 @@ import numpy as np
 import pytest
 from lightcal_app import requests as rq
 from lightcal_app.files_service import FilesService
+from lightcal_app.photo_build import read_levels
 from lightcal_app.photo_project import (
     PhotoOptions,
     PhotoStaging,
     outcomes_markdown,
     staged_markdown,
 )
-from lightcal_app.photo_service import PhotoService
+from lightcal_app.photo_service import PhotoFields, PhotoService, check_fields
 from lightcal_app.solve_service import SolveService
 from lightcal_app.state import AppState
 
 from lightcal.errors import InputError
-from lightcal.io.camera_file import read_camera
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
 from lightcal.resources import sample_project_dir
 from tests.app_fixtures import make_project
 from tests.photo_fixtures import BLANK_NAME, BLANK_REASON, Photos, write_photos
+from tests.raw_dng import write_dng
 from tests.test_cli_init import IES  # the same small IES file
 
 
@@ -313,40 +315,6 @@ def test_clear_forgets_the_files_but_keeps_a_folder_in_use(photos: Photos, tmp_p
     assert staging.folder not in (None, first, second)
 
 
-def test_chessboard_photos_give_the_intrinsics(tmp_path: Path) -> None:
-    """The bundled sample set: 6 of its chessboard photos instead of its camera file."""
-    sample = sample_project_dir()
-    staging = PhotoStaging(tmp_path / "photos")
-    chess = sorted((sample / "chessboard").iterdir())[::3]
-    for path in chess:
-        staging.receive("chessboard", path.name, path.read_bytes())
-    for path in sorted((sample / "images").iterdir())[:2]:
-        staging.receive("wall", path.name, path.read_bytes())
-    for name in ("chessboard.yaml", "board.yaml", "light.ies"):
-        kind = "light" if name.endswith(".ies") else "board"
-        staging.receive(kind, name, (sample / name).read_bytes())
-    assert staging.staged().calibrates_camera
-    seen: list[str] = []
-    built = staging.build(seen.append)
-    assert seen == [
-        *(f"reading chessboard photo {k} of 6" for k in range(1, 7)),
-        "calibrating the camera from 6 chessboard photos",
-        "image 1 of 2",
-        "image 2 of 2",
-        "reading the 2 accepted images",
-    ]
-    assert built.camera.file is None and len(built.camera.used) == 6
-    assert built.camera.text().startswith("calibrated from 6 of 6 chessboard photos, ")
-    camera = built.loaded.camera
-    reference = read_camera(sample / "camera.yaml")  # from all 16 photos
-    assert camera.fx == pytest.approx(reference.fx, rel=1e-3)
-    assert camera.cx == pytest.approx(reference.cx, abs=2.0)
-    assert built.project.spec.camera.path == "camera.yaml"  # written beside the project
-    assert camera.intrinsics_covariance is not None
-    assert built.project.spec.lights[0].rid.type == "ies"
-    assert [p.accepted for p in built.photos] == [True, True]
-
-
 class Messages:
     """A `notify` that keeps what the page would show."""
 
@@ -360,9 +328,8 @@ class Messages:
         return [t for _, t, _, _ in self.items]
 
 
-def test_the_build_request_switches_the_app_and_names_rejected_photos(
-    photos: Photos, tmp_path: Path
-) -> None:
+def make_service(tmp_path: Path) -> tuple[PhotoService, AppState, Messages, list[str], list[Any]]:
+    """(a photo service of an app, its state, messages, busy texts, projects switched to)"""
     first = make_project(tmp_path / "first", n_views=3, width=96, height=72)
     project = load_project(first.path)
     state = AppState(project, load_images(project))
@@ -381,11 +348,18 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
     )
     busy: list[str] = []
     service = PhotoService(files, notify=messages, show_work=busy.append)
+    return service, state, messages, busy, switched
+
+
+def test_the_build_request_switches_the_app_and_names_rejected_photos(
+    photos: Photos, tmp_path: Path
+) -> None:
+    service, state, messages, busy, switched = make_service(tmp_path)
     changes: list[int] = []
     service.listeners.append(lambda: changes.append(1))
 
     # Not ready: refused at once, nothing queued.
-    service.request_build(half_angle_deg=30.0, initial_position_mm=(0, 0, 0), client="page")
+    service.request_build(PhotoFields(), client="page")
     assert messages.items[-1][:2] == ("page", "Not ready to build")
     assert not state.requests
     service.upload("wall", "notes.txt", b"x", client="page")
@@ -401,12 +375,12 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
     service.upload("board", "board.yaml", photos.board.read_bytes(), client="page")
     assert len(changes) == 9 and service.staged().ready
     n_messages = len(messages.items)
-    service.request_build(half_angle_deg=95.0, initial_position_mm=(0, 0, 0), client="page")
+    service.request_build(PhotoFields(half_angle_deg=95.0), client="page")
     assert messages.items[-1][1:3] == (
         "Value refused",
         "half angle (deg): expected a value in (0, 90) degrees, got 95.0",
     )
-    service.request_build(half_angle_deg=30.0, initial_position_mm=(50, 0, 0), client="page")
+    service.request_build(PhotoFields(initial_position_mm=(50, 0, 0)), client="page")
     assert len(messages.items) == n_messages + 1
     (req,) = list(state.requests)
     state.requests.clear()
@@ -453,3 +427,42 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
         True,
     )
     assert state.project is built.project
+
+
+@pytest.mark.parametrize(
+    ("fields", "refusal"),
+    [
+        (PhotoFields(black_level=math.nan), "black level: expected a finite value >= 0, got nan"),
+        (PhotoFields(black_level=-1), "black level: expected a finite value >= 0, got -1.0"),
+        (PhotoFields(black_level=600, white_level=512), "white level: expected a value above"),
+        (PhotoFields(black_level=70000), "black level: expected a value below the photos' white"),
+        (PhotoFields(min_markers=2.5), "fewest markers: expected an integer >= 1, got 2.5"),
+        (PhotoFields(min_markers=0), "fewest markers: expected an int >= 1, got 0"),
+        (PhotoFields(mask_margin_px=150.0), "mask margin (px): expected a padding of 0 to 100"),
+        (PhotoFields(max_rms_px=0.0), "largest marker RMS (px): expected a value > 0 pixels"),
+        (PhotoFields(pose_floor_mm=-0.1), "pose floor (mm): expected a finite value >= 0"),
+        (PhotoFields(pose_floor_deg=math.nan), "pose floor (deg): expected a finite value >= 0"),
+        (PhotoFields(initial_axis=(0, 0, 0)), "initial axis: expected a non-zero direction"),
+        (PhotoFields(initial_position_mm=(9e9, 0, 0)), "initial light (mm): expected 3 finite"),
+    ],
+)
+def test_every_field_is_checked_as_lightcal_init_checks_it(
+    fields: PhotoFields, refusal: str, photos: Photos
+) -> None:
+    with pytest.raises(InputError) as info:
+        check_fields(fields, read_levels(photos.photos[0]))  # 16-bit PNG: black 0, white 65535
+    assert str(info.value).startswith(refusal)
+
+
+def test_the_levels_come_from_the_photos_files(photos: Photos, tmp_path: Path) -> None:
+    png = read_levels(photos.photos[0])
+    assert png.fields() == (0.0, 65535.0) and not png.raw
+    # The photos' own levels are passed as none (the reader applies them), others as typed.
+    options = check_fields(PhotoFields(black_level=0, white_level=4095), png)
+    assert (options.black_level, options.white_level) == (None, 4095.0)
+    raw = read_levels(
+        write_dng(tmp_path / "w.dng", np.full((32, 48), 900, np.uint16), black_level=256)
+    )
+    assert raw.raw and raw.fields() == (256.0, 4095.0) and "camera raw metadata" in raw.text()
+    options = check_fields(PhotoFields(black_level=256, white_level=4095), raw)
+    assert (options.black_level, options.white_level) == (None, None)  # LibRaw's, per channel

@@ -8,11 +8,18 @@ photos, telling `progress` each image ("image 3 of 12"), and reads the new proje
 images (`lightcal.pipeline.load_images`). Its errors name what the page knows (the
 photo, "wall photos", "chessboard photos"), never the server's folders.
 
+`read_levels` reads the black and white levels a photo's file gives (what the page's
+level fields are prefilled with); `project_zip_bytes` packs a built project with every
+file it reads (and the board files) into a zip that `lightcal calibrate` takes unpacked.
+
 The staging area's layout is defined here: one folder per kind of file.
 """
 
 from __future__ import annotations
 
+import io
+import json
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -22,11 +29,12 @@ from lightcal.capture.project_init import ImageOutcome, init_project
 from lightcal.errors import InputError
 from lightcal.io.board_file import read_board
 from lightcal.io.camera_file import write_camera
-from lightcal.io.images import read_image
+from lightcal.io.images import RAW_EXTENSIONS, read_image
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
 from lightcal_app.photo_records import (
     CameraSource,
+    FileLevels,
     PhotoBuild,
     PhotoOptions,
     PhotoOutcome,
@@ -94,8 +102,12 @@ def build_project(
             initial_position_m=options.initial_position_m,
             initial_axis_camera=options.initial_axis_camera,
             min_markers=options.min_markers,
+            mask_margin_px=options.mask_margin_px,
+            max_rms_px=options.max_rms_px,
             black_level=options.black_level,
             white_level=options.white_level,
+            pose_floor_m=options.pose_floor_m,
+            pose_floor_deg=options.pose_floor_deg,
             on_image=on_image,
         )
     except InputError as exc:
@@ -104,7 +116,13 @@ def build_project(
     progress(f"reading the {len(result.accepted)} accepted images")
     project = load_project(result.project_path)
     loaded = load_images(project)
-    return PhotoBuild(project, loaded, photos, camera, tuple(result.warnings))
+    boards = {board_path}
+    if staged.calibrates_camera and staged.chessboard_board is not None:
+        kind, name = staged.chessboard_board
+        boards.add(area / BOARD_DIRS[kind] / name)
+    return PhotoBuild(
+        project, loaded, photos, camera, tuple(result.warnings), tuple(sorted(boards))
+    )
 
 
 def _calibrate(
@@ -140,7 +158,8 @@ def _calibrate(
     write_camera(result.camera, path)
     order = {name: i for i, name in enumerate(staged.chessboard_photos)}
     rejected = sorted([*result.rejected, *unreadable], key=lambda item: order[item[0]])
-    return path, CameraSource(None, result.rms_px, result.used, tuple(rejected))
+    source = CameraSource(None, result.rms_px, result.used, tuple(rejected), tuple(result.warnings))
+    return path, source
 
 
 def _build_error(exc: InputError, area: Path) -> InputError:
@@ -159,3 +178,97 @@ def _build_error(exc: InputError, area: Path) -> InputError:
         where = parts[-1] if parts else "new project"
     detail = exc.detail.replace(str(area.resolve()) + "/", "").replace(str(area) + "/", "")
     return InputError(where, detail)
+
+
+def read_levels(path: Path) -> FileLevels:
+    """The black and white levels the photo `path` gives, as `read_image` applies them
+    without any given: a camera raw file's (its metadata, through rawpy), else 0 and
+    2^bits - 1 for integer data (none for float data).
+
+    Raises:
+        InputError: the photo does not read.
+    """
+    image = read_image(path, assume_linear=True)
+    black = float(image.black_level)
+    suffix = path.suffix.lower()
+    raw = suffix in RAW_EXTENSIONS
+    if raw:
+        kind = f"camera raw metadata, {image.bit_depth}-bit"
+    elif image.bit_depth is None:
+        kind = f"float {suffix.lstrip('.').upper()}"
+    else:
+        kind = f"{image.bit_depth}-bit {suffix.lstrip('.').upper()}"
+    white = None if image.white_level == float("inf") else float(image.white_level) + black
+    values = image.values
+    return FileLevels(
+        photo=path.name,
+        kind=kind,
+        black=black,
+        white=white,
+        raw=raw,
+        bits=image.bit_depth,
+        darkest=None if raw else float(values.min()) + black,
+        brightest=None if raw else float(values.max()) + black,
+    )
+
+
+PROJECT_FILE = "project.json"
+IMAGES_FOLDER, MASKS_FOLDER = "images", "masks"
+
+
+def _unique(name: str, taken: set[str], prefix: str) -> str:
+    """`name`, or `<prefix>-name` (then numbered) when a file of the zip has it already."""
+    out, k = name, 1
+    while out.lower() in taken:
+        out = f"{prefix}-{name}" if k == 1 else f"{prefix}{k}-{name}"
+        k += 1
+    taken.add(out.lower())
+    return out
+
+
+def project_zip_bytes(build: PhotoBuild) -> bytes:
+    """The built project as a zip: `project.json` (the paths relative to it), the camera
+    file, the light file, the board files, `images/` and `masks/`. Unpacked, it is a
+    project `lightcal calibrate project.json` solves as the page does.
+
+    Raises:
+        OSError: a file of the build is gone (a newer build replaced it).
+    """
+    project = build.project
+    data = json.loads(project.path.read_text(encoding="utf-8"))
+    folder = project.folder
+    members: list[tuple[str, Path]] = []
+    taken = {PROJECT_FILE, IMAGES_FOLDER, MASKS_FOLDER}
+
+    def top(path: Path, prefix: str) -> str:
+        name = _unique(path.name, taken, prefix)
+        members.append((name, path))
+        return name
+
+    camera = data.get("camera", {})
+    if camera.get("path"):
+        camera["path"] = top(folder / camera["path"], "camera")
+    for light in data.get("lights", []):
+        rid = light.get("rid") or {}
+        if rid.get("path"):
+            rid["path"] = top(folder / rid["path"], "light")
+    # The photos are of one folder (their names differ), each mask named by its photo.
+    images = data.get("images", [])
+    for spec, image, mask in zip(images, project.image_paths, project.mask_paths, strict=True):
+        spec["path"] = f"{IMAGES_FOLDER}/{image.name}"
+        members.append((spec["path"], image))
+        if mask is not None:
+            spec["mask"] = f"{MASKS_FOLDER}/{mask.name}"
+            members.append((spec["mask"], mask))
+    for board in build.boards:
+        top(board, "board")
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as zf:
+        text = json.dumps(data, indent=2) + "\n"
+        zf.writestr(PROJECT_FILE, text, compress_type=zipfile.ZIP_DEFLATED)
+        for name, path in members:
+            # Images are compressed already (PNG, raw): stored as they are.
+            packed = name.startswith((IMAGES_FOLDER + "/", MASKS_FOLDER + "/"))
+            kind = zipfile.ZIP_STORED if packed else zipfile.ZIP_DEFLATED
+            zf.write(path, name, compress_type=kind)
+    return buffer.getvalue()

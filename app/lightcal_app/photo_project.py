@@ -63,11 +63,13 @@ from lightcal_app.photo_build import (
     WALL_DIR,
     Progress,
     build_project,
+    read_levels,
 )
 from lightcal_app.photo_records import (
     DEFAULT_HALF_ANGLE_DEG,
     PHOTO_KINDS,
     CameraSource,
+    FileLevels,
     PhotoBuild,
     PhotoKind,
     PhotoOptions,
@@ -100,6 +102,7 @@ __all__ = [
     "DEFAULT_HALF_ANGLE_DEG",
     "PHOTO_KINDS",
     "CameraSource",
+    "FileLevels",
     "PhotoBuild",
     "PhotoKind",
     "PhotoOptions",
@@ -189,6 +192,8 @@ class PhotoStaging:
         self._lock = threading.Lock()
         self._folder: Path | None = None
         self._building = False
+        # The first wall photo's levels, by (path, size, mtime): read once per photo.
+        self._levels: tuple[tuple[str, int, int], FileLevels | None] | None = None
 
     @property
     def folder(self) -> Path | None:
@@ -389,13 +394,28 @@ class PhotoStaging:
         boards = tuple(
             (kind, name) for kind in BOARD_DIRS if (name := one(BOARD_DIRS[kind])) is not None
         )
+        wall = _files_in(area / WALL_DIR)
         return Staged(
-            wall_photos=tuple(p.name for p in _files_in(area / WALL_DIR)),
+            wall_photos=tuple(p.name for p in wall),
             chessboard_photos=tuple(p.name for p in _files_in(area / CHESSBOARD_DIR)),
             camera=one(CAMERA_DIR),
             boards=boards,
             light=one(LIGHT_DIR),
+            levels=self._levels_of(wall[0]) if wall else None,
         )
+
+    def _levels_of(self, photo: Path) -> FileLevels | None:
+        """The levels the photo's file gives (None when it does not read: the build
+        says why)."""
+        stat = photo.stat()
+        key = (str(photo), stat.st_size, stat.st_mtime_ns)
+        if self._levels is None or self._levels[0] != key:
+            try:
+                levels: FileLevels | None = read_levels(photo)
+            except InputError:
+                levels = None
+            self._levels = (key, levels)
+        return self._levels[1]
 
     def clear(self) -> None:
         """Forget every file received: the next one starts a fresh staging area. Its folder

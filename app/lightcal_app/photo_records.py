@@ -5,15 +5,18 @@ The records of `lightcal_app.photo_project` (the staging area) and
 (`Staged`), what an upload brought (`Received`), the build's choices (`PhotoOptions`) and
 its outcome (`PhotoBuild`, with a `PhotoOutcome` per photo and where the intrinsics came
 from, `CameraSource`); and the page's text of them (`staged_markdown`,
-`outcomes_markdown`). No files are touched here.
+`outcomes_markdown`); and the levels the photos' files give (`FileLevels`, read by
+`lightcal_app.photo_build.read_levels`). No files are touched here.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal, get_args
 
+from lightcal.capture.init_checks import POSE_FLOOR_DEG, POSE_FLOOR_M
 from lightcal.capture.intrinsics import MIN_VIEWS
 from lightcal.capture.project_init import ImageOutcome
 from lightcal.errors import InputError
@@ -29,6 +32,62 @@ DEFAULT_HALF_ANGLE_DEG = 30.0
 
 
 @dataclass(frozen=True)
+class FileLevels:
+    """The black and white levels the wall photos' files give: what `read_image` uses
+    when none is given, and what the page's level fields are prefilled with.
+
+    Attributes:
+        photo: the photo they were read from (the first wall photo).
+        kind: where they come from, e.g. "camera raw metadata", "16-bit PNG".
+        black: the black level (source units): the raw file's, else 0.
+        white: the white (clipping) level (source units), None for float data.
+        raw: read from a camera raw file's metadata (its black levels are per colour
+            channel: the build passes none, so that the reader subtracts each).
+        bits: bits per sample of integer data.
+        darkest, brightest: the photo's extreme values (source units).
+    """
+
+    photo: str
+    kind: str
+    black: float
+    white: float | None
+    raw: bool = False
+    bits: int | None = None
+    darkest: float | None = None
+    brightest: float | None = None
+
+    def fields(self) -> tuple[float, float]:
+        """The page's level fields prefilled: (black, white), white 0 for none."""
+        return self.black, 0.0 if self.white is None else self.white
+
+    def text(self) -> str:
+        """What the page says of them, with what the user may have to change."""
+        white = "none (float data)" if self.white is None else f"{self.white:g}"
+        text = f"levels of {self.photo} ({self.kind}): black {self.black:g}, white {white}"
+        if self.darkest is not None and self.brightest is not None:
+            text += f"; its values run from {self.darkest:g} to {self.brightest:g}"
+        if self.bits == 8:
+            return text + (
+                ". 8-bit photos are gamma-encoded: lightcal init (and this page) take no "
+                "response curve, so they are rejected; use camera raw or 16-bit linear photos"
+            )
+        if self.raw:
+            return text + "."
+        if self.bits is not None and self.brightest is not None and self.bits > 8:
+            fits = max(1, math.ceil(math.log2(self.brightest + 1.0)))
+            if fits < self.bits:
+                text += (
+                    f". A {fits}-bit sensor stored in {self.bits} bits has white level "
+                    f"{2**fits - 1}"
+                )
+        return text + (
+            ". The file does not say the sensor's black level: enter it in the black level "
+            "field (e.g. 512 for many 14-bit sensors); without it the black offset is taken "
+            "for light"
+        )
+
+
+@dataclass(frozen=True)
 class Staged:
     """What a staging area holds (file names as stored).
 
@@ -38,6 +97,8 @@ class Staged:
         camera: the camera file, if any.
         boards: board type ("aruco_grid", "charuco", "chessboard") -> its file.
         light: the light's IES/LDT file, if any.
+        levels: the levels the first wall photo's file gives (None without wall photos,
+            or when it does not read).
     """
 
     wall_photos: tuple[str, ...] = ()
@@ -45,6 +106,7 @@ class Staged:
     camera: str | None = None
     boards: tuple[tuple[str, str], ...] = ()
     light: str | None = None
+    levels: FileLevels | None = None
 
     def board(self, kind: str) -> str | None:
         return dict(self.boards).get(kind)
@@ -137,8 +199,13 @@ class PhotoOptions:
             (None: `DEFAULT_HALF_ANGLE_DEG`, as `lightcal init`).
         initial_position_m: the initial guess of the light, camera frame, m.
         initial_axis_camera: the initial guess of its axis, camera frame.
-        black_level, white_level: the images' levels (None: `read_image`'s defaults).
+        black_level, white_level: the images' levels (None: `read_image`'s defaults, the
+            files' own: a raw file's per-channel levels, 0 and 2^bits - 1 for integers).
         min_markers: photos with fewer markers are rejected.
+        mask_margin_px: the padding of the marker masks, pixels.
+        max_rms_px: photos whose marker reprojection RMS exceeds this are rejected.
+        pose_floor_m, pose_floor_deg: the systematic error of the marker poses added to
+            each pose's covariance (`lightcal init --pose-floor-mm/--pose-floor-deg`).
     """
 
     half_angle_deg: float | None = None
@@ -147,6 +214,10 @@ class PhotoOptions:
     black_level: float | None = None
     white_level: float | None = None
     min_markers: int = 4
+    mask_margin_px: float = 3.0
+    max_rms_px: float = 1.0
+    pose_floor_m: float = POSE_FLOOR_M
+    pose_floor_deg: float = POSE_FLOOR_DEG
 
 
 @dataclass(frozen=True)
@@ -190,12 +261,15 @@ class CameraSource:
         rms_px: the calibration's reprojection RMS, px (calibrated only).
         used: the chessboard photos used (calibrated only).
         rejected: (photo, why) of the chessboard photos left out (calibrated only).
+        warnings: what the calibration warned of (e.g. the board nearly square-on in every
+            view: `IntrinsicsResult.warnings`).
     """
 
     file: str | None
     rms_px: float | None = None
     used: tuple[str, ...] = ()
     rejected: tuple[tuple[str, str], ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def text(self) -> str:
         if self.file is not None:
@@ -220,6 +294,8 @@ class PhotoBuild:
         photos: one outcome per wall photo, in name order.
         camera: where the intrinsics came from.
         warnings: what `lightcal init` warned of (EXIF exposures, the light's profile).
+        boards: the board files used (in the project's zip, which the project does not
+            reference).
     """
 
     project: Project
@@ -227,6 +303,7 @@ class PhotoBuild:
     photos: tuple[PhotoOutcome, ...]
     camera: CameraSource
     warnings: tuple[str, ...] = ()
+    boards: tuple[Path, ...] = ()
 
     @property
     def accepted(self) -> list[PhotoOutcome]:
@@ -252,6 +329,8 @@ def staged_markdown(staged: Staged) -> str:
         lines = ["**Received**: nothing yet.  "]
     if staged.wall_photos:
         lines.append(f"wall photos ({len(staged.wall_photos)}): {names(staged.wall_photos)}  ")
+    if staged.levels is not None:
+        lines.append(md(staged.levels.text()) + "  ")
     if staged.camera is not None:
         lines.append(f"camera file: {md(staged.camera)}  ")
     if staged.chessboard_photos:
@@ -295,6 +374,9 @@ def outcomes_markdown(build: PhotoBuild) -> str:
         mark = "" if photo.accepted else "**rejected**: "
         text = photo.text() if photo.accepted else (photo.reason or "rejected")
         lines.append(f"| {md(photo.name)} | {mark}{md(text)} |")
+    for warning in build.camera.warnings:
+        lines.append("")
+        lines.append(f"Note (chessboard photos): {md(warning)}")
     for warning in build.warnings:
         lines.append("")
         lines.append(f"Note: {md(warning)}")

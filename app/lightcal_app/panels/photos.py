@@ -1,6 +1,13 @@
-"""The Files tab's "New project from photos": upload buttons for each kind of file, the
-light's half angle and initial position, what was received and what is missing, Build,
-and after a build the table of the photos (accepted, or rejected with the reason).
+"""The Files tab's "New project from photos": upload buttons for each kind of file, what
+`lightcal init` asks besides the files (the light's half angle, its initial position and
+axis, the photos' black and white levels, and in a folder the detection options and the
+poses' systematic floor), what was received and what is missing, Build, and after a build
+the table of the photos (accepted, or rejected with the reason), the chessboard photos'
+calibration with its warnings, and the built project's zip.
+
+The level fields are prefilled with what the first wall photo's file gives (a raw file's
+metadata, else 0 and 2^bits - 1) whenever that changes, unless the user has typed into
+them since the last prefill (a white level of 0 is none: float photos).
 
 The files and the build are `PhotoService`'s (`lightcal_app.photo_service`); this panel
 only passes the uploads and the clicks on, and writes the service's state into its
@@ -9,6 +16,7 @@ widgets whenever the service says it changed.
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import viser
@@ -23,6 +31,7 @@ from lightcal_app.photo_project import (
     outcomes_markdown,
     staged_markdown,
 )
+from lightcal_app.photo_service import LABELS, MAX_MASK_MARGIN_PX, PhotoFields
 from lightcal_app.upload_checks import format_size
 
 IMAGE_TYPES = ",".join(
@@ -60,7 +69,7 @@ class PhotosPanel(TabPanel):
             self.uploads[kind] = handle
             self._on_upload(handle, kind)
         self.half_angle = gui.add_number(
-            "half angle (deg)",
+            LABELS["half_angle_deg"],
             DEFAULT_HALF_ANGLE_DEG,
             min=0.5,
             max=89.5,
@@ -69,7 +78,7 @@ class PhotosPanel(TabPanel):
         )
         limit_mm = POSITION_LIMIT_M * 1e3
         self.initial_position = gui.add_vector3(
-            "initial light (mm)",
+            LABELS["initial_position_mm"],
             (0.0, 0.0, 0.0),
             min=(-limit_mm,) * 3,
             max=(limit_mm,) * 3,
@@ -77,20 +86,96 @@ class PhotosPanel(TabPanel):
             hint="the initial guess of the light in the camera frame (x right, y down, z "
             "forward); the Light tab changes it after the build too",
         )
+        self.initial_axis = gui.add_vector3(
+            LABELS["initial_axis"],
+            (0.0, 0.0, 1.0),
+            min=(-1.0,) * 3,
+            max=(1.0,) * 3,
+            step=0.01,
+            hint="the initial guess of the light's axis in the camera frame (0 0 1: the "
+            "optical axis)",
+        )
+        self.black_level = gui.add_number(
+            LABELS["black_level"],
+            0.0,
+            min=0.0,
+            step=1.0,
+            hint="subtracted from the photos' values (their units); prefilled from a raw "
+            "file's metadata, else 0: a PNG or TIFF does not say its sensor's black level",
+        )
+        self.white_level = gui.add_number(
+            LABELS["white_level"],
+            65535.0,
+            min=0.0,
+            step=1.0,
+            hint="the photos' clipping level (their units; 0: none, for float photos); "
+            "prefilled from a raw file's metadata, else 2^bits - 1 (a 14-bit sensor in a "
+            "16-bit PNG: 16383)",
+        )
+        self._prefilled = (0.0, 65535.0)
+        self._prefill_lock = threading.Lock()
+        with gui.add_folder("Detection and pose floors", expand_by_default=False):
+            defaults = PhotoFields()
+            self.min_markers = gui.add_number(
+                LABELS["min_markers"], int(defaults.min_markers), min=1, step=1
+            )
+            self.mask_margin = gui.add_number(
+                LABELS["mask_margin_px"],
+                defaults.mask_margin_px,
+                min=0.0,
+                max=MAX_MASK_MARGIN_PX,
+                step=0.5,
+                hint="padding of the marker masks",
+            )
+            self.max_rms = gui.add_number(
+                LABELS["max_rms_px"],
+                defaults.max_rms_px,
+                min=0.01,
+                step=0.05,
+                hint="photos whose marker reprojection RMS exceeds this are rejected",
+            )
+            self.pose_floor_mm = gui.add_number(
+                LABELS["pose_floor_mm"],
+                defaults.pose_floor_mm,
+                min=0.0,
+                step=0.05,
+                hint="systematic error of the marker poses added to each pose's covariance, "
+                "per camera centre coordinate",
+            )
+            self.pose_floor_deg = gui.add_number(
+                LABELS["pose_floor_deg"],
+                defaults.pose_floor_deg,
+                min=0.0,
+                step=0.01,
+                hint="the same for each rotation component",
+            )
         self.staged_md = gui.add_markdown("")
         self.build = gui.add_button("Build project", icon=viser.Icon.HAMMER, disabled=True)
         self.clear = gui.add_button("Clear the photos", icon=viser.Icon.TRASH)
         self.outcomes_md = gui.add_markdown("", visible=False)
-        self.build.on_click(
-            lambda e: photos.request_build(
-                half_angle_deg=float(self.half_angle.value),
-                initial_position_mm=tuple(self.initial_position.value),
-                client=e.client,
-            )
+        self.download = gui.add_button(
+            "Download the project (zip)", icon=viser.Icon.DOWNLOAD, disabled=True
         )
+        self.build.on_click(lambda e: photos.request_build(self.fields(), client=e.client))
         self.clear.on_click(lambda e: photos.clear(e.client))
+        self.download.on_click(lambda e: photos.download_zip(e.client))
         photos.listeners.append(self.refresh)
         self.refresh()
+
+    def fields(self) -> PhotoFields:
+        """The build's fields as the page holds them now."""
+        return PhotoFields(
+            half_angle_deg=float(self.half_angle.value),
+            initial_position_mm=tuple(self.initial_position.value),
+            initial_axis=tuple(self.initial_axis.value),
+            black_level=float(self.black_level.value),
+            white_level=float(self.white_level.value),
+            min_markers=self.min_markers.value,
+            mask_margin_px=float(self.mask_margin.value),
+            max_rms_px=float(self.max_rms.value),
+            pose_floor_mm=float(self.pose_floor_mm.value),
+            pose_floor_deg=float(self.pose_floor_deg.value),
+        )
 
     def _on_upload(self, handle: Any, kind: PhotoKind) -> None:
         photos = self.ctl.photos
@@ -110,3 +195,12 @@ class PhotosPanel(TabPanel):
         last = photos.last_build
         self.outcomes_md.content = outcomes_markdown(last) if last is not None else ""
         self.outcomes_md.visible = last is not None
+        self.download.disabled = last is None
+        # The levels the photos give, into the fields the user has not typed into since.
+        new = (0.0, 65535.0) if staged.levels is None else staged.levels.fields()
+        handles: tuple[Any, Any] = (self.black_level, self.white_level)
+        with self._prefill_lock:
+            for handle, old, value in zip(handles, self._prefilled, new, strict=True):
+                if handle.value == old and value != old:
+                    handle.value = value
+            self._prefilled = new
