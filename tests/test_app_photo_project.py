@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from lightcal_app import requests as rq
 from lightcal_app.files_service import FilesService
-from lightcal_app.photo_build import read_levels
+from lightcal_app.photo_build import black_level_warning, read_levels
 from lightcal_app.photo_project import (
     PhotoOptions,
     PhotoStaging,
@@ -466,3 +466,8 @@ def test_the_levels_come_from_the_photos_files(photos: Photos, tmp_path: Path) -
     assert raw.raw and raw.fields() == (256.0, 4095.0) and "camera raw metadata" in raw.text()
     options = check_fields(PhotoFields(black_level=256, white_level=4095), raw)
     assert (options.black_level, options.white_level) == (None, None)  # LibRaw's, per channel
+    # A black offset the files do not say is warned of (the sample: 512 under 14-bit data).
+    assert black_level_warning(png) == [] and black_level_warning(raw) == []
+    sample = read_levels(sample_project_dir() / "images" / "view_00.png")
+    (warning,) = black_level_warning(sample)
+    assert warning.startswith("black level 0, while the darkest value of view_00.png is 537")

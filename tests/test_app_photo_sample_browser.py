@@ -92,6 +92,7 @@ def test_the_sample_photos_build_a_project_whose_zip_solves_within_1_mm(tmp_path
     assert built.camera.file is None and len(built.camera.used) == 16
     assert built.loaded.camera.fx == pytest.approx(read_camera(sample / "camera.yaml").fx)
     assert built.camera.warnings == ()  # the sample's chessboard views are tilted enough
+    assert built.warnings == ()  # the black level given, every photo's EXIF exposure read
     warned = replace(built, camera=replace(built.camera, warnings=("the board is tilted",)))
     assert "Note (chessboard photos): the board is tilted" in outcomes_markdown(warned)
     sensor = built.project.spec.sensor
