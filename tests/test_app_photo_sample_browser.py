@@ -12,7 +12,8 @@ from the page, unpacks into a project `lightcal calibrate` solves as well.
 
 `test_the_sample_photos_build_a_project_whose_zip_solves_within_1_mm` is the same build
 without a browser (through `PhotoService`), in this file for the 500-line bound of
-tests/test_app_photo_project.py; it carries no browser mark.
+tests/test_app_photo_project.py; it carries no browser mark. It also holds the page's
+project equal to the one `lightcal init` writes with the same options (but the paths).
 """
 
 from __future__ import annotations
@@ -102,6 +103,20 @@ def test_the_sample_photos_build_a_project_whose_zip_solves_within_1_mm(tmp_path
     error_m = float(np.linalg.norm(_solved_in(tmp_path, content) - _truth_m()))
     print(f"lightcal calibrate on the zip: {1e3 * error_m:.3f} mm from the truth")
     assert error_m < POSITION_TOLERANCE_M
+    # `lightcal init` with the same options on the zip's files writes the same project.
+    unzipped, cli = tmp_path / "unzipped", tmp_path / "cli"
+    cli.mkdir()
+    argv = ["init", str(unzipped / "images"), "--camera", str(unzipped / "camera.yaml")]
+    argv += ["--board", str(unzipped / "board.yaml"), "--light-ies", str(unzipped / "light.ies")]
+    argv += ["--initial-position", "0.09", "0", "0", "--black-level", "512"]
+    assert main([*argv, "--white-level", "16383", "--out", str(cli / "project.json")]) == 0
+    page_spec = json.loads((unzipped / "project.json").read_text(encoding="utf-8"))
+    cli_spec = json.loads((cli / "project.json").read_text(encoding="utf-8"))
+    for spec in (page_spec, cli_spec):
+        for image in spec["images"]:
+            del image["path"], image["mask"]
+        del spec["camera"]["path"], spec["lights"][0]["rid"]["path"]
+    assert page_spec == cli_spec
 
 
 def _holds(service: PhotoService, what: str, n: int) -> Callable[[], bool]:
