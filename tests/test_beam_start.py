@@ -111,3 +111,47 @@ def test_the_beam_guess_puts_the_solve_on_the_truth(narrow: Path) -> None:
     assert result.converged
     assert np.linalg.norm(result.lights[0].pose.t_camera_light - position) < 0.002
     assert _angle_deg(result.lights[0].pose.axis_camera, axis) < 0.1
+
+
+def test_starts_across_the_hemisphere_find_a_beam_the_guess_points_away_from(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    """A 4-degree beam whose guess points 80 degrees away: the solve from the guess ends
+    far off; with multistart, the starts drawn across the cap in front of the camera
+    (`hemisphere_start`) find it."""
+    folder = tmp_path_factory.mktemp("away") / "data"
+    argv = ["synth", str(folder), "--views", "8", "--width", "320", "--height", "240"]
+    argv += ["--half-angle-deg", "4", "--init-offset-m", "0.05", "--init-offset-deg", "80"]
+    assert main([*argv, "--seed", "9", "--quiet"]) == 0
+    project = load_project(folder / "project.json")
+    loaded = load_images(project)
+    position, _ = _truth(folder)
+    errors = []
+    for multistart in (0, 4):
+        solver = project.spec.solver.model_copy(update={"multistart": multistart})
+        edited = replace(project, spec=project.spec.model_copy(update={"solver": solver}))
+        light = calibrate(edited, loaded, build_model(edited, loaded)).result.lights[0]
+        errors.append(np.linalg.norm(light.pose.t_camera_light - position))
+    assert errors[0] > 0.1  # measured 440 mm, 19 deg
+    assert errors[1] < 0.002
+
+
+def test_hemisphere_starts_spread_the_axis_over_the_cap_and_keep_the_rest(narrow: Path) -> None:
+    from lightcal.pipeline.solve import HEMISPHERE_DEG, hemisphere_start
+
+    project = load_project(narrow / "project.json")
+    model = build_model(project, load_images(project))
+    rng = np.random.default_rng(0)
+    x0 = model.layout.x0
+    angles = []
+    for _ in range(200):
+        x = hemisphere_start(model, rng)
+        light = model.layout.rig(x).lights[0]
+        angles.append(_angle_deg(light.R_camera_light[:, 2], np.array([0.0, 0.0, 1.0])))
+        np.testing.assert_allclose(light.t_camera_light, x0[:3], atol=1e-12)
+        assert x[5] == x0[5]  # the scale is kept
+    assert max(angles) <= HEMISPHERE_DEG + 1e-9 and min(angles) < 10.0
+    # Uniform on the cap: the share within 35 degrees is (1 - cos 35) / (1 - cos 70).
+    share = np.mean(np.array(angles) < 35.0)
+    expected = (1 - math.cos(math.radians(35))) / (1 - math.cos(math.radians(70)))
+    assert abs(share - expected) < 0.1

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from lightcal.core.light_axis import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
 from lightcal.io.project import Project, SolverSpec
@@ -50,6 +51,34 @@ def perturbed_start(
             w *= math.radians(rng.uniform(0, angle_deg)) / np.linalg.norm(w)
             R = matrix_from_rotvec(w) @ R
         x[block.pose] = block.param.from_pose(R, t)
+    return x
+
+
+#: The cap in front of the camera (half-angle about its optical axis, deg) from which
+#: every other random start draws the light's axis (`hemisphere_start`).
+HEMISPHERE_DEG = 70.0
+
+
+def hemisphere_start(
+    model: CalibrationModel, rng: np.random.Generator, *, max_angle_deg: float = HEMISPHERE_DEG
+) -> np.ndarray:
+    """A random start with each light at its initial position and its axis drawn
+    uniformly from the cap within `max_angle_deg` of the camera's optical axis (+z): a
+    narrow beam whose guess points away from where it falls on the wall is found from one
+    of them, where starts around the guess all miss it. A general light keeps its spin
+    about its own axis."""
+    x = model.layout.x0.copy()
+    lo = math.cos(math.radians(max_angle_deg))
+    for block in model.layout.blocks:
+        if not block.param.n_rot:
+            continue
+        R, t = block.param.to_pose(x[block.pose])
+        cos_theta = rng.uniform(lo, 1.0)
+        phi = rng.uniform(0.0, 2.0 * math.pi)
+        sin_theta = math.sqrt(max(0.0, 1.0 - cos_theta**2))
+        axis = np.array([sin_theta * math.cos(phi), sin_theta * math.sin(phi), cos_theta])
+        R_new = rotation_from_axis(axis) @ rotation_from_axis(R[:, 2]).T @ R
+        x[block.pose] = block.param.from_pose(R_new, t)
     return x
 
 
@@ -117,7 +146,8 @@ def solve(
     on_start: Callable[[int, int], None] | None = None,
     on_stage: Callable[[str], None] | None = None,
 ) -> SolveOutcome:
-    """Solve from the initial guess and `multistart` random starts; keep the best.
+    """Solve from the initial guess and `multistart` random starts; keep the best. The
+    odd starts are `perturbed_start`s around the guess, the even ones `hemisphere_start`s.
 
     `x0` (n,), when given, is where the first solve starts instead of the initial guess
     (an estimate to continue from; the random starts stay around the initial guess). A
@@ -145,9 +175,13 @@ def solve(
     rng = np.random.default_rng(seed)
     f_scale = best.f_scale_used if model.options.f_scale == "auto" else None
     for k in range(1, n_starts):
-        x0 = perturbed_start(
-            model, rng, shift_m=multistart_position_m, angle_deg=multistart_angle_deg
-        )
+        # Around the guess, and (every second start) anywhere in front of the camera.
+        if k % 2 == 0:
+            x0 = hemisphere_start(model, rng)
+        else:
+            x0 = perturbed_start(
+                model, rng, shift_m=multistart_position_m, angle_deg=multistart_angle_deg
+            )
         if on_start is not None:
             on_start(k, n_starts)
         try:
