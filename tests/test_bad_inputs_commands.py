@@ -80,8 +80,59 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _usage(
             "",
             "argument COMMAND: invalid choice: 'nosuch' (choose from 'sample', 'synth', "
-            "'calibrate', 'plan', 'render', 'export', 'schema', 'init', 'camera', 'app', "
-            "'warmup')",
+            "'calibrate', 'plan', 'render', 'export', 'schema', 'init', 'camera', "
+            "'response', 'app', 'warmup')",
+        ),
+    ),
+    # ---------------------------------------------------------------------- response
+    (
+        "response: no --out",
+        "response {d}/images/view_00.png {d}/images/view_01.png",
+        _usage("response", "the following arguments are required: --out"),
+    ),
+    (
+        "response: one photo",
+        "response {d}/images/view_00.png --out {n}.json --times 1",
+        _error("response", "IMAGE: expected at least 2 photos of an exposure bracket, got 1"),
+    ),
+    (
+        "response: --times NaN",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {n}.json --times 1 nan",
+        _error("response", "--times: expected exposure times in seconds, finite and > 0"),
+    ),
+    (
+        "response: --out a .txt",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {n}.txt --times 1 2",
+        _error("response", "{n}.txt: --out: expected a .json or .npy file, got new.txt"),
+    ),
+    (
+        "response: --plot a .jpg",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {n}.json --times 1 2 "
+        "--plot {n}.jpg",
+        _error("response", "{n}.jpg: --plot: expected a .png file, got new.jpg"),
+    ),
+    (
+        "response: --out an existing file",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {k}/pic.png --times 1 2",
+        _error("response", "{k}/pic.png: --out: exists; use --force to replace it"),
+    ),
+    (
+        "response: --out a photo, --force",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {d}/images/view_00.png "
+        "--times 1 2 --force",
+        _error(
+            "response",
+            "{d}/images/view_00.png: --out: is a photo of the bracket, an input of the fit; "
+            "write elsewhere",
+        ),
+    ),
+    (
+        "response: a 16-bit photo",
+        "response {d}/images/view_00.png {d}/images/view_01.png --out {n}.json --times 1 2",
+        _error(
+            "response",
+            "{d}/images/view_00.png: 16-bit values: expected an 8-bit photo (a 16-bit or float "
+            "image is linear already and needs no response curve)",
         ),
     ),
     # ------------------------------------------------------------------------ sample

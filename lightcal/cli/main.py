@@ -36,6 +36,7 @@ SUBCOMMANDS = (
     "schema",
     "init",
     "camera",
+    "response",
     "app",
     "warmup",
 )
