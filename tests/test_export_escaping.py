@@ -32,9 +32,9 @@ from lightcal.io.result_file import (
     ImageResult,
     LightResultModel,
     Parameters,
-    PoseSigma,
     ResultFile,
 )
+from tests.export_render import placeholder_sigma
 
 HOSTILE = [
     '"""; import os; os.system(\'x\') #',
@@ -71,15 +71,7 @@ def _light(name: str, *, kind: str = "general", rid: bool = True) -> LightResult
         axis_angle_from_optical_axis_deg=0.0,
         scale=1.0,
         scale_sigma=0.01,
-        sigma=PoseSigma(
-            position_m=[1e-3] * 3,
-            R_camera_light=[[1e-3] * 3] * 3,
-            quaternion_wxyz=[1e-3] * 4,
-            axis_camera=[1e-3] * 3,
-            roll_deg=0.1,
-            pitch_deg=0.1,
-            axis_angle_from_optical_axis_deg=0.1,
-        ),
+        sigma=placeholder_sigma(),
         rid={
             "model": "cos_power",
             "theta_deg": theta.tolist(),

@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if args.light is not None and args.format not in ("ies", "ldt"):
         raise InputError("--light", f"applies to --format ies or ldt only, not {args.format}")
     result = read_result(args.result)
+    camera = None if project is None else project.camera
     if project is not None:
         from lightcal.cli.progress import ensure_kernels
         from lightcal.io.project_identity import check_result_of
@@ -84,7 +85,13 @@ def run(args: argparse.Namespace) -> int:
         rids = {unknown.initial.name: unknown.initial.rid for unknown in project.lights}
         result = with_given_rids(result, rids)
     # The files --out refers to (Mitsuba's textures, beside it) are no input either.
-    files = export_files(result, args.format, args.out, source=args.result, light_name=args.light)
+    if args.format == "mitsuba" and project is None:
+        from lightcal.cli.progress import ensure_kernels
+
+        ensure_kernels()  # the RID texture is evaluated with the compiled table evaluator
+    files = export_files(
+        result, args.format, args.out, source=args.result, light_name=args.light, camera=camera
+    )
     for path in list(files)[1:]:
         check_output_file(path, option="--out", inputs=inputs, inputs_of="the export")
     written = export_result(
@@ -93,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         source=args.result,
         light_name=args.light,
+        camera=camera,
         force=args.force,
     )
     print(f"{args.format} export written to {', '.join(str(p) for p in written)}")

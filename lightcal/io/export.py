@@ -4,7 +4,7 @@
 |---|---|---|
 | `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, position, axis, sigmas, RID |
 | `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
-| `mitsuba` | Mitsuba 3 scene XML | a sensor, a spot (point) emitter per light, RID textures |
+| `mitsuba` | Mitsuba 3 scene XML | sensor (project's intrinsics), spot per light, RID textures |
 | `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
 | `ldt` | EULUMDAT | the estimated RID of one light (`lightcal.io.eulumdat`) |
 
@@ -32,6 +32,7 @@ from typing import Any, Literal
 import numpy as np
 
 from lightcal import __version__
+from lightcal.core.camera import Camera
 from lightcal.core.camera_frames import (
     blender_from_opencv,
     blender_spot_cone,
@@ -295,6 +296,7 @@ def export_files(
     *,
     source: str | Path,
     light_name: str | None = None,
+    camera: Camera | None = None,
 ) -> dict[Path, bytes]:
     """The exported files' contents: `out` first, then any it refers to (Mitsuba textures).
 
@@ -304,6 +306,7 @@ def export_files(
         out: The main file's path (textures go beside it).
         source: The result's path, for error messages.
         light_name: The light to export as ies/ldt (needed when several have a RID).
+        camera: The project's camera (Mitsuba's sensor: film size, field of view).
 
     Raises:
         InputError: an unknown format, or the result lacks what the format needs.
@@ -322,7 +325,7 @@ def export_files(
     if fmt in whole:
         return {out: whole[fmt](result, source)}
     if fmt == "mitsuba":
-        return mitsuba_files(result, source, out)
+        return mitsuba_files(result, source, out, camera=camera)
     if fmt == "ies":
         return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
     if fmt == "ldt":
@@ -337,6 +340,7 @@ def export_result(
     *,
     source: str | Path,
     light_name: str | None = None,
+    camera: Camera | None = None,
     force: bool = False,
 ) -> list[Path]:
     """Write `export_files` atomically, each; existing files only with `force`.
@@ -348,7 +352,7 @@ def export_result(
         InputError: `export_files`' errors; a file exists (without `force`; then nothing
             is written) or the folder does not.
     """
-    files = export_files(result, fmt, out, source=source, light_name=light_name)
+    files = export_files(result, fmt, out, source=source, light_name=light_name, camera=camera)
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError(out, f"cannot write: folder {str(out.parent)!r} does not exist")

@@ -1,5 +1,26 @@
 """The Mitsuba 3 export: a scene XML with a sensor and a spot (point) emitter per light,
-the RID as a texture beside it (see `lightcal.io.export`)."""
+the RID as a texture beside it (see `lightcal.io.export`).
+
+What a Mitsuba render of the exported scene reproduces (`tests/test_export_mitsuba_render.py`
+renders it with a wall and compares with lightcal's `render_image` of the same view):
+
+- **The sensor** (given the project's camera): the film's width and height, the field of
+  view along y from fy (fov = 2 atan(height / (2 fy))), and the principal point as
+  Mitsuba's `principal_point_offset_x/y` (fractions of the film's size, from its
+  centre). Mitsuba's `perspective` has one focal length (fx is taken as fy), no skew and
+  no lens distortion: compare with undistorted images (the XML's comment says the
+  numbers). Pixel centres: OpenCV's at integers, Mitsuba's at half-integers, which the
+  offset accounts for. A box pixel filter, so a pixel is the mean over its square, as
+  lightcal's footprint is.
+- **The light's scale**: the emitter's intensity is the result's `scale` (times the RID
+  texture's peak when that is off the axis), so several lights keep their relative
+  brightness. A Lambertian wall of albedo rho then renders rho / pi times lightcal's
+  `radiance` value.
+- **The RID**: a 16-bit PNG over the spot's cone, evaluated with lightcal's own table
+  interpolation (`SymmetricTableRID` / `Table2DRID` of the result's samples) and sized so
+  that Mitsuba's bilinear lookup stays within `TEXTURE_STEP_DEG` of the axis
+  (`texture_size`).
+"""
 
 from __future__ import annotations
 
@@ -9,15 +30,26 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from lightcal.core.camera import Camera
 from lightcal.core.camera_frames import (
     mitsuba_from_opencv,
     mitsuba_spot_cone,
 )
+from lightcal.core.rid import RID, SymmetricTableRID, Table2DRID
 from lightcal.io.escaping import xml_attribute, xml_comment
 from lightcal.io.export_lights import LightRID, light_rid, light_transform
 from lightcal.io.result_file import ResultFile
 
-# ---------------------------------------------------------------------------- mitsuba
+__all__ = [
+    "TEXTURE_MAX_SIZE",
+    "TEXTURE_MIN_SIZE",
+    "TEXTURE_STEP_DEG",
+    "mitsuba_files",
+    "rid_values",
+    "sensor_numbers",
+    "spot_texture",
+    "texture_size",
+]
 
 
 def _matrix_attribute(M: NDArray[np.float64]) -> str:
@@ -25,8 +57,13 @@ def _matrix_attribute(M: NDArray[np.float64]) -> str:
     return " ".join(repr(float(v)) for v in M.ravel())
 
 
-TEXTURE_SIZE = 256
-"""Pixels per side of a Mitsuba spot's RID texture."""
+TEXTURE_STEP_DEG = 0.4
+"""Largest angle between neighbouring texture pixels on the light's axis (where the
+tangent-plane projection is coarsest), within `TEXTURE_MIN_SIZE..TEXTURE_MAX_SIZE`."""
+
+TEXTURE_MIN_SIZE = 512
+TEXTURE_MAX_SIZE = 4096
+"""Pixels per side of a Mitsuba spot's RID texture: the bounds of `texture_size`."""
 
 _TEXTURE_CUTOFF_LEVEL = 1e-3
 """The texture's cone ends where the RID stays below this (or where its table ends)."""
@@ -34,52 +71,91 @@ _TEXTURE_CUTOFF_LEVEL = 1e-3
 _TEXTURE_MAX_CUTOFF_DEG = 80.0
 """Widest texture cone: the texture is a tangent-plane projection (tan of the angle)."""
 
+SAMPLES_PER_PIXEL = 16
+"""The exported sensor's `multijitter` samples per pixel (a delta light: only the pixel's
+area is sampled)."""
+
+
+def _table_rid(rid: LightRID) -> RID:
+    """The result's RID samples as lightcal interpolates a table (PCHIP in theta)."""
+    if rid.phi_rad is None:
+        return SymmetricTableRID(rid.theta_rad, np.clip(rid.values, 0.0, None))
+    return Table2DRID(rid.theta_rad, rid.phi_rad, np.clip(rid.values, 0.0, None))
+
 
 def rid_values(rid: LightRID, theta_rad: NDArray, phi_rad: NDArray) -> NDArray[np.float64]:
-    """The tabulated RID at directions (any shape), linear between samples, 0 beyond.
+    """The tabulated RID at directions (any shape), 0 beyond its last angle.
+
+    Interpolated as lightcal renders a table RID (its knots' PCHIP in theta, Catmull-Rom
+    in phi: `RID.value_and_derivatives(exact=True)`), relative to the axis (f(0) = 1).
 
     Args:
         rid: The table.
         theta_rad: angles from the light axis, radians.
         phi_rad: azimuths in the light frame (from +x towards +y), radians; same shape.
     """
-    theta = np.asarray(theta_rad, dtype=np.float64).ravel()
-    if rid.phi_rad is None:
-        out = np.interp(theta, rid.theta_rad, rid.values, right=0.0)
-    else:
-        rows = np.stack([np.interp(theta, rid.theta_rad, v, right=0.0) for v in rid.values])
-        knots = np.append(rid.phi_rad, rid.phi_rad[0] + 2.0 * math.pi)
-        phi = np.mod(np.asarray(phi_rad, dtype=np.float64).ravel() - knots[0], 2.0 * math.pi)
-        phi += knots[0]
-        k = np.clip(np.searchsorted(knots, phi, side="right") - 1, 0, rid.phi_rad.size - 1)
-        w = (phi - knots[k]) / (knots[k + 1] - knots[k])
-        columns = np.arange(theta.size)
-        nxt = (k + 1) % rid.phi_rad.size
-        out = (1.0 - w) * rows[k, columns] + w * rows[nxt, columns]
-    return np.clip(out, 0.0, None).reshape(np.shape(theta_rad))
+    theta = np.asarray(theta_rad, dtype=np.float64)
+    phi = np.asarray(phi_rad, dtype=np.float64)
+    values = _table_rid(rid).value_and_derivatives(theta, phi, exact=True)[0]
+    return np.clip(np.asarray(values, dtype=np.float64), 0.0, None).reshape(theta.shape)
 
 
-def spot_texture(rid: LightRID, size: int = TEXTURE_SIZE) -> tuple[float, NDArray[np.float64]]:
+def _cutoff_rad(rid: LightRID) -> float:
+    level = rid.values if rid.phi_rad is None else rid.values.max(axis=0)
+    level = level / (level[0] if rid.phi_rad is None else rid.values[:, 0].mean())
+    above = np.nonzero(level >= _TEXTURE_CUTOFF_LEVEL)[0]
+    last = min(int(above[-1]) + 1, rid.theta_rad.size - 1) if above.size else 1
+    return min(float(rid.theta_rad[last]), math.radians(_TEXTURE_MAX_CUTOFF_DEG))
+
+
+def texture_size(cutoff_rad: float) -> int:
+    """Pixels per side for a cone of half angle `cutoff_rad`: a power of two whose pixels
+    on the axis are at most `TEXTURE_STEP_DEG` apart, within the size bounds."""
+    needed = 2.0 * math.tan(cutoff_rad) / math.radians(TEXTURE_STEP_DEG)
+    size = 2 ** math.ceil(math.log2(max(needed, 1.0)))
+    return int(min(max(size, TEXTURE_MIN_SIZE), TEXTURE_MAX_SIZE))
+
+
+def spot_texture(rid: LightRID, size: int | None = None) -> tuple[float, NDArray[np.float64]]:
     """A Mitsuba spot's cutoff angle and RID texture.
 
     Mitsuba's `spot` looks its texture up at uv = 1/2 + (x, y) / (2 z tan(cutoff)) for a
     direction (x, y, z) in its frame (= the light frame), row 0 at v = 0; pixel (i, j)
     has its centre at uv = ((j + 1/2) / size, (i + 1/2) / size).
 
+    Args:
+        rid: The table.
+        size: Pixels per side; None: `texture_size` of the cone.
+
     Returns:
         cutoff_rad: The cone's half angle: where the RID stays below 1e-3 of the axis or
             its table ends, at most 80 degrees.
         texture: (size, size) the relative intensity of each pixel's direction.
     """
-    level = rid.values if rid.phi_rad is None else rid.values.max(axis=0)
-    above = np.nonzero(level >= _TEXTURE_CUTOFF_LEVEL)[0]
-    last = min(int(above[-1]) + 1, rid.theta_rad.size - 1) if above.size else 1
-    cutoff = min(float(rid.theta_rad[last]), math.radians(_TEXTURE_MAX_CUTOFF_DEG))
-    centers = (np.arange(size) + 0.5) / size
+    cutoff = _cutoff_rad(rid)
+    n = texture_size(cutoff) if size is None else int(size)
+    centers = (np.arange(n) + 0.5) / n
     x = (2.0 * centers[None, :] - 1.0) * math.tan(cutoff)  # x / z, per column
     y = (2.0 * centers[:, None] - 1.0) * math.tan(cutoff)  # y / z, per row
     x, y = np.broadcast_arrays(x, y)
     return cutoff, rid_values(rid, np.arctan(np.hypot(x, y)), np.arctan2(y, x))
+
+
+def sensor_numbers(camera: Camera) -> dict[str, float]:
+    """Mitsuba's `perspective` settings for `camera` (see the module docstring).
+
+    Returns:
+        fov_deg: the field of view along y, from fy; principal_point_offset_x/y: the
+        principal point's offset from the film's centre as fractions of its width and
+        height (OpenCV's image centre is ((width - 1) / 2, (height - 1) / 2)).
+    """
+    fy = float(camera.K[1, 1])
+    return {
+        "fov_deg": math.degrees(2.0 * math.atan(camera.height / (2.0 * fy))),
+        "principal_point_offset_x": ((camera.width - 1) / 2 - float(camera.K[0, 2])) / camera.width,
+        "principal_point_offset_y": ((camera.height - 1) / 2 - float(camera.K[1, 2]))
+        / camera.height,
+    }
 
 
 def _png16(image: NDArray[np.float64]) -> bytes:
@@ -90,7 +166,64 @@ def _png16(image: NDArray[np.float64]) -> bytes:
     return buffer.tobytes()
 
 
-def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Path, bytes]:
+def _sensor_lines(camera: Camera | None) -> list[str]:
+    head = [
+        '    <sensor type="perspective" id="camera">',
+        '        <transform name="to_world"><matrix value="'
+        + _matrix_attribute(np.eye(4))
+        + '"/></transform>',
+    ]
+    if camera is None:
+        return [
+            "    <!-- No project was given: the sensor has Mitsuba's default film and field",
+            "         of view (give the export the project for its camera's). -->",
+            *head,
+            "    </sensor>",
+        ]
+    numbers = sensor_numbers(camera)
+    fx, fy = float(camera.K[0, 0]), float(camera.K[1, 1])
+    dist = [float(c) for c in camera.dist[: camera.n_dist]]
+    distortion = (
+        "none" if not any(dist) else ", ".join(f"{c:.6g}" for c in dist) + " (NOT modelled)"
+    )
+    return [
+        f"    <!-- The project's camera: {camera.width} x {camera.height} px, fy {fy:.6g} px (the",
+        f"         field of view along y), principal point ({float(camera.K[0, 2]):.6g},",
+        f"         {float(camera.K[1, 2]):.6g}) px (OpenCV: pixel centres at integers) as an",
+        "         offset from the film's centre. Mitsuba's perspective sensor has one focal",
+        f"         length (fx {fx:.6g} px is taken as fy: ratio {fx / fy:.8f}), no skew",
+        f"         (here {camera.skew:.3g}) and no lens distortion: distortion {distortion}.",
+        "         Compare its renders with undistorted images (cv2.undistort). -->",
+        *head,
+        '        <string name="fov_axis" value="y"/>',
+        f'        <float name="fov" value="{numbers["fov_deg"]!r}"/>',
+        '        <float name="principal_point_offset_x" value="'
+        f'{numbers["principal_point_offset_x"]!r}"/>',
+        '        <float name="principal_point_offset_y" value="'
+        f'{numbers["principal_point_offset_y"]!r}"/>',
+        '        <film type="hdrfilm">',
+        f'            <integer name="width" value="{camera.width}"/>',
+        f'            <integer name="height" value="{camera.height}"/>',
+        '            <rfilter type="box"/>',
+        "        </film>",
+        '        <sampler type="multijitter">',
+        f'            <integer name="sample_count" value="{SAMPLES_PER_PIXEL}"/>',
+        "        </sampler>",
+        "    </sensor>",
+    ]
+
+
+def mitsuba_files(
+    result: ResultFile, source: str | Path, out: Path, *, camera: Camera | None = None
+) -> dict[Path, bytes]:
+    """The scene XML (`out`) and the RID textures beside it.
+
+    Args:
+        result: The result (with the project's given RIDs filled in, `with_given_rids`).
+        source: The result's path, for error messages.
+        out: The XML's path; textures are named `<stem>_rid_<k>.png` beside it.
+        camera: The project's camera, for the sensor's film and field of view.
+    """
     files: dict[Path, bytes] = {}
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
@@ -99,26 +232,25 @@ def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pat
         "     +y up, +x to the image's left); each emitter's to_world is",
         "     diag(-1, -1, 1, 1) @ T_camera_light (OpenCV frame: x right, y down, z forward;",
         "     metres). In a scene whose sensor has to_world S, use S @ (the matrix below).",
+        "     Each emitter's intensity is the light's calibrated scale (times its texture's",
+        "     peak): a Lambertian wall of albedo rho renders rho / pi times lightcal's value.",
         "     A spot's texture (16-bit PNG beside this file) is its RID over the cone;",
         "     without one the cone's falloff approximates a 90 degree half angle. -->",
         '<scene version="3.0.0">',
-        '    <sensor type="perspective" id="camera">',
-        '        <transform name="to_world"><matrix value="'
-        + _matrix_attribute(np.eye(4))
-        + '"/></transform>',
-        "    </sensor>",
+        *_sensor_lines(camera),
     ]
     for index, light in enumerate(result.lights):
         rid = light_rid(light, source)
         M = mitsuba_from_opencv(light_transform(light))
         kind = "point" if light.pose_kind == "isotropic" else "spot"
         lines.append(f'    <emitter type="{kind}" id={xml_attribute(light.name)}>')
-        intensity = 1.0
+        intensity = float(light.scale)
         if kind == "spot" and rid is not None:
             cutoff_rad, texture = spot_texture(rid)
-            intensity = max(float(texture.max()), 1.0)  # a batwing's peak is off the axis
+            peak = max(float(texture.max()), 1.0)  # a batwing's peak is off the axis
+            intensity *= peak
             name = f"{out.stem}_rid_{index}.png"
-            files[out.parent / name] = _png16(texture / intensity)
+            files[out.parent / name] = _png16(texture / peak)
             cutoff_deg = math.degrees(cutoff_rad)
             lines += [
                 f'        <float name="cutoff_angle" value="{cutoff_deg!r}"/>',
@@ -126,6 +258,7 @@ def mitsuba_files(result: ResultFile, source: str | Path, out: Path) -> dict[Pat
                 '        <texture type="bitmap" name="texture">',
                 f'            <string name="filename" value={xml_attribute(name)}/>',
                 '            <boolean name="raw" value="true"/>',
+                '            <string name="wrap_mode" value="clamp"/>',
                 "        </texture>",
             ]
         elif kind == "spot":
