@@ -1,7 +1,9 @@
 """Hardening of `lightcal init` and `lightcal camera` (issue 28): every argument checked
-before any work, nothing left behind by a run that fails or is interrupted part-way, a
-non-finite marker fit refused, and capture sets that cannot determine the intrinsics
-(copies of one photo, the board at one angle) refused or warned about.
+before any work (the initial light within the project file's bounds, `--min-markers` within
+the board's markers), nothing left behind by a run that fails or is interrupted part-way, a
+non-finite marker fit refused, capture sets that cannot determine the intrinsics (copies of
+one photo, the board at one angle) refused or warned about, and a camera, project or
+result file given as the board named for what it is.
 
 Each case asserts the exact line on stderr and the exit code of `lightcal.cli.main.main`.
 """
@@ -24,7 +26,7 @@ from lightcal.capture.intrinsics import calibrate_intrinsics
 from lightcal.capture.plane_texture import look_at_pose, render_plane_image
 from lightcal.cli.main import main
 from lightcal.errors import InputError
-from lightcal.io.board_file import write_board
+from lightcal.io.board_file import read_board, write_board
 from lightcal.io.camera_file import read_camera, write_camera
 from lightcal.io.project import load_project
 from tests.test_cli_camera import CAMERA as CHESS_CAMERA
@@ -34,6 +36,13 @@ from tests.test_cli_init import BOARD, CAMERA, VIEWS, _png, wall_image
 EXPECTED_VIEWS = (
     "expected photos of the board from at least 3 different angles, tilted by 10-45 degrees"
 )
+
+
+AXIS_NOT_MINUS_Z = (
+    "expected an axis other than -z (straight back, away from the wall: there the light's "
+    "initial orientation is not defined)"
+)
+"""The refusal of an initial axis along -z (the project cannot orient the light there)."""
 
 
 def _listing(folder: Path) -> list[str]:
@@ -109,6 +118,29 @@ INIT_OPTION_CASES = [
     (
         ["--initial-axis", "0", "inf", "1"],
         "--initial-axis: expected three finite numbers, got 0 inf 1",
+    ),
+    # The initial light within the project file's bounds (InitialSpec.position_m: ±10 m),
+    # and an axis the project can turn into an orientation: checked before the images.
+    (
+        ["--initial-position", "1e9", "0", "0"],
+        "--initial-position: expected each coordinate within ±10 m of the camera, got 1e+09 0 0",
+    ),
+    (
+        ["--initial-position", "0", "-10.5", "0.2"],
+        "--initial-position: expected each coordinate within ±10 m of the camera, got 0 -10.5 0.2",
+    ),
+    (["--initial-axis", "0", "0", "0"], "--initial-axis: expected a non-zero direction, got 0 0 0"),
+    (["--initial-axis", "0", "0", "-1"], f"--initial-axis: {AXIS_NOT_MINUS_Z}, got 0 0 -1"),
+    (["--initial-axis", "0", "-0", "-3"], f"--initial-axis: {AXIS_NOT_MINUS_Z}, got 0 -0 -3"),
+    (
+        ["--initial-axis", "1e200", "0", "1"],
+        "--initial-axis: expected a direction of length 1e-100 to 1e+100, got 1e+200 0 1",
+    ),
+    # More markers than the board has (35: 7 x 5) can never be found in an image.
+    (["--min-markers", "36"], "--min-markers: expected at most the board's 35 markers, got 36"),
+    (
+        ["--min-markers", "100000"],
+        "--min-markers: expected at most the board's 35 markers, got 100000",
     ),
     (["--black-level", "-1"], "--black-level: expected a finite value >= 0, got -1"),
     (["--black-level", "nan"], "--black-level: expected a finite value >= 0, got nan"),
@@ -579,3 +611,126 @@ def test_camera_import_names_the_camera_id_option(tmp_path: Path, capsys) -> Non
     )
     assert main(["camera", "import", str(colmap), "--out", str(out), "--camera-id", "2"]) == 0
     assert read_camera(out).fx == 500.0
+
+
+# --- init: the initial light and --min-markers in the library, before any image ----------
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (
+            {"initial_position_m": (0.0, 0.0, 11.0)},
+            "initial_position_m: expected each coordinate within ±10 m of the camera, got "
+            "(0, 0, 11)",
+        ),
+        (
+            {"initial_axis_camera": (0, 0, 0)},
+            "initial_axis_camera: expected a non-zero direction, got (0, 0, 0)",
+        ),
+        (
+            {"initial_axis_camera": (1e-170, 0.0, -1.0)},  # x^2 underflows: -z to the project
+            f"initial_axis_camera: {AXIS_NOT_MINUS_Z}, got (1e-170, 0, -1)",
+        ),
+        ({"min_markers": 36}, "min_markers: expected at most the board's 35 markers, got 36"),
+    ],
+    ids=["position", "zero axis", "-z axis", "min markers"],
+)
+def test_the_library_checks_the_initial_light_and_markers_before_any_image(
+    wall: Path, change: dict[str, Any], expected: str
+) -> None:
+    before = _listing(wall)
+    with pytest.raises(InputError, match=f"^{re.escape(expected)}$"):
+        project_init.init_project(
+            wall / "photos",
+            camera_path=wall / "camera.yaml",
+            board_path=wall / "board.yaml",
+            out_path=wall / "project.json",
+            on_image=lambda outcome: pytest.fail("an image was read"),
+            **change,
+        )
+    assert _listing(wall) == before
+
+
+def test_the_largest_initial_guess_the_checks_take_makes_a_project(
+    wall: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The bounds are the project file's: what passes them loads (here: every marker of
+    the board required, an axis just off -z, the light 10 m to the side)."""
+    argv = _init(wall, "--min-markers", "35", "--initial-axis", "0.01", "0", "-1")
+    assert main([*argv, "--initial-position", "-10", "0", "0"]) == 0
+    project = load_project(wall / "project.json")
+    assert project.spec.lights[0].initial.axis_camera == [0.01, 0.0, -1.0]
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[:2] == [
+        "wall_0.png: rejected: found 30 markers, need at least 35",
+        "wall_1.png: rejected: found 31 markers, need at least 35",
+    ]
+    assert lines[2].startswith("wall_2.png: 35 markers, rms ")
+    assert lines[3].startswith("1 of 3 images accepted, 2 rejected")
+    assert project.spec.lights[0].initial.position_m == [-10.0, 0.0, 0.0]
+
+
+# --- a camera, project or result file given as the board file --------------------------
+
+NOT_A_BOARD = ", not a board file: expected a board file (type aruco_grid, charuco or chessboard)"
+
+
+@pytest.mark.parametrize("command", ["init", "camera calibrate"])
+def test_a_camera_file_given_as_the_board_is_named(
+    wall: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    camera = wall / "camera.yaml"  # written by OpenCV: tags !!opencv-matrix
+    if command == "init":
+        argv = _init(wall, "--board", str(camera))
+    else:
+        out = wall / "new_camera.yaml"
+        argv = ["camera", "calibrate", str(wall / "photos"), "--board", str(camera)]
+        argv += ["--out", str(out)]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (
+        f"lightcal {command.split()[0]}: error: {camera}: an OpenCV camera file{NOT_A_BOARD}\n"
+    )
+    assert captured.out == ""
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "what"),
+    [
+        ("camera.json", None, "an OpenCV camera file"),
+        (
+            "camera.yaml",
+            "image_width: 640\nimage_height: 480\ncamera_matrix: [[500, 0, 320], [0, 500, "
+            "240], [0, 0, 1]]\n",
+            "an OpenCV camera file",
+        ),
+        (
+            "camera.yml",
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n",
+            "an OpenCV camera file",
+        ),
+        (
+            "project.json",
+            '{"camera": {"path": "camera.yaml"}, "images": [{"path": "a.png"}], '
+            '"lights": [{"rid": {"type": "half_angle", "half_angle_deg": 30}}]}',
+            "a project file",
+        ),
+        (
+            "result.json",
+            '{"version": 3, "lightcal_version": "1.0", "parameters": {}, "lights": []}',
+            "a result file of lightcal calibrate",
+        ),
+    ],
+    ids=["camera json", "camera plain yaml", "camera size only", "project", "result"],
+)
+def test_another_lightcal_file_given_as_the_board_is_named(
+    tmp_path: Path, name: str, content: str | None, what: str
+) -> None:
+    path = tmp_path / name
+    if content is None:
+        write_camera(CAMERA, path)
+    else:
+        path.write_text(content)
+    with pytest.raises(InputError, match=f"^{re.escape(f'{path}: {what}{NOT_A_BOARD}')}$"):
+        read_board(path)

@@ -319,7 +319,7 @@ def test_errors_are_one_line_naming_the_input(scene, capsys):
         message,
     ), message
     assert error(_init(root, images, "--initial-axis", "0", "0", "0")) == (
-        "initial_axis_camera: expected a non-zero direction, got (0, 0, 0)"
+        "--initial-axis: expected a non-zero direction, got 0 0 0"
     )
     assert not (root / "project.json").exists()
 

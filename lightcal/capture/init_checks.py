@@ -14,17 +14,23 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
 from lightcal.capture.marker_pose import MarkerPose
 from lightcal.errors import InputError
+from lightcal.io.project_spec import MAX_LIGHT_OFFSET_M
 
 __all__ = [
     "NOT_FINITE",
     "POSE_FLOOR_DEG",
     "POSE_FLOOR_M",
+    "axis_problem",
     "check_detection",
     "check_levels",
     "check_pose_floor",
     "fit_problem",
+    "initial_guess",
+    "markers_problem",
+    "position_problem",
     "vector3",
     "with_pose_floor",
 ]
@@ -46,6 +52,60 @@ def vector3(name: str, values: Sequence[float]) -> list[float]:
     if len(out) != 3 or not all(math.isfinite(v) for v in out):
         raise InputError(name, f"expected three finite numbers, got {list(values)!r}")
     return out
+
+
+def position_problem(position_m: Sequence[float]) -> str | None:
+    """Why an initial light position (3 finite numbers, camera frame, m) cannot go into a
+    project (`InitialSpec.position_m`'s bound), or None."""
+    if all(abs(v) <= MAX_LIGHT_OFFSET_M for v in position_m):
+        return None
+    return f"expected each coordinate within ±{MAX_LIGHT_OFFSET_M:g} m of the camera"
+
+
+MAX_AXIS_LENGTH = 1e100
+"""The longest initial axis (3 finite numbers) taken, and 1 / the shortest: its length
+must be computable (and the axis normalised) without overflow or underflow."""
+
+
+def axis_problem(axis_camera: Sequence[float]) -> str | None:
+    """Why an initial light axis (3 finite numbers, camera frame) cannot go into a project,
+    or None: zero, too long or short to normalise, or -z (where the project's minimal
+    rotation from +z, `lightcal.core.light_axis.rotation_from_axis`, is not unique)."""
+    x, y, z = (float(v) for v in axis_camera)
+    length = math.hypot(x, y, z)  # scaled: no overflow where the length itself fits
+    if length == 0.0:
+        return "expected a non-zero direction"
+    if not 1.0 / MAX_AXIS_LENGTH <= length <= MAX_AXIS_LENGTH:
+        return f"expected a direction of length {1.0 / MAX_AXIS_LENGTH:g} to {MAX_AXIS_LENGTH:g}"
+    x, y, z = x / length, y / length, z / length
+    if x * x + y * y == 0.0 and z < 0.0:
+        return (
+            "expected an axis other than -z (straight back, away from the wall: there the "
+            "light's initial orientation is not defined)"
+        )
+    return None
+
+
+def markers_problem(min_markers: int, board: ArucoGridBoard | CharucoBoard) -> str | None:
+    """Why a fewest-markers count can never be met on `board`, or None."""
+    if min_markers <= board.n_markers:
+        return None
+    return f"expected at most the board's {board.n_markers} markers"
+
+
+def initial_guess(
+    position_m: Sequence[float], axis_camera: Sequence[float]
+) -> tuple[list[float], list[float]]:
+    """`init_project`'s initial light position (m) and axis, checked, as floats."""
+    position = vector3("initial_position_m", position_m)
+    axis = vector3("initial_axis_camera", axis_camera)
+    for name, values, problem in (
+        ("initial_position_m", position, position_problem(position)),
+        ("initial_axis_camera", axis, axis_problem(axis)),
+    ):
+        if problem is not None:
+            raise InputError(name, f"{problem}, got ({', '.join(f'{v:g}' for v in values)})")
+    return position, axis
 
 
 def check_levels(black_level: float | None, white_level: float | None) -> None:

@@ -47,7 +47,8 @@ from lightcal.capture.init_checks import (
     check_levels,
     check_pose_floor,
     fit_problem,
-    vector3,
+    initial_guess,
+    markers_problem,
     with_pose_floor,
 )
 from lightcal.capture.marker_pose import (
@@ -303,10 +304,7 @@ def init_project(
     if not folder.is_dir():
         raise InputError(out, f"cannot write: folder {str(folder)!r} does not exist")
     check_detection(min_markers, mask_margin_px, max_rms_px)
-    position = vector3("initial_position_m", initial_position_m)
-    axis = vector3("initial_axis_camera", initial_axis_camera)
-    if math.hypot(*axis) == 0.0:
-        raise InputError("initial_axis_camera", "expected a non-zero direction, got (0, 0, 0)")
+    position, axis = initial_guess(initial_position_m, initial_axis_camera)
     check_pose_floor(pose_floor_m, pose_floor_deg, ("pose_floor_m", "pose_floor_deg"))
     check_levels(black_level, white_level)
 
@@ -321,6 +319,8 @@ def init_project(
             "a chessboard has no markers, so it gives no camera pose on the wall: expected "
             "an aruco_grid or charuco board",
         )
+    if (problem := markers_problem(min_markers, board)) is not None:
+        raise InputError("min_markers", f"{problem}, got {min_markers}")
     rid = _rid_spec(None if light_file is None else Path(light_file), half_angle_deg, folder, out)
     print_polygons = board.outline_world()
 

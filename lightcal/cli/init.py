@@ -4,10 +4,12 @@ Detects the board in every image, prints one line per image (markers, reprojecti
 and camera position, or why it was rejected), writes the marker masks and the project
 file (see `lightcal.capture.project_init`).
 
-Every option is checked before any image is read (`check_options`; the messages name the
-option as typed), and so are the outputs (never an input, never replacing a project or
-masks without `--force`). A run that fails or is interrupted part-way leaves no project
-and no `masks/` behind (`lightcal.capture.mask_staging`).
+Every option is checked before any image is read (`check_options`; `--min-markers` against
+the board's markers once `init_project` has read the board file; the messages name the
+option as typed, and the initial light must fit the project file's bounds), and so are the
+outputs (never an input, never replacing a project or masks without `--force`). A run
+that fails or is interrupted part-way leaves no project and no `masks/` behind
+(`lightcal.capture.mask_staging`).
 """
 
 from __future__ import annotations
@@ -130,6 +132,14 @@ def check_options(args: argparse.Namespace) -> None:
     ):
         if not all(math.isfinite(v) for v in values):
             raise InputError(option, f"expected three finite numbers{unit}, got {_numbers(values)}")
+    from lightcal.capture.init_checks import axis_problem, position_problem
+
+    for option, values, problem in (
+        ("--initial-position", args.initial_position, position_problem(args.initial_position)),
+        ("--initial-axis", args.initial_axis, axis_problem(args.initial_axis)),
+    ):
+        if problem is not None:
+            raise InputError(option, f"{problem}, got {_numbers(values)}")
     black, white = args.black_level, args.white_level
     if black is not None and not (math.isfinite(black) and black >= 0.0):
         raise InputError("--black-level", f"expected a finite value >= 0, got {black:g}")
@@ -170,24 +180,29 @@ def run(args: argparse.Namespace) -> int:
     masks = args.out.parent / MASKS_DIR
     if masks.exists():
         check_output_folder(masks, option="the masks folder", inputs=inputs, force=args.force)
-    result = init_project(
-        args.image_dir,
-        camera_path=args.camera,
-        board_path=args.board,
-        out_path=args.out,
-        light_file=args.light_ies,
-        half_angle_deg=args.half_angle_deg,
-        initial_position_m=args.initial_position,
-        initial_axis_camera=args.initial_axis,
-        min_markers=args.min_markers,
-        mask_margin_px=args.mask_margin_px,
-        max_rms_px=args.max_rms_px,
-        black_level=args.black_level,
-        white_level=args.white_level,
-        pose_floor_m=args.pose_floor_mm / 1000.0,
-        pose_floor_deg=args.pose_floor_deg,
-        on_image=on_image,
-    )
+    try:
+        result = init_project(
+            args.image_dir,
+            camera_path=args.camera,
+            board_path=args.board,
+            out_path=args.out,
+            light_file=args.light_ies,
+            half_angle_deg=args.half_angle_deg,
+            initial_position_m=args.initial_position,
+            initial_axis_camera=args.initial_axis,
+            min_markers=args.min_markers,
+            mask_margin_px=args.mask_margin_px,
+            max_rms_px=args.max_rms_px,
+            black_level=args.black_level,
+            white_level=args.white_level,
+            pose_floor_m=args.pose_floor_mm / 1000.0,
+            pose_floor_deg=args.pose_floor_deg,
+            on_image=on_image,
+        )
+    except InputError as exc:  # checked against the board once it is read, before any image
+        if exc.source != "min_markers":
+            raise
+        raise InputError("--min-markers", exc.detail) from exc
     for warning in result.warnings:
         print(f"warning: {warning}")
     n_ok, n_all = len(result.accepted), len(result.images)

@@ -20,7 +20,8 @@ origin_world_m: [-1.1, 0.8] # optional: the board's top-left corner on the wall
 `charuco` takes `dictionary`, `squares_x`, `squares_y`, `square_length_m`,
 `marker_length_m` and `origin_world_m`; `chessboard` takes `inner_x`, `inner_y` and
 `square_length_m`. JSON for `.json`, YAML for `.yaml` / `.yml`. Every problem is an
-`InputError` naming the file and the field.
+`InputError` naming the file and the field; an OpenCV camera file, a project or a result
+file given as a board file is named for what it is.
 """
 
 from __future__ import annotations
@@ -117,6 +118,40 @@ _ADAPTER: TypeAdapter[ArucoGridSpec | CharucoSpec | ChessboardSpec] = TypeAdapte
 _TYPES = "aruco_grid, charuco or chessboard"
 
 
+_EXPECTED = f"expected a board file (type {_TYPES})"
+
+_OTHER_FILES = (
+    ({"camera_matrix"}, "an OpenCV camera file"),
+    ({"image_width", "image_height"}, "an OpenCV camera file"),
+    ({"lightcal_version", "parameters"}, "a result file of lightcal calibrate"),
+    ({"images", "lights"}, "a project file"),
+)
+"""Keys that name a file given where a board file was expected (without a board `type`)."""
+
+
+def _other_file(data: dict[Any, Any]) -> str | None:
+    """What a mapping without a board `type` is, when it is another file lightcal knows."""
+    for keys, what in _OTHER_FILES:
+        if keys <= data.keys():
+            return what
+    return None
+
+
+def _is_opencv_yaml(path: Path, error: InputError) -> bool:
+    """The YAML reader stopped at an OpenCV tag (`!!opencv-matrix`) or at the header
+    older OpenCV writes (`%YAML:1.0`, not YAML): an OpenCV file."""
+    cause = error.__cause__
+    if isinstance(cause, yaml.constructor.ConstructorError):
+        return "tag:yaml.org,2002:opencv-" in str(cause.problem or "")
+    if not isinstance(cause, yaml.YAMLError):
+        return False
+    try:
+        with path.open("rb") as stream:
+            return stream.read(6) == b"%YAML:"
+    except OSError:
+        return False
+
+
 def _format_loc(loc: tuple[Any, ...]) -> str:
     # The discriminator value is the first element of a union error's location: drop it.
     parts = loc[1:] if loc and loc[0] in ("aruco_grid", "charuco", "chessboard") else loc
@@ -140,16 +175,20 @@ def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | 
         The validated spec.
 
     Raises:
-        InputError: Not a mapping, an unknown `type` or version, a missing or invalid field.
+        InputError: Not a mapping, an unknown `type` or version, a missing or invalid field;
+            a camera, project or result file is named as such.
     """
     if not isinstance(data, dict):
         raise InputError(source, f"expected a mapping with a 'type' ({_TYPES}) at the top level")
+    kind = data.get("type")
+    other = _other_file(data) if kind not in ("aruco_grid", "charuco", "chessboard") else None
+    if other is not None:
+        raise InputError(source, f"{other}, not a board file: {_EXPECTED}")
     version = data.get("version", BOARD_FILE_VERSION)
     if version != BOARD_FILE_VERSION:
         raise InputError(
             source, f"version: this lightcal reads board file version 1, got {version!r}"
         )
-    kind = data.get("type")
     if kind not in ("aruco_grid", "charuco", "chessboard"):
         raise InputError(source, f"type: expected {_TYPES}, got {kind!r}")
     try:
@@ -249,12 +288,17 @@ def read_board(path: str | Path) -> Board:
     """
     path = Path(path)
     suffix = _check_suffix(path)
-    data = read_document(
-        path,
-        what="board file",
-        as_json=suffix == ".json",
-        empty=f"empty file: expected a board description with a 'type' ({_TYPES})",
-    )
+    try:
+        data = read_document(
+            path,
+            what="board file",
+            as_json=suffix == ".json",
+            empty=f"empty file: expected a board description with a 'type' ({_TYPES})",
+        )
+    except InputError as exc:
+        if _is_opencv_yaml(path, exc):
+            raise InputError(path, f"an OpenCV camera file, not a board file: {_EXPECTED}") from exc
+        raise
     return board_from_spec(parse_board(data, path), path)
 
 
