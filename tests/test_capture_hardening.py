@@ -2,8 +2,9 @@
 before any work (the initial light within the project file's bounds, `--min-markers` within
 the board's markers), nothing left behind by a run that fails or is interrupted part-way, a
 non-finite marker fit refused, capture sets that cannot determine the intrinsics (copies of
-one photo, the board at one angle) refused or warned about, and a camera, project or
-result file given as the board named for what it is.
+one photo, the board at one angle) refused or warned about, a camera, project or result
+file given as the board named for what it is, and `camera --out` replacing a file only
+with `--force` (never an input).
 
 Each case asserts the exact line on stderr and the exit code of `lightcal.cli.main.main`.
 """
@@ -734,3 +735,85 @@ def test_another_lightcal_file_given_as_the_board_is_named(
         path.write_text(content)
     with pytest.raises(InputError, match=f"^{re.escape(f'{path}: {what}{NOT_A_BOARD}')}$"):
         read_board(path)
+
+
+# --- camera: --out never replaces a file without --force --------------------------------
+
+
+def test_camera_import_replaces_an_existing_out_only_with_force(tmp_path: Path, capsys) -> None:
+    colmap = tmp_path / "cameras.txt"
+    colmap.write_text("1 PINHOLE 640 480 560 561 322.9 238.6\n")
+    out = tmp_path / "project.json"  # the file the issue saw replaced
+    out.write_text('{"version": 1}\n')
+    assert main(["camera", "import", str(colmap), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (
+        f"lightcal camera: error: {out}: --out: exists; use --force to replace it\n"
+    )
+    assert captured.out == "" and out.read_text() == '{"version": 1}\n'
+    assert main(["camera", "import", str(colmap), "--out", str(out), "--force"]) == 0
+    assert read_camera(out).fx == 560.0
+    assert main(["camera", "import", str(out), "--out", str(out), "--force"]) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal camera: error: {out}: --out: is the camera file, an input of the import; "
+        "write elsewhere\n"
+    )
+    assert read_camera(out).fx == 560.0
+    assert _listing(tmp_path) == ["cameras.txt", "project.json"]  # no temporary file left
+
+
+def test_camera_import_never_replaces_a_file_that_appears_while_it_works(
+    tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Checked first, then created atomically without replacing: a file another program
+    wrote in between is kept."""
+    import lightcal.io.outputs as outputs
+
+    colmap = tmp_path / "cameras.txt"
+    colmap.write_text("1 PINHOLE 640 480 560 561 322.9 238.6\n")
+    out = tmp_path / "camera.yaml"
+    check = outputs.check_output_file
+
+    def check_then_appear(path: Path, **kwargs: Any) -> Path:
+        checked = check(path, **kwargs)
+        out.write_text("theirs\n")
+        return checked
+
+    monkeypatch.setattr(outputs, "check_output_file", check_then_appear)
+    assert main(["camera", "import", str(colmap), "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal camera: error: {out}: --out: exists; use --force to replace it\n"
+    )
+    assert out.read_text() == "theirs\n"
+    assert _listing(tmp_path) == ["camera.yaml", "cameras.txt"]
+
+
+def test_write_camera_without_replace_keeps_an_existing_file(tmp_path: Path) -> None:
+    out = tmp_path / "camera.json"
+    out.write_text("mine\n")
+    with pytest.raises(FileExistsError):
+        write_camera(CAMERA, out, replace=False)
+    assert out.read_text() == "mine\n" and _listing(tmp_path) == ["camera.json"]
+    write_camera(CAMERA, tmp_path / "new.json", replace=False)
+    assert read_camera(tmp_path / "new.json") == CAMERA
+
+
+def test_camera_calibrate_replaces_an_existing_out_only_with_force(tmp_path: Path, capsys) -> None:
+    folder = _write(tmp_path / "chess", list(chessboard_views()))
+    out = tmp_path / "camera.yaml"
+    out.write_text("keep\n")
+    assert main(_calibrate(folder, out)) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (
+        f"lightcal camera: error: {out}: --out: exists; use --force to replace it\n"
+    )
+    assert captured.out == ""  # before any photo was read
+    assert out.read_text() == "keep\n"
+    assert main(_calibrate(folder, out, "--force")) == 0
+    assert read_camera(out).width == CHESS_CAMERA.width
+    board = tmp_path / "chessboard.yaml"
+    assert main(_calibrate(folder, board, "--force")) == 2  # an input, even with --force
+    assert capsys.readouterr().err == (
+        f"lightcal camera: error: {board}: --out: is the board file, an input of the "
+        "calibration; write elsewhere\n"
+    )

@@ -1,12 +1,12 @@
 """`lightcal camera calibrate | import`: camera intrinsics files.
 
-- `lightcal camera calibrate IMAGES... --board BOARD --out camera.yaml [--n-dist 5]`:
+- `lightcal camera calibrate IMAGES... --board BOARD --out camera.yaml [--n-dist 5] [--force]`:
   intrinsics from views of a chessboard or ChArUco board
   (`lightcal.capture.intrinsics.calibrate_intrinsics`); prints the reprojection RMS of every
   view used and the reason for every view rejected, and writes an OpenCV-compatible YAML
   (or XML, or JSON, by the suffix of `--out`).
-- `lightcal camera import FILE --out camera.yaml`: converts an OpenCV YAML/XML/JSON file or
-  a COLMAP cameras.txt (principal point shifted by half a pixel, see
+- `lightcal camera import FILE --out camera.yaml [--force]`: converts an OpenCV
+  YAML/XML/JSON file or a COLMAP cameras.txt (principal point shifted by half a pixel, see
   `lightcal.io.camera_file.read_camera`) to the format of `--out`.
 
 IMAGES may name files or folders (every image directly in a folder, sorted by name;
@@ -14,9 +14,11 @@ a photo named twice is refused). Images are read as grey values (camera raw: dem
 luminance at full size); 8-bit images need no response curve here, only the corners matter.
 
 Every option is checked before any photo is read (`--out`'s suffix and place,
-`--max-rms-px`, `--camera-id`). Photos that cannot determine the intrinsics are refused
-(copies of one view, the board at fewer than 3 different angles) or warned about (the
-board nearly square-on in every view): see `lightcal.capture.view_variety`.
+`--max-rms-px`, `--camera-id`). `--out` never replaces an existing file without `--force`,
+and never an input (the board, a photo, the imported file), even with it. Photos that
+cannot determine the intrinsics are refused (copies of one view, the board at fewer than 3
+different angles) or warned about (the board nearly square-on in every view): see
+`lightcal.capture.view_variety`.
 """
 
 from __future__ import annotations
@@ -53,6 +55,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out", type=Path, required=True, help="camera file to write (.yaml, .yml, .xml, .json)"
     )
     c.add_argument(
+        "--force", action="store_true", help="replace an existing --out file (never an input)"
+    )
+    c.add_argument(
         "--n-dist",
         type=int,
         choices=(4, 5, 8),
@@ -77,6 +82,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out", type=Path, required=True, help="camera file to write (.yaml, .yml, .xml, .json)"
     )
     i.add_argument(
+        "--force", action="store_true", help="replace an existing --out file (never FILE)"
+    )
+    i.add_argument(
         "--camera-id", type=int, default=None, help="COLMAP: which camera of cameras.txt"
     )
     i.set_defaults(func=run_import)
@@ -88,6 +96,17 @@ def _check_out_suffix(out: Path) -> None:
         raise InputError(
             out, f"unsupported file suffix {out.suffix!r}: expected .yaml, .yml, .xml or .json"
         )
+
+
+def _write(camera: Camera, out: Path, *, force: bool) -> None:
+    """`write_camera` to `--out`: replacing an existing file only with `--force` (one that
+    appeared since the check is refused too, never replaced)."""
+    from lightcal.io.camera_file import write_camera
+
+    try:
+        write_camera(camera, out, replace=force)
+    except FileExistsError:
+        raise InputError(out, "--out: exists; use --force to replace it") from None
 
 
 def _expand(inputs: list[Path]) -> list[Path]:
@@ -144,7 +163,6 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from lightcal.capture.boards import CharucoBoard, Chessboard
     from lightcal.capture.intrinsics import calibrate_intrinsics
     from lightcal.io.board_file import read_board
-    from lightcal.io.camera_file import write_camera
     from lightcal.io.images import read_image
     from lightcal.io.outputs import check_output_file
 
@@ -166,7 +184,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
     inputs = {args.board.resolve(): "the board file"}
     for path, name in zip(paths, all_names, strict=True):
         inputs.setdefault(path.resolve(), f"image {name}")
-    check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the calibration")
+    check_output_file(
+        args.out, option="--out", inputs=inputs, force=args.force, inputs_of="the calibration"
+    )
     _check_out_suffix(args.out)
     images = []
     names = []
@@ -196,7 +216,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
             print(f"{name}: rejected: {reasons[name]}")
     for warning in result.warnings:
         print(f"warning: {warning}")
-    write_camera(result.camera, args.out)
+    _write(result.camera, args.out, force=args.force)
     print(_describe(result.camera))
     print(_describe_sigma(result.camera))
     print(
@@ -207,7 +227,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_import(args: argparse.Namespace) -> int:
-    from lightcal.io.camera_file import read_camera, write_camera
+    from lightcal.io.camera_file import read_camera
     from lightcal.io.outputs import check_output_file
 
     if args.camera_id is not None and args.file.suffix.lower() != ".txt":
@@ -216,7 +236,9 @@ def run_import(args: argparse.Namespace) -> int:
             f"applies only to a COLMAP cameras.txt, got {args.file.name} (it holds one camera)",
         )
     inputs = {args.file.resolve(): "the camera file"}
-    check_output_file(args.out, option="--out", inputs=inputs, inputs_of="the import")
+    check_output_file(
+        args.out, option="--out", inputs=inputs, force=args.force, inputs_of="the import"
+    )
     _check_out_suffix(args.out)
     try:
         camera = read_camera(args.file, camera_id=args.camera_id)
@@ -225,7 +247,7 @@ def run_import(args: argparse.Namespace) -> int:
             raise
         detail = exc.detail.replace("camera_id", "--camera-id")
         raise InputError(exc.source, detail, line=exc.line) from exc
-    write_camera(camera, args.out)
+    _write(camera, args.out, force=args.force)
     print(_describe(camera))
     print(f"camera written to {args.out}")
     return 0

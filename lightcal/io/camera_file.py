@@ -43,7 +43,7 @@ import yaml
 
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.atomic import atomic_write_text
+from lightcal.io.atomic import atomic_create_bytes, atomic_write_text
 from lightcal.io.camera_mapping import (
     KEY_COVARIANCE,
     build_camera,
@@ -142,7 +142,7 @@ def read_camera(path: str | Path, *, camera_id: int | None = None) -> Camera:
     return camera_from_mapping(path, content)
 
 
-def write_camera(camera: Camera, path: str | Path) -> None:
+def write_camera(camera: Camera, path: str | Path, *, replace: bool = True) -> None:
     """Write a camera file atomically, readable back exactly by `read_camera`.
 
     `.yaml`, `.yml` and `.xml` are written with `cv2.FileStorage` (so OpenCV
@@ -156,10 +156,12 @@ def write_camera(camera: Camera, path: str | Path) -> None:
     Args:
         camera: The camera to write.
         path: Destination; its suffix chooses the format.
+        replace: False: never replace an existing file (created atomically, or not at all).
 
     Raises:
         InputError: Unsupported suffix, the destination folder does not exist or
             the file cannot be written.
+        FileExistsError: `replace` is False and `path` exists (it is left untouched).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -172,7 +174,12 @@ def write_camera(camera: Camera, path: str | Path) -> None:
         raise InputError(path, f"cannot write: folder {str(folder)!r} does not exist")
     text = _json_text(camera) if suffix == ".json" else _filestorage_text(camera, suffix)
     try:
-        atomic_write_text(path, text)
+        if replace:
+            atomic_write_text(path, text)
+        else:
+            atomic_create_bytes(path, text.encode("utf-8"))
+    except FileExistsError:
+        raise
     except OSError as error:
         raise InputError(path, f"cannot write: {error.strerror or error}") from error
 
