@@ -2,7 +2,7 @@
 
 | format | file | holds |
 |---|---|---|
-| `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, position, axis, sigmas, RID |
+| `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, rvec/tvec, 6x6 covariance, RID |
 | `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
 | `mitsuba` | Mitsuba 3 scene XML | sensor (project's intrinsics), spot per light, RID textures |
 | `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
@@ -41,7 +41,6 @@ from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
 from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import (
-    FRAME_NOTE,
     LightRID,
     given_rid_description,
     light_rid,
@@ -49,6 +48,7 @@ from lightcal.io.export_lights import (
     with_given_rids,
 )
 from lightcal.io.export_mitsuba import mitsuba_files, rid_values, spot_texture
+from lightcal.io.export_opencv import opencv_yaml
 from lightcal.io.photometric_table import PhotometricTable
 from lightcal.io.result_file import LightResultModel, ResultFile
 
@@ -69,65 +69,6 @@ __all__ = [
 
 ExportFormat = Literal["opencv", "blender", "mitsuba", "ies", "ldt"]
 FORMATS: tuple[ExportFormat, ...] = ("opencv", "blender", "mitsuba", "ies", "ldt")
-
-# ----------------------------------------------------------------------------- opencv
-
-
-def _opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
-    import cv2
-
-    fs = cv2.FileStorage(
-        "export.yaml",
-        cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML,
-    )
-    fs.write("lightcal_version", _opencv_text(result.lightcal_version))
-    fs.write("frame", FRAME_NOTE)
-    fs.write("lights_count", len(result.lights))
-    fs.startWriteStruct("lights", cv2.FileNode_SEQ)
-    for light in result.lights:
-        sigma = light.sigma  # every sigma is known: `export_files` refuses undetermined
-        fs.startWriteStruct("", cv2.FileNode_MAP)
-        fs.write("name", _opencv_text(light.name))
-        fs.write("pose_kind", light.pose_kind)
-        fs.write("T_camera_light", light_transform(light))
-        fs.write("position_m", np.array(light.position_m, dtype=np.float64).reshape(3, 1))
-        fs.write("axis_camera", np.array(light.axis_camera, dtype=np.float64).reshape(3, 1))
-        fs.write("scale", float(light.scale))
-        fs.write("sigma_position_m", np.array(sigma.position_m, dtype=np.float64).reshape(3, 1))
-        fs.write("sigma_axis_camera", np.array(sigma.axis_camera, dtype=np.float64).reshape(3, 1))
-        fs.write("sigma_R_camera_light", np.array(sigma.R_camera_light, dtype=np.float64))
-        fs.write("sigma_roll_deg", _known(sigma.roll_deg))
-        fs.write("sigma_pitch_deg", _known(sigma.pitch_deg))
-        fs.write("sigma_axis_angle_deg", _known(sigma.axis_angle_from_optical_axis_deg))
-        fs.write("sigma_scale", _known(light.scale_sigma))
-        rid = light_rid(light, source)
-        if rid is not None:
-            fs.write("rid_model", rid.model)
-            fs.write("rid_half_angle_rad", rid.half_angle_rad)
-            if rid.phi_rad is None:
-                # (n, 2): theta_rad, relative intensity
-                fs.write("rid_table", np.column_stack([rid.theta_rad, rid.values]))
-            else:
-                fs.write("rid_theta_rad", rid.theta_rad.reshape(-1, 1))
-                fs.write("rid_phi_rad", rid.phi_rad.reshape(-1, 1))
-                fs.write("rid_grid", rid.values)  # (n_phi, n_theta)
-        fs.endWriteStruct()
-    fs.endWriteStruct()
-    return fs.releaseAndGetString().encode("utf-8")
-
-
-def _opencv_text(text: str) -> str:
-    """`text` as `plain_line` for `cv2.FileStorage.write`, which reads back the same.
-
-    cv2 quotes and escapes a string itself, but cuts it at a NUL, refuses one longer than
-    its buffer, and writes one that starts and ends with the same quote character as it
-    is (as if already quoted: `"a" b: "c"` would add a key): that one is quoted here.
-    """
-    line = plain_line(text)
-    if line and line[0] == line[-1] and line[0] in "\"'":
-        return '"' + line.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    return line
-
 
 # ---------------------------------------------------------------------------- blender
 
@@ -175,11 +116,6 @@ def add_lights(lights=LIGHTS, camera_name=CAMERA_NAME):
 
 add_lights()
 '''
-
-
-def _known(v: float | None) -> float:
-    """A sigma of a determined result (NaN if it is not)."""
-    return math.nan if v is None else float(v)
 
 
 def _blender_snippet(result: ResultFile, source: str | Path) -> bytes:
@@ -319,7 +255,7 @@ def export_files(
             "export; fix the project and calibrate again",
         )
     whole: dict[str, Callable[[ResultFile, str | Path], bytes]] = {
-        "opencv": _opencv_yaml,
+        "opencv": opencv_yaml,
         "blender": _blender_snippet,
     }
     if fmt in whole:
