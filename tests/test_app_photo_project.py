@@ -138,6 +138,9 @@ def test_photos_uploaded_one_at_a_time_build_a_project(photos: Photos, tmp_path:
         "of half angle 30 degrees (give its IES/LDT file or half angle for a true fit)",
     )
     assert load_project(again.project.path).spec.lights[0].initial.position_m == [0.05, 0, 0]
+    with pytest.raises(InputError) as info:  # before any work, named as the page labels it
+        staging.build(options=PhotoOptions(min_markers=1000))
+    assert str(info.value) == "fewest markers: expected at most the board's 24 markers, got 1000"
 
 
 def test_a_zip_is_sorted_by_what_each_file_is(photos: Photos, tmp_path: Path) -> None:
@@ -443,6 +446,7 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
         (PhotoFields(pose_floor_mm=-0.1), "pose floor (mm): expected a finite value >= 0"),
         (PhotoFields(pose_floor_deg=math.nan), "pose floor (deg): expected a finite value >= 0"),
         (PhotoFields(initial_axis=(0, 0, 0)), "initial axis: expected a non-zero direction"),
+        (PhotoFields(initial_axis=(0, 0, -2)), "initial axis: expected an axis other than -z"),
         (PhotoFields(initial_position_mm=(9e9, 0, 0)), "initial light (mm): expected 3 finite"),
     ],
 )

@@ -23,7 +23,8 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from lightcal.capture.boards import CharucoBoard, Chessboard
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
+from lightcal.capture.init_checks import markers_problem
 from lightcal.capture.intrinsics import calibrate_intrinsics
 from lightcal.capture.project_init import ImageOutcome, init_project
 from lightcal.errors import InputError
@@ -33,6 +34,7 @@ from lightcal.io.images import RAW_EXTENSIONS, read_image
 from lightcal.io.project import load_project
 from lightcal.pipeline import load_images
 from lightcal_app.photo_records import (
+    LABELS,
     CameraSource,
     FileLevels,
     PhotoBuild,
@@ -71,14 +73,15 @@ def build_project(
         InputError: the chessboard photos give no intrinsics, no wall photo is usable, or
             the initial guess is behind the wall (named as the page knows them).
     """
+    wall_board = staged.wall_board
+    assert wall_board is not None
+    board_path = area / BOARD_DIRS[wall_board[0]] / wall_board[1]
+    _check_min_markers(board_path, options.min_markers)
     if staged.camera is not None:
         camera_path = area / CAMERA_DIR / staged.camera
         camera = CameraSource(staged.camera)
     else:
         camera_path, camera = _calibrate(area, out_dir, staged, progress)
-    wall_board = staged.wall_board
-    assert wall_board is not None
-    board_path = area / BOARD_DIRS[wall_board[0]] / wall_board[1]
     light = None if staged.light is None else area / LIGHT_DIR / staged.light
     # Without a light file nor a half angle, init_project takes 30 degrees and says so.
     half = options.half_angle_deg if light is None else None
@@ -147,6 +150,15 @@ def black_level_warning(levels: FileLevels) -> list[str]:
         "black level (most 14-bit sensors: 512 or so), enter it and build again, or the "
         "offset is taken for light and the light's position is wrong"
     ]
+
+
+def _check_min_markers(board_path: Path, min_markers: int) -> None:
+    """The fewest markers against the wall board's, before any work (as `lightcal init`)."""
+    board = read_board(board_path)
+    if isinstance(board, ArucoGridBoard | CharucoBoard):  # else init_project says
+        problem = markers_problem(min_markers, board)
+        if problem is not None:
+            raise InputError(LABELS["min_markers"], f"{problem}, got {min_markers}")
 
 
 def _calibrate(

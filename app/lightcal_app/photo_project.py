@@ -67,6 +67,8 @@ from lightcal_app.photo_build import (
 )
 from lightcal_app.photo_records import (
     DEFAULT_HALF_ANGLE_DEG,
+    LABELS,
+    MAX_MASK_MARGIN_PX,
     PHOTO_KINDS,
     CameraSource,
     FileLevels,
@@ -100,6 +102,8 @@ from lightcal_app.uploads import (
 
 __all__ = [
     "DEFAULT_HALF_ANGLE_DEG",
+    "LABELS",
+    "MAX_MASK_MARGIN_PX",
     "PHOTO_KINDS",
     "CameraSource",
     "FileLevels",

@@ -30,6 +30,23 @@ PHOTO_KINDS: tuple[PhotoKind, ...] = get_args(PhotoKind)
 DEFAULT_HALF_ANGLE_DEG = 30.0
 """The light's half angle without a light file nor a half angle (as `lightcal init`)."""
 
+MAX_MASK_MARGIN_PX = 100.0
+"""The largest mask margin, as `lightcal init --mask-margin-px` (`lightcal.cli.init`)."""
+
+# The page's label of each field (a refusal names the field by it).
+LABELS = {
+    "half_angle_deg": "half angle (deg)",
+    "initial_position_mm": "initial light (mm)",
+    "initial_axis": "initial axis",
+    "black_level": "black level",
+    "white_level": "white level",
+    "min_markers": "fewest markers",
+    "mask_margin_px": "mask margin (px)",
+    "max_rms_px": "largest marker RMS (px)",
+    "pose_floor_mm": "pose floor (mm)",
+    "pose_floor_deg": "pose floor (deg)",
+}
+
 
 @dataclass(frozen=True)
 class FileLevels:

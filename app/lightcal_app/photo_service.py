@@ -18,7 +18,6 @@ of `lightcal.capture.init_checks`, each refusal naming the field as the page lab
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from typing import Any, TypeVar
 from lightcal.capture.init_checks import (
     POSE_FLOOR_DEG,
     POSE_FLOOR_M,
+    axis_problem,
     check_detection,
     check_levels,
     check_pose_floor,
@@ -38,6 +38,8 @@ from lightcal_app.limits import check_position_m
 from lightcal_app.photo_build import project_zip_bytes
 from lightcal_app.photo_project import (
     DEFAULT_HALF_ANGLE_DEG,
+    LABELS,
+    MAX_MASK_MARGIN_PX,
     FileLevels,
     PhotoBuild,
     PhotoKind,
@@ -56,23 +58,6 @@ PHOTOS_FOLDER = "photos"
 """The staging areas' folder under the app's state folder."""
 
 ZIP_NAME = "project-from-photos.zip"
-
-MAX_MASK_MARGIN_PX = 100.0
-"""The largest mask margin, as `lightcal init --mask-margin-px` (`lightcal.cli.init`)."""
-
-# The page's label of each field (a refusal names the field by it).
-LABELS = {
-    "half_angle_deg": "half angle (deg)",
-    "initial_position_mm": "initial light (mm)",
-    "initial_axis": "initial axis",
-    "black_level": "black level",
-    "white_level": "white level",
-    "min_markers": "fewest markers",
-    "mask_margin_px": "mask margin (px)",
-    "max_rms_px": "largest marker RMS (px)",
-    "pose_floor_mm": "pose floor (mm)",
-    "pose_floor_deg": "pose floor (deg)",
-}
 
 
 @dataclass(frozen=True)
@@ -123,8 +108,9 @@ def check_fields(fields: PhotoFields, levels: FileLevels | None = None) -> Photo
         {"light position": LABELS["initial_position_mm"]},
     )
     axis = vector3(LABELS["initial_axis"], fields.initial_axis)
-    if math.hypot(*axis) == 0.0:
-        raise InputError(LABELS["initial_axis"], "expected a non-zero direction, got (0, 0, 0)")
+    if (problem := axis_problem(axis)) is not None:
+        shown = ", ".join(f"{v:g}" for v in axis)
+        raise InputError(LABELS["initial_axis"], f"{problem}, got ({shown})")
     black = None if fields.black_level is None else float(fields.black_level)
     white = None if fields.white_level in (None, 0) else float(fields.white_level)
     _as_field(lambda: check_levels(black, white), LABELS)

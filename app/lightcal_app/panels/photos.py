@@ -27,11 +27,13 @@ from lightcal_app.limits import POSITION_LIMIT_M
 from lightcal_app.panels.base import Programmatic, TabPanel
 from lightcal_app.photo_project import (
     DEFAULT_HALF_ANGLE_DEG,
+    LABELS,
+    MAX_MASK_MARGIN_PX,
     PhotoKind,
     outcomes_markdown,
     staged_markdown,
 )
-from lightcal_app.photo_service import LABELS, MAX_MASK_MARGIN_PX, PhotoFields
+from lightcal_app.photo_service import PhotoFields
 from lightcal_app.upload_checks import format_size
 
 IMAGE_TYPES = ",".join(
