@@ -963,7 +963,7 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _usage(
             "export",
             "argument --format: invalid choice: 'nosuch' (choose from 'opencv', 'blender', "
-            "'mitsuba', 'ies', 'ldt')",
+            "'mitsuba', 'ros', 'ies', 'ldt')",
         ),
     ),
     (
@@ -972,7 +972,7 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _usage(
             "export",
             "argument --format: invalid choice: '' (choose from 'opencv', 'blender', "
-            "'mitsuba', 'ies', 'ldt')",
+            "'mitsuba', 'ros', 'ies', 'ldt')",
         ),
     ),
     (

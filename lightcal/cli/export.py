@@ -1,7 +1,8 @@
 """`lightcal export RESULT --format F --out PATH`: hand a result to other tools.
 
 Formats (`lightcal.io.export`): `opencv` (FileStorage YAML), `blender` (Python snippet),
-`mitsuba` (Mitsuba 3 scene XML), `ies` / `ldt` (the estimated RID as a photometric file).
+`mitsuba` (Mitsuba 3 scene XML), `ros` (launch XML + URDF), `ies` / `ldt` (the estimated
+RID as a photometric file).
 """
 
 from __future__ import annotations
@@ -11,13 +12,14 @@ import sys
 
 from lightcal.cli.arguments import path_arg
 
-FORMATS = ("opencv", "blender", "mitsuba", "ies", "ldt")
+FORMATS = ("opencv", "blender", "mitsuba", "ros", "ies", "ldt")
 
 #: The file name endings each format's --out may have (what the tools that read them expect).
 SUFFIXES = {
     "opencv": (".yaml", ".yml", ".xml", ".json"),
     "blender": (".py",),
     "mitsuba": (".xml",),
+    "ros": (".xml",),
     "ies": (".ies",),
     "ldt": (".ldt",),
 }
@@ -30,7 +32,8 @@ def _either(words: tuple[str, ...]) -> str:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "export", help="write a result as OpenCV YAML, a Blender snippet, Mitsuba XML, IES or LDT"
+        "export",
+        help="write a result as OpenCV YAML, a Blender snippet, Mitsuba XML, ROS, IES or LDT",
     )
     p.add_argument("result", type=path_arg, help="result JSON of calibrate")
     p.add_argument("--format", required=True, choices=FORMATS, help="what to write")

@@ -5,6 +5,7 @@
 | `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, rvec/tvec, 6x6 covariance, RID |
 | `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
 | `mitsuba` | Mitsuba 3 scene XML | sensor (project's intrinsics), spot per light, RID textures |
+| `ros` | ROS 2 launch XML + URDF | a static transform and a fixed joint per light |
 | `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
 | `ldt` | EULUMDAT | the estimated RID of one light (`lightcal.io.eulumdat`) |
 
@@ -49,6 +50,7 @@ from lightcal.io.export_lights import (
 )
 from lightcal.io.export_mitsuba import mitsuba_files, rid_values, spot_texture
 from lightcal.io.export_opencv import opencv_yaml
+from lightcal.io.export_ros import ros_files
 from lightcal.io.photometric_table import PhotometricTable
 from lightcal.io.result_file import LightResultModel, ResultFile
 
@@ -67,8 +69,8 @@ __all__ = [
     "with_given_rids",
 ]
 
-ExportFormat = Literal["opencv", "blender", "mitsuba", "ies", "ldt"]
-FORMATS: tuple[ExportFormat, ...] = ("opencv", "blender", "mitsuba", "ies", "ldt")
+ExportFormat = Literal["opencv", "blender", "mitsuba", "ros", "ies", "ldt"]
+FORMATS: tuple[ExportFormat, ...] = ("opencv", "blender", "mitsuba", "ros", "ies", "ldt")
 
 # ---------------------------------------------------------------------------- blender
 
@@ -262,6 +264,8 @@ def export_files(
         return {out: whole[fmt](result, source)}
     if fmt == "mitsuba":
         return mitsuba_files(result, source, out, camera=camera)
+    if fmt == "ros":
+        return ros_files(result, out)
     if fmt == "ies":
         return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
     if fmt == "ldt":
