@@ -1419,6 +1419,23 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("camera", "--max-rms-px: expected a finite value > 0 pixels, got -1"),
     ),
     (
+        "camera import: --out its input, --force",
+        "camera import {d}/camera.yaml --out {d}/camera.yaml --force",
+        _error(
+            "camera",
+            "{d}/camera.yaml: --out: is the camera file, an input of the import; write elsewhere",
+        ),
+    ),
+    (
+        "camera calibrate: --out the board, --force",
+        "camera calibrate {d}/images --board {k}/chess.yaml --out {k}/chess.yaml --force",
+        _error(
+            "camera",
+            "{k}/chess.yaml: --out: is the board file, an input of the calibration; write "
+            "elsewhere",
+        ),
+    ),
+    (
         "camera import: no --out",
         "camera import {d}/camera.yaml",
         _usage("camera import", "the following arguments are required: --out"),
