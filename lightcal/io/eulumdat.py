@@ -294,11 +294,39 @@ def _spacing(angles: NDArray[np.float64], period: float | None) -> float:
     return step
 
 
+def flux_fractions(table: PhotometricTable) -> tuple[float, float]:
+    """The luminous flux the table's intensities emit, lumens, and its downward fraction.
+
+    The intensities (candela) integrated over the sphere: trapezoids of I sin(gamma) in
+    gamma (the table is 0 beyond its last angle) and of the unfolded C-planes over the
+    circle (each plane weighs half the gaps to its neighbours); downward is gamma <= 90
+    (type C: gamma 0 points down). A table that emits nothing: (0, 0).
+    """
+    gamma = np.asarray(table.vertical_deg, dtype=np.float64)
+    c_deg, planes = expand_full(table)
+    if c_deg.size == 1:
+        weights = np.array([2.0 * np.pi])
+    else:
+        gaps = np.radians(np.diff(np.append(c_deg, c_deg[0] + 360.0)))
+        weights = 0.5 * (gaps + np.roll(gaps, 1))
+    if gamma[0] < 90.0 < gamma[-1] and not np.any(gamma == 90.0):
+        at = int(np.searchsorted(gamma, 90.0))
+        planes = np.array([np.insert(row, at, np.interp(90.0, gamma, row)) for row in planes])
+        gamma = np.insert(gamma, at, 90.0)
+    g = np.radians(gamma)
+    per_gamma = (weights[:, None] * planes).sum(axis=0) * np.sin(g)
+    pieces = 0.5 * (per_gamma[1:] + per_gamma[:-1]) * np.diff(g)
+    total = float(pieces.sum())
+    down = float(pieces[gamma[1:] <= 90.0].sum())
+    return total, (down / total if total > 0.0 else 0.0)
+
+
 def write_ldt(
     path: str | Path,
     table: PhotometricTable,
     *,
     company: str = "lightcal",
+    report: str = "",
     digits: int | None = None,
 ) -> None:
     """Write a table as an EULUMDAT file, atomically (`lightcal.io.atomic`).
@@ -310,7 +338,10 @@ def write_ldt(
     which needs a C0 plane (i.e. a 180 plane in the table).
     One lamp set: 1 lamp of `table.lamp_lumens` lumens, or, when that is None, -1 lamp
     (absolute photometry) of 1000 lm, so that cd/klm equals candela. Dimensions, flux
-    fractions and direct ratios are written as 0, the conversion factor and tilt as 1 and 0.
+    direct ratios are written as 0, the conversion factor and tilt as 1 and 0. The
+    downward flux fraction (DFF) and the light output ratio (LORL) are the table's own
+    (`flux_fractions`): a table of the luminaire's own intensities (absolute photometry)
+    has LORL 100 %.
     Reading the file back with `read_ldt` returns the same table up to the rounding of
     the cd/klm conversion (and of `digits`).
 
@@ -318,6 +349,7 @@ def write_ldt(
         path: Destination.
         table: The table.
         company: Line 1, the company identification.
+        report: Line 8, the measurement report (lightcal says where the RID comes from).
         digits: Significant digits of the numbers, or None for the shortest text that
             reads back exactly.
 
@@ -349,6 +381,8 @@ def write_ldt(
     gamma = np.asarray(table.vertical_deg)
     flux = 1000.0 if table.lamp_lumens is None else table.lamp_lumens
     cd_per_klm = planes * (1000.0 / flux)
+    luminaire_lm, downward = flux_fractions(table)
+    output_ratio = 1.0 if table.lamp_lumens is None else luminaire_lm / table.lamp_lumens
 
     def num(value: float) -> str:
         return format_number(value, digits)
@@ -361,14 +395,14 @@ def write_ldt(
         num(_spacing(c_angles, 360.0)),
         str(gamma.size),
         num(_spacing(gamma, None)),
-        "",
+        plain_line(report, max_chars=_MAX_TEXT_CHARS),
         plain_line(table.luminaire, max_chars=_MAX_TEXT_CHARS),
         "",
         plain_line(path.name, max_chars=_MAX_TEXT_CHARS),
         "",
         *["0"] * 9,
-        "0",
-        "0",
+        num(round(100.0 * downward, 6)),
+        num(round(100.0 * output_ratio, 6)),
         "1",
         "0",
         "1",

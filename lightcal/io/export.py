@@ -43,6 +43,7 @@ from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
 from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import (
     LightRID,
+    clean_degrees,
     given_rid_description,
     light_rid,
     light_transform,
@@ -158,7 +159,7 @@ def rid_photometric_table(light: LightResultModel, source: str | Path) -> Photom
         )
     values = np.clip(rid.values, 0.0, None)
     written = light.rid or {}
-    theta_deg = np.asarray(written["theta_deg"], dtype=np.float64)  # as written, exactly
+    theta_deg = clean_degrees(written["theta_deg"])
     if theta_deg[-1] < 90.0:  # LM-63 type C tables end at 90 or 180; the RID is 0 beyond
         theta_deg = np.append(theta_deg, 90.0)
         values = np.concatenate([values, np.zeros((*values.shape[:-1], 1))], axis=-1)
@@ -171,8 +172,8 @@ def rid_photometric_table(light: LightResultModel, source: str | Path) -> Photom
             symmetry="axial",
             luminaire=light.name,
         )
-    phi_deg = np.asarray(written["phi_deg"], dtype=np.float64)
-    c_deg = np.mod(-phi_deg, 360.0)  # C = -phi (docs/conventions.md)
+    phi_deg = clean_degrees(written["phi_deg"])
+    c_deg = clean_degrees(np.mod(-phi_deg, 360.0))  # C = -phi (docs/conventions.md)
     order = np.argsort(c_deg)
     return PhotometricTable(
         theta_deg,
@@ -199,29 +200,39 @@ def _select_light(result: ResultFile, source: str | Path, name: str | None) -> L
     raise InputError(source, f"{len(result.lights)} lights: name the one to export (--light NAME)")
 
 
+def rid_origin(light: LightResultModel) -> str:
+    """Where the light's RID comes from, for a photometric file's header: given to the
+    calibration (a project's profile, `with_given_rids`) or estimated by it."""
+    model = plain_line((light.rid or {}).get("model", "table"))
+    if model.startswith("given"):
+        return f"lightcal {__version__}: the given RID {model[len('given') :].strip()}"
+    return f"lightcal {__version__}: the RID estimated by the calibration ({model})"
+
+
 def _photometric_bytes(
-    writer: Callable[[Path, PhotometricTable], None], suffix: str
+    writer: Callable[[Path, PhotometricTable, str], None], suffix: str
 ) -> Callable[[ResultFile, str | Path, str | None], bytes]:
     def render(result: ResultFile, source: str | Path, light_name: str | None) -> bytes:
-        table = rid_photometric_table(_select_light(result, source, light_name), source)
+        light = _select_light(result, source, light_name)
+        table = rid_photometric_table(light, source)
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / f"light{suffix}"
-            writer(path, table)
+            writer(path, table, rid_origin(light))
             return path.read_bytes()
 
     return render
 
 
-def _write_ies(path: Path, table: PhotometricTable) -> None:
+def _write_ies(path: Path, table: PhotometricTable, origin: str) -> None:
     from lightcal.io.ies import write_ies
 
-    write_ies(path, table, keywords={"TEST": f"lightcal {__version__} estimated RID"})
+    write_ies(path, table, keywords={"TEST": origin})
 
 
-def _write_ldt(path: Path, table: PhotometricTable) -> None:
+def _write_ldt(path: Path, table: PhotometricTable, origin: str) -> None:
     from lightcal.io.eulumdat import write_ldt
 
-    write_ldt(path, table)
+    write_ldt(path, table, report=origin)
 
 
 # ---------------------------------------------------------------------------- entry

@@ -98,6 +98,12 @@ def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
     return LightRID(str(rid.get("model", "table")), theta, values, phi, half)
 
 
+def clean_degrees(values: Any) -> NDArray[np.float64]:
+    """Angles in degrees without the noise of a radian round trip (3.0000000000000004 ->
+    3.0): rounded to 1e-9 degrees, far below any table's precision."""
+    return np.round(np.asarray(values, dtype=np.float64), 9) + 0.0  # + 0.0: no -0.0
+
+
 def given_rid_description(rid: RID) -> dict[str, Any] | None:
     """A project's given RID in the result's `rid` form (None for an isotropic light).
 
@@ -115,12 +121,12 @@ def given_rid_description(rid: RID) -> dict[str, Any] | None:
         values = rid(theta)
     description: dict[str, Any] = {
         "model": f"given ({type(rid).__name__})",
-        "theta_deg": np.degrees(theta).tolist(),
+        "theta_deg": clean_degrees(np.degrees(theta)).tolist(),
         "values": np.asarray(values).tolist(),
         "half_angle_deg": math.degrees(rid.half_angle_rad),
     }
     if phi is not None:
-        description["phi_deg"] = np.degrees(phi).tolist()
+        description["phi_deg"] = clean_degrees(np.degrees(phi)).tolist()
     return description
 
 
