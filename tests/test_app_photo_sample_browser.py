@@ -171,6 +171,17 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
         page.get_by_text(shown).first.wait_for()
     page.get_by_text("Ready: press Build project.").wait_for()
 
+    # A black level above the white level is refused at Build, naming the field.
+    page.get_by_label("black level").fill("70000")
+    page.get_by_label("black level").press("Enter")
+    wait_for(lambda: panel.fields().black_level == 70000, "the black level")
+    old = app.state.project
+    page.get_by_role("button", name="Build project").click()
+    page.get_by_text(
+        "white level: expected a value above black level (70000), got 65535"
+    ).first.wait_for()
+    assert app.state.project is old and not app.state.requests
+
     # What lightcal init is told in the README: the levels and the initial guess.
     for label, value in (("black level", "512"), ("white level", "16383")):
         page.get_by_label(label).fill(value)
@@ -183,7 +194,6 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     wait_for(lambda: panel.fields() == SAMPLE_FIELDS, "the initial light")
     shot(page, "photos_sample_staged_1280x800.png")
 
-    old = app.state.project
     page.get_by_role("button", name="Build project").click()
     wait_for(lambda: app.state.project is not old, "the new project", timeout=4 * SLOW_S)
     assert app.wait_idle(SLOW_S)
@@ -214,4 +224,13 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     assert error_m < POSITION_TOLERANCE_M
     # The downloaded zip: lightcal calibrate gives the page's answer.
     assert np.linalg.norm(_solved_in(tmp_path, content) - solved) < 1e-6
+    page.context.close()
+
+    # A second browser at 1920 x 1080 sees the fields and the photos' table.
+    page, _ = open_page(browser, app, size=(1920, 1080))
+    page.get_by_role("tab", name="Files").click()
+    page.get_by_text("Built: 12 of 12 photos accepted, 0 rejected").wait_for()
+    assert page.get_by_label("black level").input_value() == "512"
+    page.get_by_text("Built: 12 of 12 photos accepted").scroll_into_view_if_needed()
+    shot(page, "photos_sample_built_1920x1080.png")
     page.context.close()

@@ -86,7 +86,7 @@ class FileLevels:
         if self.bits == 8:
             return text + (
                 ". 8-bit photos are gamma-encoded: lightcal init (and this page) take no "
-                "response curve, so they are rejected; use camera raw or 16-bit linear photos"
+                "response curve, so they are rejected; use camera raw or 16-bit linear photos."
             )
         if self.raw:
             return text + "."
@@ -100,7 +100,7 @@ class FileLevels:
         return text + (
             ". The file does not say the sensor's black level: enter it in the black level "
             "field (e.g. 512 for many 14-bit sensors); without it the black offset is taken "
-            "for light"
+            "for light."
         )
 
 

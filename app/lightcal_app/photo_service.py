@@ -89,7 +89,10 @@ def _as_field(check: Callable[[], T], names: dict[str, str]) -> T:
     try:
         return check()
     except InputError as exc:
-        raise InputError(names.get(exc.source, exc.source), exc.detail) from exc
+        detail = exc.detail
+        for name, label in names.items():  # "above black_level (512)": the page's words
+            detail = detail.replace(name, label)
+        raise InputError(names.get(exc.source, exc.source), detail) from exc
 
 
 def check_fields(fields: PhotoFields, levels: FileLevels | None = None) -> PhotoOptions:
