@@ -1256,3 +1256,27 @@ def test_the_busy_line_keeps_its_place(app: LightcalApp) -> None:
     assert line.visible and line.content == "**Working**: rendering the overlays..."
     app.panels.show_work("")
     assert line.visible and line.content == IDLE_LINE
+
+
+def test_the_light_tab_guesses_the_light_from_its_beam(app: LightcalApp) -> None:
+    """"Guess from the beam in the photos": the guess moves onto the beam (what
+    `initial: auto` does) and the page says from how many spots."""
+    from lightcal.core.light_axis import axis_from_angles
+    from tests.app_fixtures import TRUE_AXIS_ANGLES_RAD
+
+    st = app.state
+    _set(app.panels.light.beam_guess, True)
+    _idle(app)
+    with st.lock:
+        guess = st.guess[0]
+    truth_axis = axis_from_angles(*TRUE_AXIS_ANGLES_RAD)
+    cos = float(guess.R_camera_light[:, 2] @ truth_axis)
+    # A 30-degree beam's spots lean towards the wall's nearer parts: 18 degrees here.
+    assert math.degrees(math.acos(min(cos, 1.0))) < 25.0
+    title, body = st.messages[-1]
+    assert title == "Guess from the beam" and " mm from 4 spots: " in body
+    _set(app.panels.solve.run_button, True)  # and the solve from it finds the light
+    _idle(app, 120)
+    assert st.result is not None and st.result.converged
+    found = st.result.lights[0].pose.t_camera_light
+    np.testing.assert_allclose(found, TRUE_POSITION_M, atol=1e-3)

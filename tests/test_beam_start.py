@@ -155,3 +155,40 @@ def test_hemisphere_starts_spread_the_axis_over_the_cap_and_keep_the_rest(narrow
     share = np.mean(np.array(angles) < 35.0)
     expected = (1 - math.cos(math.radians(35))) / (1 - math.cos(math.radians(70)))
     assert abs(share - expected) < 0.1
+
+
+def test_initial_auto_starts_from_the_beam_in_calibrate(
+    narrow: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`initial: auto` (the default when a light has no initial pose): calibrate puts
+    the light on its beam, says where, and lands on the truth."""
+    data = json.loads((narrow / "project.json").read_text())
+    del data["lights"][0]["initial"]
+    auto = narrow / "auto.json"
+    auto.write_text(json.dumps(data))
+    out = tmp_path / "result.json"
+    capsys.readouterr()
+    assert main(["calibrate", str(auto), "--out", str(out)]) in (0, 3)
+    said = capsys.readouterr().err
+    assert "light: initial: auto: from its beam in the images, position (" in said
+    result = json.loads(out.read_text())["lights"][0]
+    position, axis = _truth(narrow)
+    assert np.linalg.norm(np.array(result["position_m"]) - position) < 0.002
+    assert _angle_deg(np.array(result["axis_camera"]), axis) < 0.1
+
+
+def test_initial_auto_takes_one_light(tmp_path_factory: pytest.TempPathFactory) -> None:
+    folder = tmp_path_factory.mktemp("two_auto") / "data"
+    argv = ["synth", str(folder), "--views", "3", "--width", "96", "--height", "72"]
+    assert main([*argv, "--lights", "2", "--quiet"]) == 0
+    data = json.loads((folder / "project.json").read_text())
+    data["lights"][1]["initial"] = "auto"
+    (folder / "project.json").write_text(json.dumps(data))
+    from lightcal.errors import InputError
+
+    with pytest.raises(InputError) as refused:
+        load_project(folder / "project.json")
+    assert str(refused.value) == (
+        f"{folder / 'project.json'}: lights[1].initial: auto guesses one light from its "
+        "beam; with 2 lights, give each its initial pose"
+    )

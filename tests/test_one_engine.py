@@ -18,15 +18,15 @@ from lightcal_app.state import AppState, Display
 
 from lightcal.cli.main import main
 from lightcal.io.project import load_project
-from lightcal.pipeline import CalibrationResult, build_model, calibrate, load_images
+from lightcal.pipeline import CalibrationResult, calibrate_project, load_images
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data" / "project.json"
 
 
 def _cli(path: Path) -> CalibrationResult:
-    project = load_project(path)
-    loaded = load_images(project)
-    return calibrate(project, loaded, build_model(project, loaded)).result
+    """What `lightcal calibrate` computes (`calibrate_project`: load, `initial: auto`,
+    select, solve)."""
+    return calibrate_project(load_project(path))[2]
 
 
 def _page(path: Path, *, steps: int = 0) -> tuple[CalibrationResult, list[int]]:
@@ -127,6 +127,7 @@ VARIANTS: list[tuple[str, list[str], dict[str, object]]] = [
     ("room light estimated", ["--ambient", "0.05"], {"sensor.estimate_offset": True}),
     ("cos4 fall-off", ["--sensor", "cos4"], {}),
     ("two random starts", [], {"solver.multistart": 2}),
+    ("initial: auto", ["--half-angle-deg", "12"], {"lights.0.initial": "auto"}),
 ]
 
 

@@ -12,8 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from lightcal.core.light_axis import rotation_from_axis
 from lightcal.core.rotations import as_finite_array, matrix_from_quaternion_wxyz
 from lightcal.errors import InputError, LightcalError
+from lightcal.pipeline.auto_start import beam_guess
 from lightcal_app.limits import check_plan, check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
 from lightcal_app.requests import (
@@ -99,6 +101,33 @@ class Actions:
             st.resume_x = None
             st.resume_end = None
             st.setup_changed(selection=False)
+
+    def guess_from_beam(self, client: Any = None) -> None:
+        """The light's guess from where its beam falls in the images
+        (`lightcal.pipeline.auto_start.beam_guess`, what `initial: auto` does); refused
+        (InputError) with several lights or when no image shows the beam."""
+        st = self.state
+        with st.lock:
+            project, loaded = st.project, st.loaded
+        if len(project.lights) != 1:
+            raise InputError(
+                "initial", "the beam gives one light's guess; this project has several lights"
+            )
+        guess = beam_guess(project, loaded)
+        if guess is None:
+            raise InputError("initial", "no image shows the light's beam (dark, or masked)")
+        self.set_guess(
+            0,
+            position_m=guess.position_camera,
+            R_camera_light=rotation_from_axis(guess.axis_camera),
+        )
+        x, y, z = guess.position_camera * 1e3
+        self._notify(
+            client,
+            "Guess from the beam",
+            f"position ({x:+.0f}, {y:+.0f}, {z:+.0f}) mm from {len(guess.sightings)} spots: "
+            f"{guess.how}",
+        )
 
     def set_selection(self, settings: SelectionSettings, *, image: str | None = None) -> None:
         """Pixel selection settings for every image (image None) or one image."""

@@ -22,6 +22,7 @@ from lightcal.core.solver import IterationReport
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal.pipeline.auto_start import with_auto_initial
 from lightcal.pipeline.plan import PlannedView, Sigmas
 from lightcal_app.requests import Request, SetupChanged
 from lightcal_app.solve_settings import SolveSettings, settings_of
@@ -219,7 +220,10 @@ class AppState:
     # -- project --------------------------------------------------------------------------
 
     def load_project(self, project: Project, loaded: LoadedImages) -> None:
-        """Show a (new) project: every choice back to the project's defaults."""
+        """Show a (new) project: every choice back to the project's defaults. A light
+        whose file says `initial: auto` starts on its beam, as `lightcal calibrate` does
+        (InputError when no image shows it)."""
+        project = with_auto_initial(project, loaded)
         self.project = project
         self.loaded = loaded
         self.guess: list[LightGuess] = [

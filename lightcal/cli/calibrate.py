@@ -63,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project_identity import project_identity
     from lightcal.io.result_file import is_result_file, result_to_file, write_result
     from lightcal.pipeline import build_model, calibrate, load_images
+    from lightcal.pipeline.auto_start import auto_initial_lines, with_auto_initial
     from lightcal.pipeline.load import prepare_solve
     from lightcal.pipeline.result_text import light_lines
     from lightcal.pipeline.results import stop_reason
@@ -81,7 +82,12 @@ def run(args: argparse.Namespace) -> int:
     ensure_kernels(quiet=args.quiet)
     with stage_progress(enabled=not args.quiet) as progress:
         loaded = load_images(project, progress=progress, meanwhile=lambda: prepare_solve(project))
-        model = build_model(project, loaded, progress=progress)
+        guessed = with_auto_initial(project, loaded)
+        model = build_model(guessed, loaded, progress=progress)
+    if guessed is not project and not args.quiet:
+        for line in auto_initial_lines(guessed):
+            console.print(line, highlight=False, soft_wrap=True)
+    project = guessed
 
     def on_iteration(rep: IterationReport) -> None:
         if not args.quiet:

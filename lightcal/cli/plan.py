@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import build_model, load_images, measurements_for
+    from lightcal.pipeline.auto_start import with_auto_initial
     from lightcal.pipeline.plan import (
         PlanGrid,
         noise_variance,
@@ -83,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     ensure_kernels()
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
+        project = with_auto_initial(project, loaded)
         model = build_model(project, loaded, progress=progress)
         x0 = start_vector(model, names, x, args.result)
         grid = PlanGrid(wall_size_m=args.wall_size)

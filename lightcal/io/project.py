@@ -30,6 +30,7 @@ from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
+from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
     INTRINSIC_COUNTS,
     MAX_DISTANCE_M,
@@ -232,6 +233,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     """Build a `Project` from a validated spec whose relative paths resolve against
     `source`'s folder."""
     folder = source.parent
+    check_no_ignored_keys(spec, source)  # a key lightcal would not use is an error
     camera = _build_camera(spec.camera, folder, source)
     sel = spec.selection
     if sel.strategy == "all" and sel.binning > min(camera.width, camera.height):
@@ -272,17 +274,28 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     for j, ls in enumerate(spec.lights):
         field = f"lights[{j}]"
         rid = build_rid(ls.rid, folder, source, f"{field}.rid")
-        try:
-            R = _initial_rotation(ls.initial)
-            light = Light(
-                rid,
-                np.array(ls.initial.position_m),
-                R,
-                scale=ls.initial.scale or 1.0,
-                name=ls.name,
-            )
-        except ValueError as exc:
-            raise InputError(source, f"{field}.initial: {exc}") from exc
+        if ls.initial == "auto":
+            if len(spec.lights) > 1:
+                raise InputError(
+                    source,
+                    f"{field}.initial: auto guesses one light from its beam; with "
+                    f"{len(spec.lights)} lights, give each its initial pose",
+                )
+            # At the camera centre looking ahead, until the images are read
+            # (lightcal.pipeline.auto_start.with_auto_initial puts it on its beam).
+            light = Light(rid, np.zeros(3), np.eye(3), name=ls.name)
+        else:
+            try:
+                R = _initial_rotation(ls.initial)
+                light = Light(
+                    rid,
+                    np.array(ls.initial.position_m),
+                    R,
+                    scale=ls.initial.scale or 1.0,
+                    name=ls.name,
+                )
+            except ValueError as exc:
+                raise InputError(source, f"{field}.initial: {exc}") from exc
         for i, view in enumerate(views):
             z = float(light.position_world(view)[2])
             if z <= 0.0:

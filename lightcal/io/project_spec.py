@@ -273,7 +273,11 @@ class LightSpec(_Model):
     name: str = "light"
     rid: RIDSpec
     pose: Literal["auto", "isotropic", "symmetric", "general"] = "auto"
-    initial: InitialSpec
+    initial: InitialSpec | Literal["auto"] = Field(
+        default="auto",
+        description="the initial guess of the pose, or auto: from where the light's beam "
+        "falls in the images (lightcal.core.beam_start; one light only)",
+    )
     estimate_rid: Literal["none", "cos_power", "curve"] = "none"
     curve_knots: int = Field(default=6, ge=2, le=30)
     curve_max_angle_deg: float | None = Field(
@@ -423,12 +427,21 @@ class ProjectFile(_Model):
 
 
 _UNION_BRANCHES = frozenset({"float", "int", "str", "bool", "list", "dict"})
+_TAGS = ("function-", "literal[")  # pydantic's names of validator and literal branches
+
+
+def _on_literal_branch(err: Any) -> bool:
+    """The error of a union's literal branch ("Input should be 'auto'"), said only when
+    no other branch has a more telling one."""
+    return any(isinstance(part, str) and part.startswith("literal[") for part in err["loc"])
 
 
 def _format_loc(loc: tuple[Any, ...]) -> str:
     out = ""
     for part in loc:
-        if isinstance(part, str) and (part in _UNION_BRANCHES or part.endswith("Spec")):
+        if isinstance(part, str) and (
+            part in _UNION_BRANCHES or part.endswith(("Spec", "Spec]")) or part.startswith(_TAGS)
+        ):
             continue  # the name of a union's branch (ExposureSpec, float), not a field
         if isinstance(part, int):
             out += f"[{part}]"
@@ -455,7 +468,7 @@ def parse_project(data: Any, source: str | Path) -> ProjectFile:
         errors = exc.errors()
         # The most specific problem: where a value may take several forms (a number or
         # exposure settings), the branch that got deepest says what is wrong.
-        err = max(errors, key=lambda e: len(e["loc"]))
+        err = max(errors, key=lambda e: (len(e["loc"]), not _on_literal_branch(e)))
         more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
         if len({_format_loc(e["loc"][:3]) for e in errors}) == 1:
             more = ""  # the other problems are the same field's other forms

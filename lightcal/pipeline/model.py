@@ -129,7 +129,11 @@ def starting_lights(
         lights: lights to start from instead of the project's (e.g. the app's guess).
     """
     unknowns = list(lights) if lights is not None else list(project.lights)
-    auto = [j for j, ls in enumerate(project.spec.lights) if ls.initial.scale is None]
+    auto = [
+        j
+        for j, ls in enumerate(project.spec.lights)
+        if ls.initial == "auto" or ls.initial.scale is None
+    ]
     if auto and images:
         scales = fit_scales(images, unknowns, project.solver.offset, project.wall.initial)
         for j in auto:

@@ -13,6 +13,7 @@ from lightcal.core.light_axis import rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
 from lightcal.io.project import Project, SolverSpec
+from lightcal.pipeline.auto_start import with_auto_initial
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
 from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
@@ -332,6 +333,7 @@ def calibrate_project(
 ) -> tuple[LoadedImages, CalibrationModel, CalibrationResult]:
     """Load, select, solve (`calibrate`) and summarise a project."""
     loaded = load_images(project, progress=progress)
+    project = with_auto_initial(project, loaded)
     model = build_model(project, loaded, progress=progress)
     cal = calibrate(project, loaded, model, on_iteration=on_iteration)
     return loaded, cal.model, cal.result

@@ -69,6 +69,11 @@ class LightPanel(TabPanel):
                 hint="the camera pose on which the draggable light gizmo is drawn",
             )
             self.reset_guess = gui.add_button("Back to the project's initial guess")
+            self.beam_guess = gui.add_button(
+                "Guess from the beam in the photos",
+                hint="the light on the line through the beam's spots, placed by their "
+                "brightness (one light; what initial: auto does)",
+            )
             self.light_md = gui.add_markdown("")
         self.light_widgets: list[dict[str, Any]] = []
         self._folders: list[Any] = []
@@ -79,6 +84,7 @@ class LightPanel(TabPanel):
             )
         )
         self.reset_guess.on_click(lambda e: ctl.reset_guess())
+        self.beam_guess.on_click(self.guard(lambda e: ctl.guess_from_beam(e.client)))
 
     def _build_light_widgets(self, project: Project) -> None:
         gui = self.gui
