@@ -101,7 +101,7 @@ def light_rid(light: LightResultModel, source: str | Path) -> LightRID | None:
 def clean_degrees(values: Any) -> NDArray[np.float64]:
     """Angles in degrees without the noise of a radian round trip (3.0000000000000004 ->
     3.0): rounded to 1e-9 degrees, far below any table's precision."""
-    return np.round(np.asarray(values, dtype=np.float64), 9) + 0.0  # + 0.0: no -0.0
+    return np.asarray(np.round(np.asarray(values, dtype=np.float64), 9) + 0.0, dtype=np.float64)
 
 
 def given_rid_description(rid: RID) -> dict[str, Any] | None:
