@@ -254,6 +254,16 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
             _resolve(folder, im.mask, source, f"{field}.mask", "mask file") if im.mask else None
         )
         names.append(im.name or Path(im.path).stem)
+    # One file twice counts its noise twice: sigmas too small (confidently wrong).
+    seen: dict[Path, int] = {}
+    for i, path in enumerate(image_paths):
+        first = seen.setdefault(path.resolve(), i)
+        if first != i:
+            raise InputError(
+                source,
+                f"images[{i}].path: the same file as images[{first}] ({path.name}): a copy "
+                "adds no information and would count its noise twice; expected each photo once",
+            )
     exposures = _exposure_factors(spec, image_paths, source)
     for i, im in enumerate(spec.images):
         if not (math.isfinite(exposures[i]) and exposures[i] > 0.0):

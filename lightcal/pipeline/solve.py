@@ -14,6 +14,7 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
 from lightcal.io.project import Project, SolverSpec
 from lightcal.pipeline.auto_start import with_auto_initial
+from lightcal.pipeline.capture_checks import same_pose_warnings
 from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
 from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
@@ -284,6 +285,7 @@ def calibrate(
         for name in project.names
         if name not in used
     ]
+    notes += same_pose_warnings(project, used)
     outcome = run(model)
     limit = project.spec.selection.exclude_mirror_deg
     if limit and outcome.status != STOPPED:
