@@ -465,7 +465,7 @@ def test_a_solution_on_the_search_box_is_not_converged(
         w.startswith("light light: its position ends on the edge of the solver's search box")
         for w in result["warnings"]
     )
-    assert "not converged: the" in capsys.readouterr().err
+    assert "not converged: the" in capsys.readouterr().out  # the answer: stdout
 
 
 def _png_header(width: int, height: int) -> bytes:

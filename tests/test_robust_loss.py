@@ -401,8 +401,9 @@ def test_cli_prints_the_f_scale(npy_project: Path, tmp_path: Path, capsys, f_sca
     project.write_text(json.dumps(doc))
     argv = ["calibrate", str(project), "--out", str(tmp_path / "r.json"), "--allow-misfit"]
     code = main([*argv, "--quiet"])
-    err = " ".join(capsys.readouterr().err.split())
-    assert code == 0, err
+    said = capsys.readouterr()
+    err = " ".join(said.out.split())  # the command's answer: stdout
+    assert code == 0, said.err
     assert "robust loss huber: f_scale = " in err and expected in err
     used = read_result(tmp_path / "r.json").f_scale_used
     assert used is not None and f"f_scale = {used:.4g} " in err

@@ -276,9 +276,9 @@ sys.exit(entry())
 
 def _calibrate_with(
     moment: str, signame: str, tiny_dataset: Path, tmp_path: Path
-) -> tuple[int, str, Path, Path]:
+) -> tuple[int, str, Path, Path, str]:
     """Run the driver on `lightcal calibrate` of the tiny dataset with a report; (exit
-    code, stderr, result path, report path)."""
+    code, stderr, result path, report path, stdout: the pose and the status)."""
     out, folder = tmp_path / "result.json", tmp_path / "report"
     argv = ["calibrate", str(tiny_dataset / "project.json"), "--out", str(out)]
     proc = subprocess.run(
@@ -288,7 +288,7 @@ def _calibrate_with(
         cwd=REPO,
         timeout=300,
     )
-    return proc.returncode, proc.stderr, out, folder
+    return proc.returncode, proc.stderr, out, folder, proc.stdout
 
 
 def _complete_result(path: Path) -> bool:
@@ -308,7 +308,7 @@ def _report_files(folder: Path) -> set[str]:
 def test_a_signal_after_the_result_exits_130_and_says_interrupted(
     moment: str, signame: str, tiny_dataset: Path, tmp_path: Path
 ) -> None:
-    code, err, out, folder = _calibrate_with(moment, signame, tiny_dataset, tmp_path)
+    code, err, out, folder, _ = _calibrate_with(moment, signame, tiny_dataset, tmp_path)
     assert code == 130, err
     assert err.splitlines()[-1] == "lightcal calibrate: interrupted", err
     assert "Traceback" not in err and "internal error" not in err
@@ -326,10 +326,10 @@ def test_a_signal_after_the_last_flush_leaves_the_commands_exit_code(
 ) -> None:
     """The command is over (its output flushed): the signal is ignored, never -15 nor a
     traceback."""
-    code, err, out, _ = _calibrate_with("teardown", signame, tiny_dataset, tmp_path)
+    code, err, out, _, answer = _calibrate_with("teardown", signame, tiny_dataset, tmp_path)
     assert code == 0, err
     assert "interrupted" not in err and "Traceback" not in err
-    assert "; result written to " in " ".join(err.split())
+    assert "; result written to " in " ".join(answer.split())
     assert _complete_result(out)
     assert _leftovers(tmp_path) == []
 
@@ -338,7 +338,7 @@ def test_a_signal_after_the_last_flush_leaves_the_commands_exit_code(
 def test_a_signal_before_the_command_starts_exits_130(
     signame: str, tiny_dataset: Path, tmp_path: Path
 ) -> None:
-    code, err, out, folder = _calibrate_with("start", signame, tiny_dataset, tmp_path)
+    code, err, out, folder, _ = _calibrate_with("start", signame, tiny_dataset, tmp_path)
     assert (code, err) == (130, "lightcal: interrupted\n")
     assert not out.exists() and not folder.exists()
 

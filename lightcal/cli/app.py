@@ -40,15 +40,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--host",
         default="127.0.0.1",
         help="interface to listen on (default 127.0.0.1, this machine only; 0.0.0.0 exposes "
-        "the app to the network without authentication)",
+        "the app to the network, behind a random access token printed in the URL)",
     )
     p.add_argument("--port", type=int, default=8080, help="TCP port (default 8080)")
     p.add_argument(
         "--demo",
         action="store_true",
-        help="also show the true light from truth.json beside the project (synthetic data)",
+        help="also show the true light from truth.json beside the project (synthetic data); "
+        "starts from the project's guess every time and autosaves to "
+        "<project>.demo-session.json",
     )
-    p.add_argument("--fresh", action="store_true", help="do not restore the autosaved session")
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="do not restore the autosaved session (it is kept aside under a timestamped name)",
+    )
     p.add_argument(
         "--session",
         type=path_arg,

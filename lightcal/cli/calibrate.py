@@ -56,7 +56,7 @@ EXIT_MISFIT = 3
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.cli.progress import console, ensure_kernels, stage_progress
+    from lightcal.cli.progress import console, ensure_kernels, output, stage_progress
     from lightcal.errors import InputError
     from lightcal.io.outputs import check_output_file, check_output_folder, project_inputs
     from lightcal.io.project import load_project
@@ -123,21 +123,21 @@ def run(args: argparse.Namespace) -> int:
     )
     for lr in result.lights:
         for line in light_lines(lr):
-            console.print(line, highlight=False, soft_wrap=True)
+            output.print(line, highlight=False, soft_wrap=True)
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
-        console.print(f"wall: {result.wall['model']} ({params})", highlight=False)
+        output.print(f"wall: {result.wall['model']} ({params})", highlight=False)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"
-        console.print(
+        output.print(
             f"robust loss {solver.loss}: f_scale = {cal.outcome.f_scale_used:.4g} ({how})",
             highlight=False,
         )
     if result.uncertainty_terms:
-        console.print("the sigmas include:", highlight=False)
+        output.print("the sigmas include:", highlight=False)
         for term in result.uncertainty_terms:
-            console.print(f"  {term}", highlight=False, soft_wrap=True)
+            output.print(f"  {term}", highlight=False, soft_wrap=True)
     for w in result.warnings:
         console.print(f"warning: {w}", style="yellow", highlight=False)
     if args.report is not None:
@@ -151,7 +151,9 @@ def run(args: argparse.Namespace) -> int:
     if result.undetermined:
         status = "not converged (undetermined)"
         reason = "; ".join(result.undetermined)
-    console.print(f"{status}: {reason}; result written to {args.out}", highlight=False)
+    output.print(
+        f"{status}: {reason}; result written to {args.out}", highlight=False, soft_wrap=True
+    )
     if not result.converged:
         return 1
     if not result.fit_adequate:

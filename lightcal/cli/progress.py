@@ -1,6 +1,7 @@
 """Terminal progress for long CLI work (rich), quiet when not a terminal.
 
-`console` (stderr) is where commands print their progress and messages. A reader that
+`console` (stderr) is where commands print their progress and messages, `output`
+(stdout) their answer. A reader that
 closes it early (`lightcal calibrate ... 2>&1 | head -3`) silences it, and the command
 goes on: it writes its files and exits with its own code (rich's default ends the
 program with exit 1, which lost the solve and its result).
@@ -34,6 +35,11 @@ class _Console(Console):
 
 
 console = _Console(stderr=True)
+"""Progress, iterations, warnings: what the command says while it works (stderr)."""
+
+output = _Console()
+"""The command's answer (the calibrated pose, its sigmas, the status): stdout, so that
+`lightcal calibrate ... > pose.txt` keeps it; a closed pipe is silenced like stderr."""
 
 
 class StageProgress:
