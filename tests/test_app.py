@@ -1259,8 +1259,8 @@ def test_the_busy_line_keeps_its_place(app: LightcalApp) -> None:
 
 
 def test_the_light_tab_guesses_the_light_from_its_beam(app: LightcalApp) -> None:
-    """"Guess from the beam in the photos": the guess moves onto the beam (what
-    `initial: auto` does) and the page says from how many spots."""
+    """The Light tab's "Guess from the beam in the photos": the guess moves onto the beam
+    (what `initial: auto` does) and the page says from how many spots."""
     from lightcal.core.light_axis import axis_from_angles
     from tests.app_fixtures import TRUE_AXIS_ANGLES_RAD
 
