@@ -226,6 +226,7 @@ def load_project(path: str | Path) -> Project:
         read_document(source, what="project file", as_json=source.suffix.lower() == ".json"),
         source,
     )
+    check_no_ignored_keys(spec, source)  # a key the file gives that lightcal would not use
     return project_from_spec(spec, source)
 
 
@@ -233,7 +234,6 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     """Build a `Project` from a validated spec whose relative paths resolve against
     `source`'s folder."""
     folder = source.parent
-    check_no_ignored_keys(spec, source)  # a key lightcal would not use is an error
     camera = _build_camera(spec.camera, folder, source)
     sel = spec.selection
     if sel.strategy == "all" and sel.binning > min(camera.width, camera.height):

@@ -17,7 +17,9 @@ a camera file's `path` would not distort anything). The cases:
 (`rid.profile` is the `half_angle` type's.)
 
 (The other sections' pydantic models refuse unknown keys, and the wall model its
-parameters, by themselves.)
+parameters, by themselves.) Checked when a project file is read (`load_project`); a spec
+built in memory (the app's edits) is not: the app's RID upload keeps the earlier type's
+fields beside the new type and path.
 """
 
 from __future__ import annotations
