@@ -293,7 +293,8 @@ def test_mitsuba_fragment_round_trip(result, tmp_path):
         texture = element.find("texture/string[@name='filename']")
         assert texture is not None and texture.get("value") == f"lights_rid_{index}.png"
         image = cv2.imread(str(tmp_path / f"lights_rid_{index}.png"), cv2.IMREAD_UNCHANGED)
-        assert image.dtype == np.uint16 and image.shape[0] == image.shape[1] >= TEXTURE_MIN_SIZE
+        assert image is not None and image.dtype == np.uint16
+        assert image.shape[0] == image.shape[1] >= TEXTURE_MIN_SIZE
         cutoff = element.find("float[@name='cutoff_angle']")
         beam = element.find("float[@name='beam_width']")
         assert cutoff is not None and beam is not None
@@ -334,7 +335,7 @@ def test_mitsuba_loads_the_fragment(result, result_path, tmp_path):
     T = opencv_from_mitsuba(to_world)
     np.testing.assert_allclose(T, light_transform(result.lights[0]), rtol=0, atol=1e-6)
     # Mitsuba's own texture lookup: half the axis intensity at the RID's half angle
-    half = math.radians(result.lights[0].rid["half_angle_deg"])  # type: ignore[index]
+    half = math.radians(result.lights[0].rid["half_angle_deg"])
     for phi in (0.0, 1.0, 2.5, 4.0):
         assert _mitsuba_intensity(emitter, to_world, half, phi) == pytest.approx(0.5, abs=2e-3)
 
