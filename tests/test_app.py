@@ -810,6 +810,15 @@ def test_project_and_rid_uploads_switch_the_project(
     assert not np.array_equal(app.panels.rid_figure.image, figure_before)
     np.testing.assert_allclose(st.guess[0].position_m, [0.07, 0.0, 0.0])
     assert "now uses the RID of lamp.ies" in st.messages[-1][1]
+    # The project as saved then loads again: no field of the old RID type is left over.
+    from lightcal.io.project import load_project
+
+    reloaded = load_project(st.project.path)
+    assert reloaded.spec.lights[0].rid.model_dump(exclude_none=True) == {
+        "type": "ies",
+        "profile": "cos_power",
+        "path": st.project.spec.lights[0].rid.path,
+    }
 
 
 def test_a_browser_edit_survives_a_redraw_before_its_callback(app: LightcalApp) -> None:

@@ -26,6 +26,7 @@ from lightcal.io.document import read_document
 from lightcal.io.project import (
     Project,
     ProjectFile,
+    RIDSpec,
     parse_project,
     project_from_spec,
     save_project,
@@ -200,7 +201,9 @@ def receive_rid(
 
     def change(spec: ProjectFile, path: Path) -> ProjectFile:
         lights = list(spec.lights)
-        rid = lights[light_index].rid.model_copy(update={"type": kind, "path": str(path)})
+        # A fresh RID: the old type's fields (half_angle_deg, m, ...) would be keys the
+        # new type ignores, which a saved project's reload refuses.
+        rid = RIDSpec(type=kind, path=str(path))
         lights[light_index] = lights[light_index].model_copy(update={"rid": rid})
         return spec.model_copy(update={"lights": lights})
 
