@@ -511,7 +511,7 @@ def test_gizmo_drag_changes_rendered_overlay_and_numbers(app: LightcalApp) -> No
     _idle(app)
     after = frustum.image
     assert np.abs(after.astype(int) - before.astype(int)).mean() > 1.0
-    np.testing.assert_allclose(app.state.guess[0].position_m, [0.12, -0.02, 0.0])
+    np.testing.assert_allclose(app.state.guess[0].t_camera_light, [0.12, -0.02, 0.0])
     w = app.panels.light.light_widgets[0]
     assert w["position"].value == pytest.approx((120.0, -20.0, 0.0))
     assert w["axis"].value[1] == pytest.approx(math.degrees(math.atan(0.2)), abs=1e-3)  # pitch
@@ -521,7 +521,7 @@ def test_typed_numbers_move_the_gizmo_without_fighting_a_solve(app: LightcalApp)
     w = app.panels.light.light_widgets[0]
     _set(w["position"], (80.0, 10.0, 5.0))
     _idle(app)
-    np.testing.assert_allclose(app.state.guess[0].position_m, [0.08, 0.01, 0.005])
+    np.testing.assert_allclose(app.state.guess[0].t_camera_light, [0.08, 0.01, 0.005])
     np.testing.assert_allclose(app.controller.scene.gizmos[0].position, [0.08, 0.01, 0.005])
     _set(w["axis"], (5.0, -3.0))
     _idle(app)
@@ -808,7 +808,7 @@ def test_project_and_rid_uploads_switch_the_project(
     assert st.project.spec.lights[0].rid.type == "ies"
     # The Explain tab's RID figure is the project's light, redrawn with its new RID.
     assert not np.array_equal(app.panels.rid_figure.image, figure_before)
-    np.testing.assert_allclose(st.guess[0].position_m, [0.07, 0.0, 0.0])
+    np.testing.assert_allclose(st.guess[0].t_camera_light, [0.07, 0.0, 0.0])
     assert "now uses the RID of lamp.ies" in st.messages[-1][1]
     # The project as saved then loads again: no field of the old RID type is left over.
     from lightcal.io.project import load_project
@@ -856,8 +856,8 @@ def test_edits_in_quick_succession_build_on_each_other_not_on_an_old_estimate(
         _set(w["spin"], float(w["spin"].value) + 5.0)
         guess = st.guess[0]
         assert not st.display.current(st)
-    np.testing.assert_allclose(guess.position_m, np.array(new_position_mm) / 1e3)
-    assert not np.allclose(guess.position_m, estimate.t_camera_light)
+    np.testing.assert_allclose(guess.t_camera_light, np.array(new_position_mm) / 1e3)
+    assert not np.allclose(guess.t_camera_light, estimate.t_camera_light)
     _idle(app)
     assert tuple(w["position"].value) == new_position_mm  # and the widget shows it
 
@@ -905,7 +905,7 @@ def test_autosave_restores_after_a_restart(synthetic: SyntheticProject, tmp_path
     try:
         _idle(b)
         st = b.state
-        np.testing.assert_allclose(st.guess[0].position_m, [0.06, -0.005, 0.001])
+        np.testing.assert_allclose(st.guess[0].t_camera_light, [0.06, -0.005, 0.001])
         assert st.selection.n_per_image == 40 and st.overlay_default == "residual"
         assert len(st.selected[0]) == 40 and len(st.selected[1]) == 41
         assert [h.iteration for h in st.history] == [0, 1]

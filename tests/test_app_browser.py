@@ -199,7 +199,7 @@ def test_gizmo_drag_changes_the_rendered_overlay(
     # Look at the gizmo on image 0's camera along that camera's axis, from 0.5 m behind.
     view = app.state.project.views[0]
     R_wc = view.R_camera_world.T
-    light = view.center_world + R_wc @ app.state.guess[0].position_m
+    light = view.center_world + R_wc @ app.state.guess[0].t_camera_light
     set_camera(client, light - 0.5 * R_wc[:, 2], light, -R_wc[:, 1])
     size = 10 * app.controller.scene.light_size_m  # the gizmo's scale
     center, tip_y = project_to_screen(client, np.array([light, light + size * R_wc[:, 1]]))
@@ -211,10 +211,10 @@ def test_gizmo_drag_changes_the_rendered_overlay(
         page.mouse.move(start[0], start[1] + 6 * k, steps=2)
         time.sleep(0.05)
     page.mouse.up()
-    wait_for(lambda: app.state.guess[0].position_m[1] > 0.02, "the drag to move the light")
+    wait_for(lambda: app.state.guess[0].t_camera_light[1] > 0.02, "the drag to move the light")
     assert app.wait_idle(SLOW_S)
-    y_mm = app.state.guess[0].position_m[1] * 1e3
-    assert app.state.guess[0].position_m[[0, 2]] == pytest.approx([0.05, 0.0], abs=1e-9)
+    y_mm = app.state.guess[0].t_camera_light[1] * 1e3
+    assert app.state.guess[0].t_camera_light[[0, 2]] == pytest.approx([0.05, 0.0], abs=1e-9)
     after = app.controller.scene.frusta[0].image
     assert np.abs(after.astype(int) - before.astype(int)).mean() > 1.0
     # The typed numbers follow the gizmo in the page.

@@ -68,7 +68,7 @@ def test_run_is_watchable_and_an_edit_keeps_the_result(
     assert pitch == pytest.approx(light.pose.pitch_deg, abs=2e-3)
     shot(page, f"lifecycle_light_tab_{tag}.png")
     # An edit starts a draft; the result is kept and shown, and comes back on Restore.
-    app.controller.set_guess(0, position_m=np.array([0.07, 0.0, 0.0]))
+    app.controller.set_guess(0, t_camera_light=np.array([0.07, 0.0, 0.0]))
     wait_for(lambda: app.state.solver_state == "idle", "the new draft")
     page.get_by_role("tab", name="Result").click()
     page.get_by_text("Previous result").first.wait_for()

@@ -48,7 +48,7 @@ def _refusals(a: LightcalApp) -> list[str]:
 
 
 def test_a_nan_or_a_short_position_is_refused_and_the_guess_kept(app: LightcalApp) -> None:
-    before = [g.position_m.copy() for g in app.state.guess]
+    before = [g.t_camera_light.copy() for g in app.state.guess]
     widget = app.panels.light.light_widgets[0]["position"]
     widget.value = (float("nan"), 0.0, 0.0)
     assert app.wait_idle()
@@ -56,14 +56,14 @@ def test_a_nan_or_a_short_position_is_refused_and_the_guess_kept(app: LightcalAp
         "light position: expected 3 finite numbers within +-10000 mm, got (nan, 0, 0)"
     ]
     assert all(
-        np.array_equal(g.position_m, b) for g, b in zip(app.state.guess, before, strict=True)
+        np.array_equal(g.t_camera_light, b) for g, b in zip(app.state.guess, before, strict=True)
     )
     # The widget shows the kept guess again (in mm).
     assert np.allclose(widget.value, before[0] * 1e3, atol=0.01)
     with pytest.raises(InputError, match=r"^light position: expected 3 finite numbers"):
-        app.controller.set_guess(0, position_m=np.array([0.1, 0.2]))
+        app.controller.set_guess(0, t_camera_light=np.array([0.1, 0.2]))
     with pytest.raises(InputError, match=r"^light position: expected 3 finite numbers"):
-        app.controller.set_guess(0, position_m=np.array([1e308, 0.0, 0.0]))
+        app.controller.set_guess(0, t_camera_light=np.array([1e308, 0.0, 0.0]))
 
 
 def test_a_24_digit_seed_is_refused_and_never_saved(app: LightcalApp, tmp_path: Path) -> None:
@@ -163,7 +163,7 @@ def test_values_are_checked_before_viser_stores_or_broadcasts_them(
     pixels, light = app.panels.pixels, app.panels.light.light_widgets[0]
     app.controller.files.autosave(force=True)
     saved = (tmp_path / "s.session.json").read_bytes()
-    before = (app.state.selection, [g.position_m.copy() for g in app.state.guess])
+    before = (app.state.selection, [g.t_camera_light.copy() for g in app.state.guess])
     widgets = (pixels.seed.value, light["position"].value, pixels.strategy.value)
     cases = [
         (
@@ -224,7 +224,7 @@ def test_values_are_checked_before_viser_stores_or_broadcasts_them(
     assert (pixels.seed.value, light["position"].value, pixels.strategy.value) == widgets
     assert app.state.selection == before[0]
     assert all(
-        np.array_equal(g.position_m, p) for g, p in zip(app.state.guess, before[1], strict=True)
+        np.array_equal(g.t_camera_light, p) for g, p in zip(app.state.guess, before[1], strict=True)
     )
     app.controller.files.autosave(force=True)
     assert (tmp_path / "s.session.json").read_bytes() == saved
@@ -285,7 +285,7 @@ def test_a_failing_autosave_is_reported_once_and_never_retriggers_itself(
 
 def test_scene_messages_are_checked_before_they_touch_the_state(app: LightcalApp) -> None:
     ctl, st = app.controller, app.state
-    before = [(g.position_m.copy(), g.R_camera_light.copy()) for g in st.guess]
+    before = [(g.t_camera_light.copy(), g.R_camera_light.copy()) for g in st.guess]
     points = dict(st.points)
     one = np.array([1.0, 0.0, 0.0, 0.0])
     assert ctl.on_gizmo(0, np.array([math.nan, 0.0, 0.0]), one, None) is None
@@ -305,7 +305,7 @@ def test_scene_messages_are_checked_before_they_touch_the_state(app: LightcalApp
     assert app.wait_idle()
     assert region is None and st.regions == [] and st.points == points
     assert all(
-        np.array_equal(g.position_m, p) and np.array_equal(g.R_camera_light, R)
+        np.array_equal(g.t_camera_light, p) and np.array_equal(g.R_camera_light, R)
         for g, (p, R) in zip(st.guess, before, strict=True)
     )
     refusals = _refusals(app)
@@ -318,7 +318,7 @@ def test_scene_messages_are_checked_before_they_touch_the_state(app: LightcalApp
     np.testing.assert_allclose(ctl.scene.gizmos[0].position, before[0][0])
     # A good drag is taken.
     taken = ctl.on_gizmo(0, np.array([0.07, 0.0, 0.01]), one, None)
-    assert taken is not None and np.allclose(st.guess[0].position_m, [0.07, 0.0, 0.01])
+    assert taken is not None and np.allclose(st.guess[0].t_camera_light, [0.07, 0.0, 0.01])
 
 
 def test_session_files_hold_only_what_the_page_accepts(app: LightcalApp, tmp_path: Path) -> None:
@@ -444,7 +444,7 @@ def _state_values(app: LightcalApp) -> dict[str, Any]:
             "n_per_image": st.selection.n_per_image,
             "seed": st.selection.seed,
             "show_selection": st.show_selection,
-            "position": tuple(round(float(v) * 1e3, 2) for v in st.guess[0].position_m),
+            "position": tuple(round(float(v) * 1e3, 2) for v in st.guess[0].t_camera_light),
         }
 
 

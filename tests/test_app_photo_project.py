@@ -402,7 +402,7 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
     with state.lock:
         assert state.project is built.project and state.loaded is built.loaded
         assert state.project.names == [f"wall_{k}" for k in range(5)]
-        assert state.guess[0].position_m.tolist() == [0.05, 0.0, 0.0]
+        assert state.guess[0].t_camera_light.tolist() == [0.05, 0.0, 0.0]
     assert switched == [built.project]
     updated = [m for m in messages.items if m[1] == "Project updated"]
     assert updated and updated[-1][0] == "page"

@@ -244,7 +244,7 @@ def test_an_edit_after_a_solve_keeps_the_result_and_undo_brings_it_back(
     guess and selection; the draft that had not finished is not kept in turn."""
     state, solve, messages, files = _converged(synthetic, tmp_path)
     solved = state.result
-    guess_before = state.guess[0].position_m.copy()
+    guess_before = state.guess[0].t_camera_light.copy()
     selection_before = state.selection
     # The user types a new position: a new draft starts from it.
     with state.lock:
@@ -261,7 +261,7 @@ def test_an_edit_after_a_solve_keeps_the_result_and_undo_brings_it_back(
     assert state.solver_state == "converged"
     assert state.result is not None
     np.testing.assert_array_equal(state.result.x, solved.x)
-    np.testing.assert_array_equal(state.guess[0].position_m, guess_before)
+    np.testing.assert_array_equal(state.guess[0].t_camera_light, guess_before)
     assert state.selection == selection_before  # the settings it was solved with
     assert state.previous is None  # the unfinished draft is not kept
     # A reset keeps a finished result too; nothing left after a second undo.

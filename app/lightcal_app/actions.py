@@ -71,17 +71,17 @@ class Actions:
         self,
         j: int,
         *,
-        position_m: np.ndarray | None = None,
+        t_camera_light: np.ndarray | None = None,
         R_camera_light: np.ndarray | None = None,
     ) -> None:
         """Change light j's initial guess (what is not given stays as shown now)."""
         st = self.state
         # Values from a page, checked before they touch the state (InputError: refused).
-        new_pos = None if position_m is None else check_position_m(position_m)
+        new_pos = None if t_camera_light is None else check_position_m(t_camera_light)
         new_R = None if R_camera_light is None else check_rotation(R_camera_light)
         with st.lock:
             base = self._base_pose(j)
-            pos = base.position_m if new_pos is None else new_pos
+            pos = base.t_camera_light if new_pos is None else new_pos
             R = base.R_camera_light if new_R is None else new_R
             guess = list(st.guess)
             guess[j] = LightGuess(pos.copy(), R.copy())
@@ -118,7 +118,7 @@ class Actions:
             raise InputError("initial", "no image shows the light's beam (dark, or masked)")
         self.set_guess(
             0,
-            position_m=guess.position_camera,
+            t_camera_light=guess.position_camera,
             R_camera_light=rotation_from_axis(guess.axis_camera),
         )
         x, y, z = guess.position_camera * 1e3
@@ -419,17 +419,17 @@ class Actions:
         self.state.request(RestorePrevious(client=client))
 
     def on_gizmo(
-        self, j: int, position_m: np.ndarray, wxyz: np.ndarray, client: Any
+        self, j: int, t_camera_light: np.ndarray, wxyz: np.ndarray, client: Any
     ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The light's gizmo was dragged to `position_m`, `wxyz` (as the page sent them).
+        """The light's gizmo was dragged to `t_camera_light`, `wxyz` (as the page sent them).
 
         Returns:
             the pose taken (position, R), or None when refused (the gizmo goes back).
         """
         try:
             R = matrix_from_quaternion_wxyz(wxyz)
-            self.set_guess(j, position_m=position_m, R_camera_light=R)
+            self.set_guess(j, t_camera_light=t_camera_light, R_camera_light=R)
         except LightcalError as exc:
             self.refused(client, exc, "light")
             return None
-        return np.asarray(position_m, dtype=np.float64), R
+        return np.asarray(t_camera_light, dtype=np.float64), R

@@ -125,9 +125,7 @@ def wall_extent(project: Project, *, margin: float = 0.15) -> tuple[np.ndarray, 
 
 
 def _pose(light: Light | LightGuess) -> tuple[np.ndarray, np.ndarray]:
-    if isinstance(light, Light):
-        return light.t_camera_light, light.R_camera_light
-    return light.position_m, light.R_camera_light
+    return light.t_camera_light, light.R_camera_light
 
 
 class Scene3D:
@@ -135,7 +133,7 @@ class Scene3D:
 
     Args:
         server: the viser server (server-level scene: every browser sees the same).
-        on_gizmo: called with (light index, position_m (3,), R_camera_light (3, 3), client)
+        on_gizmo: called with (light index, t_camera_light (3,), R_camera_light (3, 3), client)
             when a browser drags a gizmo.
     """
 
@@ -286,7 +284,7 @@ class Scene3D:
                     base,
                     show_axes=False,
                     wxyz=quaternion_wxyz_from_matrix(g.R_camera_light),
-                    position=g.position_m,
+                    position=g.t_camera_light,
                 )
                 self.scene.add_icosphere(
                     f"{base}/bulb", radius=self.light_size_m, color=TRUTH_RGB, opacity=0.55

@@ -196,7 +196,9 @@ def session_from_state(state: AppState) -> SessionFile:
         saved_at=time.strftime("%Y-%m-%d %H:%M:%S"),
         lights=[
             GuessModel(
-                name=n, position_m=g.position_m.tolist(), R_camera_light=g.R_camera_light.tolist()
+                name=n,
+                position_m=g.t_camera_light.tolist(),  # the file's name for it
+                R_camera_light=g.R_camera_light.tolist(),
             )
             for n, g in zip(names, state.guess, strict=True)
         ],

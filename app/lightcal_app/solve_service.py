@@ -143,7 +143,7 @@ class SolveService:
             replace(
                 u,
                 initial=u.initial.replace(
-                    t_camera_light=g.position_m, R_camera_light=g.R_camera_light
+                    t_camera_light=g.t_camera_light, R_camera_light=g.R_camera_light
                 ),
             )
             for u, g in zip(project.lights, guess, strict=True)

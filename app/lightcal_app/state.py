@@ -59,11 +59,12 @@ class LightGuess:
     """The pose of one light the user set (camera frame).
 
     Attributes:
-        position_m: (3,) emitter position in the camera frame, m.
+        t_camera_light: (3,) emitter position in the camera frame, m (the library's name,
+            `lightcal.core.scene.Light.t_camera_light`).
         R_camera_light: (3, 3) rotation light -> camera.
     """
 
-    position_m: np.ndarray
+    t_camera_light: np.ndarray
     R_camera_light: np.ndarray
 
 

@@ -137,7 +137,7 @@ class LightPanel(TabPanel):
         @w["position"].on_update
         @self.guard
         def _(event: Any) -> None:
-            ctl.set_guess(j, position_m=np.array(w["position"].value, dtype=float) / 1e3)
+            ctl.set_guess(j, t_camera_light=np.array(w["position"].value, dtype=float) / 1e3)
 
         def orientation(event: Any) -> None:
             roll, pitch = w["axis"].value
@@ -172,10 +172,7 @@ class LightPanel(TabPanel):
             )
             poses = []
             for j, light in enumerate(lights[: len(self.light_widgets)]):
-                if isinstance(light, Light):
-                    t, R = light.t_camera_light, light.R_camera_light
-                else:
-                    t, R = light.position_m, light.R_camera_light
+                t, R = light.t_camera_light, light.R_camera_light
                 roll, pitch, spin = pose_angles_deg(R)
                 w = self.light_widgets[j]
                 self.flag.assign(w["position"], tuple(rounded(v, 2) for v in t * 1e3))
