@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from lightcal_app import requests as rq
+from lightcal_app.solve_service import SolveService
+from lightcal_app.state import AppState
 
 from lightcal.core.camera import Camera
 from lightcal.core.pose import axis_from_angles, describe_pose, rotation_from_axis
@@ -140,3 +144,20 @@ def make_project(
     truth_path = folder / "truth.json"
     truth_path.write_text(json.dumps(truth, indent=1), encoding="utf-8")
     return SyntheticProject(path, truth_path, camera, views, light)
+
+
+def run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) -> None:
+    """What the worker does with the solve's requests (Finished), without a thread."""
+    deadline = threading.Event()
+    for _ in range(int(timeout / 0.01)):
+        with state.lock:
+            pending = list(state.requests)
+            state.requests.clear()
+        for req in pending:
+            if isinstance(req, rq.Finished):
+                solve.finished(req.gen, req.outcome)
+        solve.poll()
+        if not solve.running() and not pending:
+            return
+        deadline.wait(0.01)
+    raise AssertionError("the solve did not settle")

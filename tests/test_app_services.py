@@ -25,7 +25,7 @@ from lightcal.core.pose import axis_roll_from_rotation, rotation_from_axis, rota
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.io.project import load_project
 from lightcal.pipeline import build_model, image_data, load_images
-from tests.app_fixtures import TRUE_POSITION_M, SyntheticProject, make_project
+from tests.app_fixtures import TRUE_POSITION_M, SyntheticProject, make_project, run_requests
 
 
 @pytest.fixture(scope="module")
@@ -58,23 +58,6 @@ def _service(synthetic: SyntheticProject) -> tuple[AppState, SolveService, Messa
     solve = SolveService(state, notify=messages, follow_iterations=False)
     solve.setup_changed()
     return state, solve, messages
-
-
-def _run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) -> None:
-    """What the worker does with the solve's requests (Finished), without a thread."""
-    deadline = threading.Event()
-    for _ in range(int(timeout / 0.01)):
-        with state.lock:
-            pending = list(state.requests)
-            state.requests.clear()
-        for req in pending:
-            if isinstance(req, rq.Finished):
-                solve.finished(req.gen, req.outcome)
-        solve.poll()
-        if not solve.running() and not pending:
-            return
-        deadline.wait(0.01)
-    raise AssertionError("the solve did not settle")
 
 
 def test_the_services_import_no_viser() -> None:
@@ -111,7 +94,7 @@ def test_selection_matches_the_pipeline_and_the_model_uses_its_lights(
 def test_step_records_an_iteration_and_an_interim_result(synthetic: SyntheticProject) -> None:
     state, solve, _ = _service(synthetic)
     solve.start("step")
-    _run_requests(solve, state)
+    run_requests(solve, state)
     assert [h.iteration for h in state.history] == [0, 1]
     assert state.solver_state == "paused"
     assert state.result is not None and "paused after iteration 1" in state.result.message
@@ -123,7 +106,7 @@ def test_run_finds_the_true_light_then_reset_returns_to_the_guess(
 ) -> None:
     state, solve, messages = _service(synthetic)
     solve.start("run")
-    _run_requests(solve, state, timeout=120.0)
+    run_requests(solve, state, timeout=120.0)
     assert state.solver_state == "converged"
     assert state.result is not None and state.result.converged
     np.testing.assert_allclose(
@@ -185,7 +168,7 @@ def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_pa
     state, solve, messages = _service(synthetic)
     files = _files(state, solve, messages, tmp_path)
     solve.start("step")
-    _run_requests(solve, state)
+    run_requests(solve, state)
     files.save_session(rq.SaveSession())
     assert state.downloads[-1].name == "project.saved-session.json"
     solve.reset()
@@ -194,7 +177,7 @@ def test_session_restore_continues_the_solve(synthetic: SyntheticProject, tmp_pa
     assert state.solver_state == "paused"
     assert messages.titles()[-1] == "Session restored"
     solve.start("step")
-    _run_requests(solve, state)
+    run_requests(solve, state)
     assert [h.iteration for h in state.history] == [0, 1, 2]
 
 
@@ -203,7 +186,7 @@ def _converged(synthetic: SyntheticProject, tmp: Path):
     state, solve, messages = _service(synthetic)
     files = _files(state, solve, messages, tmp)
     solve.start("run")
-    _run_requests(solve, state, timeout=120.0)
+    run_requests(solve, state, timeout=120.0)
     assert state.solver_state == "converged" and state.result is not None
     return state, solve, messages, files
 
@@ -301,7 +284,7 @@ def test_run_keeps_each_iteration_on_the_page_for_the_chosen_pace(
     start = time.monotonic()
     try:
         solve.start("run")
-        _run_requests(solve, state, timeout=120.0)
+        run_requests(solve, state, timeout=120.0)
     finally:
         stop.set()
         thread.join()
@@ -340,10 +323,10 @@ def test_only_run_is_paced_a_step_shows_at_once(synthetic: SyntheticProject) -> 
     state, solve, _ = _service(synthetic)
     solve.start("step")
     assert solve.session is not None and not solve.session.unlimited
-    _run_requests(solve, state)
+    run_requests(solve, state)
     solve.start("run")
     assert solve.session.unlimited
-    _run_requests(solve, state, timeout=120.0)
+    run_requests(solve, state, timeout=120.0)
 
 
 def test_worker_dispatches_by_type_and_merges_setup_changes(synthetic: SyntheticProject) -> None:

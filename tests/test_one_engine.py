@@ -7,18 +7,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
-from lightcal_app import requests as rq
 from lightcal_app.solve_service import SolveService
 from lightcal_app.state import AppState, Display
 
 from lightcal.cli.main import main
 from lightcal.io.project import load_project
 from lightcal.pipeline import CalibrationResult, calibrate_project, load_images
+from tests.app_fixtures import run_requests
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data" / "project.json"
 
@@ -47,25 +46,8 @@ def _page_state(path: Path, *, steps: int = 0) -> AppState:
         assert solve.session is not None and solve.session.wait(60)
         solve.poll()
     solve.start("run")
-    _settle(solve, state)
+    run_requests(solve, state, timeout=300.0)
     return state
-
-
-def _settle(solve: SolveService, state: AppState) -> None:
-    """What the worker does with the solve's requests (Finished), without a thread."""
-    pause = threading.Event()
-    for _ in range(30_000):
-        with state.lock:
-            pending = list(state.requests)
-            state.requests.clear()
-        for req in pending:
-            if isinstance(req, rq.Finished):
-                solve.finished(req.gen, req.outcome)
-        solve.poll()
-        if not solve.running() and not pending:
-            return
-        pause.wait(0.01)
-    raise AssertionError("the solve did not settle")
 
 
 def _same(page: CalibrationResult, cli: CalibrationResult) -> None:
@@ -205,7 +187,7 @@ def test_the_solve_tab_settings_give_the_cli_answer_of_the_edited_file(painted: 
     assert state.solve_settings == settings and state.solve_project is not project
     solve.setup_changed()
     solve.start("run")
-    _settle(solve, state)
+    run_requests(solve, state, timeout=300.0)
     assert state.result is not None
     cli = _cli(edited)
     assert cli.wall["model"] == "plastic"
