@@ -22,10 +22,9 @@ from lightcal.pipeline.plan import (
     plan_views,
     residual_noise_scale2,
 )
-from tests.app_fixtures import SyntheticProject
+from tests.app_fixtures import SyntheticProject, run_requests
 from tests.test_app_services import (  # noqa: F401  (the fixture is used by name)
     Messages,
-    _run_requests,
     _service,
     synthetic,
 )
@@ -106,11 +105,11 @@ def test_readout_follows_the_solve_to_its_result(synthetic: SyntheticProject) ->
     assert state.readout is not None
     guess_sigma = state.readout.sigmas.position_m[0]
     plan.solve.start("step")
-    _run_requests(plan.solve, state)
+    run_requests(plan.solve, state)
     plan.refresh()
     assert state.readout is not None and state.readout.where == "iteration 1"
     plan.solve.start("run")
-    _run_requests(plan.solve, state, timeout=120.0)
+    run_requests(plan.solve, state, timeout=120.0)
     assert state.solver_state == "converged"
     plan.refresh()
     readout = state.readout
