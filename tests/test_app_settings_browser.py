@@ -16,7 +16,14 @@ from lightcal_app.server import LightcalApp, build_app
 from lightcal.cli.main import main
 from lightcal.io.project import load_project
 from lightcal.pipeline import build_model, calibrate, load_images
-from tests.test_app_browser import BROWSER_MARKS, SLOW_S, open_page, shot, wait_for
+from tests.test_app_browser import (  # noqa: F401  (the browser fixture is used by name)
+    BROWSER_MARKS,
+    SLOW_S,
+    browser,
+    open_page,
+    shot,
+    wait_for,
+)
 
 pytestmark = BROWSER_MARKS
 
@@ -40,20 +47,10 @@ def app(painted: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lig
     a.close()
 
 
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    from playwright.sync_api import sync_playwright
-
-    from tests.test_app_browser import CHROMIUM, FLAGS
-
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS)
-        yield b
-        b.close()
-
-
 def test_wall_auto_chosen_in_the_page_gives_the_cli_answer(
-    app: LightcalApp, browser: Any, painted: Path
+    app: LightcalApp,
+    browser: Any,  # noqa: F811  (the fixture imported above)
+    painted: Path,
 ) -> None:
     page, _ = open_page(browser, app, size=(1280, 800))
     page.get_by_role("tab", name="Solve").click()

@@ -4,7 +4,6 @@ checked by plan, render and export --project; a result file is validated as a wh
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import shutil
@@ -19,14 +18,7 @@ from lightcal.cli.main import main
 from lightcal.io.project import load_project
 from lightcal.io.project_identity import project_identity
 from lightcal.io.result_file import read_result
-
-
-def _hashes(folder: Path) -> dict[str, str]:
-    return {
-        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
+from tests.test_bad_inputs import _hashes, _set
 
 
 @pytest.fixture(scope="module")
@@ -174,17 +166,6 @@ def test_a_result_without_identity_is_still_read(
     argv = ["export", str(old), "--format", "mitsuba", "--out", str(tmp_path / "s.xml")]
     assert main([*argv, "--project", str(tiny_dataset / "project.json")]) == 0
     assert (tmp_path / "s.xml").is_file()
-
-
-def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
-    def edit(data: dict[str, Any]) -> None:
-        *parents, last = path.split(".")
-        node: Any = data
-        for key in parents:
-            node = node[int(key)] if key.isdigit() else node[key]
-        node[int(last) if last.isdigit() else last] = value
-
-    return edit
 
 
 RESULT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
