@@ -34,7 +34,7 @@ from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
 from lightcal.pipeline.results import stop_reason
-from lightcal.pipeline.solve import Calibration, calibrate
+from lightcal.pipeline.solve import Calibration, calibrate, start_words
 from lightcal_app.requests import Finished
 from lightcal_app.results import MISFIT_WORDS
 from lightcal_app.selection_service import Notify, SelectionService
@@ -269,8 +269,7 @@ class SolveService:
 
     def _start_said(self, k: int, n: int) -> None:
         if n > 1:
-            what = "the initial guess" if k == 0 else "a random start near it"
-            self._stage_said(f"start {k + 1} of {n}: {what}")
+            self._stage_said(start_words(k, n))
 
     def _solving(self, model: CalibrationModel) -> None:
         """The pipeline starts solving `model` (the first, a trimmed one or a wall's): the

@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.pipeline.load import prepare_solve
     from lightcal.pipeline.result_text import light_lines
     from lightcal.pipeline.results import stop_reason
+    from lightcal.pipeline.solve import start_words
 
     project = load_project(args.project)
     # Before any work: a long solve must not end in an unwritable or forbidden path.
@@ -106,8 +107,7 @@ def run(args: argparse.Namespace) -> int:
 
     def on_start(k: int, n: int) -> None:
         if not args.quiet and n > 1:
-            what = "the initial guess" if k == 0 else "a random start near it"
-            console.print(f"start {k + 1} of {n}: {what}", highlight=False)
+            console.print(start_words(k, n), highlight=False)
 
     def on_stage(text: str) -> None:
         if not args.quiet:

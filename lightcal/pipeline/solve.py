@@ -84,6 +84,17 @@ def hemisphere_start(
     return x
 
 
+def start_words(k: int, n: int) -> str:
+    """Start k of n of `solve`, in words ("start 2 of 3: a random start near it")."""
+    if k == 0:
+        what = "the initial guess"
+    elif k % 2:
+        what = "a random start near it"
+    else:
+        what = "a random axis in front of the camera"
+    return f"start {k + 1} of {n}: {what}"
+
+
 #: From this many pixels a solve starts from the solution of a regular subsample of them.
 COARSE_MIN_PIXELS = 1_000_000
 #: About how many pixels the subsample keeps.
