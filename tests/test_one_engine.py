@@ -295,3 +295,26 @@ def test_one_status_in_both_tabs_when_the_fit_test_finds_a_misfit(painted: Path)
     assert state.solver_message.endswith(f"; {MISFIT_WORDS}")
     head = result_markdown(state.result, state=state.solver_state).splitlines()[0]
     assert head.startswith(f"**converged, {MISFIT_WORDS}**: ")
+
+
+def test_a_restored_wall_auto_solve_shows_the_wall_it_chose(painted: Path) -> None:
+    """A session saved after `wall: auto` chose plastic restores to that estimate (its
+    parameters are the plastic model's, which the project's first, matte, model lacks),
+    not to the guess."""
+    from lightcal_app.session_file import apply_session, session_from_state
+
+    solved = _page_state(painted)
+    assert solved.result is not None and solved.result.wall["model"] == "plastic"
+    saved = session_from_state(solved)
+    fresh = AppState(solved.project, solved.loaded)
+    service = SolveService(fresh, notify=lambda *a, **k: None, follow_iterations=False)
+    assert apply_session(fresh, type(saved).model_validate_json(saved.model_dump_json())) == []
+    fresh.resume_x = fresh.history[-1].x.copy()
+    service.selection.compute()
+    service.show_guess()
+    service.restore_estimate()
+    assert fresh.display is not None and fresh.display.source == "estimate"
+    assert fresh.display.wall.name == "plastic"
+    assert fresh.result is not None and fresh.solver_state == "converged"
+    assert fresh.result.parameter_names == solved.result.parameter_names
+    np.testing.assert_allclose(fresh.result.x, solved.result.x, rtol=0, atol=0)

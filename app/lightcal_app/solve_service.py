@@ -40,6 +40,7 @@ from lightcal_app.results import MISFIT_WORDS
 from lightcal_app.selection_service import Notify, SelectionService
 from lightcal_app.session_file import session_from_state
 from lightcal_app.solve_display import estimate_display, pace_wait_s
+from lightcal_app.solve_settings import restored_wall
 from lightcal_app.state import AppState, Display, LightGuess, PreviousResult
 
 log = logging.getLogger("lightcal.app")
@@ -213,6 +214,8 @@ class SolveService:
         model, index = built
         with st.lock:
             project, loaded = st.solve_project, st.loaded
+        if resume is not None and history:
+            project, model = restored_wall(project, model, saved_names)
         resumed = (
             resume is not None
             and bool(history)
@@ -276,6 +279,7 @@ class SolveService:
         iterations that follow are its (their x are its parameter vectors)."""
         with self.state.lock:
             self._stage_model = model
+            self.state.parameter_names = list(model.layout.names)  # a saved x's names
 
     def estimate_display(self, model: CalibrationModel, x: np.ndarray) -> Display:
         """What the page shows of the estimate `x` (n,)."""

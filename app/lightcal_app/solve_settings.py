@@ -13,12 +13,14 @@ the page solves what `lightcal calibrate` solves on the edited file.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal, get_args
 
+from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
 from lightcal.io.project import Project, project_from_spec
 from lightcal.io.project_spec import WallModelName, WallSpec
+from lightcal.pipeline.wall_choice import candidate_named
 
 FallOff = Literal["radiance", "cos4", "paper", "map"]
 RidEstimate = Literal["none", "cos_power", "curve"]
@@ -123,3 +125,17 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
         }
     )
     return project_from_spec(edited, project.path)
+
+
+def restored_wall(
+    project: Project, model: CalibrationModel, names: list[str]
+) -> tuple[Project, CalibrationModel]:
+    """The project and model a restored solve with parameters `names` continues: a
+    `wall: auto` solve ended on the wall it chose (plastic, oren_nayar), whose parameters
+    the project's first model lacks; that wall's project and model then. Otherwise the
+    ones given."""
+    chosen = candidate_named(model, names) if project.spec.wall.model == "auto" else None
+    if chosen is None or names == list(model.layout.names):
+        return project, model
+    settings = replace(settings_of(project), wall_model=chosen.layout.wall_unknown.initial.name)
+    return project_for_solve(project, settings), chosen

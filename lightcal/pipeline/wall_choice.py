@@ -150,6 +150,16 @@ def wall_candidate(model: CalibrationModel, x: np.ndarray, name: str) -> Calibra
     return restarted(model, x, wall=wall)
 
 
+def candidate_named(model: CalibrationModel, names: list[str]) -> CalibrationModel | None:
+    """The `auto` candidate of `model` whose parameters are `names` (a solve that chose
+    that wall, restored from its parameter names), or None."""
+    for name in AUTO_CANDIDATES:
+        candidate = wall_candidate(model, model.layout.x0, name)
+        if list(candidate.layout.names) == names:
+            return candidate
+    return None
+
+
 def choice_note(chosen: Candidate, candidates: list[Candidate]) -> str:
     """The sentence the result carries about what `auto` chose."""
     others = ", ".join(

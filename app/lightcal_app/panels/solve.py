@@ -209,9 +209,9 @@ class SolvePanel(TabPanel):
             "y": {"range": cost_range},
         }
         self.cost_plot.data = (it, log_cost)
-        names = list(frame.parameter_names)
         # A later stage of the solve may add parameters (a wall `auto` tries): they come
         # after the first model's, whose columns the plots draw.
+        names = list(frame.parameter_names)[: min((len(h.x) for h in hist), default=None)]
         xs = np.array([h.x[: len(names)] for h in hist]) if hist else np.zeros((0, len(names)))
         cols = [k for k, n in enumerate(names) if n.endswith("_m")]
         position = [(names[k].removesuffix("_m"), xs[:, k] * 1e3) for k in cols] if hist else []
