@@ -192,6 +192,12 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     x.fill("90")
     x.press("Enter")
     wait_for(lambda: panel.fields() == SAMPLE_FIELDS, "the initial light")
+    # A later upload prefills again: the fields the user typed into keep the user's values.
+    _upload(page, app, "light", sample / "light.ies")
+    page.get_by_text("Ready: press Build project.").wait_for()
+    app.wait_idle(SLOW_S)
+    assert panel.fields() == SAMPLE_FIELDS
+    assert page.get_by_label("black level").input_value() == "512"
     shot(page, "photos_sample_staged_1280x800.png")
 
     page.get_by_role("button", name="Build project").click()

@@ -7,7 +7,8 @@ calibration with its warnings, and the built project's zip.
 
 The level fields are prefilled with what the first wall photo's file gives (a raw file's
 metadata, else 0 and 2^bits - 1) whenever that changes, unless the user has typed into
-them since the last prefill (a white level of 0 is none: float photos).
+them since the last prefill: viser's update stamp of the field is newer than the one its
+last prefill left (a white level of 0 is none: float photos).
 
 The files and the build are `PhotoService`'s (`lightcal_app.photo_service`); this panel
 only passes the uploads and the clicks on, and writes the service's state into its
@@ -114,7 +115,11 @@ class PhotosPanel(TabPanel):
             "prefilled from a raw file's metadata, else 2^bits - 1 (a 14-bit sensor in a "
             "16-bit PNG: 16383)",
         )
-        self._prefilled = (0.0, 65535.0)
+        # Per level field, viser's stamp of its last prefill: a newer one is the user's.
+        self._prefilled = [
+            Programmatic.stamp(self.black_level),
+            Programmatic.stamp(self.white_level),
+        ]
         self._prefill_lock = threading.Lock()
         with gui.add_folder("Detection and pose floors", expand_by_default=False):
             defaults = PhotoFields()
@@ -202,7 +207,9 @@ class PhotosPanel(TabPanel):
         new = (0.0, 65535.0) if staged.levels is None else staged.levels.fields()
         handles: tuple[Any, Any] = (self.black_level, self.white_level)
         with self._prefill_lock:
-            for handle, old, value in zip(handles, self._prefilled, new, strict=True):
-                if handle.value == old and value != old:
+            for k, (handle, value) in enumerate(zip(handles, new, strict=True)):
+                if Programmatic.stamp(handle) > self._prefilled[k]:
+                    continue  # typed into since the last prefill: the user's value stays
+                if handle.value != value:
                     handle.value = value
-            self._prefilled = new
+                self._prefilled[k] = Programmatic.stamp(handle)
