@@ -68,12 +68,16 @@ def test_plan_tab_suggests_views_drawn_as_ghost_frusta(
     # The ghost frusta are drawn: the 3D view gained their blue.
     gained = plan_blue_pixels(after) - plan_blue_pixels(before)
     assert gained > 200, gained
+    # No photo hides a suggestion: the photos' frusta are outlines while it is shown.
+    frusta = app.controller.redrawer.scene.frusta
+    assert all(h.image is None for h in frusta)
     # Hidden on request, and the blue goes with them.
     page.get_by_label("show suggested views in 3D").uncheck()
     wait_for(lambda: not app.state.show_plan, "the plan hidden")
     assert app.wait_idle(SLOW_S)
     hidden = shot(page, f"plan_hidden_{tag}.png")
     assert plan_blue_pixels(hidden) < plan_blue_pixels(before) + 0.2 * gained
+    assert all(h.image is not None for h in frusta)  # the pictures are back
     page.get_by_label("show suggested views in 3D").check()
     wait_for(lambda: app.state.show_plan, "the plan shown again")
     page.context.close()

@@ -3,7 +3,9 @@
 Each view of a plan (`lightcal_app.state.PlanShown`) is drawn as a blue wireframe frustum
 `/plan/<k>` at its camera pose (world frame, docs/model.md), the size of the project's
 frusta, with a label "next <rank>" and a line from the camera to the wall point it aims
-at. `PlanScene` only draws what it is given.
+at. `PlanScene` only draws what it is given. viser draws no frustum in front of another,
+so while a plan is shown the photos' frusta are outlines (`Scene3D.set_outlines_only`): no
+picture hides a suggested view.
 """
 
 from __future__ import annotations

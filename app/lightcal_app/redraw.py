@@ -120,6 +120,7 @@ class Redrawer:
                 rig = frame.display.rig if frame.display is not None else None
                 self.scene.set_rays(rig, frame.wall_points, frame.rays_image)
             if d & {"plan", "scene"}:
+                self.scene.set_outlines_only(frame.show_plan and frame.plan is not None)
                 self.plan_scene.draw(
                     frame.plan if frame.show_plan else None,
                     project.camera,

@@ -142,6 +142,8 @@ class Scene3D:
         self.scene = server.scene
         self.on_gizmo = on_gizmo
         self.frusta: list[Any] = []
+        self.pictures: dict[int, np.ndarray] = {}  # what each frustum shows, or would
+        self.outlines_only = False  # the frusta without pictures (`set_outlines_only`)
         self.planes: list[FrustumPlane] = []
         self.gizmos: list[Any] = []
         self.light_frames: dict[tuple[int, int], Any] = {}
@@ -201,6 +203,8 @@ class Scene3D:
         scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
         self.frustum_scale = scale
         self.frusta = []
+        self.pictures = dict(enumerate(pictures))
+        self.outlines_only = False
         self.planes = []
         for i, view in enumerate(project.views):
             R_wc = view.R_camera_world.T
@@ -309,8 +313,20 @@ class Scene3D:
 
     def set_pictures(self, pictures: dict[int, np.ndarray]) -> None:
         """Replace the pictures of some frusta."""
-        for i, rgb in pictures.items():
-            self.frusta[i].image = rgb
+        self.pictures.update(pictures)
+        if not self.outlines_only:
+            for i, rgb in pictures.items():
+                self.frusta[i].image = rgb
+
+    def set_outlines_only(self, outlines: bool) -> None:
+        """Draw the frusta as outlines (True) or with their pictures. viser draws no
+        frustum in front of another: a suggested view behind a photo's picture would be
+        hidden, so while suggestions are shown the photos are outlines."""
+        if outlines == self.outlines_only:
+            return
+        self.outlines_only = outlines
+        for i, h in enumerate(self.frusta):
+            h.image = None if outlines else self.pictures.get(i)
 
     def set_focus(self, focus: int | None, ref_image: int) -> None:
         """Frame the highlighted image's frustum (thick, crimson); the others as built."""
