@@ -943,7 +943,7 @@ FILE_READER_CASES: list[tuple[str, str, Callable[[Path], Any], str, str]] = [
         "b.yaml",
         lambda p: p.write_text("type: hexagon\n"),
         "board",
-        "type: expected aruco_grid, charuco or chessboard, got 'hexagon'",
+        "type: expected aruco_grid, charuco, chessboard or markers, got 'hexagon'",
     ),
     (
         "vignetting map of another size",

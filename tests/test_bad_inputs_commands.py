@@ -1163,7 +1163,7 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error(
             "init",
             "{k}/chess.yaml: a chessboard has no markers, so it gives no camera pose on the "
-            "wall: expected an aruco_grid or charuco board",
+            "wall: expected an aruco_grid, charuco or markers board",
         ),
     ),
     (

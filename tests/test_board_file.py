@@ -91,7 +91,7 @@ def test_file_errors(tmp_path: Path):
     with _raises(
         empty,
         "empty file: expected a board description with a 'type' "
-        "(aruco_grid, charuco or chessboard)",
+        "(aruco_grid, charuco, chessboard or markers)",
     ):
         read_board(empty)
     folder = tmp_path / "folder.yaml"
@@ -126,7 +126,7 @@ def test_corrupt_files(tmp_path: Path):
     [
         (
             {"type": "checkerboard"},
-            "type: expected aruco_grid, charuco or chessboard, got 'checkerboard'",
+            "type: expected aruco_grid, charuco, chessboard or markers, got 'checkerboard'",
         ),
         ({"version": 2}, "version: this lightcal reads board file version 1, got 2"),
         ({"markers_x": 0}, "markers_x: Input should be greater than or equal to 1"),
@@ -167,7 +167,8 @@ def test_invalid_fields(change, message):
 def test_not_a_mapping_and_charuco_checks():
     with _raises(
         "b.yaml",
-        "expected a mapping with a 'type' (aruco_grid, charuco or chessboard) at the top level",
+        "expected a mapping with a 'type' (aruco_grid, charuco, chessboard or markers) at the "
+        "top level",
     ):
         parse_board([1, 2], "b.yaml")
     data = {

@@ -674,7 +674,9 @@ def test_the_largest_initial_guess_the_checks_take_makes_a_project(
 
 # --- a camera, project or result file given as the board file --------------------------
 
-NOT_A_BOARD = ", not a board file: expected a board file (type aruco_grid, charuco or chessboard)"
+NOT_A_BOARD = (
+    ", not a board file: expected a board file (type aruco_grid, charuco, chessboard or markers)"
+)
 
 
 @pytest.mark.parametrize("command", ["init", "camera calibrate"])

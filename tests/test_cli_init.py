@@ -300,7 +300,7 @@ def test_errors_are_one_line_naming_the_input(scene, capsys):
     write_board(Chessboard(9, 6, 0.03), root / "board.yaml")
     assert error(_init(root, images)) == (
         f"{root / 'board.yaml'}: a chessboard has no markers, so it gives no camera pose on "
-        "the wall: expected an aruco_grid or charuco board"
+        "the wall: expected an aruco_grid, charuco or markers board"
     )
     write_board(BOARD, root / "board.yaml")
 

@@ -1,12 +1,13 @@
 """Calibration boards: their geometry on the wall and their printable images.
 
-Three boards are described by frozen dataclasses:
+Four boards are described by frozen dataclasses:
 
 | class | used for | printed pattern |
 |---|---|---|
 | `ArucoGridBoard` | camera poses on the wall (`marker_pose`) | a grid of ArUco markers |
 | `CharucoBoard` | camera poses, intrinsics | a chessboard with ArUco markers in its white squares |
 | `Chessboard` | intrinsics (`intrinsics`) | a plain chessboard |
+| `MarkerLayout` | camera poses on the wall | ArUco markers or AprilTags placed one by one |
 
 World frame and board frame (the one convention of this module):
 
@@ -32,9 +33,12 @@ and for synthetic images. Pixels follow docs/conventions.md: pixel (u, v) = (col
 to (u, v). Markers come from `cv2.aruco.Dictionary.generateImageMarker`, placed at whole
 pixels; the layout equals `cv2.aruco.Board.generateImage` wherever the latter is exact.
 
-`Chessboard` lives in `lightcal.capture.chessboard` and what the boards share (checks,
-ArUco dictionaries, `BoardRendering`) in `lightcal.capture.board_layout`; this module
-exports them.
+`Chessboard` lives in `lightcal.capture.chessboard`, `MarkerLayout` (whose AprilTags are
+printed and read as their official images: `lightcal.capture.apriltag`) in
+`lightcal.capture.marker_layout`, and what the boards share (checks, ArUco dictionaries,
+`BoardRendering`) in `lightcal.capture.board_layout`; this module exports them. The
+`ArucoGridBoard` and `CharucoBoard` draw their markers as OpenCV does (for AprilTag
+dictionaries that is not the official orientation in every OpenCV version).
 """
 
 from __future__ import annotations
@@ -62,6 +66,7 @@ from lightcal.capture.board_layout import (
     whole_pixels,
 )
 from lightcal.capture.chessboard import Chessboard
+from lightcal.capture.marker_layout import LayoutMarker, MarkerLayout
 from lightcal.errors import InputError
 
 __all__ = [
@@ -71,6 +76,8 @@ __all__ = [
     "BoardRendering",
     "CharucoBoard",
     "Chessboard",
+    "LayoutMarker",
+    "MarkerLayout",
     "aruco_dictionary",
     "aruco_dictionary_names",
 ]
@@ -429,5 +436,5 @@ class CharucoBoard:
         return BoardRendering(image=image, px_per_m=scale, top_left_world_m=top_left)
 
 
-Board = ArucoGridBoard | CharucoBoard | Chessboard
+Board = ArucoGridBoard | CharucoBoard | Chessboard | MarkerLayout
 """Any of the boards of this module."""

@@ -14,8 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
-from lightcal.capture.marker_pose import MarkerPose
+from lightcal.capture.marker_pose import MarkerBoard, MarkerPose
 from lightcal.errors import InputError
 from lightcal.io.project_spec import MAX_LIGHT_OFFSET_M
 
@@ -86,7 +85,7 @@ def axis_problem(axis_camera: Sequence[float]) -> str | None:
     return None
 
 
-def markers_problem(min_markers: int, board: ArucoGridBoard | CharucoBoard) -> str | None:
+def markers_problem(min_markers: int, board: MarkerBoard) -> str | None:
     """Why a fewest-markers count can never be met on `board`, or None."""
     if min_markers <= board.n_markers:
         return None

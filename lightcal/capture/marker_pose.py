@@ -1,11 +1,15 @@
-"""Camera poses from calibration markers on the wall (ArUco grid or ChArUco board).
+"""Camera poses from calibration markers on the wall (ArUco grid, ChArUco board or markers
+placed one by one).
 
 `estimate_pose` detects the board in one image and returns `T_camera_world` in the world
 frame of `lightcal.capture.boards` (the wall is z = 0, the camera at z > 0; docs/conventions.md):
 
 1. Detection on an 8-bit copy of the image (`stretch_to_uint8`), then
-2. the markers (ArUco grid) or ChArUco corners found by OpenCV's detectors, and
-3. every corner refined on straight edges (steps 1-3: `lightcal.capture.marker_detection`);
+2. the markers (ArUco grid, marker layout) or ChArUco corners found by OpenCV's detectors,
+   and
+3. every corner refined on straight edges (steps 1-3: `lightcal.capture.marker_detection`;
+   a `MarkerLayout`'s markers, AprilTags in their official corner order:
+   `lightcal.capture.layout_detection`);
 4. `cv2.solvePnP` (IPPE) then `cv2.solvePnPRefineLM` on the camera's distortion model
    (`solve_pose`), and
 5. the pose's covariance from the reprojection fit (`pose_covariance`), as (delta, c):
@@ -34,7 +38,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, MarkerLayout
+from lightcal.capture.layout_detection import detect_layout
 from lightcal.capture.marker_detection import (
     EDGE_SAMPLES,
     MIN_CHARUCO_CORNERS,
@@ -72,8 +77,8 @@ __all__ = [
     "stretch_to_uint8",
 ]
 
-MarkerBoard = ArucoGridBoard | CharucoBoard
-"""Boards that carry ArUco markers, hence give a camera pose from one image."""
+MarkerBoard = ArucoGridBoard | CharucoBoard | MarkerLayout
+"""Boards that carry markers, hence give a camera pose from one image."""
 
 
 def project_polygons(
@@ -232,9 +237,11 @@ def estimate_pose(
     """
     if isinstance(min_markers, bool) or not isinstance(min_markers, int) or min_markers < 1:
         raise InputError("min_markers", f"expected an int >= 1, got {min_markers!r}")
-    if not isinstance(board, ArucoGridBoard | CharucoBoard):
+    if not isinstance(board, ArucoGridBoard | CharucoBoard | MarkerLayout):
         raise InputError(
-            "board", f"expected an ArucoGridBoard or a CharucoBoard, got {type(board).__name__}"
+            "board",
+            "expected an ArucoGridBoard, a CharucoBoard or a MarkerLayout, got "
+            f"{type(board).__name__}",
         )
     image_u8, image_f = detection_images(image, camera, source)
 
@@ -243,6 +250,12 @@ def estimate_pose(
         if ids.size < min_markers:
             raise InputError(source, f"found {ids.size} markers, need at least {min_markers}")
         polygons = board.outline_world(ids)
+    elif isinstance(board, MarkerLayout):
+        indices, points_world, points_image = detect_layout(image_u8, image_f, board, camera)
+        if indices.size < min_markers:
+            raise InputError(source, f"found {indices.size} markers, need at least {min_markers}")
+        ids = np.array([board.markers[i].id for i in indices], dtype=np.int64)
+        polygons = board.outline_world(indices)
     else:
         ids, corner_ids, points_world, points_image = detect_charuco(
             image_u8, image_f, board, camera, source

@@ -37,7 +37,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lightcal.capture.boards import ArucoGridBoard, CharucoBoard
+from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, MarkerLayout
 from lightcal.capture.exif_exposures import exposure_specs
 from lightcal.capture.init_checks import (
     NOT_FINITE,
@@ -52,6 +52,7 @@ from lightcal.capture.init_checks import (
     with_pose_floor,
 )
 from lightcal.capture.marker_pose import (
+    MarkerBoard,
     MarkerPose,
     estimate_pose,
     pose_intrinsics_jacobian,
@@ -271,7 +272,8 @@ def init_project(
     Args:
         image_dir: Folder of photographs of the wall (not searched recursively).
         camera_path: Camera file (OpenCV YAML/JSON/XML or COLMAP cameras.txt) of the images.
-        board_path: Board file (`lightcal.io.board_file`): an `aruco_grid` or `charuco`.
+        board_path: Board file (`lightcal.io.board_file`): an `aruco_grid`, `charuco` or
+            `markers` board.
         out_path: The project file to write (JSON, or YAML for .yaml/.yml); the masks go
             to `masks/` beside it.
         light_file: The light's IES (.ies) or EULUMDAT (.ldt) file.
@@ -313,11 +315,11 @@ def init_project(
     camera = read_camera(camera_file)
     board_file = Path(board_path)
     board = read_board(board_file)
-    if not isinstance(board, ArucoGridBoard | CharucoBoard):
+    if not isinstance(board, ArucoGridBoard | CharucoBoard | MarkerLayout):
         raise InputError(
             board_file,
             "a chessboard has no markers, so it gives no camera pose on the wall: expected "
-            "an aruco_grid or charuco board",
+            "an aruco_grid, charuco or markers board",
         )
     if (problem := markers_problem(min_markers, board)) is not None:
         raise InputError("min_markers", f"{problem}, got {min_markers}")
@@ -452,7 +454,7 @@ def _process_image(
     path: Path,
     name: str,
     camera: Camera,
-    board: ArucoGridBoard | CharucoBoard,
+    board: MarkerBoard,
     print_polygons: np.ndarray,
     staging_dir: Path,
     masks_dir: Path,

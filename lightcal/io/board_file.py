@@ -19,7 +19,19 @@ origin_world_m: [-1.1, 0.8] # optional: the board's top-left corner on the wall
 
 `charuco` takes `dictionary`, `squares_x`, `squares_y`, `square_length_m`,
 `marker_length_m` and `origin_world_m`; `chessboard` takes `inner_x`, `inner_y` and
-`square_length_m`. JSON for `.json`, YAML for `.yaml` / `.yml`. Every problem is an
+`square_length_m`. `markers` lists markers one by one
+(`lightcal.capture.marker_layout`), each with its own dictionary or the file's:
+
+```yaml
+type: markers
+dictionary: DICT_APRILTAG_36h11  # optional: the default of the markers
+markers:
+  - {id: 0, center_world_m: [-0.6, 0.35], size_m: 0.15}
+  - {id: 1, center_world_m: [0.6, 0.35], size_m: 0.15, rotation_deg: 90}
+  - {dictionary: DICT_4X4_50, id: 7, center_world_m: [0.0, -0.35], size_m: 0.1}
+```
+
+JSON for `.json`, YAML for `.yaml` / `.yml`. Every problem is an
 `InputError` naming the file and the field; an OpenCV camera file, a project or a result
 file given as a board file is named for what it is.
 """
@@ -33,7 +45,15 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
-from lightcal.capture.boards import ArucoGridBoard, Board, CharucoBoard, Chessboard
+from lightcal.capture.boards import (
+    ArucoGridBoard,
+    Board,
+    CharucoBoard,
+    Chessboard,
+    LayoutMarker,
+    MarkerLayout,
+    aruco_dictionary,
+)
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
@@ -44,6 +64,8 @@ __all__ = [
     "BoardSpec",
     "CharucoSpec",
     "ChessboardSpec",
+    "LayoutMarkerSpec",
+    "MarkersSpec",
     "board_from_spec",
     "board_to_spec",
     "parse_board",
@@ -110,12 +132,34 @@ class ChessboardSpec(_Model):
     square_length_m: PositiveLength
 
 
-BoardSpec = Annotated[ArucoGridSpec | CharucoSpec | ChessboardSpec, Field(discriminator="type")]
+class LayoutMarkerSpec(_Model):
+    """One marker of a `markers` board (`lightcal.capture.marker_layout.LayoutMarker`)."""
+
+    dictionary: str | None = None
+    id: Count = Field(ge=0)
+    center_world_m: Origin
+    size_m: PositiveLength
+    rotation_deg: Number = 0.0
+
+
+class MarkersSpec(_Model):
+    """Markers placed one by one (`lightcal.capture.marker_layout.MarkerLayout`)."""
+
+    version: Literal[1] = BOARD_FILE_VERSION
+    type: Literal["markers"]
+    dictionary: str | None = None
+    markers: list[LayoutMarkerSpec] = Field(min_length=1)
+
+
+AnyBoardSpec = ArucoGridSpec | CharucoSpec | ChessboardSpec | MarkersSpec
+
+BoardSpec = Annotated[AnyBoardSpec, Field(discriminator="type")]
 """The content of a board file (a discriminated union on `type`)."""
 
-_ADAPTER: TypeAdapter[ArucoGridSpec | CharucoSpec | ChessboardSpec] = TypeAdapter(BoardSpec)
+_ADAPTER: TypeAdapter[AnyBoardSpec] = TypeAdapter(BoardSpec)
 
-_TYPES = "aruco_grid, charuco or chessboard"
+_KINDS = ("aruco_grid", "charuco", "chessboard", "markers")
+_TYPES = "aruco_grid, charuco, chessboard or markers"
 
 
 _EXPECTED = f"expected a board file (type {_TYPES})"
@@ -154,7 +198,7 @@ def _is_opencv_yaml(path: Path, error: InputError) -> bool:
 
 def _format_loc(loc: tuple[Any, ...]) -> str:
     # The discriminator value is the first element of a union error's location: drop it.
-    parts = loc[1:] if loc and loc[0] in ("aruco_grid", "charuco", "chessboard") else loc
+    parts = loc[1:] if loc and loc[0] in _KINDS else loc
     out = ""
     for part in parts:
         if isinstance(part, int):
@@ -164,7 +208,7 @@ def _format_loc(loc: tuple[Any, ...]) -> str:
     return out or "(top level)"
 
 
-def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | ChessboardSpec:
+def parse_board(data: Any, source: str | Path) -> AnyBoardSpec:
     """Validate a parsed board document.
 
     Args:
@@ -181,7 +225,7 @@ def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | 
     if not isinstance(data, dict):
         raise InputError(source, f"expected a mapping with a 'type' ({_TYPES}) at the top level")
     kind = data.get("type")
-    other = _other_file(data) if kind not in ("aruco_grid", "charuco", "chessboard") else None
+    other = _other_file(data) if kind not in _KINDS else None
     if other is not None:
         raise InputError(source, f"{other}, not a board file: {_EXPECTED}")
     version = data.get("version", BOARD_FILE_VERSION)
@@ -189,7 +233,7 @@ def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | 
         raise InputError(
             source, f"version: this lightcal reads board file version 1, got {version!r}"
         )
-    if kind not in ("aruco_grid", "charuco", "chessboard"):
+    if kind not in _KINDS:
         raise InputError(source, f"type: expected {_TYPES}, got {kind!r}")
     try:
         return _ADAPTER.validate_python(data)
@@ -200,9 +244,36 @@ def parse_board(data: Any, source: str | Path) -> ArucoGridSpec | CharucoSpec | 
         raise InputError(source, f"{_format_loc(err['loc'])}: {msg}{more}") from exc
 
 
-def board_from_spec(
-    spec: ArucoGridSpec | CharucoSpec | ChessboardSpec, source: str | Path = "board"
-) -> Board:
+def _layout_from_spec(spec: MarkersSpec) -> MarkerLayout:
+    """The layout of a `markers` spec; errors name `markers[i].<field>`."""
+    if spec.dictionary is not None:
+        aruco_dictionary(spec.dictionary)
+    markers = []
+    for i, entry in enumerate(spec.markers):
+        dictionary = entry.dictionary if entry.dictionary is not None else spec.dictionary
+        if dictionary is None:
+            raise InputError(
+                f"markers[{i}].dictionary",
+                "expected the marker's dictionary, or a 'dictionary' for every marker at "
+                "the top of the file",
+            )
+        try:
+            markers.append(
+                LayoutMarker(
+                    dictionary,
+                    entry.id,
+                    (entry.center_world_m[0], entry.center_world_m[1]),
+                    entry.size_m,
+                    entry.rotation_deg,
+                )
+            )
+        except InputError as exc:
+            field = "dictionary" if exc.source == "dictionary" else exc.source
+            raise InputError(f"markers[{i}].{field}", exc.detail) from exc
+    return MarkerLayout(tuple(markers))
+
+
+def board_from_spec(spec: AnyBoardSpec, source: str | Path = "board") -> Board:
     """The board object of a spec; a board the spec cannot build is an InputError on `source`."""
     try:
         if isinstance(spec, ArucoGridSpec):
@@ -224,12 +295,14 @@ def board_from_spec(
                 spec.marker_length_m,
                 origin_world_m=(spec.origin_world_m[0], spec.origin_world_m[1]),
             )
+        if isinstance(spec, MarkersSpec):
+            return _layout_from_spec(spec)
         return Chessboard(spec.inner_x, spec.inner_y, spec.square_length_m)
     except InputError as exc:
         raise InputError(source, f"{exc.source}: {exc.detail}") from exc
 
 
-def board_to_spec(board: Board) -> ArucoGridSpec | CharucoSpec | ChessboardSpec:
+def board_to_spec(board: Board) -> AnyBoardSpec:
     """The file description of a board object."""
     if isinstance(board, ArucoGridBoard):
         return ArucoGridSpec(
@@ -259,8 +332,26 @@ def board_to_spec(board: Board) -> ArucoGridSpec | CharucoSpec | ChessboardSpec:
             inner_y=board.inner_y,
             square_length_m=board.square_length_m,
         )
+    if isinstance(board, MarkerLayout):
+        dictionaries = board.dictionaries
+        common = dictionaries[0] if len(dictionaries) == 1 else None
+        return MarkersSpec(
+            type="markers",
+            dictionary=common,
+            markers=[
+                LayoutMarkerSpec(
+                    dictionary=None if common is not None else m.dictionary,
+                    id=m.id,
+                    center_world_m=list(m.center_world_m),
+                    size_m=m.size_m,
+                    rotation_deg=m.rotation_deg,
+                )
+                for m in board.markers
+            ],
+        )
     raise InputError(
-        "board", f"expected an ArucoGridBoard, CharucoBoard or Chessboard, got {type(board)}"
+        "board",
+        f"expected an ArucoGridBoard, CharucoBoard, Chessboard or MarkerLayout, got {type(board)}",
     )
 
 
@@ -280,7 +371,7 @@ def read_board(path: str | Path) -> Board:
         path: The board file.
 
     Returns:
-        An `ArucoGridBoard`, `CharucoBoard` or `Chessboard`.
+        An `ArucoGridBoard`, `CharucoBoard`, `Chessboard` or `MarkerLayout`.
 
     Raises:
         InputError: The file is missing, unreadable, not valid JSON / YAML, or describes
@@ -310,7 +401,7 @@ def write_board(board: Board, path: str | Path) -> None:
     """
     path = Path(path)
     suffix = _check_suffix(path)
-    data = board_to_spec(board).model_dump(mode="json")
+    data = board_to_spec(board).model_dump(mode="json", exclude_none=True)
     if suffix == ".json":
         text = json.dumps(data, indent=2) + "\n"
     else:
