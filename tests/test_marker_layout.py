@@ -276,4 +276,4 @@ def test_pose_from_a_synthetic_image_of_the_layout(layout, center, target, roll)
     assert sorted(pose.ids.tolist()) == sorted(m.id for m in layout.markers)
     assert _angle_deg(pose.R_camera_world, R) < 0.02
     assert np.linalg.norm(pose.camera_center_world - np.asarray(center)) < 1e-3
-    assert pose.reprojection_rms_px < 0.1
+    assert pose.reprojection_rms_px < 0.5

@@ -85,11 +85,14 @@ def axis_problem(axis_camera: Sequence[float]) -> str | None:
     return None
 
 
-def markers_problem(min_markers: int, board: MarkerBoard) -> str | None:
-    """Why a fewest-markers count can never be met on `board`, or None."""
-    if min_markers <= board.n_markers:
+def markers_problem(min_markers: int, board: MarkerBoard | Sequence[MarkerBoard]) -> str | None:
+    """Why a fewest-markers count can never be met on `board` (or boards), or None."""
+    boards = list(board) if isinstance(board, Sequence) else [board]
+    n_markers = sum(b.n_markers for b in boards)
+    if min_markers <= n_markers:
         return None
-    return f"expected at most the board's {board.n_markers} markers"
+    whose = "the board's" if len(boards) == 1 else f"the {len(boards)} boards'"
+    return f"expected at most {whose} {n_markers} markers"
 
 
 def initial_guess(

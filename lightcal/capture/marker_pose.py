@@ -206,10 +206,67 @@ class MarkerPose:
         return cv2.dilate(mask, kernel).astype(bool)
 
 
+@dataclass(frozen=True, eq=False)
+class _BoardFind:
+    """What one board gave in one image: ids (n,), points (N, 3) and (N, 2), the print's
+    polygons (P, 4, 3), and for a ChArUco board without enough corners, why (no points)."""
+
+    ids: NDArray[np.int64]
+    points_world: NDArray[np.float64]
+    points_image: NDArray[np.float64]
+    polygons: NDArray[np.float64]
+    problem: str | None = None
+
+
+def _find_board(
+    image_u8: NDArray[np.uint8],
+    image_f: NDArray[np.float64],
+    board: MarkerBoard,
+    camera: Camera,
+    source: str,
+) -> _BoardFind:
+    """One board's markers (ArUco grid, layout) or ChArUco corners in one image."""
+    if isinstance(board, ArucoGridBoard):
+        ids, points_world, points_image = detect_grid(image_u8, image_f, board, camera)
+        return _BoardFind(ids, points_world, points_image, board.outline_world(ids))
+    if isinstance(board, MarkerLayout):
+        indices, points_world, points_image = detect_layout(image_u8, image_f, board, camera)
+        ids = np.array([board.markers[i].id for i in indices], dtype=np.int64)
+        return _BoardFind(ids, points_world, points_image, board.outline_world(indices))
+    ids, corner_ids, points_world, points_image = detect_charuco(
+        image_u8, image_f, board, camera, source
+    )
+    if corner_ids.size < MIN_CHARUCO_CORNERS or not not_collinear(board.corners_world(corner_ids)):
+        problem = (
+            f"found {corner_ids.size} ChArUco corners, need at least "
+            f"{MIN_CHARUCO_CORNERS} not all on one line"
+        )
+        return _BoardFind(ids, np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 4, 3)), problem)
+    polygons = np.concatenate(
+        [board.outline_world(corner_ids), board.marker_corners_world(ids)], axis=0
+    )
+    return _BoardFind(ids, points_world, points_image, polygons)
+
+
+def _boards_of(board: MarkerBoard | Sequence[MarkerBoard]) -> list[MarkerBoard]:
+    """The boards of `estimate_pose`'s `board` argument, each checked."""
+    boards = list(board) if isinstance(board, Sequence) else [board]
+    if not boards:
+        raise InputError("board", "expected at least one board")
+    for item in boards:
+        if not isinstance(item, ArucoGridBoard | CharucoBoard | MarkerLayout):
+            raise InputError(
+                "board",
+                "expected an ArucoGridBoard, a CharucoBoard or a MarkerLayout, got "
+                f"{type(item).__name__}",
+            )
+    return boards
+
+
 def estimate_pose(
     image: ArrayLike,
     camera: Camera,
-    board: MarkerBoard,
+    board: MarkerBoard | Sequence[MarkerBoard],
     *,
     min_markers: int = 4,
     refine: bool = True,
@@ -221,58 +278,46 @@ def estimate_pose(
         image: (H, W) grey image, uint8 or linear float / uint16 (stretched to 8 bits for
             detection only); its size must be the camera's.
         camera: Intrinsics and distortion of the image.
-        board: The board on the wall (its `origin_world_m` places it in the world).
-        min_markers: Fewest detected board markers accepted.
+        board: The board on the wall (its `origin_world_m` places it in the world), or
+            several boards on the one wall: the points of all of them make the pose (a
+            ChArUco board with too few corners then gives none, and its markers do not
+            count). No marker may be on two boards (`lightcal.capture.board_set`).
+        min_markers: Fewest detected board markers accepted (of all boards together).
         refine: Refine the IPPE pose with `cv2.solvePnPRefineLM`.
         source: Name of the image for the result and error messages.
 
     Returns:
-        The pose, its covariance, its reprojection RMS and what was detected.
+        The pose, its covariance, its reprojection RMS and what was detected (ids and
+        points of the boards in the order given).
 
     Raises:
         InputError: The image has the wrong shape, fewer than `min_markers` markers were
-            found (message `found {n} markers, need at least {min_markers}`), a ChArUco
-            board gave fewer than 4 corners or only collinear ones, or the pose puts
-            the camera behind the wall.
+            found (message `found {n} markers, need at least {min_markers}`), a single
+            ChArUco board gave fewer than 4 corners or only collinear ones, or the pose
+            puts the camera behind the wall.
     """
     if isinstance(min_markers, bool) or not isinstance(min_markers, int) or min_markers < 1:
         raise InputError("min_markers", f"expected an int >= 1, got {min_markers!r}")
-    if not isinstance(board, ArucoGridBoard | CharucoBoard | MarkerLayout):
-        raise InputError(
-            "board",
-            "expected an ArucoGridBoard, a CharucoBoard or a MarkerLayout, got "
-            f"{type(board).__name__}",
-        )
+    boards = _boards_of(board)
     image_u8, image_f = detection_images(image, camera, source)
 
-    if isinstance(board, ArucoGridBoard):
-        ids, points_world, points_image = detect_grid(image_u8, image_f, board, camera)
-        if ids.size < min_markers:
-            raise InputError(source, f"found {ids.size} markers, need at least {min_markers}")
-        polygons = board.outline_world(ids)
-    elif isinstance(board, MarkerLayout):
-        indices, points_world, points_image = detect_layout(image_u8, image_f, board, camera)
-        if indices.size < min_markers:
-            raise InputError(source, f"found {indices.size} markers, need at least {min_markers}")
-        ids = np.array([board.markers[i].id for i in indices], dtype=np.int64)
-        polygons = board.outline_world(indices)
+    finds = [_find_board(image_u8, image_f, b, camera, source) for b in boards]
+    if len(finds) == 1:
+        found = finds[0]
+        if found.ids.size < min_markers:
+            raise InputError(source, f"found {found.ids.size} markers, need at least {min_markers}")
+        if found.problem is not None:
+            raise InputError(source, found.problem)
+        ids, points_world, points_image = found.ids, found.points_world, found.points_image
+        polygons = found.polygons
     else:
-        ids, corner_ids, points_world, points_image = detect_charuco(
-            image_u8, image_f, board, camera, source
-        )
+        used = [f for f in finds if f.problem is None]
+        ids = np.concatenate([f.ids for f in used]) if used else np.zeros(0, np.int64)
         if ids.size < min_markers:
             raise InputError(source, f"found {ids.size} markers, need at least {min_markers}")
-        if corner_ids.size < MIN_CHARUCO_CORNERS or not not_collinear(
-            board.corners_world(corner_ids)
-        ):
-            raise InputError(
-                source,
-                f"found {corner_ids.size} ChArUco corners, need at least "
-                f"{MIN_CHARUCO_CORNERS} not all on one line",
-            )
-        polygons = np.concatenate(
-            [board.outline_world(corner_ids), board.marker_corners_world(ids)], axis=0
-        )
+        points_world = np.concatenate([f.points_world for f in used])
+        points_image = np.concatenate([f.points_image for f in used])
+        polygons = np.concatenate([f.polygons for f in used])
 
     R, t = solve_pose(points_world, points_image, camera, refine=refine, source=source)
     center = -R.T @ t
@@ -301,7 +346,7 @@ def estimate_pose(
 def estimate_poses(
     images: Sequence[ArrayLike],
     camera: Camera,
-    board: MarkerBoard,
+    board: MarkerBoard | Sequence[MarkerBoard],
     *,
     sources: Sequence[str] | None = None,
     min_markers: int = 4,
@@ -312,7 +357,7 @@ def estimate_poses(
     Args:
         images: (H, W) grey images, as for `estimate_pose`.
         camera: The camera of every image.
-        board: The board on the wall.
+        board: The board on the wall, or several (as for `estimate_pose`).
         sources: Names of the images (default `image[i]`), same length as `images`.
         min_markers: Fewest detected markers accepted per image.
         refine: Refine each pose with Levenberg-Marquardt.

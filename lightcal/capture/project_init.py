@@ -37,7 +37,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, MarkerLayout
+from lightcal.capture.board_set import read_marker_boards
 from lightcal.capture.exif_exposures import exposure_specs
 from lightcal.capture.init_checks import (
     NOT_FINITE,
@@ -62,7 +62,6 @@ from lightcal.capture.mask_staging import MaskStaging
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes
-from lightcal.io.board_file import read_board
 from lightcal.io.camera_file import read_camera
 from lightcal.io.exif import Exposure
 from lightcal.io.images import SUPPORTED_EXTENSIONS, read_image
@@ -252,7 +251,7 @@ def init_project(
     image_dir: str | Path,
     *,
     camera_path: str | Path,
-    board_path: str | Path,
+    board_path: str | Path | Sequence[str | Path],
     out_path: str | Path = "project.json",
     light_file: str | Path | None = None,
     half_angle_deg: float | None = None,
@@ -273,7 +272,8 @@ def init_project(
         image_dir: Folder of photographs of the wall (not searched recursively).
         camera_path: Camera file (OpenCV YAML/JSON/XML or COLMAP cameras.txt) of the images.
         board_path: Board file (`lightcal.io.board_file`): an `aruco_grid`, `charuco` or
-            `markers` board.
+            `markers` board; or several board files of one wall, whose markers all make
+            each image's pose (`lightcal.capture.board_set`: no marker on two boards).
         out_path: The project file to write (JSON, or YAML for .yaml/.yml); the masks go
             to `masks/` beside it.
         light_file: The light's IES (.ies) or EULUMDAT (.ldt) file.
@@ -313,18 +313,13 @@ def init_project(
     paths = list_images(image_dir)
     camera_file = Path(camera_path)
     camera = read_camera(camera_file)
-    board_file = Path(board_path)
-    board = read_board(board_file)
-    if not isinstance(board, ArucoGridBoard | CharucoBoard | MarkerLayout):
-        raise InputError(
-            board_file,
-            "a chessboard has no markers, so it gives no camera pose on the wall: expected "
-            "an aruco_grid, charuco or markers board",
-        )
-    if (problem := markers_problem(min_markers, board)) is not None:
+    board_paths = [board_path] if isinstance(board_path, str | Path) else list(board_path)
+    boards = read_marker_boards(board_paths)
+    board: MarkerBoard | list[MarkerBoard] = boards[0] if len(boards) == 1 else boards
+    if (problem := markers_problem(min_markers, boards)) is not None:
         raise InputError("min_markers", f"{problem}, got {min_markers}")
     rid = _rid_spec(None if light_file is None else Path(light_file), half_angle_deg, folder, out)
-    print_polygons = board.outline_world()
+    print_polygons = np.concatenate([b.outline_world() for b in boards])
 
     masks_dir = folder / MASKS_DIR
     with MaskStaging(masks_dir) as staging:
@@ -454,7 +449,7 @@ def _process_image(
     path: Path,
     name: str,
     camera: Camera,
-    board: MarkerBoard,
+    board: MarkerBoard | list[MarkerBoard],
     print_polygons: np.ndarray,
     staging_dir: Path,
     masks_dir: Path,

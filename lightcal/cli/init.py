@@ -1,4 +1,4 @@
-"""`lightcal init IMAGE_DIR --camera CAM --board BOARD`: a project from a folder of images.
+"""`lightcal init IMAGE_DIR --camera CAM --board BOARD [--board ...]`: a project from photos.
 
 Detects the board in every image, prints one line per image (markers, reprojection RMS
 and camera position, or why it was rejected), writes the marker masks and the project
@@ -40,7 +40,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("image_dir", type=Path, metavar="IMAGE_DIR", help="folder of images")
     p.add_argument("--camera", type=Path, required=True, help="camera file (intrinsics)")
-    p.add_argument("--board", type=Path, required=True, help="board file (aruco_grid, charuco)")
+    p.add_argument(
+        "--board",
+        type=Path,
+        action="append",
+        required=True,
+        help="board file (aruco_grid, charuco or markers); repeat it for several boards on "
+        "the wall (no marker on two boards)",
+    )
     light = p.add_mutually_exclusive_group()
     light.add_argument(
         "--light-ies", type=Path, metavar="FILE", help="the light's IES (.ies) or EULUMDAT (.ldt)"
@@ -166,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     check_options(args)
     inputs = {
         p.resolve(): f"input {p.name}"
-        for p in [args.camera, args.board, args.light_ies]
+        for p in [args.camera, *args.board, args.light_ies]
         + (sorted(args.image_dir.iterdir()) if args.image_dir.is_dir() else [])
         if p is not None and p.is_file()
     }
@@ -184,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
         result = init_project(
             args.image_dir,
             camera_path=args.camera,
-            board_path=args.board,
+            board_path=args.board if len(args.board) > 1 else args.board[0],
             out_path=args.out,
             light_file=args.light_ies,
             half_angle_deg=args.half_angle_deg,
