@@ -1,0 +1,179 @@
+"""Tests of lightcal.capture.marker_search: markers found on several stretches of a photo
+with a bright beam, merged, checked for consistency and refined (issue 25)."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from lightcal.capture import marker_search
+from lightcal.capture.board_layout import aruco_dictionary
+from lightcal.capture.marker_detection import detection_images, find_board_markers
+from lightcal.capture.marker_pose import estimate_pose
+from lightcal.capture.marker_search import (
+    STRETCHES,
+    MarkerRefusal,
+    detection_stretches,
+    detector_parameters,
+    find_markers,
+)
+from tests.test_marker_pose import CAMERA, GRID, scene
+
+# A beam centred left of the board (its saturated core, 2 % of the image, misses the
+# markers), 300 times the room light at its peak, over the board's left markers.
+BEAM_CENTER_PX = (250.0, 600.0)
+BEAM_SIGMA_PX = 120.0
+BEAM_PEAK = 300.0
+SATURATION = 100.0
+
+
+def _beam_photo() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(linear photo (H, W), R_camera_world, t_camera_world) of the 1.5 m grid under a beam."""
+    _, image, R, t = scene("grid_1.5m_tilt30")
+    rows, cols = np.mgrid[0 : CAMERA.height, 0 : CAMERA.width]
+    u0, v0 = BEAM_CENTER_PX
+    beam = 1.0 + BEAM_PEAK * np.exp(-((cols - u0) ** 2 + (rows - v0) ** 2) / (2 * BEAM_SIGMA_PX**2))
+    return np.minimum(np.array(image) * beam, SATURATION), R, t
+
+
+def _true_corners(ids: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    pixels, valid = CAMERA.project(GRID.corners_world(ids).reshape(-1, 3) @ R.T + t)
+    assert np.all(valid)
+    return pixels.reshape(-1, 4, 2)
+
+
+def test_the_beam_hides_markers_from_the_percentile_stretch_but_not_from_the_search():
+    photo, R, t = _beam_photo()
+    assert 0.01 < np.mean(photo >= SATURATION) < 0.03  # partly saturated
+    image_u8, _ = detection_images(photo, CAMERA, "beam")
+    detector = cv2.aruco.ArucoDetector(aruco_dictionary(GRID.dictionary), detector_parameters())
+    _, ids_percentile, _ = detector.detectMarkers(image_u8)
+    assert len(ids_percentile) <= 5  # of 48: the percentile stretch alone loses them
+
+    search = find_markers(
+        image_u8, detection_images(photo, CAMERA, "beam")[1], CAMERA, {GRID.dictionary: GRID.ids}
+    )
+    assert search.refused == ()
+    np.testing.assert_array_equal(search.ids(GRID.dictionary), GRID.ids)
+    errors = np.linalg.norm(
+        search.corners_px(GRID.dictionary) - _true_corners(GRID.ids, R, t), axis=-1
+    )
+    print(f"corner errors: max {errors.max():.3f} px, median {np.median(errors):.3f} px")
+    assert errors.max() < 0.1
+    assert all(np.all(m.refined) for m in search.found)
+    only_stretched = [m for m in search.found if "percentile" not in m.stretches]
+    assert len(only_stretched) >= 40
+    assert all(m.stretches == ("gamma", "log", "clahe") for m in only_stretched)
+
+    # The pose from every marker (estimate_pose goes through the same search).
+    pose = estimate_pose(photo, CAMERA, GRID, source="beam")
+    assert pose.n_markers == 48
+    assert pose.reprojection_rms_px < 0.05
+
+
+def test_find_board_markers_reports_what_it_found():
+    photo, _, _ = _beam_photo()
+    search = find_board_markers(photo, CAMERA, GRID, source="beam.png")
+    ids = ", ".join(str(i) for i in GRID.ids)
+    assert search.report() == f"beam.png: 48 markers found ({GRID.dictionary} {ids})"
+
+
+def _quad(u: float, v: float, side: float = 40.0) -> np.ndarray:
+    return np.array([[u, v], [u + side, v], [u + side, v + side], [u, v + side]])
+
+
+def _forge(monkeypatch: pytest.MonkeyPatch, seen: dict[int, list[tuple[str, np.ndarray]]]):
+    monkeypatch.setattr(marker_search, "_detect", lambda images, dictionary, wanted: seen)
+
+
+def test_a_marker_found_at_two_places_is_refused_with_the_reason(monkeypatch):
+    _, image, R, t = scene("grid_1.5m_tilt30")
+    true = _true_corners(np.array([3, 5]), R, t)
+    forged = true[1] + np.array([4.0, 0.0])
+    _forge(
+        monkeypatch,
+        {
+            3: [("percentile", true[0] + 0.3), ("log", true[0] - 0.2)],
+            5: [("percentile", true[1]), ("gamma", forged), ("clahe", true[1])],
+        },
+    )
+    image_u8, image_f = detection_images(image, CAMERA, "forged.png")
+    search = find_markers(image_u8, image_f, CAMERA, {GRID.dictionary: GRID.ids}, source="forged")
+    u, v = true[1].mean(axis=0)
+    reason = (
+        f"found by the percentile and gamma stretches at places 4.0 px apart (centres "
+        f"({u:.1f}, {v:.1f}) and ({u + 4:.1f}, {v:.1f})); expected the same corners within 3 px"
+    )
+    assert search.refused == (MarkerRefusal(GRID.dictionary, 5, reason),)
+    assert str(search.refused[0]) == f"marker 5 ({GRID.dictionary}) refused: {reason}"
+    assert search.report() == (
+        f"forged: 1 marker found ({GRID.dictionary} 3); marker 5 ({GRID.dictionary}) "
+        f"refused: {reason}"
+    )
+    # The consistent one: refined on the edges from the mean of its detections.
+    (found,) = search.found
+    assert found.marker_id == 3 and found.stretches == ("percentile", "log")
+    assert np.all(found.refined)
+    assert np.max(np.linalg.norm(found.corners_px - true[0], axis=-1)) < 0.1
+
+
+def test_twice_in_one_stretch_and_non_finite_corners_are_refused(monkeypatch):
+    quad = _quad(600.0, 400.0)
+    nan_quad = quad.copy()
+    nan_quad[2, 0] = math.nan
+    inf_quad = quad.copy()
+    inf_quad[0, 1] = math.inf
+    _forge(
+        monkeypatch,
+        {
+            7: [("log", quad), ("log", quad + np.array([0.0, 5.0]))],
+            8: [("percentile", nan_quad)],
+            9: [("gamma", quad), ("clahe", inf_quad)],
+        },
+    )
+    _, image, _, _ = scene("grid_1.5m_tilt30")
+    image_u8, image_f = detection_images(image, CAMERA, "x")
+    search = find_markers(image_u8, image_f, CAMERA, {GRID.dictionary: GRID.ids})
+    assert search.found == ()
+    assert [str(r) for r in search.refused] == [
+        f"marker 7 ({GRID.dictionary}) refused: found twice by the log stretch at places "
+        "5.0 px apart (centres (620.0, 420.0) and (620.0, 425.0)); expected the same corners "
+        "within 3 px",
+        f"marker 8 ({GRID.dictionary}) refused: the percentile stretch's detection has "
+        "non-finite corners",
+        f"marker 9 ({GRID.dictionary}) refused: the clahe stretch's detection has "
+        "non-finite corners",
+    ]
+
+
+def test_the_stretches_by_hand():
+    image_f = np.array([[0.0, 1.0, 10.0, 100.0], [-5.0, 50.0, 100.0, math.nan]])
+    image_u8 = np.rint(np.clip(np.nan_to_num(image_f) * 2.55, 0, 255)).astype(np.uint8)
+    stretched = detection_stretches(image_u8, image_f)
+    assert list(stretched) == list(STRETCHES)
+    assert stretched["percentile"] is image_u8
+    x = np.clip(np.nan_to_num(image_f), 0.0, None) / 100.0
+    gamma = 255.0 * x ** (1 / 2.2)
+    log = 255.0 * np.log1p(x / 1e-3) / np.log1p(1e3)
+    # (16-bit quantisation of x, then rounding)
+    assert np.max(np.abs(stretched["gamma"] - gamma)) <= 1.0
+    assert np.max(np.abs(stretched["log"] - log)) <= 1.0
+    assert stretched["gamma"][0, 1] == 31 and stretched["log"][0, 1] == 88
+    assert stretched["clahe"].dtype == np.uint8 and stretched["clahe"].shape == (2, 4)
+    dark = detection_stretches(image_u8, np.zeros((2, 4)))
+    assert not np.any(dark["gamma"]) and not np.any(dark["clahe"])
+
+
+def test_find_markers_checks_the_image_sizes():
+    from lightcal.errors import InputError
+
+    with pytest.raises(InputError) as error:
+        find_markers(
+            np.zeros((10, 20), np.uint8), np.zeros((10, 20)), CAMERA, {}, source="small.png"
+        )
+    assert str(error.value) == (
+        "small.png: expected images of the camera's size 1600x1200 px, got 20x10 and 20x10 px"
+    )
