@@ -1300,6 +1300,43 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("init", "--pose-floor-mm: expected a finite value >= 0 mm, got nan"),
     ),
     (
+        "init: --board the same file twice",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --board {k}/aruco.yaml "
+        "--out {n}.json",
+        _error("init", "{k}/aruco.yaml: given twice as a board file (also as {k}/aruco.yaml)"),
+    ),
+    (
+        "init: --response missing",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --out {n}.json "
+        "--response {t}/nope.json",
+        _error("init", "{t}/nope.json: file not found"),
+    ),
+    (
+        "init: --response binary garbage",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --out {n}.json "
+        "--response {k}/bin.json",
+        _error(
+            "init",
+            "{k}/bin.json: the response curve file is not UTF-8 text (byte 2): save it as UTF-8",
+        ),
+    ),
+    (
+        "init: --response empty",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --response ''",
+        _usage("init", "argument --response: expected a path, got ''"),
+    ),
+    (
+        "init: --response with --assume-linear",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --assume-linear "
+        "--response {t}/nope.json",
+        _usage("init", "argument --response: not allowed with argument --assume-linear"),
+    ),
+    (
+        "init: --assume-linear with a value",
+        "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --assume-linear=1",
+        _usage("init", "argument --assume-linear: ignored explicit argument '1'"),
+    ),
+    (
         "init: --pose-floor-deg -1",
         "init {d}/images --camera {d}/camera.yaml --board {k}/aruco.yaml --out {n}.json "
         "--pose-floor-deg -1",

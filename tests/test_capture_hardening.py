@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 import pytest
 
+import lightcal.capture.init_image as init_image
 import lightcal.capture.project_init as project_init
 from lightcal.capture.boards import ArucoGridBoard
 from lightcal.capture.intrinsics import calibrate_intrinsics
@@ -224,7 +225,7 @@ def test_init_failing_after_the_images_leaves_no_masks(
 def test_ctrl_c_during_init_leaves_nothing(
     wall: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    real = project_init.estimate_pose
+    real = init_image.estimate_pose
     calls = []
 
     def interrupted(*args, **kwargs):
@@ -233,7 +234,7 @@ def test_ctrl_c_during_init_leaves_nothing(
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(project_init, "estimate_pose", interrupted)
+    monkeypatch.setattr(init_image, "estimate_pose", interrupted)
     before = _listing(wall)
     assert main(_init(wall)) == 130
     captured = capsys.readouterr()
@@ -288,13 +289,13 @@ NOT_FINITE_REASON = (
 
 def _spoil(monkeypatch: pytest.MonkeyPatch, spoiled: set[str], **changes: Any) -> None:
     """`estimate_pose` gives the images named in `spoiled` the fields in `changes`."""
-    real = project_init.estimate_pose
+    real = init_image.estimate_pose
 
     def estimate(*args, **kwargs):
         pose = real(*args, **kwargs)
         return dataclasses.replace(pose, **changes) if kwargs["source"] in spoiled else pose
 
-    monkeypatch.setattr(project_init, "estimate_pose", estimate)
+    monkeypatch.setattr(init_image, "estimate_pose", estimate)
 
 
 @pytest.mark.parametrize(

@@ -15,6 +15,12 @@ written into a hidden staging folder and moved into `masks/` only with the proje
 (`lightcal.capture.mask_staging`): a run that fails or is interrupted part-way leaves
 neither, so the corrected re-run is not refused.
 
+Each image's work is `lightcal.capture.init_image.process_image`. 8-bit photos (JPEG,
+8-bit PNG or TIFF) are read through the camera's response curve (`response_path`, a file
+of `lightcal response`) or as linear (`assume_linear`); the project says which
+(`sensor.response`, `sensor.assume_linear`), so that calibrate reads them the same way.
+An 8-bit photo with neither stops the run (`GammaEncodedImage`).
+
 Every argument is checked before the first image is read. An image whose marker fit is
 not finite (a NaN or infinite reprojection RMS, pose or covariance: e.g. a board file
 that does not describe the printed board) is rejected with the reason, never accepted.
@@ -27,45 +33,37 @@ and every image gets exposure 1.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from lightcal.capture.board_set import read_marker_boards
 from lightcal.capture.exif_exposures import exposure_specs
 from lightcal.capture.init_checks import (
-    NOT_FINITE,
     POSE_FLOOR_DEG,
     POSE_FLOOR_M,
     check_detection,
     check_levels,
     check_pose_floor,
-    fit_problem,
     initial_guess,
     markers_problem,
     with_pose_floor,
 )
-from lightcal.capture.marker_pose import (
-    MarkerBoard,
-    MarkerPose,
-    estimate_pose,
-    pose_intrinsics_jacobian,
-    pose_report,
+from lightcal.capture.init_image import (
+    GammaEncodedImage,
+    ImageOutcome,
+    Reading,
+    process_image,
 )
+from lightcal.capture.marker_pose import MarkerBoard
 from lightcal.capture.mask_staging import MaskStaging
-from lightcal.core.camera import Camera
 from lightcal.errors import InputError
-from lightcal.io.atomic import atomic_write_bytes
 from lightcal.io.camera_file import read_camera
-from lightcal.io.exif import Exposure
-from lightcal.io.images import SUPPORTED_EXTENSIONS, read_image
-from lightcal.io.linear_image import LinearImage
+from lightcal.io.images import SUPPORTED_EXTENSIONS
 from lightcal.io.project import (
     CameraSpec,
     ImageSpec,
@@ -79,11 +77,13 @@ from lightcal.io.project import (
     project_from_spec,
     save_project,
 )
+from lightcal.io.response import ResponseCurve
 
 __all__ = [
     "MASKS_DIR",
     "POSE_FLOOR_DEG",
     "POSE_FLOOR_M",
+    "GammaEncodedImage",
     "ImageOutcome",
     "InitResult",
     "init_project",
@@ -95,43 +95,6 @@ MASKS_DIR = "masks"
 """Folder (next to the project file) of the marker masks."""
 
 _LIGHT_FILE_TYPES = {".ies": "ies", ".ldt": "ldt"}
-
-
-@dataclass(frozen=True, eq=False)
-class ImageOutcome:
-    """What `init_project` made of one image.
-
-    Attributes:
-        name: The image's name in the project (its file stem, or file name when stems clash).
-        path: The image file.
-        pose: The marker pose, None when the image was rejected.
-        reason: Why the image was rejected, None when it was accepted.
-        exposure: EXIF exposure settings, None when absent (or the image was rejected).
-        mask_path: The mask of an accepted image (in `masks/`, where it is moved with
-            the project file at the end of `init_project`), else None.
-        d_pose_d_intrinsics: (6, p) how the pose moves with the camera's intrinsics
-            (`marker_pose.pose_intrinsics_jacobian`), when the camera file has an
-            intrinsics covariance, else None.
-    """
-
-    name: str
-    path: Path
-    pose: MarkerPose | None
-    reason: str | None
-    exposure: Exposure | None = None
-    mask_path: Path | None = None
-    d_pose_d_intrinsics: np.ndarray | None = None
-
-    @property
-    def accepted(self) -> bool:
-        """True when the image is in the project."""
-        return self.pose is not None
-
-    def report_line(self) -> str:
-        """One line: markers, reprojection RMS and camera position, or the rejection."""
-        if self.pose is not None:
-            return pose_report([dataclasses.replace(self.pose, source=self.path.name)])
-        return pose_report([InputError(self.path.name, self.reason or "rejected")])
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,28 +188,6 @@ def _rid_spec(
     return spec
 
 
-def _camera_for(image: LinearImage, camera: Camera, name: str) -> Camera:
-    """The camera of the image as read (binned when the reader binned a raw file)."""
-    height, width = image.shape
-    if (width, height) == (camera.width, camera.height):
-        return camera
-    b = image.binning
-    if b > 1 and (width, height) == (camera.width // b, camera.height // b):
-        return camera.binned(b)
-    raise InputError(
-        name,
-        f"image is {width}x{height} px, expected {camera.width}x{camera.height} px "
-        "(the camera's size)",
-    )
-
-
-def _encode_mask(mask: np.ndarray) -> bytes:
-    ok, encoded = cv2.imencode(".png", np.where(mask, 255, 0).astype(np.uint8))
-    if not ok:  # pragma: no cover - OpenCV always encodes an 8-bit PNG
-        raise InputError("mask", "OpenCV could not encode a PNG")
-    return bytes(encoded.tobytes())
-
-
 def init_project(
     image_dir: str | Path,
     *,
@@ -262,6 +203,8 @@ def init_project(
     max_rms_px: float = 1.0,
     black_level: float | None = None,
     white_level: float | None = None,
+    assume_linear: bool = False,
+    response_path: str | Path | None = None,
     pose_floor_m: float = POSE_FLOOR_M,
     pose_floor_deg: float = POSE_FLOOR_DEG,
     on_image: Callable[[ImageOutcome], None] | None = None,
@@ -286,6 +229,11 @@ def init_project(
         max_rms_px: Images whose marker reprojection RMS exceeds this are rejected.
         black_level: Black level of the images (source units), written to the project.
         white_level: White level of the images (source units), written to the project.
+        assume_linear: Take 8-bit photos (JPEG, 8-bit PNG or TIFF) as linear; written to
+            the project (`sensor.assume_linear`), so calibrate reads them the same way.
+        response_path: Or the camera's response curve (`lightcal response`), which
+            linearises 8-bit photos; written to the project (`sensor.response`). 8-bit
+            photos with neither are refused (`GammaEncodedImage`).
         pose_floor_m, pose_floor_deg: The systematic error of marker poses that the
             reprojection fit cannot see (printing scale, wall flatness, blur, the
             intrinsics), added in quadrature to each pose's covariance: standard
@@ -298,8 +246,10 @@ def init_project(
 
     Raises:
         InputError: A bad argument (checked before any image is read), no images, no
-            usable image, an unreadable camera, board or light file, a chessboard as
-            board, or an initial guess behind the wall. Nothing is left written then.
+            usable image, an unreadable camera, board, light or response file, a
+            chessboard as board, 8-bit photos without a response curve or
+            `assume_linear` (`GammaEncodedImage`), or an initial guess behind the wall.
+            Nothing is left written then.
     """
     out = Path(out_path)
     folder = out.parent
@@ -309,6 +259,16 @@ def init_project(
     position, axis = initial_guess(initial_position_m, initial_axis_camera)
     check_pose_floor(pose_floor_m, pose_floor_deg, ("pose_floor_m", "pose_floor_deg"))
     check_levels(black_level, white_level)
+    if not isinstance(assume_linear, bool):
+        raise InputError("assume_linear", f"expected True or False, got {assume_linear!r}")
+    if assume_linear and response_path is not None:
+        raise InputError(
+            "assume_linear", "give either a response curve (response_path) or assume_linear"
+        )
+    if response_path is not None and white_level is not None:
+        raise InputError(
+            "white_level", "with a response curve the white level is code 255; do not give one"
+        )
 
     paths = list_images(image_dir)
     camera_file = Path(camera_path)
@@ -319,13 +279,26 @@ def init_project(
     if (problem := markers_problem(min_markers, boards)) is not None:
         raise InputError("min_markers", f"{problem}, got {min_markers}")
     rid = _rid_spec(None if light_file is None else Path(light_file), half_angle_deg, folder, out)
+    response_file = None if response_path is None else Path(response_path)
+    reading = Reading(
+        black_level,
+        white_level,
+        assume_linear,
+        None if response_file is None else ResponseCurve.load(response_file),
+    )
+    sensor = SensorSpec(
+        black_level=black_level,
+        white_level=white_level,
+        assume_linear=assume_linear,
+        response=None if response_file is None else _relative(response_file, folder),
+    )
     print_polygons = np.concatenate([b.outline_world() for b in boards])
 
     masks_dir = folder / MASKS_DIR
     with MaskStaging(masks_dir) as staging:
         outcomes: list[ImageOutcome] = []
         for path, name in zip(paths, _names(paths), strict=True):
-            outcome = _process_image(
+            outcome = process_image(
                 path,
                 name,
                 camera,
@@ -336,8 +309,7 @@ def init_project(
                 min_markers=min_markers,
                 mask_margin_px=mask_margin_px,
                 max_rms_px=max_rms_px,
-                black_level=black_level,
-                white_level=white_level,
+                reading=reading,
             )
             outcomes.append(outcome)
             if on_image is not None:
@@ -352,8 +324,7 @@ def init_project(
             position=position,
             axis=axis,
             no_light_given=light_file is None and half_angle_deg is None,
-            black_level=black_level,
-            white_level=white_level,
+            sensor=sensor,
             pose_floor_m=pose_floor_m,
             pose_floor_deg=pose_floor_deg,
         )
@@ -372,8 +343,7 @@ def _write_project(
     position: list[float],
     axis: list[float],
     no_light_given: bool,
-    black_level: float | None,
-    white_level: float | None,
+    sensor: SensorSpec,
     pose_floor_m: float,
     pose_floor_deg: float,
 ) -> InitResult:
@@ -425,7 +395,7 @@ def _write_project(
             )
         return ProjectFile(
             camera=CameraSpec(path=_relative(camera_file, folder)),
-            sensor=SensorSpec(black_level=black_level, white_level=white_level),
+            sensor=sensor,
             images=images,
             lights=[
                 LightSpec(
@@ -443,53 +413,3 @@ def _write_project(
     staging.publish([o.mask_path.name for o in accepted if o.mask_path is not None])
     save_project(spec, out)
     return InitResult(project_path=out, spec=spec, images=outcomes, warnings=warnings)
-
-
-def _process_image(
-    path: Path,
-    name: str,
-    camera: Camera,
-    board: MarkerBoard | list[MarkerBoard],
-    print_polygons: np.ndarray,
-    staging_dir: Path,
-    masks_dir: Path,
-    *,
-    min_markers: int,
-    mask_margin_px: float,
-    max_rms_px: float,
-    black_level: float | None,
-    white_level: float | None,
-) -> ImageOutcome:
-    """Read, detect, check and mask one image; an input problem rejects it with the reason.
-
-    The mask is written into `staging_dir`; the outcome names its final place in
-    `masks_dir` (see `MaskStaging`).
-    """
-    try:
-        image = read_image(path, black_level=black_level, white_level=white_level)
-        image_camera = _camera_for(image, camera, name)
-        pose = estimate_pose(
-            image.values, image_camera, board, min_markers=min_markers, source=name
-        )
-    except InputError as exc:
-        return ImageOutcome(name, path, None, exc.detail)
-    problem = fit_problem(pose, max_rms_px)
-    if problem is not None:
-        return ImageOutcome(name, path, None, problem)
-    d_pose = None
-    if camera.intrinsics_covariance is not None:
-        d_pose = pose_intrinsics_jacobian(
-            pose.points_world,
-            pose.points_image,
-            camera,
-            binning=1 if image_camera is camera else image.binning,
-            source=name,
-        )
-        if not np.all(np.isfinite(d_pose)):
-            return ImageOutcome(name, path, None, NOT_FINITE)
-    height, width = image.shape
-    everything = dataclasses.replace(pose, mask_polygons_world=print_polygons)
-    mask = everything.marker_mask(height, width, margin_px=mask_margin_px)
-    filename = f"{name}.png"
-    atomic_write_bytes(staging_dir / filename, _encode_mask(mask))
-    return ImageOutcome(name, path, pose, None, image.exposure, masks_dir / filename, d_pose)

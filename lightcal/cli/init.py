@@ -18,10 +18,18 @@ import argparse
 import math
 from pathlib import Path
 
+from lightcal.cli.arguments import path_arg
 from lightcal.errors import InputError
 
 PROJECT_SUFFIXES = (".json", ".yaml", ".yml")
 """Suffixes of `--out`: JSON, or YAML for .yaml/.yml."""
+
+GAMMA_ENCODED = (
+    "8-bit image values are gamma-encoded by the camera, not proportional to light: give "
+    "the camera's response curve with --response FILE (fitted from an exposure bracket by "
+    "lightcal response), or --assume-linear if the camera wrote linear values"
+)
+"""What init says of an 8-bit photo given without --response or --assume-linear."""
 
 MAX_MASK_MARGIN_PX = 100.0
 """Largest `--mask-margin-px`: a wider padding would mask most of the wall (and dilating
@@ -86,6 +94,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--max-rms-px", type=float, default=1.0, help="largest marker reprojection RMS (1)"
+    )
+    linear = p.add_mutually_exclusive_group()
+    linear.add_argument(
+        "--assume-linear",
+        action="store_true",
+        help="take 8-bit photos (JPEG, 8-bit PNG/TIFF) as linear (written to the project)",
+    )
+    linear.add_argument(
+        "--response",
+        type=path_arg,
+        metavar="FILE",
+        help="the camera's response curve (from lightcal response) that linearises 8-bit "
+        "photos (written to the project)",
     )
     p.add_argument("--black-level", type=float, default=None, help="black level of the images")
     p.add_argument("--white-level", type=float, default=None, help="white level of the images")
@@ -156,10 +177,14 @@ def check_options(args: argparse.Namespace) -> None:
         raise InputError(
             "--white-level", f"expected a value above --black-level ({black:g}), got {white:g}"
         )
+    if args.response is not None and white is not None:
+        raise InputError(
+            "--white-level", "with --response the white level is code 255; do not give one"
+        )
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcal.capture.project_init import ImageOutcome, init_project
+    from lightcal.capture.project_init import GammaEncodedImage, ImageOutcome, init_project
 
     def on_image(outcome: ImageOutcome) -> None:
         print(outcome.report_line(), flush=True)
@@ -173,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
     check_options(args)
     inputs = {
         p.resolve(): f"input {p.name}"
-        for p in [args.camera, *args.board, args.light_ies]
+        for p in [args.camera, *args.board, args.light_ies, args.response]
         + (sorted(args.image_dir.iterdir()) if args.image_dir.is_dir() else [])
         if p is not None and p.is_file()
     }
@@ -202,10 +227,14 @@ def run(args: argparse.Namespace) -> int:
             max_rms_px=args.max_rms_px,
             black_level=args.black_level,
             white_level=args.white_level,
+            assume_linear=args.assume_linear,
+            response_path=args.response,
             pose_floor_m=args.pose_floor_mm / 1000.0,
             pose_floor_deg=args.pose_floor_deg,
             on_image=on_image,
         )
+    except GammaEncodedImage as exc:
+        raise InputError(exc.source, GAMMA_ENCODED) from exc
     except InputError as exc:  # checked against the board once it is read, before any image
         if exc.source != "min_markers":
             raise
