@@ -44,6 +44,9 @@ from lightcal.errors import InputError
 
 __all__ = ["LayoutMarker", "MarkerLayout"]
 
+_SUBPIXELS = 4
+"""Samples per pixel side drawing a marker turned by other than a multiple of 90 degrees."""
+
 _MAX_RENDER_PIXELS = 200_000_000
 """Largest image `MarkerLayout.render` draws (a mistyped scale would exhaust memory)."""
 
@@ -267,8 +270,10 @@ class MarkerLayout:
     def render(self, px_per_m: float, *, margin_m: float | None = None) -> BoardRendering:
         """Draw the layout at `px_per_m` pixels per metre (white paper, black print).
 
-        Each pixel takes the colour of the module under its centre, so a marker whose
-        edges fall on whole pixels is drawn exactly; others are within half a pixel.
+        A marker turned by a multiple of 90 degrees is drawn with each pixel the colour
+        of the module under its centre (exact, 0 or 255, when its edges fall on whole
+        pixels); other markers with each pixel the mean of `_SUBPIXELS` x `_SUBPIXELS`
+        samples (grey along the edges, as a photo of the print would be).
 
         Args:
             px_per_m: Scale.
@@ -306,24 +311,35 @@ class MarkerLayout:
     def _draw(
         image: NDArray[np.uint8], marker: LayoutMarker, scale: float, x0: float, y0: float
     ) -> None:
-        """Paint one marker's black square into `image` (pixel centres sample the modules)."""
+        """Paint one marker's black square into `image` (sub-pixels sample the modules)."""
         square = marker.square_world()
         u = (square[:, 0] - x0) * scale - 0.5
         v = (y0 - square[:, 1]) * scale - 0.5
         height, width = image.shape
         u0, u1 = max(0, math.floor(u.min())), min(width - 1, math.ceil(u.max()))
         v0, v1 = max(0, math.floor(v.min())), min(height - 1, math.ceil(v.max()))
+        upright = marker.rotation_deg % 90.0 == 0.0
+        k = 1 if upright else _SUBPIXELS
         rows, cols = np.mgrid[v0 : v1 + 1, u0 : u1 + 1]
-        dx = x0 + (cols + 0.5) / scale - marker.center_world_m[0]
-        dy = y0 - (rows + 0.5) / scale - marker.center_world_m[1]
+        offsets = (np.arange(k) + 0.5) / k
         theta = math.radians(marker.rotation_deg)
-        a = math.cos(theta) * dx + math.sin(theta) * dy  # along the printed top edge
-        b = -math.sin(theta) * dx + math.cos(theta) * dy  # up the printed marker
-        modules = marker_modules(marker.dictionary, marker.id)
+        modules = marker_modules(marker.dictionary, marker.id).astype(np.float64)
         n = modules.shape[0]
         pitch = marker.size_m / n
-        col = np.floor((a + 0.5 * marker.size_m) / pitch).astype(np.int64)
-        row = np.floor((0.5 * marker.size_m - b) / pitch).astype(np.int64)
-        inside = (col >= 0) & (col < n) & (row >= 0) & (row < n)
+        total = np.zeros(rows.shape)
+        touched = np.zeros(rows.shape, dtype=bool)
+        for dv in offsets:
+            for du in offsets:
+                dx = x0 + (cols + du) / scale - marker.center_world_m[0]
+                dy = y0 - (rows + dv) / scale - marker.center_world_m[1]
+                a = math.cos(theta) * dx + math.sin(theta) * dy  # along the printed top edge
+                b = -math.sin(theta) * dx + math.cos(theta) * dy  # up the printed marker
+                col = np.floor((a + 0.5 * marker.size_m) / pitch).astype(np.int64)
+                row = np.floor((0.5 * marker.size_m - b) / pitch).astype(np.int64)
+                inside = (col >= 0) & (col < n) & (row >= 0) & (row < n)
+                value = np.full(rows.shape, 255.0)
+                value[inside] = modules[row[inside], col[inside]]
+                total += value
+                touched |= inside
         patch = image[v0 : v1 + 1, u0 : u1 + 1]
-        patch[inside] = modules[row[inside], col[inside]]
+        patch[touched] = np.rint(total[touched] / (k * k)).astype(np.uint8)
