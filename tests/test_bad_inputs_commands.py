@@ -1098,6 +1098,84 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         "export {r} --format opencv --out {n}.yaml --force=1",
         _usage("export", "argument --force: ignored explicit argument '1'"),
     ),
+    # ------------------------------------------------------------------------- board
+    (
+        "board: no --out",
+        "board {k}/aruco.yaml",
+        _usage("board", "the following arguments are required: --out"),
+    ),
+    (
+        "board: LAYOUT missing",
+        "board {t}/nope.yaml --out {n}.pdf",
+        _error("board", "{t}/nope.yaml: board file not found"),
+    ),
+    (
+        "board: LAYOUT binary garbage",
+        "board {k}/bin.json --out {n}.pdf",
+        _error(
+            "board", "{k}/bin.json: the board file is not UTF-8 text (byte 2): save it as UTF-8"
+        ),
+    ),
+    (
+        "board: LAYOUT a camera file",
+        "board {d}/camera.yaml --out {n}.pdf",
+        _error(
+            "board",
+            "{d}/camera.yaml: an OpenCV camera file, not a board file: expected a board file "
+            "(type aruco_grid, charuco, chessboard or markers)",
+        ),
+    ),
+    (
+        "board: LAYOUT empty",
+        "board '' --out {n}.pdf",
+        _usage("board", "argument LAYOUT: expected a path, got ''"),
+    ),
+    (
+        "board: --out a PNG",
+        "board {k}/aruco.yaml --out {n}.png",
+        _error("board", "{n}.png: --out: unsupported suffix '.png': expected .pdf"),
+    ),
+    (
+        "board: --out exists",
+        "board {k}/aruco.yaml --out {k}/pic.png",
+        _error("board", "{k}/pic.png: --out: exists; use --force to replace it"),
+    ),
+    (
+        "board: --out the board file, --force",
+        "board {k}/aruco.yaml --out {k}/aruco.yaml --force",
+        _error(
+            "board",
+            "{k}/aruco.yaml: --out: is the board file, an input of the PDF; write elsewhere",
+        ),
+    ),
+    (
+        "board: --out in a missing folder",
+        "board {k}/aruco.yaml --out {t}/no/b.pdf",
+        _error("board", "{t}/no/b.pdf: --out: the folder {t}/no does not exist; create it first"),
+    ),
+    (
+        "board: --paper b5",
+        "board {k}/aruco.yaml --out {n}.pdf --paper b5",
+        _usage(
+            "board",
+            "argument --paper: invalid choice: 'b5' (choose from 'a4', 'a3', 'a2', 'a1', 'a0', "
+            "'letter', 'tabloid')",
+        ),
+    ),
+    (
+        "board: --paper too small",
+        "board {k}/aruco.yaml --out {n}.pdf --paper a3",
+        _error(
+            "board",
+            "--paper: the board with its white margin needs 990.0 mm x 730.0 mm of paper inside "
+            "the margins and text, more than a3 gives: use a0",
+        ),
+    ),
+    (
+        "board: --force with a value",
+        "board {k}/aruco.yaml --out {n}.pdf --force=1",
+        _usage("board", "argument --force: ignored explicit argument '1'"),
+    ),
     # -------------------------------------------------------------------------- init
     (
         "init: no --camera",

@@ -35,6 +35,7 @@ SUBCOMMANDS = (
     "export",
     "schema",
     "init",
+    "board",
     "camera",
     "response",
     "app",
