@@ -676,6 +676,15 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--attenuation: expected at most 2 per metre, got 100"),
     ),
     (
+        "synth: --dark-frames without room light",
+        "synth {n} --dark-frames",
+        _error(
+            "synth",
+            "--dark-frames: expected room light to photograph (--ambient FRACTION > 0): "
+            "without it a light-off photo is black",
+        ),
+    ),
+    (
         "synth: --format jpg",
         "synth {n} --format jpg",
         _usage("synth", "argument --format: invalid choice: 'jpg' (choose from 'png', 'tiff')"),

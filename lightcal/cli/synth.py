@@ -28,6 +28,10 @@ what the project declares in one everyday way, each recorded in truth.json under
   random field in [-1, 1] with 10-30 cm features, the same in every view.
 - `--attenuation C`: a medium (clear water): each value is multiplied by
   exp(-C (d_light + d_camera)), C in 1/m.
+
+`--dark-frames` (with `--ambient`): also a light-off photo of each view, the room light
+alone through the same sensor with its own noise (`images/view_NN_dark.png`), declared as
+the image's `dark` in the project, which subtracts it before the fit.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
+from lightcal.cli.synth_departures import register_departures
 from lightcal.errors import InputError
 from lightcal.synthetic.light_models import LIGHT_MODELS
 
@@ -97,6 +102,7 @@ _OPTIONS = {
     "bow_m": "--bow-mm",
     "albedo_texture_amplitude": "--albedo-texture",
     "attenuation_per_m": "--attenuation",
+    "dark_frames": "--dark-frames",
 }
 
 
@@ -210,93 +216,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument(
         "--pose-noise-deg", type=float, default=0.05, help="camera rotation error sigma (0.05)"
     )
-    _register_departures(p)
+    register_departures(p)
     g = p.add_argument_group("output")
     g.add_argument("--format", choices=("png", "tiff"), default="png", help="image files (png)")
     g.add_argument("--seed", type=int, default=0, help="random seed (0)")
     g.add_argument("--force", action="store_true", help="replace the dataset in OUT_DIR")
     g.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
-
-
-def _register_departures(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group(
-        "departures",
-        "data that departs from what project.json declares, recorded in truth.json under "
-        '"departures" (none by default)',
-    )
-    g.add_argument(
-        "--ambient",
-        type=float,
-        default=0.0,
-        metavar="FRACTION",
-        help="room light: add FRACTION x the brightest beam value of the median image to "
-        "every pixel, scaled by each image's exposure; the project estimates no offset (0)",
-    )
-    g.add_argument(
-        "--undeclared-vignetting",
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=("K1", "K2"),
-        help="the images carry the fall-off V = 1 + K1 r^2 + K2 r^4 (as --vignetting) "
-        "while the project declares --sensor radiance (none)",
-    )
-    g.add_argument(
-        "--rid-rim",
-        type=float,
-        default=0.0,
-        metavar="AMPLITUDE",
-        help="the light's true profile has a bright rim: the declared one x (1 + AMPLITUDE "
-        "exp(-((theta - theta_half) / w)^2)), w = 0.15 theta_half; the project gets the "
-        "plain profile (0)",
-    )
-    g.add_argument(
-        "--gamma",
-        type=float,
-        default=1.0,
-        metavar="G",
-        help="tone curve: the stored value above black is W (x / W)^(1/G), x the linear "
-        "value, W = white - black; the project declares linear data (1)",
-    )
-    g.add_argument(
-        "--pose-error-mm",
-        type=float,
-        default=0.0,
-        metavar="MM",
-        help="extra camera centre error sigma beyond --pose-noise-mm, whose covariance the "
-        "project still declares (0)",
-    )
-    g.add_argument(
-        "--pose-error-deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="extra camera rotation error sigma beyond --pose-noise-deg (0)",
-    )
-    g.add_argument(
-        "--bow-mm",
-        type=float,
-        default=0.0,
-        metavar="MM",
-        help="the wall is not flat: z = MM/1000 max(0, 1 - r^2 / (1 m)^2), r from where the "
-        "views look; MM > 0 bulges towards the cameras, < 0 a bowl; |MM| <= 100 (0)",
-    )
-    g.add_argument(
-        "--albedo-texture",
-        type=float,
-        default=0.0,
-        metavar="AMPLITUDE",
-        help="the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth random field in "
-        "[-1, 1] with 10-30 cm features; 0 <= AMPLITUDE < 1 (0)",
-    )
-    g.add_argument(
-        "--attenuation",
-        type=float,
-        default=0.0,
-        metavar="C",
-        help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m (0)",
-    )
 
 
 def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
@@ -408,6 +334,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
     _check_scene(args)
     departures = _departures(args, sensor_model)
+    if args.dark_frames and not args.ambient > 0.0:
+        raise InputError(
+            "--dark-frames",
+            "expected room light to photograph (--ambient FRACTION > 0): without it a "
+            "light-off photo is black",
+        )
     fx = 0.9 * args.width if args.fx is None else args.fx
     camera = _build(
         lambda: Camera.from_params(
@@ -463,6 +395,7 @@ def run(args: argparse.Namespace) -> int:
             image_format=args.format,
             wall=_wall(args),
             departures=departures,
+            dark_frames=args.dark_frames,
         )
     )
 

@@ -29,6 +29,7 @@ from lightcal.core.solver import SolverOptions
 from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.dark_frames import dark_paths
 from lightcal.io.document import read_document
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
@@ -114,6 +115,8 @@ class Project:
             or None.
         pose_intrinsics_jacobians: per image, the (6, p) d (delta, c) / d intrinsics of
             its pose (`PoseSpec.d_pose_d_intrinsics`, p = 4 + camera.n_dist) or None.
+        dark_paths: per image, its resolved light-off photo (`images[i].dark`) or None
+            (`lightcal.io.dark_frames`); empty: none.
     """
 
     spec: ProjectFile
@@ -130,6 +133,7 @@ class Project:
     wall: WallUnknown = field(default_factory=WallUnknown)
     pose_covariances: list[np.ndarray | None] = field(default_factory=list)
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
+    dark_paths: list[Path | None] = field(default_factory=list)
 
     @property
     def folder(self) -> Path:
@@ -351,6 +355,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         build_wall(spec.wall, source),
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
+        dark_paths(spec, folder, source, image_paths),
     )
 
 

@@ -176,6 +176,11 @@ class ImageSpec(_Model):
         description="relative exposure factor, or settings; null: from EXIF if present, else 1",
     )
     mask: str | None = Field(default=None, description="image of pixels to exclude (non-zero)")
+    dark: str | None = Field(
+        default=None,
+        description="a photo of the same view with the light off and the same exposure, "
+        "read as the image is and subtracted from it before the fit (room light)",
+    )
 
 
 class NoiseSpec(_Model):

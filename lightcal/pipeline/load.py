@@ -1,5 +1,5 @@
-"""Reading a project's images: linear values, user masks, the matching camera and the
-vignetting map."""
+"""Reading a project's images: linear values (less their light-off photos), user masks,
+the matching camera and the vignetting map."""
 
 from __future__ import annotations
 
@@ -7,13 +7,14 @@ import functools
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
+from lightcal.io.dark_frames import dark_level, declared_exposure, subtract_dark
 from lightcal.io.images import read_image, read_mask
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
@@ -30,14 +31,22 @@ class LoadedImages:
     """The project's images read as linear values.
 
     Attributes:
-        images: one `LinearImage` per project image.
+        images: one `LinearImage` per project image, its light-off photo (`dark`)
+            subtracted when it has one.
         excluded: (H, W) bool per image: user mask pixels.
         camera: the intrinsics matching the images as read (binned when the reader binned).
+        dark_levels: per image, the mean value of its light-off photo (whose noise adds
+            to the image's: `lightcal.pipeline.select.image_noise`), or None without one.
     """
 
     images: list[LinearImage]
     excluded: list[np.ndarray | None]
     camera: Camera
+    dark_levels: list[float | None] = field(default_factory=list)
+
+    def dark_level(self, index: int) -> float | None:
+        """The mean of image `index`'s light-off photo, subtracted from it (None: none)."""
+        return self.dark_levels[index] if index < len(self.dark_levels) else None
 
 
 def load_images(
@@ -63,24 +72,42 @@ def load_images(
         response = ResponseCurve.load(project.folder / sensor.response)
     paths = project.image_paths
 
-    def read(i: int) -> tuple[LinearImage, np.ndarray | None]:
-        img = read_image(
-            paths[i],
+    darks = project.dark_paths or [None] * len(paths)
+
+    def read_one(path: Path) -> LinearImage:
+        return read_image(
+            path,
             channel=sensor.channel,
             black_level=sensor.black_level,
             white_level=sensor.white_level,
             response=response,
             assume_linear=sensor.assume_linear,
         )
+
+    def read(i: int) -> tuple[LinearImage, np.ndarray | None, float | None]:
+        img = read_one(paths[i])
+        level = None
+        dark_path = darks[i]
+        if dark_path is not None:  # the light-off photo, read as its image is
+            dark = read_one(dark_path)
+            img = subtract_dark(
+                img,
+                dark,
+                image_path=paths[i],
+                dark_path=dark_path,
+                declared=declared_exposure(project.spec, i),
+            )
+            level = dark_level(dark)
         # The noise floor's percentile (`select.noise_floor`), on this thread while the
         # image is in cache (a compiled pass that releases the interpreter).
         _ = img.percentile_99
         mask_path = project.mask_paths[i]
         h, w = img.values.shape
-        return img, (_read_mask(mask_path, (h, w)) if mask_path is not None else None)
+        return img, (_read_mask(mask_path, (h, w)) if mask_path is not None else None), level
 
     images: list[LinearImage] = []
     excluded: list[np.ndarray | None] = []
+    levels: list[float | None] = []
     camera = project.camera
     # The decoders (OpenCV, LibRaw, tifffile) release the GIL: a few images at once. Results
     # come back in order, so the first bad file named is the first in the project.
@@ -88,7 +115,7 @@ def load_images(
         results = pool.map(read, range(len(paths)))  # submitted now, awaited in order
         if meanwhile is not None:
             meanwhile()
-        for i, (img, mask) in enumerate(results):
+        for i, (img, mask, level) in enumerate(results):
             if progress is not None:
                 progress("reading images", i, len(paths))
             h, w = img.values.shape
@@ -104,9 +131,10 @@ def load_images(
                     )
             images.append(img)
             excluded.append(mask)
+            levels.append(level)
     if progress is not None:
         progress("reading images", len(paths), len(paths))
-    return LoadedImages(images, excluded, camera)
+    return LoadedImages(images, excluded, camera, levels)
 
 
 def prepare_solve(project: Project) -> None:

@@ -31,15 +31,34 @@ def regions_for(project: Project, image_index: int) -> list[Region]:
     return out
 
 
-def noise_floor(project: Project, image: LinearImage) -> float:
+def image_noise(project: Project, dark_level: float | None = None) -> tuple[float, float] | None:
+    """The Poisson-Gaussian noise (gain, read_variance) of one image's pixel values, or
+    None when the project declares no noise model.
+
+    The sensor's model, and for an image less its light-off photo of mean level d (in
+    value units) the dark photo's own noise and the room light's shot noise in the image:
+    the read variance becomes 2 read_variance + 2 gain d (docs/model.md, "Light-off
+    photos").
+    """
+    noise = project.spec.sensor.noise
+    if noise is None:
+        return None
+    if dark_level is None:
+        return noise.gain, noise.read_variance
+    return noise.gain, 2.0 * noise.read_variance + 2.0 * noise.gain * max(dark_level, 0.0)
+
+
+def noise_floor(project: Project, image: LinearImage, *, dark_level: float | None = None) -> float:
     """Values at or below are too dark to use: the project's min_signal, else the offset
-    plus 5 read-noise sigmas, else 1 % of the image's 99th percentile."""
+    plus 5 read-noise sigmas (`image_noise`: the light-off photo's noise included), else
+    1 % of the image's 99th percentile."""
     sel = project.selection
     if sel.min_signal is not None:
         return sel.min_signal
     sensor = project.spec.sensor
-    if sensor.noise is not None:
-        return sensor.offset + 5.0 * math.sqrt(sensor.noise.read_variance)
+    noise = image_noise(project, dark_level)
+    if noise is not None:
+        return sensor.offset + 5.0 * math.sqrt(noise[1])
     p99 = image.percentile_99
     return sensor.offset + 0.01 * p99 if p99 is not None else 0.0
 
@@ -100,11 +119,11 @@ def image_data(
         fp = fp.subset(keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
-    noise = project.spec.sensor.noise
+    noise = image_noise(project, loaded.dark_level(index))
     if noise is None:
         return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
     # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
-    per_value = (noise.gain / (b * b), noise.read_variance / (b * b))
+    per_value = (noise[0] / (b * b), noise[1] / (b * b))
     sigma = poisson_gaussian_sigma(observed - project.spec.sensor.offset, per_value)
     return ImageData(project.names[index], view, fp, observed, sigma, per_value)
 
@@ -124,7 +143,7 @@ def candidates(project: Project, loaded: LoadedImages, index: int) -> np.ndarray
         saturated=img.saturated,
         excluded=loaded.excluded[index],
         regions=regions_for(project, index),
-        min_signal=noise_floor(project, img),
+        min_signal=noise_floor(project, img, dark_level=loaded.dark_level(index)),
     )
 
 

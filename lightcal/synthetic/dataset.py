@@ -5,6 +5,7 @@ Layout of a dataset folder:
 | file | content |
 |---|---|
 | `images/view_00.png` ... | 16-bit raw values (DN, black level included); `.tif` for TIFF |
+| `images/view_00_dark.png` ... | with `dark_frames`: the light-off photo of each view |
 | `camera.yaml` | the intrinsics (OpenCV FileStorage) |
 | `rid.csv` | model `table`: the symmetric profile |
 | `light.ies` | model `ies`: axial IES file; `table2d`: IES with C-planes over 0..360 |
@@ -49,17 +50,14 @@ import math
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from lightcal import __version__
 from lightcal.core.camera import Camera
-from lightcal.core.pose import describe_pose
-from lightcal.core.rid import IsotropicRID
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
@@ -81,13 +79,13 @@ from lightcal.io.project import (
 )
 from lightcal.synthetic.dataset_files import (
     CAMERA_NAME,
+    DARK_SUFFIX,
     IMAGE_SUFFIX,
     IMAGES_DIR,
     PROJECT_NAME,
     TRUTH_FORMAT,
     TRUTH_NAME,
     ImageFormat,
-    camera_dict,
     check_target,
     encode_image,
     initial_spec,
@@ -97,7 +95,7 @@ from lightcal.synthetic.dataset_files import (
     publish,
     read_truth,
     rid_file,
-    sensor_truth,
+    truth_document,
     view_geometry,
     vignetting_file,
 )
@@ -157,6 +155,9 @@ class SynthConfig:
         wall: The wall's true reflectance (the project written says Lambertian, as a
             user's first project would; truth.json records the true model).
         departures: How the data departs from what the project declares (none by default).
+        dark_frames: With room light (`Departures.ambient_fraction` > 0), also write a
+            light-off photo of each view (`images/view_NN_dark`: the room light alone
+            through the same sensor, its own noise) and declare it as the image's `dark`.
     """
 
     camera: Camera
@@ -171,8 +172,15 @@ class SynthConfig:
     image_format: ImageFormat = "png"
     wall: WallReflectance = LAMBERTIAN
     departures: Departures = field(default_factory=Departures)
+    dark_frames: bool = False
 
     def __post_init__(self) -> None:
+        if self.dark_frames and self.departures.ambient_fraction == 0.0:
+            raise InputError(
+                "dark_frames",
+                "expected room light to photograph (ambient_fraction > 0): without it a "
+                "light-off photo is black",
+            )
         for name, high in _LARGEST.items():
             value, unit = getattr(self, name), "m" if name.endswith("_m") else "degrees"
             if not (math.isfinite(value) and value >= 0.0):
@@ -269,6 +277,7 @@ def _write_into(
     root = np.random.default_rng(config.seed)
     rng_views, rng_exposure, rng_rig, rng_pose, rng_init, rng_sensor = root.spawn(6)
     rng_texture, rng_pose_error = root.spawn(2)  # the departures': the six above unchanged
+    (rng_dark,) = root.spawn(1)  # the light-off photos' noise: the eight above unchanged
     sensor = config.sensor
     departures = config.departures
     project_path = folder / PROJECT_NAME
@@ -362,11 +371,18 @@ def _write_into(
         path = folder / IMAGES_DIR / f"{name}{suffix}"
         atomic_write_bytes(path, encode_image(dn, config.image_format))
         image_paths.append(path)
+        dark: dict[str, str] = {}
+        if config.dark_frames and ambient is not None:  # the room light alone
+            _, dark_input = imaging.expose(beam * 0.0, ambient.levels_dn[i])
+            dark_dn, _ = apply_sensor(dark_input, sensor, rng_dark, gamma=departures.gamma)
+            dark["dark"] = f"{IMAGES_DIR}/{name}{DARK_SUFFIX}{suffix}"
+            atomic_write_bytes(folder / dark["dark"], encode_image(dark_dn, config.image_format))
         valid = int(signal.count())
         view_truth.append(
             {
                 "name": name,
                 "path": f"{IMAGES_DIR}/{name}{suffix}",
+                **dark,
                 "T_camera_world": pose_spec(view).model_dump(exclude_none=True),
                 "T_camera_world_measured": pose_spec(measured[i]).model_dump(exclude_none=True),
                 "center_world_m": view.center_world.tolist(),
@@ -409,6 +425,7 @@ def _write_into(
                 name=truth["name"],
                 T_camera_world=pose_spec(measured[i], pose_covariance),
                 exposure=exposure_specs[i],
+                dark=truth.get("dark"),
             )
             for i, truth in enumerate(view_truth)
         ],
@@ -442,43 +459,17 @@ def _write_into(
     )
     if true_rid is not rid:
         rid_truth = describe_rid(true_rid)
-    truth = {
-        "format": TRUTH_FORMAT,
-        "version": 1,
-        "lightcal_version": __version__,
-        "seed": config.seed,
-        "camera": camera_dict(camera),
-        "sensor": sensor_truth(sensor, vignetting_rel),
-        "views": view_truth,
-        "wall": config.wall.describe(),
-        **({"departures": departure_truth} if departure_truth else {}),
-        "lights": [
-            {
-                "name": light.name,
-                "scale": light.scale,
-                "relative_scale": relative.scale,
-                "pose_kind": "isotropic"
-                if isinstance(light.rid, IsotropicRID)
-                else ("symmetric" if light.rid.symmetric else "general"),
-                "rid": rid_truth,
-                **describe_pose(light.R_camera_light, light.t_camera_light),
-                "initial": describe_pose(initial[j].R_camera_light, initial[j].t_camera_light),
-            }
-            for j, (light, relative) in enumerate(zip(rig.lights, relative_rig.lights, strict=True))
-        ],
-        "options": {
-            "pose_noise_mm": config.pose_noise_m * 1000.0,
-            "pose_noise_deg": config.pose_noise_deg,
-            "init_offset_m": config.init_offset_m,
-            "init_offset_deg": config.init_offset_deg,
-            "image_format": config.image_format,
-        },
-        "config": {
-            "scene": asdict(config.scene),
-            "rig": asdict(config.rig),
-            "sensor": asdict(config.sensor),
-        },
-    }
+    truth = truth_document(
+        config,
+        camera=camera,
+        vignetting_rel=vignetting_rel,
+        view_truth=view_truth,
+        departure_truth=departure_truth,
+        rig=rig,
+        relative_rig=relative_rig,
+        initial=initial,
+        rid_truth=rid_truth,
+    )
     atomic_write_text(folder / TRUTH_NAME, json.dumps(truth, indent=2) + "\n")
     save_project(spec, project_path)
     try:

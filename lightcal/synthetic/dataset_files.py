@@ -13,6 +13,7 @@ import math
 import re
 import secrets
 import shutil
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Literal
 
@@ -20,9 +21,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lightcal import __version__
 from lightcal.core.camera import Camera
+from lightcal.core.pose import describe_pose
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
-from lightcal.core.scene import Light, View
+from lightcal.core.scene import Light, Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.errors import InputError
 from lightcal.io.ies import write_ies
@@ -54,7 +57,10 @@ _CANDELA_ON_AXIS = 1000.0
 IMAGE_SUFFIX = {"png": ".png", "tiff": ".tif"}
 """File suffix of each image format."""
 
-_STALE_IMAGE = re.compile(r"view_\d+\.(png|tif)")
+DARK_SUFFIX = "_dark"
+"""A view's light-off photo is `images/view_NN_dark.png` (`SynthConfig.dark_frames`)."""
+
+_STALE_IMAGE = re.compile(r"view_\d+(_dark)?\.(png|tif)")
 
 TRUTH_FORMAT = "lightcal.synth_truth"
 """The `format` tag of truth.json."""
@@ -284,3 +290,67 @@ def read_truth(path: str | Path) -> dict[str, Any]:
     if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT:
         raise InputError(p, f"expected a truth file with format {TRUTH_FORMAT!r}")
     return data
+
+
+def truth_document(
+    config: Any,
+    *,
+    camera: Camera,
+    vignetting_rel: str | None,
+    view_truth: list[dict[str, Any]],
+    departure_truth: dict[str, Any],
+    rig: Rig,
+    relative_rig: Rig,
+    initial: list[Light],
+    rid_truth: dict[str, Any],
+) -> dict[str, Any]:
+    """The content of truth.json (`lightcal.synthetic.dataset`).
+
+    Args:
+        config: The dataset's `SynthConfig`.
+        camera: The camera as read back.
+        vignetting_rel: The fall-off map's path in the dataset, or None.
+        view_truth: One entry per view.
+        departure_truth: The departures' parameters (empty: none).
+        rig: The true lights, scales in DN.
+        relative_rig: The same at relative scale.
+        initial: The project's initial guesses.
+        rid_truth: The true profile's description.
+    """
+    return {
+        "format": TRUTH_FORMAT,
+        "version": 1,
+        "lightcal_version": __version__,
+        "seed": config.seed,
+        "camera": camera_dict(camera),
+        "sensor": sensor_truth(config.sensor, vignetting_rel),
+        "views": view_truth,
+        "wall": config.wall.describe(),
+        **({"departures": departure_truth} if departure_truth else {}),
+        "lights": [
+            {
+                "name": light.name,
+                "scale": light.scale,
+                "relative_scale": relative.scale,
+                "pose_kind": "isotropic"
+                if isinstance(light.rid, IsotropicRID)
+                else ("symmetric" if light.rid.symmetric else "general"),
+                "rid": rid_truth,
+                **describe_pose(light.R_camera_light, light.t_camera_light),
+                "initial": describe_pose(initial[j].R_camera_light, initial[j].t_camera_light),
+            }
+            for j, (light, relative) in enumerate(zip(rig.lights, relative_rig.lights, strict=True))
+        ],
+        "options": {
+            "pose_noise_mm": config.pose_noise_m * 1000.0,
+            "pose_noise_deg": config.pose_noise_deg,
+            "init_offset_m": config.init_offset_m,
+            "init_offset_deg": config.init_offset_deg,
+            "image_format": config.image_format,
+        },
+        "config": {
+            "scene": asdict(config.scene),
+            "rig": asdict(config.rig),
+            "sensor": asdict(config.sensor),
+        },
+    }
