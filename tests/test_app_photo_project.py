@@ -78,7 +78,7 @@ def test_photos_uploaded_one_at_a_time_build_a_project(photos: Photos, tmp_path:
     assert staging.staged().missing == (
         "photos of the wall with the printed marker board",
         "a camera file, or photos of a chessboard for the intrinsics",
-        "the board file of the wall's markers (aruco_grid or charuco)",
+        "the board file of the wall's markers (aruco_grid, markers or charuco)",
     )
     assert "**Received**: nothing yet." in staged_markdown(staging.staged())
     received = staging.receive("wall", "wall_0.png", photos.photos[0].read_bytes())
@@ -88,7 +88,7 @@ def test_photos_uploaded_one_at_a_time_build_a_project(photos: Photos, tmp_path:
     staged = staging.staged()
     assert staged.wall_photos == tuple(p.name for p in photos.photos)
     assert staged.camera == "camera.yaml"
-    assert staged.wall_board == ("aruco_grid", "board.yaml")
+    assert staged.wall_boards == (("aruco_grid", "board.yaml"),)
     assert staged.ready
     text = staged_markdown(staged)
     assert "wall photos (6)" in text and "**Ready**" in text
@@ -282,15 +282,15 @@ def test_a_board_file_is_kept_by_its_role(photos: Photos, tmp_path: Path) -> Non
     staging.receive("board", "chessboard.yaml", (sample / "chessboard.yaml").read_bytes())
     staged = staging.staged()
     assert staged.chessboard_board == ("chessboard", "chessboard.yaml")
-    assert staged.wall_board is None
+    assert staged.wall_boards == ()
     staging.receive("chessboard", "c.png", photos.photos[0].read_bytes())
     assert staging.staged().missing == (
         "photos of the wall with the printed marker board",
         "at least 3 chessboard photos (have 1)",
-        "the board file of the wall's markers (aruco_grid or charuco)",
+        "the board file of the wall's markers (aruco_grid, markers or charuco)",
     )
     staging.receive("board", "wall board.yaml", photos.board.read_bytes())
-    staging.receive("board", "other.yaml", photos.board.read_bytes())  # replaces the grid
+    staging.receive("board", "other.yaml", photos.board.read_bytes())  # its markers: replaced
     staged = staging.staged()
     assert staged.boards == (("aruco_grid", "other.yaml"), ("chessboard", "chessboard.yaml"))
     text = staged_markdown(staged)

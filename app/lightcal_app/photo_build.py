@@ -23,10 +23,10 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
+from lightcal.capture.boards import CharucoBoard, Chessboard
 from lightcal.capture.init_checks import markers_problem
 from lightcal.capture.intrinsics import calibrate_intrinsics
-from lightcal.capture.project_init import ImageOutcome, init_project
+from lightcal.capture.project_init import GammaEncodedImage, ImageOutcome, init_project
 from lightcal.errors import InputError
 from lightcal.io.board_file import read_board
 from lightcal.io.camera_file import write_camera
@@ -45,8 +45,10 @@ from lightcal_app.photo_records import (
 
 # The staging area's folders: one per kind of file (a board's by its type).
 WALL_DIR, CHESSBOARD_DIR, CAMERA_DIR, LIGHT_DIR = "photos", "chessboard", "camera", "light"
+RESPONSE_DIR = "response"
 BOARD_DIRS = {
     "aruco_grid": "board-aruco_grid",
+    "markers": "board-markers",
     "charuco": "board-charuco",
     "chessboard": "board-chessboard",
 }
@@ -73,10 +75,10 @@ def build_project(
         InputError: the chessboard photos give no intrinsics, no wall photo is usable, or
             the initial guess is behind the wall (named as the page knows them).
     """
-    wall_board = staged.wall_board
-    assert wall_board is not None
-    board_path = area / BOARD_DIRS[wall_board[0]] / wall_board[1]
-    _check_min_markers(board_path, options.min_markers)
+    board_paths = [area / BOARD_DIRS[kind] / name for kind, name in staged.wall_boards]
+    assert board_paths
+    _check_min_markers(board_paths, options.min_markers)
+    response = None if staged.response is None else area / RESPONSE_DIR / staged.response
     if staged.camera is not None:
         camera_path = area / CAMERA_DIR / staged.camera
         camera = CameraSource(staged.camera)
@@ -98,7 +100,7 @@ def build_project(
         result = init_project(
             area / WALL_DIR,
             camera_path=camera_path,
-            board_path=board_path,
+            board_path=board_paths,
             out_path=out_dir / "project.json",
             light_file=light,
             half_angle_deg=half,
@@ -109,17 +111,27 @@ def build_project(
             max_rms_px=options.max_rms_px,
             black_level=options.black_level,
             white_level=options.white_level,
+            assume_linear=options.assume_linear and response is None,
+            response_path=response,
             pose_floor_m=options.pose_floor_m,
             pose_floor_deg=options.pose_floor_deg,
             on_image=on_image,
         )
+    except GammaEncodedImage as exc:
+        raise InputError(
+            _build_error(exc, area).source,
+            "8-bit photos are gamma-encoded by the camera, not proportional to light: upload "
+            "the camera's response curve (Response curve button; lightcal response makes it "
+            f"from an exposure bracket), or tick '{LABELS['assume_linear']}' if the camera "
+            "wrote linear values",
+        ) from exc
     except InputError as exc:
         raise _build_error(exc, area) from exc
     photos = tuple(PhotoOutcome.of(o) for o in result.images)
     progress(f"reading the {len(result.accepted)} accepted images")
     project = load_project(result.project_path)
     loaded = load_images(project)
-    boards = {board_path}
+    boards = set(board_paths)
     if staged.calibrates_camera and staged.chessboard_board is not None:
         kind, name = staged.chessboard_board
         boards.add(area / BOARD_DIRS[kind] / name)
@@ -152,11 +164,12 @@ def black_level_warning(levels: FileLevels) -> list[str]:
     ]
 
 
-def _check_min_markers(board_path: Path, min_markers: int) -> None:
-    """The fewest markers against the wall board's, before any work (as `lightcal init`)."""
-    board = read_board(board_path)
-    if isinstance(board, ArucoGridBoard | CharucoBoard):  # else init_project says
-        problem = markers_problem(min_markers, board)
+def _check_min_markers(board_paths: list[Path], min_markers: int) -> None:
+    """The fewest markers against the wall boards', before any work (as `lightcal init`)."""
+    boards = [read_board(path) for path in board_paths]
+    marker_boards = [b for b in boards if not isinstance(b, Chessboard)]
+    if len(marker_boards) == len(boards):  # else init_project says
+        problem = markers_problem(min_markers, marker_boards)
         if problem is not None:
             raise InputError(LABELS["min_markers"], f"{problem}, got {min_markers}")
 
@@ -288,6 +301,9 @@ def project_zip_bytes(build: PhotoBuild) -> bytes:
         rid = light.get("rid") or {}
         if rid.get("path"):
             rid["path"] = top(folder / rid["path"], "light")
+    sensor = data.get("sensor", {})
+    if sensor.get("response"):
+        sensor["response"] = top(folder / sensor["response"], "response")
     # The photos are of one folder (their names differ), each mask named by its photo.
     images = data.get("images", [])
     for spec, image, mask in zip(images, project.image_paths, project.mask_paths, strict=True):

@@ -11,16 +11,21 @@ file per button press) or as a zip. The kinds of file, each checked as it arrive
   camera file is given; checked as the wall photos.
 - `camera`: the camera file, OpenCV YAML/JSON/XML or a COLMAP cameras.txt; read.
 - `board`: a board file (`lightcal.io.board_file`), read and kept by its type: the
-  wall's `aruco_grid` or `charuco`, the chessboard photos' `chessboard` (a `charuco`
-  serves either role when the other board is missing).
+  wall's `aruco_grid` or `markers` (any number: their markers all make each photo's
+  pose; one that shares a marker with a staged wall board replaces it) or `charuco`,
+  the chessboard photos' `chessboard` (a `charuco` serves either role when the other
+  board is missing).
 - `light`: the light's IES (.ies) or EULUMDAT (.ldt) file, read; without one the build
   uses a half angle.
+- `response`: the camera's response curve (`lightcal response`), read; it linearises
+  8-bit photos (JPEG), as `lightcal init --response`.
 
 A zip (whatever the button) is unpacked with the checks of `upload_checks.extract_zip`,
 and each file in it goes where it belongs: images in a folder whose name says chess,
 charuco, calib or intrinsic are chessboard photos, other images are of the kind uploaded
 (wall photos unless it was `chessboard`); .ies/.ldt files are the light; YAML and JSON
-files a board file if they read as one, else a camera file; XML and TXT a camera file.
+files a board file if they read as one, else a response curve if they read as one, else a
+camera file; XML and TXT a camera file.
 Files that are none of these (or do not read) are left out, each named with the reason.
 
 Limits: every file the app's per-file cap (`uploads.check_size`), every image's size from
@@ -28,8 +33,8 @@ its header (`upload_checks.check_image_headers`), one staging area at most
 `MAX_ZIP_MEMBERS` files and `MAX_UPLOAD_FOLDER_BYTES`, and the staging areas together
 bounded by `upload_checks.make_room` (the oldest removed first, never the one in use nor
 a folder the project shown reads). Names are made safe (`uploads.safe_file_name`); a
-photo of the same name, or a camera, light or board file of the same role, replaces the
-one there.
+photo or wall board file of the same name, or a camera, light, response or other board
+file of the same role, replaces the one there.
 
 `build(progress, options)` runs `lightcal_app.photo_build.build_project` (the intrinsics
 from the chessboard photos when no camera file was given, then `lightcal init`'s steps,
@@ -44,32 +49,43 @@ from __future__ import annotations
 import shutil
 import threading
 import uuid
-from collections.abc import Callable, Collection, Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path, PurePosixPath
-from typing import TypeVar
 
-from lightcal.capture.boards import ArucoGridBoard, Board, CharucoBoard
 from lightcal.errors import InputError
 from lightcal.io.board_file import read_board
 from lightcal.io.camera_file import read_camera
 from lightcal.io.images import SUPPORTED_EXTENSIONS
 from lightcal.io.photometric_file import read_rid_file
+from lightcal.io.response import ResponseCurve
 from lightcal_app.photo_build import (
     BOARD_DIRS,
     BUILD_PREFIX,
     CAMERA_DIR,
     CHESSBOARD_DIR,
     LIGHT_DIR,
+    RESPONSE_DIR,
     WALL_DIR,
     Progress,
     build_project,
     read_levels,
+)
+from lightcal_app.photo_files import (
+    BOARD_SUFFIXES,
+    CAMERA_SUFFIXES,
+    IMAGE_SUFFIXES_TEXT,
+    add_wall_board,
+    board_type,
+    files_in,
+    folder_size,
+    read_checked,
 )
 from lightcal_app.photo_records import (
     DEFAULT_HALF_ANGLE_DEG,
     LABELS,
     MAX_MASK_MARGIN_PX,
     PHOTO_KINDS,
+    WALL_BOARD_TYPES,
     CameraSource,
     FileLevels,
     PhotoBuild,
@@ -96,7 +112,6 @@ from lightcal_app.uploads import (
     MAX_UPLOAD_BYTES,
     RID_SUFFIXES,
     check_size,
-    relative_message,
     safe_file_name,
 )
 
@@ -119,59 +134,8 @@ __all__ = [
     "staged_markdown",
 ]
 
-CAMERA_SUFFIXES = (".yaml", ".yml", ".xml", ".json", ".txt")
-BOARD_SUFFIXES = (".yaml", ".yml", ".json")
-IMAGE_SUFFIXES_TEXT = (
-    ".png, .tif, .tiff, .npy, .exr, .jpg or camera raw such as .dng, .cr2, .nef, .arw"
-)
 CHESSBOARD_FOLDER_WORDS = ("chess", "charuco", "calib", "intrinsic")
 """A zip's images in a folder whose name holds one of these are chessboard photos."""
-
-
-def _board_type(board: Board) -> str:
-    if isinstance(board, ArucoGridBoard):
-        return "aruco_grid"
-    if isinstance(board, CharucoBoard):
-        return "charuco"
-    return "chessboard"
-
-
-def _size_of(folder: Path) -> int:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
-
-
-def _files_in(folder: Path) -> list[Path]:
-    if not folder.is_dir():
-        return []
-    return sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
-
-
-def _reader_error(exc: InputError, path: Path, name: str) -> InputError:
-    """A reader's error on the stored `path`, named by the upload's `name`."""
-    if exc.source in (str(path), str(path.resolve())):
-        where = f"line {exc.line}: " if exc.line is not None else ""
-        return InputError(name, where + exc.detail)
-    return InputError(name, relative_message(exc, path.parent, name))
-
-
-T = TypeVar("T")
-
-
-def _read_checked(
-    path: Path,
-    shown: str,
-    suffixes: Collection[str],
-    what: str,
-    expected: str,
-    reader: Callable[[Path], T],
-) -> T:
-    """`reader(path)` after checking the suffix; errors name the upload `shown`."""
-    if path.suffix.lower() not in suffixes:
-        raise InputError(shown, f"unsupported {what} suffix {path.suffix!r}: expected {expected}")
-    try:
-        return reader(path)
-    except InputError as exc:
-        raise _reader_error(exc, path, shown) from exc
 
 
 class PhotoStaging:
@@ -236,7 +200,7 @@ class PhotoStaging:
             self._check_idle()
             area = self._area()
             make_room(self.root, len(content), keep=self._kept(area), limit=MAX_UPLOAD_FOLDER_BYTES)
-            room = MAX_UPLOAD_FOLDER_BYTES - _size_of(area)
+            room = MAX_UPLOAD_FOLDER_BYTES - folder_size(area)
             if len(content) > room:
                 raise InputError(
                     name,
@@ -276,7 +240,9 @@ class PhotoStaging:
             elif suffix in RID_SUFFIXES:
                 member = "light"
             elif suffix in BOARD_SUFFIXES:
-                member = "board" if self._reads_as_board(path) else "camera"
+                member = "board" if self._reads(read_board, path) else "camera"
+                if member == "camera" and self._reads(ResponseCurve.load, path):
+                    member = "response"
             elif suffix in CAMERA_SUFFIXES:
                 member = "camera"
             else:
@@ -292,9 +258,9 @@ class PhotoStaging:
         return Received(tuple(placed), tuple(ignored))
 
     @staticmethod
-    def _reads_as_board(path: Path) -> bool:
+    def _reads(reader: Callable[[Path], object], path: Path) -> bool:
         try:
-            read_board(path)
+            reader(path)
         except InputError:
             return False
         return True
@@ -339,7 +305,7 @@ class PhotoStaging:
             path.replace(folder / stored)
             return what, stored
         if kind == "camera":
-            _read_checked(
+            read_checked(
                 path,
                 shown,
                 CAMERA_SUFFIXES,
@@ -349,17 +315,32 @@ class PhotoStaging:
             )
             return "camera file", self._replace(area / CAMERA_DIR, path)
         if kind == "board":
-            board = _read_checked(
+            board = read_checked(
                 path,
                 shown,
                 BOARD_SUFFIXES,
                 "board file",
-                "a .yaml, .yml or .json board description (aruco_grid, charuco or chessboard)",
+                "a .yaml, .yml or .json board description (aruco_grid, markers, charuco or "
+                "chessboard)",
                 read_board,
             )
-            board_type = _board_type(board)
-            return f"board file ({board_type})", self._replace(area / BOARD_DIRS[board_type], path)
-        _read_checked(
+            typ = board_type(board)
+            folder = area / BOARD_DIRS[typ]
+            if typ in WALL_BOARD_TYPES:  # one of several
+                walls = [area / BOARD_DIRS[t] for t in WALL_BOARD_TYPES]
+                return f"board file ({typ})", add_wall_board(walls, folder, path, board)
+            return f"board file ({typ})", self._replace(folder, path)
+        if kind == "response":
+            read_checked(
+                path,
+                shown,
+                (".json", ".npy"),
+                "response curve",
+                "a .json curve written by lightcal response (or a (256, C) .npy array)",
+                ResponseCurve.load,
+            )
+            return "response curve", self._replace(area / RESPONSE_DIR, path)
+        read_checked(
             path,
             shown,
             RID_SUFFIXES,
@@ -392,19 +373,20 @@ class PhotoStaging:
             return Staged()
 
         def one(folder: str) -> str | None:
-            files = _files_in(area / folder)
+            files = files_in(area / folder)
             return files[0].name if files else None
 
         boards = tuple(
-            (kind, name) for kind in BOARD_DIRS if (name := one(BOARD_DIRS[kind])) is not None
+            (kind, path.name) for kind in BOARD_DIRS for path in files_in(area / BOARD_DIRS[kind])
         )
-        wall = _files_in(area / WALL_DIR)
+        wall = files_in(area / WALL_DIR)
         return Staged(
             wall_photos=tuple(p.name for p in wall),
-            chessboard_photos=tuple(p.name for p in _files_in(area / CHESSBOARD_DIR)),
+            chessboard_photos=tuple(p.name for p in files_in(area / CHESSBOARD_DIR)),
             camera=one(CAMERA_DIR),
             boards=boards,
             light=one(LIGHT_DIR),
+            response=one(RESPONSE_DIR),
             levels=self._levels_of(wall[0]) if wall else None,
         )
 

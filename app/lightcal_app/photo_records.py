@@ -24,7 +24,7 @@ from lightcal.io.project import Project
 from lightcal.pipeline import LoadedImages
 from lightcal_app.text import md
 
-PhotoKind = Literal["wall", "chessboard", "camera", "board", "light"]
+PhotoKind = Literal["wall", "chessboard", "camera", "board", "light", "response"]
 PHOTO_KINDS: tuple[PhotoKind, ...] = get_args(PhotoKind)
 
 DEFAULT_HALF_ANGLE_DEG = 30.0
@@ -45,7 +45,12 @@ LABELS = {
     "max_rms_px": "largest marker RMS (px)",
     "pose_floor_mm": "pose floor (mm)",
     "pose_floor_deg": "pose floor (deg)",
+    "assume_linear": "8-bit photos are linear",
 }
+
+WALL_BOARD_TYPES = ("aruco_grid", "markers")
+"""Board types only ever on the wall; a project takes any number of them (their markers
+all make each photo's pose, as `lightcal init --board A --board B`)."""
 
 
 @dataclass(frozen=True)
@@ -85,8 +90,9 @@ class FileLevels:
             text += f"; its values run from {self.darkest:g} to {self.brightest:g}"
         if self.bits == 8:
             return text + (
-                ". 8-bit photos are gamma-encoded: lightcal init (and this page) take no "
-                "response curve, so they are rejected; use camera raw or 16-bit linear photos."
+                ". 8-bit photos (JPEG) are gamma-encoded: upload the camera's response curve "
+                "(made by lightcal response from an exposure bracket), or tick "
+                f"'{LABELS['assume_linear']}' if the camera wrote linear values."
             )
         if self.raw:
             return text + "."
@@ -112,8 +118,10 @@ class Staged:
         wall_photos: the photos of the wall, sorted.
         chessboard_photos: the photos of the chessboard, sorted.
         camera: the camera file, if any.
-        boards: board type ("aruco_grid", "charuco", "chessboard") -> its file.
+        boards: (board type, file) of each board file: "aruco_grid" and "markers" any
+            number, "charuco" and "chessboard" one each.
         light: the light's IES/LDT file, if any.
+        response: the camera's response curve file (`lightcal response`), if any.
         levels: the levels the first wall photo's file gives (None without wall photos,
             or when it does not read).
     """
@@ -124,18 +132,18 @@ class Staged:
     boards: tuple[tuple[str, str], ...] = ()
     light: str | None = None
     levels: FileLevels | None = None
+    response: str | None = None
 
     def board(self, kind: str) -> str | None:
         return dict(self.boards).get(kind)
 
     @property
-    def wall_board(self) -> tuple[str, str] | None:
-        """(type, file) of the board on the wall: an ArUco grid, else a ChArUco board."""
-        for kind in ("aruco_grid", "charuco"):
-            name = self.board(kind)
-            if name is not None:
-                return kind, name
-        return None
+    def wall_boards(self) -> tuple[tuple[str, str], ...]:
+        """(type, file) of the boards on the wall: every ArUco grid and marker list, else
+        a ChArUco board."""
+        walls = tuple((kind, name) for kind, name in self.boards if kind in WALL_BOARD_TYPES)
+        charuco = self.board("charuco")
+        return walls or ((("charuco", charuco),) if charuco is not None else ())
 
     @property
     def chessboard_board(self) -> tuple[str, str] | None:
@@ -166,8 +174,8 @@ class Staged:
                 )
             if self.chessboard_board is None:
                 out.append("the board file of the chessboard photos (chessboard or charuco)")
-        if self.wall_board is None:
-            out.append("the board file of the wall's markers (aruco_grid or charuco)")
+        if not self.wall_boards:
+            out.append("the board file of the wall's markers (aruco_grid, markers or charuco)")
         return tuple(out)
 
     @property
@@ -177,7 +185,12 @@ class Staged:
     @property
     def empty(self) -> bool:
         return not (
-            self.wall_photos or self.chessboard_photos or self.camera or self.boards or self.light
+            self.wall_photos
+            or self.chessboard_photos
+            or self.camera
+            or self.boards
+            or self.light
+            or self.response
         )
 
 
@@ -223,6 +236,8 @@ class PhotoOptions:
         max_rms_px: photos whose marker reprojection RMS exceeds this are rejected.
         pose_floor_m, pose_floor_deg: the systematic error of the marker poses added to
             each pose's covariance (`lightcal init --pose-floor-mm/--pose-floor-deg`).
+        assume_linear: 8-bit photos are taken as linear (`lightcal init --assume-linear`);
+            a staged response curve linearises them instead (`--response`).
     """
 
     half_angle_deg: float | None = None
@@ -235,6 +250,7 @@ class PhotoOptions:
     max_rms_px: float = 1.0
     pose_floor_m: float = POSE_FLOOR_M
     pose_floor_deg: float = POSE_FLOOR_DEG
+    assume_linear: bool = False
 
 
 @dataclass(frozen=True)
@@ -358,12 +374,14 @@ def staged_markdown(staged: Staged) -> str:
         )
     for kind, name in staged.boards:
         uses = []
-        if staged.wall_board == (kind, name):
+        if (kind, name) in staged.wall_boards:
             uses.append("the wall's markers")
         if staged.calibrates_camera and staged.chessboard_board == (kind, name):
             uses.append("the chessboard photos")
         use = f" for {' and '.join(uses)}" if uses else " (not used)"
         lines.append(f"board file ({kind}){use}: {md(name)}  ")
+    if staged.response is not None:
+        lines.append(f"response curve: {md(staged.response)} (linearises 8-bit photos)  ")
     if staged.light is not None:
         lines.append(f"light file: {md(staged.light)} (the half angle is not used)  ")
     else:

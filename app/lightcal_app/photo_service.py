@@ -79,6 +79,7 @@ class PhotoFields:
     max_rms_px: float = 1.0
     pose_floor_mm: float = POSE_FLOOR_M * 1e3
     pose_floor_deg: float = POSE_FLOOR_DEG
+    assume_linear: bool = False
 
 
 T = TypeVar("T")
@@ -160,6 +161,7 @@ def check_fields(fields: PhotoFields, levels: FileLevels | None = None) -> Photo
         max_rms_px=rms,
         pose_floor_m=floor_mm / 1e3,
         pose_floor_deg=floor_deg,
+        assume_linear=bool(fields.assume_linear),
     )
 
 

@@ -49,6 +49,7 @@ BUTTONS: tuple[tuple[str, PhotoKind, str], ...] = (
     ("Chessboard photos", "chessboard", IMAGE_TYPES + ",.zip"),
     ("Board file", "board", ".yaml,.yml,.json,.zip"),
     ("Light file (IES/LDT)", "light", ".ies,.ldt,.zip"),
+    ("Response curve (8-bit photos)", "response", ".json,.npy"),
 )
 
 
@@ -64,7 +65,8 @@ class PhotosPanel(TabPanel):
             "Build a project from photographs, as `lightcal init` does: photos of the wall "
             "with the printed marker board, the camera file (or photos of a chessboard for "
             "the intrinsics), the board file(s) and, if you have it, the light's IES/LDT "
-            f"file. One file per press, or a zip of them ({limit} per file)."
+            "file; for 8-bit photos (JPEG) the camera's response curve (`lightcal response`) "
+            f"or the box below. One file per press, or a zip of them ({limit} per file)."
         )
         self.uploads: dict[PhotoKind, Any] = {}
         for label, kind, types in BUTTONS:
@@ -116,6 +118,13 @@ class PhotosPanel(TabPanel):
             "16-bit PNG: 16383)",
         )
         # Per level field, viser's stamp of its last prefill: a newer one is the user's.
+        self.assume_linear = gui.add_checkbox(
+            LABELS["assume_linear"],
+            False,
+            hint="8-bit photos (JPEG) are taken as linear, as lightcal init --assume-linear; "
+            "only if the camera really wrote linear values (a response curve, when given, "
+            "linearises them instead)",
+        )
         self._prefilled = [
             Programmatic.stamp(self.black_level),
             Programmatic.stamp(self.white_level),
@@ -182,6 +191,7 @@ class PhotosPanel(TabPanel):
             max_rms_px=float(self.max_rms.value),
             pose_floor_mm=float(self.pose_floor_mm.value),
             pose_floor_deg=float(self.pose_floor_deg.value),
+            assume_linear=bool(self.assume_linear.value),
         )
 
     def _on_upload(self, handle: Any, kind: PhotoKind) -> None:
