@@ -177,3 +177,58 @@ def test_find_markers_checks_the_image_sizes():
     assert str(error.value) == (
         "small.png: expected images of the camera's size 1600x1200 px, got 20x10 and 20x10 px"
     )
+
+
+def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found():
+    """Issue 25's wall: four tag36h11 at the corners of a 1.2 x 0.7 m rectangle, seen from
+    1.6 m, a 14-degree beam (7 degrees half angle) from beside the camera between them,
+    saturated at its centre, the room light at 1 % of its peak."""
+    from lightcal.capture.apriltag import printed_corners
+    from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+    from lightcal.core.pose import rotation_from_axis
+    from lightcal.core.render import render_image
+    from lightcal.core.rid import CosPowerRID
+    from lightcal.core.scene import Light, Rig, View
+    from tests.test_marker_layout import CAMERA as TAG_CAMERA
+    from tests.test_marker_layout import RECTANGLE, TAG
+
+    R, t = look_at_pose(np.array([0.15, -0.1, 1.6]), np.array([0.05, 0.0, 0.0]), roll_rad=0.2)
+    rendering = RECTANGLE.render(2000.0)
+    albedo = render_plane_image(
+        TAG_CAMERA,
+        R,
+        t,
+        0.05 + 0.9 * rendering.image / 255.0,
+        rendering.px_per_m,
+        rendering.top_left_world_m,
+        background=0.95,
+        supersample=3,
+    )
+    view = View(R, t, 1.0)
+    p_light_camera = np.array([0.1, 0.0, 0.0])
+    axis_camera = R @ (np.array([0.1, 0.05, 0.0]) - view.center_world) - p_light_camera
+    light = Light(
+        CosPowerRID.from_half_angle(math.radians(7.0)),
+        p_light_camera,
+        rotation_from_axis(axis_camera / np.linalg.norm(axis_camera)),
+    )
+    irradiance = np.ma.getdata(render_image(TAG_CAMERA, view, Rig.single(light)))
+    photo = 1000.0 * np.minimum(albedo * (irradiance / irradiance.max() + 0.01), 0.6)
+    photo += np.random.default_rng(0).normal(0.0, 0.02, photo.shape)
+    assert 0.01 < np.mean(photo >= 599.0) < 0.03  # the beam's centre saturates
+
+    image_u8, image_f = detection_images(photo, TAG_CAMERA, "tags")
+    detector = cv2.aruco.ArucoDetector(aruco_dictionary(TAG), detector_parameters())
+    assert detector.detectMarkers(image_u8)[1] is None  # the percentile stretch: none
+    search = find_markers(image_u8, image_f, TAG_CAMERA, {TAG: RECTANGLE.ids_of(TAG)})
+    assert search.refused == ()
+    np.testing.assert_array_equal(search.ids(TAG), [0, 1, 2, 3])
+    assert all(m.stretches == ("gamma", "log", "clahe") for m in search.found)
+    true, _ = TAG_CAMERA.project(
+        RECTANGLE.marker_corners_world(RECTANGLE.indices_of(TAG, [0, 1, 2, 3])).reshape(-1, 3) @ R.T
+        + t
+    )
+    found = printed_corners(TAG, search.corners_px(TAG)).reshape(-1, 2)
+    errors = np.linalg.norm(found - true, axis=-1)
+    print(f"tag corners: max error {errors.max():.3f} px")
+    assert errors.max() < 0.1
