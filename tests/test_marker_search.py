@@ -232,3 +232,30 @@ def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found():
     errors = np.linalg.norm(found - true, axis=-1)
     print(f"tag corners: max error {errors.max():.3f} px")
     assert errors.max() < 0.1
+
+
+def test_a_charuco_board_beside_a_beam_gives_every_corner():
+    """The 1.6 m ChArUco scene under the beam of `_beam_photo`, left of the board."""
+    from lightcal.capture.marker_detection import detect_charuco
+    from tests.test_marker_pose import CHARUCO
+
+    _, image, R, t = scene("charuco_1.6m_tilt30")
+    rows, cols = np.mgrid[0 : CAMERA.height, 0 : CAMERA.width]
+    beam = 1.0 + BEAM_PEAK * np.exp(-((cols - 300.0) ** 2 + (rows - 580.0) ** 2) / (2 * 120.0**2))
+    photo = np.minimum(np.array(image) * beam, SATURATION)
+    image_u8, image_f = detection_images(photo, CAMERA, "charuco")
+    parameters = cv2.aruco.CharucoParameters()
+    parameters.cameraMatrix = np.array(CAMERA.K)
+    parameters.distCoeffs = np.array(CAMERA.dist)
+    detector = cv2.aruco.CharucoDetector(CHARUCO.cv_board(), parameters, detector_parameters())
+    _, percentile_ids, _, _ = detector.detectBoard(image_u8)
+    assert len(percentile_ids) <= 10  # of 70 corners: the percentile stretch alone
+    markers, corner_ids, corners_world, corners_px = detect_charuco(
+        image_u8, image_f, CHARUCO, CAMERA, "charuco"
+    )
+    assert markers.size == 44
+    np.testing.assert_array_equal(corner_ids, np.arange(70))
+    true, _ = CAMERA.project(corners_world @ R.T + t)
+    errors = np.linalg.norm(corners_px - true, axis=-1)
+    print(f"ChArUco corners: max error {errors.max():.3f} px")
+    assert errors.max() < 0.1

@@ -31,7 +31,14 @@ from lightcal.capture.edge_refinement import (
     marker_half_windows,
     refine_quads_on_edges,
 )
-from lightcal.capture.marker_search import MarkerSearch, detector_parameters, find_markers
+from lightcal.capture.marker_search import (
+    STRETCHES,
+    MarkerSearch,
+    detection_stretches,
+    detector_parameters,
+    find_markers,
+    search_stretched,
+)
 from lightcal.capture.pose_fit import not_collinear, solve_pose
 from lightcal.core.camera import Camera
 from lightcal.errors import InputError
@@ -258,21 +265,38 @@ def detect_charuco(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Marker ids (n,), ChArUco corner ids (m,), world points (m, 3), image points (m, 2).
 
-    The points are the detected ChArUco corners, refined on the edges of the black squares
-    around them (`_refine_charuco_corners`) from a first pose on the detector's corners.
+    The markers are searched on several stretches of the image (`search_grid`'s
+    `lightcal.capture.marker_search`: a beam does not hide them), and the chessboard
+    corners between them interpolated and found to sub-pixel accuracy on the stretch that
+    found the most. The points are these ChArUco corners, refined on the edges of the
+    black squares around them (`_refine_charuco_corners`) from a first pose on the
+    detector's corners.
     The markers only identify the board: their corners, 0.5 module from a white gap that is
     narrow at a distance, are less accurate than the chessboard corners on blurred images.
     """
+    no_points = np.zeros((0, 3)), np.zeros((0, 2))
+    images = detection_stretches(image, image_f)
+    search = search_stretched(
+        images, image_f, camera, {board.dictionary: board.marker_ids}, source=source
+    )
+    marker_flat = search.ids(board.dictionary)
+    if marker_flat.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), *no_points
+    # The chessboard corners between the markers found, sub-pixel on the stretch that found
+    # the most markers (the first of STRETCHES among equals).
+    best = max(STRETCHES, key=lambda s: sum(s in m.stretches for m in search.found))
     charuco_params = cv2.aruco.CharucoParameters()
     charuco_params.cameraMatrix = np.array(camera.K)
     charuco_params.distCoeffs = np.array(camera.dist)
     detector = cv2.aruco.CharucoDetector(board.cv_board(), charuco_params, detector_parameters())
-    corners, corner_ids, _, marker_ids = detector.detectBoard(image)
-    no_points = np.zeros((0, 3)), np.zeros((0, 2))
-    if marker_ids is None or len(marker_ids) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), *no_points
-    marker_flat = np.unique(np.asarray(marker_ids).reshape(-1).astype(np.int64))
-    marker_flat = marker_flat[np.isin(marker_flat, board.marker_ids)]
+    marker_corners = tuple(
+        q.reshape(1, 4, 2).astype(np.float32) for q in search.corners_px(board.dictionary)
+    )
+    corners, corner_ids, _, _ = detector.detectBoard(
+        images[best],
+        markerCorners=marker_corners,
+        markerIds=marker_flat.astype(np.int32).reshape(-1, 1),
+    )
     if corner_ids is None or corners is None or len(corners) == 0:
         return marker_flat, np.zeros(0, np.int64), *no_points
     corner_flat = np.asarray(corner_ids).reshape(-1).astype(np.int64)

@@ -59,6 +59,7 @@ __all__ = [
     "detection_stretches",
     "detector_parameters",
     "find_markers",
+    "search_stretched",
 ]
 
 STRETCHES = ("percentile", "gamma", "log", "clahe")
@@ -291,7 +292,20 @@ def find_markers(
             f"expected images of the camera's size {camera.width}x{camera.height} px, got "
             f"{image_u8.shape[1]}x{image_u8.shape[0]} and {width}x{height} px",
         )
-    images = detection_stretches(image_u8, image_f)
+    return search_stretched(
+        detection_stretches(image_u8, image_f), image_f, camera, wanted, source=source
+    )
+
+
+def search_stretched(
+    images: Mapping[str, NDArray[np.uint8]],
+    image_f: NDArray[np.float64],
+    camera: Camera,
+    wanted: Mapping[str, ArrayLike],
+    *,
+    source: str = "image",
+) -> MarkerSearch:
+    """`find_markers` on stretches already made (`detection_stretches`; sizes unchecked)."""
     found: list[FoundMarker] = []
     refused: list[MarkerRefusal] = []
     for dictionary in sorted(wanted):
