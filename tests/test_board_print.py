@@ -28,7 +28,7 @@ LAYOUT = MarkerLayout(
     (
         LayoutMarker(TAG, 0, (-0.6, 0.35), 0.12),
         LayoutMarker(TAG, 1, (0.6, 0.35), 0.1, rotation_deg=30.0),
-        LayoutMarker("DICT_4X4_50", 7, (0.0, -0.35), 0.09),
+        LayoutMarker("DICT_4X4_50", 7, (0.0, -0.35), 0.09, rotation_deg=-90.0),
     )
 )
 
@@ -135,6 +135,11 @@ def test_a_page_per_marker_true_size_bit_for_bit_and_detected():
         in (pages[1][1])
     )
     assert "(Print at 100 % \\(no fit to page\\): the bar must measure 100.0 mm.) Tj" in pages[2][1]
+    assert (
+        "(Marker turned 90 deg clockwise: tape the page level, its top edge up.) Tj"
+        in (pages[2][1])
+    )
+    assert "(Marker upright: tape the page level, its top edge up.) Tj" in pages[0][1]
 
 
 def test_a_grid_is_one_sheet_landscape_when_it_fits_only_so():

@@ -159,10 +159,12 @@ def _marker_pages(layout: MarkerLayout, paper: str, name: str) -> list[PdfPage]:
         )
         ops += _ticks(cx, cy, extent, area)
         x, y = marker.center_world_m
+        angle = marker.rotation_deg
         turn = (
             "upright"
-            if marker.rotation_deg == 0.0
-            else f"turned {marker.rotation_deg:g} deg counterclockwise"
+            if angle == 0.0
+            else f"turned {abs(angle):g} deg "
+            + ("counterclockwise" if angle > 0.0 else "clockwise")
         )
         lines = [
             f"{marker.describe()}  -  marker {k + 1} of {layout.n_markers} of {name}",
