@@ -129,3 +129,55 @@ def test_linear_flag_refusals(jpegs: Path, capsys):
         "wall_2.png: a response curve applies only to 8-bit images; this image has 16 bits)\n"
     )
     assert not (jpegs / "project.json").exists() and not (jpegs / "masks").exists()
+
+
+def test_jpegs_of_four_official_tags_at_the_corners_of_a_rectangle(tmp_path: Path, capsys):
+    """The issue's wall: four tag36h11 (official images) at the corners of 1.2 m x 0.7 m,
+    photographed as 8-bit sRGB JPEGs under an uneven light: init --assume-linear with a
+    `markers` board gives every pose."""
+    from lightcal.capture.boards import LayoutMarker, MarkerLayout
+    from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+    from lightcal.core.camera import Camera
+
+    camera = Camera.from_params(
+        fx=700.0, fy=700.0, cx=479.6, cy=359.2, width=960, height=720, dist=(-0.06, 0.01, 0, 0)
+    )
+    corners = [(-0.6, 0.35), (0.6, 0.35), (0.6, -0.35), (-0.6, -0.35)]
+    layout = MarkerLayout(
+        tuple(LayoutMarker("DICT_APRILTAG_36h11", k, c, 0.15) for k, c in enumerate(corners))
+    )
+    rendering = layout.render(2000.0)
+    views = [((0.1, -0.05, 1.6), 0.05), ((-0.3, 0.2, 1.7), -0.1), ((0.35, 0.1, 1.55), 3.0)]
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    rows, cols = np.mgrid[0:720, 0:960]
+    for k, (center, roll) in enumerate(views):
+        R, t = look_at_pose(center, (0.0, 0.0, 0.0), roll_rad=roll)
+        albedo = render_plane_image(
+            camera, R, t, 0.05 + 0.9 * rendering.image / 255.0, rendering.px_per_m,
+            rendering.top_left_world_m, background=0.9,
+        )  # fmt: skip
+        light = 0.25 + 0.7 * np.exp(-((cols - 400.0) ** 2 + (rows - 380.0) ** 2) / (2 * 300.0**2))
+        linear = albedo * light + np.random.default_rng(k).normal(0.0, 0.003, albedo.shape)
+        x = np.clip(linear, 0.0, 1.0)
+        encoded = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+        cv2.imwrite(
+            str(photos / f"view_{k}.jpg"), np.rint(255.0 * encoded).astype(np.uint8),
+            [cv2.IMWRITE_JPEG_QUALITY, 92],
+        )  # fmt: skip
+    write_camera(camera, tmp_path / "camera.yaml")
+    write_board(layout, tmp_path / "tags.yaml")
+    argv = ["init", str(photos), "--camera", str(tmp_path / "camera.yaml")]
+    argv += ["--board", str(tmp_path / "tags.yaml"), "--assume-linear"]
+    assert main([*argv, "--out", str(tmp_path / "project.json")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(",")[0] for line in lines[:3]] == [
+        f"view_{k}.jpg: 4 markers" for k in range(3)
+    ]
+    project = load_project(tmp_path / "project.json")
+    for k, view in enumerate(project.views):
+        center, roll = views[k]
+        R, _ = look_at_pose(center, (0.0, 0.0, 0.0), roll_rad=roll)
+        cos = np.clip((np.trace(view.R_camera_world @ R.T) - 1.0) / 2.0, -1.0, 1.0)
+        assert np.degrees(np.arccos(cos)) < 0.05
+        assert np.linalg.norm(view.center_world - np.asarray(center)) < 2e-3
