@@ -26,9 +26,10 @@ if [ "$browser" = 1 ]; then
   fi
 fi
 
-# Mitsuba 3, the independent renderer the wall models and the honesty tests are checked
-# against. Its fast llvm_ad_rgb variant needs an LLVM newer than Debian 12's default 15
-# (which aborts it); without one the tests fall back to scalar_rgb, ~5x slower.
+# Mitsuba 3 (and, further down, Blender's bpy), the independent renderers the wall models,
+# the honesty tests and the exports are checked against. Mitsuba's fast llvm_ad_rgb
+# variant needs an LLVM newer than Debian 12's default 15 (which aborts it); without one
+# the tests fall back to scalar_rgb, ~5x slower.
 if [ "$reference" = 1 ]; then
   extras="${extras:+$extras,}reference"
   if command -v apt-get >/dev/null && ! dpkg -s libllvm19 >/dev/null 2>&1; then
@@ -63,6 +64,24 @@ if [ "$have_hash" != "$hash" ] || [ "$union" != "$have_extras" ]; then
   echo "setup: pip install -e '$spec'"
   .venv/bin/python -m pip install -q -e "$spec"
   echo "$hash $union" > "$stamp"
+fi
+
+# Blender as a Python module (bpy 5.0), the renderer the Blender export is checked against
+# (tests/test_export_blender_render.py). It needs Python 3.11 and pins NumPy < 2, which
+# this venv cannot take (opencv-python-headless 5 needs NumPy >= 2), so it gets a venv
+# of its own inside this one, .venv/bpy (a 380 MB download, once), where the tests find
+# it (or name another interpreter with LIGHTCAL_BPY_PYTHON). BPY_PYTHON: a Python 3.11.
+if [ "$reference" = 1 ] && ! .venv/bpy/bin/python -c "import bpy" >/dev/null 2>&1; then
+  BPY_PY="${BPY_PYTHON:-python3.11}"
+  if command -v "$BPY_PY" >/dev/null \
+    && "$BPY_PY" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then
+    echo "setup: installing bpy 5.0 (Blender as a Python module) into .venv/bpy"
+    "$BPY_PY" -m venv .venv/bpy
+    .venv/bpy/bin/python -m pip install -q "bpy>=5.0,<5.1" \
+      || echo "setup: bpy not installed: the Blender render tests are skipped" >&2
+  else
+    echo "setup: no Python 3.11 ($BPY_PY) for bpy: the Blender render tests are skipped" >&2
+  fi
 fi
 
 # Byte-compile lightcal's own modules (an editable install leaves them as sources; a

@@ -208,12 +208,39 @@ class _Matrix:
         return cls(np.eye(n))
 
 
+class _Nodes(list):
+    """A light's node collection: its Emission node, and the nodes the snippet adds."""
+
+    def new(self, kind: str) -> types.SimpleNamespace:
+        socket = types.SimpleNamespace
+        node = socket(
+            bl_idname=kind,
+            type=kind,
+            mode=None,
+            ies=None,
+            inputs={"Strength": socket(default_value=1.0)},
+            outputs={"Fac": socket(name="Fac")},
+        )
+        self.append(node)
+        return node
+
+
 def _fake_blender(camera: Any) -> tuple[types.ModuleType, types.ModuleType, list[Any]]:
     """`bpy` and `mathutils` stand-ins; the third item collects the created objects."""
     created: list[Any] = []
+    socket = types.SimpleNamespace
 
     def new_light(name: str, type: str) -> types.SimpleNamespace:
-        return types.SimpleNamespace(name=name, type=type)
+        emission = socket(type="EMISSION", inputs={"Strength": socket(default_value=1.0)})
+        links: list[tuple[Any, Any]] = []
+        new_link = lambda a, b: links.append((a, b))  # noqa: E731
+        tree = socket(nodes=_Nodes([emission]), links=socket(new=new_link), made=links)
+        return socket(name=name, type=type, node_tree=tree, use_nodes=False)
+
+    def new_text(name: str) -> types.SimpleNamespace:
+        text = socket(name=name, body="")
+        text.write = lambda more: setattr(text, "body", text.body + more)
+        return text
 
     def new_object(name: str, data: Any) -> types.SimpleNamespace:
         obj = types.SimpleNamespace(name=name, data=data, parent=None)
@@ -229,10 +256,20 @@ def _fake_blender(camera: Any) -> tuple[types.ModuleType, types.ModuleType, list
     bpy.data = types.SimpleNamespace(  # type: ignore[attr-defined]
         lights=types.SimpleNamespace(new=new_light),
         objects=types.SimpleNamespace(new=new_object),
+        texts=types.SimpleNamespace(new=new_text),
     )
     mathutils = types.ModuleType("mathutils")
     mathutils.Matrix = _Matrix  # type: ignore[attr-defined]
     return bpy, mathutils, created
+
+
+def _ies_node(data: Any) -> Any:
+    """The IES Texture node driving a stand-in light's Emission strength (asserted so)."""
+    assert data.use_nodes
+    (emission, ies) = data.node_tree.nodes
+    assert ies.bl_idname == "ShaderNodeTexIES" and ies.mode == "INTERNAL"
+    assert data.node_tree.made == [(ies.outputs["Fac"], emission.inputs["Strength"])]
+    return ies
 
 
 def _run_blender_snippet(path: Path, camera: Any, monkeypatch) -> list[Any]:
@@ -262,10 +299,22 @@ def test_blender_snippet_sets_the_pose(result, tmp_path, monkeypatch, with_camer
         np.testing.assert_allclose(
             M[:3, :3] @ [0, 0, -1], F_BLENDER[:3, :3] @ light.axis_camera, atol=1e-12
         )
-        assert obj.data.type == "SPOT"
-        half = light.rid.get("half_angle_deg") if light.rid else None
-        if half is not None:
-            assert obj.data.spot_size == pytest.approx(blender_spot_cone(math.radians(half))[0])
+        # a point light driven by its RID through an IES node; power 4 pi scale
+        assert obj.data.type == "POINT" and obj.data.shadow_soft_size == 0.0
+        assert obj.data.energy == pytest.approx(4.0 * math.pi * light.scale, rel=1e-15)
+        ies = _ies_node(obj.data)
+        assert ies.inputs["Strength"].default_value == pytest.approx(1.0 / 0.0706650768394)
+        ies_path = tmp_path / f"{obj.name}.ies"
+        ies_path.write_text(ies.ies.body)
+        table = read_ies(ies_path)
+        rid = light_rid(light, "r.json")
+        assert rid is not None
+        # Cycles' horizontal angle C is phi - 90 degrees; on the samples the table is the RID
+        column = 45 // 2 if table.candela.shape[0] > 1 else 0  # C = 44 degrees, phi = 134
+        phi = math.radians(table.horizontal_deg[column] + 90.0)
+        theta = np.radians(table.vertical_deg[::20])
+        expected = rid_values(rid, theta, np.full_like(theta, phi))
+        np.testing.assert_allclose(table.candela[column, ::20], expected, rtol=1e-6, atol=1e-7)
 
 
 def _xml_emitters(path: Path) -> dict[str, ET.Element]:
@@ -486,17 +535,20 @@ def test_isotropic_light_exports_as_a_point_light(result, tmp_path, monkeypatch)
     np.testing.assert_allclose(T, light_transform(light), rtol=0, atol=POSE_TOL)
     export_result(point, "blender", tmp_path / "p.py", source="r.json")
     (obj,) = _run_blender_snippet(tmp_path / "p.py", None, monkeypatch)
-    assert obj.data.type == "POINT" and obj.parent is None
+    assert obj.data.type == "POINT" and obj.parent is None and not obj.data.use_nodes
     np.testing.assert_allclose(
         opencv_from_blender(obj.matrix_local.rows), light_transform(light), rtol=0, atol=POSE_TOL
     )
 
 
-def test_cli_notes_a_spot_without_a_rid(result, tmp_path, capsys):
+def test_cli_notes_a_spot_without_a_rid(result, tmp_path, capsys, monkeypatch):
     bare = _without_rid(result)
     write_result(bare, tmp_path / "bare.json")
     _export(tmp_path / "bare.json", "blender", tmp_path / "b.py")
     assert "180 degree spot cone" in capsys.readouterr().err
+    (obj,) = _run_blender_snippet(tmp_path / "b.py", None, monkeypatch)
+    assert obj.data.type == "SPOT" and not obj.data.use_nodes
+    assert obj.data.spot_size == pytest.approx(blender_spot_cone(math.pi / 2)[0])
 
 
 def test_an_existing_texture_blocks_the_whole_mitsuba_export(result_path, tmp_path, capsys):

@@ -3,7 +3,7 @@
 | format | file | holds |
 |---|---|---|
 | `opencv` | FileStorage YAML | per light: 4x4 `T_camera_light`, rvec/tvec, 6x6 covariance, RID |
-| `blender` | Python snippet | a spot (point) light per light, parented to the scene camera |
+| `blender` | Python snippet | camera intrinsics, a point light per light driven by its RID |
 | `mitsuba` | Mitsuba 3 scene XML | sensor (project's intrinsics), spot per light, RID textures |
 | `ros` | ROS 2 launch XML + URDF | a static transform and a fixed joint per light |
 | `ies` | IES LM-63-2002 | the estimated RID of one light (`lightcal.io.ies`) |
@@ -24,29 +24,24 @@ photometry); azimuths follow docs/conventions.md (C = -phi).
 
 from __future__ import annotations
 
-import math
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
-from lightcal import __version__
 from lightcal.core.camera import Camera
-from lightcal.core.camera_frames import (
-    blender_from_opencv,
-    blender_spot_cone,
-)
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
-from lightcal.io.escaping import plain_line
+from lightcal.io.export_blender import blender_snippet
 from lightcal.io.export_lights import (
     LightRID,
     clean_degrees,
     given_rid_description,
     light_rid,
     light_transform,
+    rid_origin,
     with_given_rids,
 )
 from lightcal.io.export_mitsuba import mitsuba_files, rid_values, spot_texture
@@ -76,17 +71,27 @@ FORMATS: tuple[ExportFormat, ...] = ("opencv", "blender", "mitsuba", "ros", "ies
 # ---------------------------------------------------------------------------- blender
 
 # Strings from the result reach the snippet only as `repr` literals (LIGHTCAL_VERSION,
-# LIGHTS): never inside the docstring or a comment.
+# LIGHTS, whose IES texts hold the names too): never inside the docstring or a comment.
 _BLENDER_TEMPLATE = '''"""Calibrated lights from lightcal (version: LIGHTCAL_VERSION) for Blender.
 
-Run it in Blender's Python console or Text Editor. Each light is added as a child of
-the camera CAMERA_NAME (the scene's active camera when None), its matrix_local given in
-Blender's camera frame: the camera looks down -Z with +Y up, a spot shines along its -Z.
-That is matrix_local = F @ T_camera_light @ F, F = diag(1, -1, -1, 1), T_camera_light
-the pose lightcal calibrated in the OpenCV camera frame (x right, y down, z forward;
-metres). Without a camera the lights are placed in world coordinates equal to Blender's
-camera frame. Spot size and blend approximate the RID: the blend's middle sits at its
-half-intensity angle.
+Made for Cycles. Run it in Blender's Python console or Text Editor (or `exec` it with
+`bpy`). Each light is added as a child of the camera CAMERA_NAME (the scene's active
+camera when None), its matrix_local given in Blender's camera frame: the camera looks
+down -Z with +Y up, a light's axis is its -Z. That is matrix_local = F @ T_camera_light @ F,
+F = diag(1, -1, -1, 1), T_camera_light the pose lightcal calibrated in the OpenCV camera
+frame (x right, y down, z forward; metres). Without a camera the lights are placed in
+world coordinates equal to Blender's camera frame.
+
+A light with a RID is a point light of radius 0 whose Emission strength is an IES Texture
+node reading the RID (a text block, in Cycles' angles: C = phi - 90 degrees) with the
+node's Strength IES_STRENGTH, which undoes Cycles' candela-to-watt factor 4 pi / 177.83:
+the node gives the relative RID, 1 on the axis. Its power is 4 pi times the calibrated
+scale, so its intensity is the scale times the RID (W/sr in Cycles' units) and several
+lights keep their relative brightness; a Lambertian wall of albedo rho renders rho / pi
+times lightcal's radiance value. A light without a known RID is a spot with a 180 degree
+cone. The IES node is Cycles' only: EEVEE shows the lights without their RID.
+
+{camera_note}
 """
 
 import bpy
@@ -94,19 +99,60 @@ from mathutils import Matrix
 
 LIGHTCAL_VERSION = {version}
 CAMERA_NAME = None
+CAMERA = {camera}
+IES_STRENGTH = {ies_strength}
 
 LIGHTS = {lights}
+
+
+def set_camera(camera, scene, numbers=CAMERA):
+    """The project's intrinsics on `camera`'s data and the scene's render size."""
+    if camera is None or numbers is None:
+        return
+    data = camera.data
+    data.type = "PERSP"
+    data.sensor_fit = "HORIZONTAL"
+    data.sensor_width = numbers["sensor_width_mm"]
+    data.lens_unit = "MILLIMETERS"
+    data.lens = numbers["lens_mm"]
+    data.shift_x = numbers["shift_x"]
+    data.shift_y = numbers["shift_y"]
+    render = scene.render
+    render.resolution_x = numbers["width"]
+    render.resolution_y = numbers["height"]
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = numbers["pixel_aspect_x"]
+    render.pixel_aspect_y = numbers["pixel_aspect_y"]
+
+
+def drive_by_ies(data, spec):
+    """The light's Emission strength from an IES Texture node holding its RID."""
+    text = bpy.data.texts.new(spec["name"] + ".ies")
+    text.write(spec["ies"])
+    data.use_nodes = True
+    tree = data.node_tree
+    emission = next(node for node in tree.nodes if node.type == "EMISSION")
+    ies = tree.nodes.new("ShaderNodeTexIES")
+    ies.mode = "INTERNAL"
+    ies.ies = text
+    ies.inputs["Strength"].default_value = IES_STRENGTH
+    tree.links.new(ies.outputs["Fac"], emission.inputs["Strength"])
 
 
 def add_lights(lights=LIGHTS, camera_name=CAMERA_NAME):
     scene = bpy.context.scene
     camera = bpy.data.objects[camera_name] if camera_name else scene.camera
+    set_camera(camera, scene)
     added = []
     for spec in lights:
         data = bpy.data.lights.new(name=spec["name"], type=spec["type"])
+        data.energy = spec["power_w"]
+        data.shadow_soft_size = 0.0
         if spec["type"] == "SPOT":
             data.spot_size = spec["spot_size"]
             data.spot_blend = spec["spot_blend"]
+        if "ies" in spec:
+            drive_by_ies(data, spec)
         obj = bpy.data.objects.new(spec["name"], data)
         scene.collection.objects.link(obj)
         if camera is not None:
@@ -121,24 +167,8 @@ add_lights()
 '''
 
 
-def _blender_snippet(result: ResultFile, source: str | Path) -> bytes:
-    specs = []
-    for light in result.lights:
-        rid = light_rid(light, source)
-        spec: dict[str, Any] = {
-            "name": light.name,
-            "type": "POINT" if light.pose_kind == "isotropic" else "SPOT",
-        }
-        if spec["type"] == "SPOT":
-            size, blend = blender_spot_cone(rid.half_angle_rad if rid else math.pi / 2)
-            spec["spot_size"] = size
-            spec["spot_blend"] = blend
-        M = blender_from_opencv(light_transform(light))
-        spec["matrix_blendercam_light"] = tuple(tuple(float(v) for v in row) for row in M)
-        specs.append(spec)
-    lights = "[\n" + "".join(f"    {spec!r},\n" for spec in specs) + "]"
-    version = repr(plain_line(result.lightcal_version))
-    return _BLENDER_TEMPLATE.format(version=version, lights=lights).encode()
+def _blender_snippet(result: ResultFile, source: str | Path, camera: Camera | None) -> bytes:
+    return blender_snippet(result, source, _BLENDER_TEMPLATE, camera=camera)
 
 
 # ------------------------------------------------------------------------ photometric
@@ -200,15 +230,6 @@ def _select_light(result: ResultFile, source: str | Path, name: str | None) -> L
     raise InputError(source, f"{len(result.lights)} lights: name the one to export (--light NAME)")
 
 
-def rid_origin(light: LightResultModel) -> str:
-    """Where the light's RID comes from, for a photometric file's header: given to the
-    calibration (a project's profile, `with_given_rids`) or estimated by it."""
-    model = plain_line((light.rid or {}).get("model", "table"))
-    if model.startswith("given"):
-        return f"lightcal {__version__}: the given RID {model[len('given') :].strip()}"
-    return f"lightcal {__version__}: the RID estimated by the calibration ({model})"
-
-
 def _photometric_bytes(
     writer: Callable[[Path, PhotometricTable, str], None], suffix: str
 ) -> Callable[[ResultFile, str | Path, str | None], bytes]:
@@ -255,7 +276,8 @@ def export_files(
         out: The main file's path (textures go beside it).
         source: The result's path, for error messages.
         light_name: The light to export as ies/ldt (needed when several have a RID).
-        camera: The project's camera (Mitsuba's sensor: film size, field of view).
+        camera: The project's camera (Mitsuba's sensor, Blender's camera: film size,
+            field of view, principal point).
 
     Raises:
         InputError: an unknown format, or the result lacks what the format needs.
@@ -267,12 +289,10 @@ def export_files(
             f"the result is undetermined ({result.undetermined[0]}): there is no pose to "
             "export; fix the project and calibrate again",
         )
-    whole: dict[str, Callable[[ResultFile, str | Path], bytes]] = {
-        "opencv": opencv_yaml,
-        "blender": _blender_snippet,
-    }
-    if fmt in whole:
-        return {out: whole[fmt](result, source)}
+    if fmt == "opencv":
+        return {out: opencv_yaml(result, source)}
+    if fmt == "blender":
+        return {out: _blender_snippet(result, source, camera)}
     if fmt == "mitsuba":
         return mitsuba_files(result, source, out, camera=camera)
     if fmt == "ros":

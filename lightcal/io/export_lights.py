@@ -15,11 +15,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lightcal import __version__
 from lightcal.core.camera_frames import (
     transform_camera_light,
 )
 from lightcal.core.rid import RID, IsotropicRID, SymmetricTableRID, Table2DRID
 from lightcal.errors import InputError
+from lightcal.io.escaping import plain_line
 from lightcal.io.result_file import LightResultModel, ResultFile
 
 FRAME_NOTE = (
@@ -139,3 +141,12 @@ def with_given_rids(result: ResultFile, rids: dict[str, RID]) -> ResultFile:
         for light in result.lights
     ]
     return result.model_copy(update={"lights": lights})
+
+
+def rid_origin(light: LightResultModel) -> str:
+    """Where the light's RID comes from, for a photometric file's header: given to the
+    calibration (a project's profile, `with_given_rids`) or estimated by it."""
+    model = plain_line((light.rid or {}).get("model", "table"))
+    if model.startswith("given"):
+        return f"lightcal {__version__}: the given RID {model[len('given') :].strip()}"
+    return f"lightcal {__version__}: the RID estimated by the calibration ({model})"
