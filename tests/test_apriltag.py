@@ -12,6 +12,7 @@ from lightcal.capture.apriltag import (
     APRILTAG_DICTIONARIES,
     detected_corner_order,
     dictionary_size,
+    drawing_turns,
     marker_modules,
     printed_corners,
 )
@@ -71,6 +72,7 @@ def test_families_match_opencv_dictionaries(dictionary):
     assert len(turns) == 1
     (k,) = turns
     assert detected_corner_order(dictionary) == tuple((j + k) % 4 for j in range(4))
+    assert drawing_turns(dictionary) == k
 
 
 @pytest.mark.parametrize("dictionary", [*sorted(APRILTAG_DICTIONARIES), "DICT_5X5_100"])
@@ -125,3 +127,38 @@ def test_bad_ids_and_dictionaries():
     assert str(info.value) == "id: DICT_APRILTAG_25h9 has ids 0..34, got 35"
     with pytest.raises(InputError, match=r"^dictionary: unknown ArUco dictionary 'tag36h11'"):
         marker_modules("tag36h11", 0)
+
+
+def test_an_apriltag_grid_is_printed_and_read_as_official_tags():
+    """An `aruco_grid` of tag36h11 draws the official images, and its pose from a photo is
+    right whatever order the installed OpenCV reports the corners in."""
+    from lightcal.capture.boards import ArucoGridBoard
+    from lightcal.capture.marker_pose import estimate_pose
+    from lightcal.capture.plane_texture import look_at_pose, render_plane_image
+    from lightcal.core.camera import Camera
+
+    tag = "DICT_APRILTAG_36h11"
+    board = ArucoGridBoard(tag, 3, 2, 0.08, 0.03, first_id=4, origin_world_m=(-0.165, 0.095))
+    rendering = board.render(1000.0)  # 10 px a module, a margin of one marker length
+    for k, marker_id in enumerate(board.ids):
+        row, col = 80 + 110 * (k // 3), 80 + 110 * (k % 3)
+        np.testing.assert_array_equal(
+            rendering.image[row : row + 80, col : col + 80],
+            np.kron(marker_modules(tag, int(marker_id)), np.ones((10, 10), np.uint8)),
+        )
+    camera = Camera.from_params(fx=900.0, fy=900.0, cx=399.5, cy=299.5, width=800, height=600)
+    center = np.array([0.08, -0.05, 0.7])
+    R, t = look_at_pose(center, (0.0, 0.0, 0.0), roll_rad=2.0)
+    fine = board.render(4000.0)
+    albedo = render_plane_image(
+        camera, R, t, 0.05 + 0.9 * fine.image / 255.0, fine.px_per_m, fine.top_left_world_m,
+        background=0.9,
+    )  # fmt: skip
+    rows, cols = np.mgrid[0:600, 0:800]
+    light = 0.5 + 0.5 * np.exp(-((cols - 300.0) ** 2 + (rows - 200.0) ** 2) / (2 * 400.0**2))
+    photo = albedo * light + np.random.default_rng(5).normal(0.0, 0.003, albedo.shape)
+    pose = estimate_pose(photo, camera, board, min_markers=6)
+    cos = np.clip((np.trace(pose.R_camera_world @ R.T) - 1.0) / 2.0, -1.0, 1.0)
+    assert np.degrees(np.arccos(cos)) < 0.05  # the fit's sigma: 0.01 deg a component
+    assert np.linalg.norm(pose.camera_center_world - center) < 1e-3
+    assert pose.reprojection_rms_px < 0.1

@@ -33,6 +33,7 @@ __all__ = [
     "APRILTAG_DICTIONARIES",
     "detected_corner_order",
     "dictionary_size",
+    "drawing_turns",
     "family_of",
     "marker_modules",
     "printed_corners",
@@ -107,6 +108,35 @@ def marker_modules(dictionary: str, marker_id: int) -> NDArray[np.uint8]:
     cv_dictionary = aruco_dictionary(dictionary)
     width = int(cv_dictionary.markerSize) + 2
     return np.asarray(cv_dictionary.generateImageMarker(int(marker_id), width), dtype=np.uint8)
+
+
+@functools.cache
+def drawing_turns(dictionary: str) -> int:
+    """Quarter turns (`np.rot90`) from OpenCV's drawing of a marker to the printed one.
+
+    Found once per dictionary (cached) on markers `_PROBE_IDS` drawn one pixel a module:
+    0 for ArUco markers; for AprilTags whatever turns OpenCV's drawing into the official
+    image (2 in OpenCV 5.0). So `np.rot90(generateImageMarker(id, side_px), turns)` draws
+    the printed marker at any size, resampled as OpenCV resamples.
+
+    Raises:
+        InputError: An unknown dictionary, or no single turn makes OpenCV's drawings the
+            printed markers.
+    """
+    cv_dictionary = aruco_dictionary(dictionary)
+    width = int(cv_dictionary.markerSize) + 2
+    found = set()
+    for marker_id in _PROBE_IDS:
+        drawn = cv_dictionary.generateImageMarker(marker_id, width)
+        printed = marker_modules(dictionary, marker_id)
+        found.add(tuple(k for k in range(4) if np.array_equal(np.rot90(drawn, k), printed)))
+    if len(found) != 1 or len(turns := found.pop()) != 1:
+        raise InputError(
+            dictionary,
+            f"OpenCV {cv2.__version__} draws markers {_PROBE_IDS} other than their official "
+            "images turned: lightcal cannot draw them",
+        )
+    return turns[0]
 
 
 def _probe_image(modules: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], NDArray[np.float64]]:

@@ -169,8 +169,11 @@ def paste_markers(
     ids: NDArray[np.int64],
     top_left_px: NDArray[np.int64],
     side_px: int,
+    *,
+    turns: int = 0,
 ) -> None:
-    """Draw markers `ids` with their top-left pixel at `top_left_px` (n, 2) (col, row)."""
+    """Draw markers `ids` with their top-left pixel at `top_left_px` (n, 2) (col, row), as
+    OpenCV draws them turned by `turns` quarter turns (`np.rot90`)."""
     for marker_id, (col, row) in zip(ids, top_left_px, strict=True):
-        marker = dictionary.generateImageMarker(int(marker_id), side_px)
+        marker = np.rot90(dictionary.generateImageMarker(int(marker_id), side_px), turns)
         image[row : row + side_px, col : col + side_px] = marker

@@ -30,15 +30,19 @@ float64, computed from the layout (not from OpenCV's float32 object points), so 
 `render(px_per_m)` draws a board (white = 255, black = 0) at an exact scale, for printing
 and for synthetic images. Pixels follow docs/conventions.md: pixel (u, v) = (column, row) covers
 [u - 1/2, u + 1/2] x [v - 1/2, v + 1/2]; `BoardRendering.A_pixel_world` maps world (x, y)
-to (u, v). Markers come from `cv2.aruco.Dictionary.generateImageMarker`, placed at whole
-pixels; the layout equals `cv2.aruco.Board.generateImage` wherever the latter is exact.
+to (u, v). Markers come from `cv2.aruco.Dictionary.generateImageMarker` (AprilTags
+turned to their official images), placed at whole pixels; for ArUco dictionaries the
+layout equals `cv2.aruco.Board.generateImage` wherever the latter is exact.
 
 `Chessboard` lives in `lightcal.capture.chessboard`, `MarkerLayout` (whose AprilTags are
 printed and read as their official images: `lightcal.capture.apriltag`) in
 `lightcal.capture.marker_layout`, and what the boards share (checks, ArUco dictionaries,
-`BoardRendering`) in `lightcal.capture.board_layout`; this module exports them. The
-`ArucoGridBoard` and `CharucoBoard` draw their markers as OpenCV does (for AprilTag
-dictionaries that is not the official orientation in every OpenCV version).
+`BoardRendering`) in `lightcal.capture.board_layout`; this module exports them.
+
+AprilTags: an `ArucoGridBoard` and a `MarkerLayout` draw them as their official images,
+and `marker_pose` puts their detected corners in that order, whatever the installed
+OpenCV's own drawing and order (`lightcal.capture.apriltag`). A `CharucoBoard` draws its
+markers as OpenCV does (OpenCV's ChArUco detector matches them so).
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lightcal.capture.apriltag import drawing_turns
 from lightcal.capture.board_layout import (
     BoardRendering,
     aruco_dictionary,
@@ -232,7 +237,14 @@ class ArucoGridBoard:
             ],
             axis=1,
         )
-        paste_markers(image, aruco_dictionary(self.dictionary), self.ids, top_left_px, side)
+        paste_markers(
+            image,
+            aruco_dictionary(self.dictionary),
+            self.ids,
+            top_left_px,
+            side,
+            turns=drawing_turns(self.dictionary),
+        )
         top_left = np.array(
             [self.origin_world_m[0] - border / scale, self.origin_world_m[1] + border / scale]
         )

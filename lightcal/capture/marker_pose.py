@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lightcal.capture.apriltag import printed_corners
 from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, MarkerLayout
 from lightcal.capture.layout_detection import detect_layout
 from lightcal.capture.marker_detection import (
@@ -228,7 +229,9 @@ def _find_board(
     """One board's markers (ArUco grid, layout) or ChArUco corners in one image."""
     if isinstance(board, ArucoGridBoard):
         ids, points_world, points_image = detect_grid(image_u8, image_f, board, camera)
-        return _BoardFind(ids, points_world, points_image, board.outline_world(ids))
+        # The detector's corner order made the printed one (AprilTags: official images).
+        quads = printed_corners(board.dictionary, points_image.reshape(-1, 4, 2))
+        return _BoardFind(ids, points_world, quads.reshape(-1, 2), board.outline_world(ids))
     if isinstance(board, MarkerLayout):
         indices, points_world, points_image = detect_layout(image_u8, image_f, board, camera)
         ids = np.array([board.markers[i].id for i in indices], dtype=np.int64)
