@@ -68,7 +68,8 @@ def add_wall(scene, T_camera_world: np.ndarray, albedo: float) -> None:
     corners = [(-half, -half, 0.0), (half, -half, 0.0), (half, half, 0.0), (-half, half, 0.0)]
     mesh.from_pydata(corners, [], [(0, 1, 2, 3)])  # counter-clockwise seen from +z: normal +z
     material = bpy.data.materials.new("wall")
-    material.use_nodes = True
+    if material.node_tree is None:  # Blender < 5 (Material.use_nodes goes in Blender 6)
+        material.use_nodes = True
     tree = material.node_tree
     tree.nodes.clear()
     output = tree.nodes.new("ShaderNodeOutputMaterial")

@@ -12,12 +12,13 @@ finding the project's initial lights would write (`tests/export_render.py`). Fig
 in tests/export_render.py: |Cycles / lightcal - 1| over the pixels lightcal renders above
 5 % of its peak, and the distance between the value-weighted centroids.
 
-Measured (bpy 5.0.0, Cycles on the CPU, 16 samples per pixel, 2 threads): median
-0.006 % (sample, views 0 and 5), 0.009 % (two lights), 0.014 % (table2d); p99 0.02 %,
-0.04 %, 0.075 %; centroids within 0.0005 px. The render-to-render difference of two seeds
-is 0.008 % median: the agreement is at the noise. Renders take 13-15 s (1200 x 800),
-3-4 s per light (480 x 320). A wrong azimuth convention (C = phi + 90 degrees) fails
-with 13 % and 15 px.
+Measured (bpy 5.0.0 and 5.0.1, identical; Cycles on the CPU, 16 samples per pixel, 2
+threads): median 0.006 % (sample, views 0 and 5), 0.009 % (two lights), 0.014 %
+(table2d); p99 0.02 %, 0.04 %, 0.075 %; centroids within 0.0005 px. The render-to-render
+difference of two seeds is 0.008 % median: the agreement is at the noise. A 1200 x 800
+render takes 8-37 s and a 480 x 320 light 1.5-11 s, with the machine's load (about a
+minute for the whole file when it is idle). A wrong azimuth convention (C = phi + 90
+degrees) fails with 13 % and 15 px.
 
 `bpy` needs Python 3.11 and NumPy < 2, which the project's venv cannot take (OpenCV 5
 needs NumPy >= 2), so it has an interpreter of its own: the one `LIGHTCAL_BPY_PYTHON`
