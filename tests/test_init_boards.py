@@ -197,3 +197,31 @@ def test_boards_sharing_a_marker_are_refused(wall: Path, capsys):
         "lightcal init: error: --min-markers: expected at most the 2 boards' 10 markers, got 11\n"
     )
     assert not (wall / "project.json").exists() and not (wall / "masks").exists()
+
+
+def test_a_charuco_board_and_a_layout_together():
+    """A ChArUco board's corners and a layout's marker corners make one pose; a ChArUco
+    board not in the photo gives no points and no error when the other board has enough."""
+    from lightcal.capture.boards import CharucoBoard
+
+    charuco = CharucoBoard("DICT_5X5_100", 5, 4, 0.05, 0.035, origin_world_m=(-0.125, 0.1))
+    R, t = _pose(1)
+    both = estimate_pose(wall_image_of([TAGS, charuco], 1), CAMERA, [TAGS, charuco], min_markers=8)
+    assert both.n_markers == 4 + charuco.n_markers
+    assert both.points_world.shape == (16 + charuco.corner_ids.size, 3)
+    assert _angle_deg(both.R_camera_world, R) < 0.03
+    assert np.linalg.norm(both.camera_center_world - (-R.T @ t)) < 1e-3
+    tags_only = estimate_pose(wall_image_of([TAGS], 1), CAMERA, [TAGS, charuco], min_markers=4)
+    assert tags_only.n_markers == 4 and tags_only.points_world.shape == (16, 3)
+    with pytest.raises(InputError) as info:
+        estimate_pose(wall_image_of([TAGS], 1), CAMERA, charuco)
+    assert str(info.value) == "image: found 0 markers, need at least 4"
+
+
+def wall_image_of(boards, k: int) -> np.ndarray:
+    """(H, W) float view k of these boards, lit unevenly, with a little noise."""
+    R, t = _pose(k)
+    albedo = np.prod([_albedo(board, R, t) for board in boards], axis=0)
+    rows, cols = np.mgrid[0:HEIGHT, 0:WIDTH]
+    spot = 0.3 + np.exp(-((cols - 380.0) ** 2 + (rows - 320.0) ** 2) / (2 * 260.0**2))
+    return albedo * spot + np.random.default_rng(k).normal(0.0, 0.002, albedo.shape)
