@@ -3,6 +3,7 @@ with a bright beam, merged, checked for consistency and refined (issue 25)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -66,7 +67,8 @@ def test_the_beam_hides_markers_from_the_percentile_stretch_but_not_from_the_sea
     assert all(np.all(m.refined) for m in search.found)
     only_stretched = [m for m in search.found if "percentile" not in m.stretches]
     assert len(only_stretched) >= 40
-    assert all(m.stretches == ("gamma", "log", "clahe") for m in only_stretched)
+    # Every marker found after two stretches: the log and CLAHE ones are not made.
+    assert all(m.stretches == ("gamma",) for m in only_stretched)
 
     # The pose from every marker (estimate_pose goes through the same search).
     pose = estimate_pose(photo, CAMERA, GRID, source="beam")
@@ -92,7 +94,11 @@ def _forge(monkeypatch: pytest.MonkeyPatch, seen: dict[int, list[tuple[str, np.n
 def test_a_marker_found_at_two_places_is_refused_with_the_reason(monkeypatch):
     _, image, R, t = scene("grid_1.5m_tilt30")
     true = _true_corners(np.array([3, 5]), R, t)
-    forged = true[1] + np.array([4.0, 0.0])
+    forged = true[1] + np.array([12.0, 0.0])
+    # Half a module of the 5 x 5 marker (7 modules a side with its border), or 3 px.
+    side_px = np.mean(np.linalg.norm(np.roll(true[1], -1, axis=0) - true[1], axis=-1))
+    tolerance = max(3.0, 0.5 * side_px / 7)
+    assert 4.0 < tolerance < 6.0
     _forge(
         monkeypatch,
         {
@@ -104,8 +110,9 @@ def test_a_marker_found_at_two_places_is_refused_with_the_reason(monkeypatch):
     search = find_markers(image_u8, image_f, CAMERA, {GRID.dictionary: GRID.ids}, source="forged")
     u, v = true[1].mean(axis=0)
     reason = (
-        f"found by the percentile and gamma stretches at places 4.0 px apart (centres "
-        f"({u:.1f}, {v:.1f}) and ({u + 4:.1f}, {v:.1f})); expected the same corners within 3 px"
+        f"found by the percentile and gamma stretches at places 12.0 px apart (centres "
+        f"({u:.1f}, {v:.1f}) and ({u + 12:.1f}, {v:.1f})); expected the same corners within "
+        f"{tolerance:.1f} px"
     )
     assert search.refused == (MarkerRefusal(GRID.dictionary, 5, reason),)
     assert str(search.refused[0]) == f"marker 5 ({GRID.dictionary}) refused: {reason}"
@@ -113,7 +120,7 @@ def test_a_marker_found_at_two_places_is_refused_with_the_reason(monkeypatch):
         f"forged: 1 marker found ({GRID.dictionary} 3); marker 5 ({GRID.dictionary}) "
         f"refused: {reason}"
     )
-    # The consistent one: refined on the edges from the mean of its detections.
+    # The consistent one: refined on the edges from its first stretch's detection.
     (found,) = search.found
     assert found.marker_id == 3 and found.stretches == ("percentile", "log")
     assert np.all(found.refined)
@@ -141,7 +148,7 @@ def test_twice_in_one_stretch_and_non_finite_corners_are_refused(monkeypatch):
     assert [str(r) for r in search.refused] == [
         f"marker 7 ({GRID.dictionary}) refused: found twice by the log stretch at places "
         "5.0 px apart (centres (620.0, 420.0) and (620.0, 425.0)); expected the same corners "
-        "within 3 px",
+        "within 3.0 px",
         f"marker 8 ({GRID.dictionary}) refused: the percentile stretch's detection has "
         "non-finite corners",
         f"marker 9 ({GRID.dictionary}) refused: the clahe stretch's detection has "
@@ -179,18 +186,24 @@ def test_find_markers_checks_the_image_sizes():
     )
 
 
-def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found():
+@functools.cache
+def _tag_wall() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Issue 25's wall: four tag36h11 at the corners of a 1.2 x 0.7 m rectangle, seen from
-    1.6 m, a 14-degree beam (7 degrees half angle) from beside the camera between them,
-    saturated at its centre, the room light at 1 % of its peak."""
-    from lightcal.capture.apriltag import printed_corners
+    1.6 m, a 14-degree beam (7 degrees half angle) from beside the camera between them.
+
+    Returns:
+        albedo: (H, W) the wall's albedo in the image.
+        beam: (H, W) the beam's irradiance, 1 at its peak.
+        R_camera_world: (3, 3).
+        t_camera_world: (3,).
+    """
     from lightcal.capture.plane_texture import look_at_pose, render_plane_image
     from lightcal.core.pose import rotation_from_axis
     from lightcal.core.render import render_image
     from lightcal.core.rid import CosPowerRID
     from lightcal.core.scene import Light, Rig, View
     from tests.test_marker_layout import CAMERA as TAG_CAMERA
-    from tests.test_marker_layout import RECTANGLE, TAG
+    from tests.test_marker_layout import RECTANGLE
 
     R, t = look_at_pose(np.array([0.15, -0.1, 1.6]), np.array([0.05, 0.0, 0.0]), roll_rad=0.2)
     rendering = RECTANGLE.render(2000.0)
@@ -212,8 +225,29 @@ def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found():
         p_light_camera,
         rotation_from_axis(axis_camera / np.linalg.norm(axis_camera)),
     )
-    irradiance = np.ma.getdata(render_image(TAG_CAMERA, view, Rig.single(light)))
-    photo = 1000.0 * np.minimum(albedo * (irradiance / irradiance.max() + 0.01), 0.6)
+    beam = np.ma.getdata(render_image(TAG_CAMERA, view, Rig.single(light)))
+    return albedo, beam / beam.max(), R, t
+
+
+@pytest.mark.parametrize(
+    ("room_light", "stretch", "max_error_px"),
+    [(1e-2, "gamma", 0.1), (1e-3, "log", 0.5), (3e-4, "clahe", 0.5)],
+)
+def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found(
+    room_light, stretch, max_error_px
+):
+    """The beam saturated at its centre, the room light a fraction of its peak: the
+    percentile stretch finds no tag, the search all four, on the stretch that the room
+    light's level needs. (Under a room light of 1e-3 of the beam's peak or less, the
+    beam's tail, about 5e-4 of its peak at the tags and falling steeply across each, is as
+    bright as the room light: the corners are 0.4 px off, where the gamma stretch finds no
+    tag at all.)"""
+    from lightcal.capture.apriltag import printed_corners
+    from tests.test_marker_layout import CAMERA as TAG_CAMERA
+    from tests.test_marker_layout import RECTANGLE, TAG
+
+    albedo, beam, R, t = _tag_wall()
+    photo = 1000.0 * np.minimum(albedo * (beam + room_light), 0.6)
     photo += np.random.default_rng(0).normal(0.0, 0.02, photo.shape)
     assert 0.01 < np.mean(photo >= 599.0) < 0.03  # the beam's centre saturates
 
@@ -223,15 +257,16 @@ def test_the_issues_four_apriltags_beside_a_narrow_beam_are_all_found():
     search = find_markers(image_u8, image_f, TAG_CAMERA, {TAG: RECTANGLE.ids_of(TAG)})
     assert search.refused == ()
     np.testing.assert_array_equal(search.ids(TAG), [0, 1, 2, 3])
-    assert all(m.stretches == ("gamma", "log", "clahe") for m in search.found)
+    first = [STRETCHES.index(m.stretches[0]) for m in search.found]
+    assert min(first) <= STRETCHES.index(stretch) == max(first)  # that stretch was needed
     true, _ = TAG_CAMERA.project(
         RECTANGLE.marker_corners_world(RECTANGLE.indices_of(TAG, [0, 1, 2, 3])).reshape(-1, 3) @ R.T
         + t
     )
     found = printed_corners(TAG, search.corners_px(TAG)).reshape(-1, 2)
     errors = np.linalg.norm(found - true, axis=-1)
-    print(f"tag corners: max error {errors.max():.3f} px")
-    assert errors.max() < 0.1
+    print(f"room light {room_light:g}: tag corners within {errors.max():.3f} px")
+    assert errors.max() < max_error_px
 
 
 def test_a_charuco_board_beside_a_beam_gives_every_corner():
@@ -258,4 +293,33 @@ def test_a_charuco_board_beside_a_beam_gives_every_corner():
     true, _ = CAMERA.project(corners_world @ R.T + t)
     errors = np.linalg.norm(corners_px - true, axis=-1)
     print(f"ChArUco corners: max error {errors.max():.3f} px")
+    assert errors.max() < 0.1
+
+
+def test_large_blurred_markers_are_not_refused_for_their_detectors_spread(monkeypatch):
+    """Markers of 140 px (0.8 m) blurred by 2 px: on the four stretches the detector's
+    corners of one marker differ by more than `CONSISTENT_PX` (as on a 24 MP photo); half
+    a module (10 px) is the tolerance, and every marker is kept and refined."""
+    monkeypatch.setattr(marker_search, "MIN_STRETCHES", len(STRETCHES))  # all four
+    _, image, R, t = scene("grid_0.8m_frontal")
+    image_u8, image_f = detection_images(
+        cv2.GaussianBlur(np.array(image), (0, 0), 2.0), CAMERA, "blurred"
+    )
+    seen = marker_search._detect(
+        detection_stretches(image_u8, image_f), GRID.dictionary, np.asarray(GRID.ids)
+    )
+    spread = max(
+        np.max(np.linalg.norm(a - b, axis=-1))
+        for quads in seen.values()
+        for _, a in quads
+        for _, b in quads
+    )
+    assert spread > marker_search.CONSISTENT_PX
+    search = find_markers(image_u8, image_f, CAMERA, {GRID.dictionary: GRID.ids})
+    assert search.refused == ()
+    np.testing.assert_array_equal(search.ids(GRID.dictionary), GRID.ids)
+    errors = np.linalg.norm(
+        search.corners_px(GRID.dictionary) - _true_corners(GRID.ids, R, t), axis=-1
+    )
+    print(f"spread {spread:.1f} px, corners within {errors.max():.3f} px")
     assert errors.max() < 0.1

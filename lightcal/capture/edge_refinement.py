@@ -47,7 +47,11 @@ _EDGE_PASSES = 2
 """Passes of the edge refinement (each re-centres the profiles on the previous edges)."""
 
 _MAX_CORNER_SHIFT_PX = 1.5
-"""A corner refined on the edges further than this from the detector's keeps the latter."""
+_MAX_CORNER_SHIFT_WINDOWS = 0.5
+"""A corner refined on the edges further from the detector's than the larger of
+_MAX_CORNER_SHIFT_PX and _MAX_CORNER_SHIFT_WINDOWS profile half widths keeps the
+detector's (large markers: the detector's corners on a stretched, blurred 24 MP photo can
+be 2 px off, well inside a 6 px profile)."""
 
 
 def refine_quads_on_edges(
@@ -84,7 +88,7 @@ def refine_quads_on_edges(
         ok: (n, 4) True where a corner was refined: both its sides had at least half their
             samples usable (inside the image, contrast at least half the quad's median),
             the window was at least `_MIN_HALF_WINDOW_PX`, and the corner moved less than
-            `_MAX_CORNER_SHIFT_PX`.
+            `_MAX_CORNER_SHIFT_PX` or half the window.
     """
     current = quads_px
     ok = np.zeros(quads_px.shape[:2], dtype=bool)
@@ -92,7 +96,11 @@ def refine_quads_on_edges(
     for _ in range(_EDGE_PASSES):
         corners, ok = _edge_line_corners(image, current, camera, half_window_px, clipped)
         current = np.where(ok[..., None], corners, current)
-    ok &= np.linalg.norm(current - quads_px, axis=-1) < _MAX_CORNER_SHIFT_PX
+    max_shift_px = np.maximum(
+        _MAX_CORNER_SHIFT_PX,
+        _MAX_CORNER_SHIFT_WINDOWS * np.minimum(half_window_px, _MAX_HALF_WINDOW_PX),
+    )
+    ok &= np.linalg.norm(current - quads_px, axis=-1) < max_shift_px[:, None]
     return np.where(ok[..., None], current, quads_px), ok
 
 

@@ -85,9 +85,19 @@ def _affine(image: ArrayLike, source: str) -> NDArray[np.float64] | NDArray[np.u
     lo, hi = np.percentile(sample, STRETCH_PERCENTILES)
     if not hi > lo:
         return np.zeros(array.shape)
-    scaled = np.nan_to_num(values, nan=lo, posinf=hi, neginf=lo) - lo
+    scaled = values - lo
+    if not np.all(np.isfinite(scaled)):  # (one pass over a finite image, not three)
+        np.nan_to_num(scaled, copy=False, nan=0.0, posinf=hi - lo, neginf=0.0)
     scaled *= 255.0 / (hi - lo)
     return scaled
+
+
+def _to_uint8(affine: NDArray[np.float64] | NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """(H, W) uint8: `affine` clipped to [0, 255] and rounded (half to even)."""
+    # OpenCV saturates and rounds in one pass; negative values are clipped first (it
+    # would take their absolute value).
+    positive = np.maximum(affine, 0.0, dtype=np.float32)
+    return np.asarray(cv2.convertScaleAbs(positive), dtype=np.uint8)
 
 
 def stretch_to_uint8(image: ArrayLike, *, source: str = "image") -> NDArray[np.uint8]:
@@ -111,7 +121,7 @@ def stretch_to_uint8(image: ArrayLike, *, source: str = "image") -> NDArray[np.u
     stretched = _affine(image, source)
     if stretched.dtype == np.uint8:
         return stretched.astype(np.uint8, copy=False)
-    return np.rint(np.clip(stretched, 0.0, 255.0)).astype(np.uint8)
+    return _to_uint8(stretched)
 
 
 def detection_images(
@@ -134,7 +144,7 @@ def detection_images(
         )
     if affine.dtype == np.uint8:
         return affine.astype(np.uint8, copy=False), affine.astype(np.float64)
-    image_u8 = np.rint(np.clip(affine, 0.0, 255.0)).astype(np.uint8)
+    image_u8 = _to_uint8(affine)
     return image_u8, affine.astype(np.float64, copy=False)
 
 

@@ -13,31 +13,38 @@ So `find_markers` detects on several stretches of the same photo (`STRETCHES`):
   clip 3): markers beside a steep gradient.
 
 On each, OpenCV's ArUco detector (AprilTag dictionaries too) with sub-pixel corners; only
-the wanted ids are kept. The detections are merged by (dictionary, id):
+the wanted ids are kept. `percentile` and `gamma` are always searched, `log` and `clahe`
+only while a wanted marker is still missing (`MIN_STRETCHES`). The detections are merged
+by (dictionary, id):
 
-- a marker found twice in one stretch, or by two stretches, at places more than
-  `CONSISTENT_PX` apart (the largest distance between corresponding corners) is refused
-  for that photo, with the reason (two prints of one marker, or a false detection: which
-  one is right cannot be told from the photo);
-- otherwise its corners are the mean of its detections', refined once on the straight
-  edges of the linear image (`lightcal.capture.edge_refinement`): an edge located on a
-  stretched image would be pulled towards its dark side by the stretch's curve;
+- a marker found twice in one stretch, or by two stretches, at places further apart (the
+  largest distance between corresponding corners) than the larger of `CONSISTENT_PX` and
+  half a module of the marker (`CONSISTENT_MODULES`) is refused for that photo, with the
+  reason (two prints of one marker, or a false detection: which one is right cannot be
+  told from the photo);
+- otherwise its corners are those of the first stretch that found it, refined once on
+  the straight edges of the linear image (`lightcal.capture.edge_refinement`): an edge
+  located on a stretched image would be pulled towards its dark side by the stretch's
+  curve;
 - a marker whose corners are not finite (from the detector or the refinement) is refused.
 
 What is found and what is refused, and why, is a `MarkerSearch`: its `report` is one line
 a caller prints.
 
-Cost: four detector runs instead of one; the stretches are lookup tables on the image
-quantised to 16 bits (no per-pixel power or logarithm) and the edge refinement runs once
-per marker, not per stretch. Measured on the 48-marker grid under a beam
-(`tests/test_marker_search.py`, resized; 2 shared cores): 1200 x 800, 0.02 s with the
-percentile stretch alone (4 markers found) and 0.04 s searched (48); 6000 x 4000, 1.0 s
-and 0.6 s (the crushed percentile image gives the detector many false candidates).
+Cost: the stretches are lookup tables on the image quantised to 16 bits, made only when
+searched (`Stretches`); the edge refinement runs once per marker, not per stretch. Best of
+3-5 runs for the 48-marker grid of `tests/test_marker_pose.py` (2 shared cores), before
+(percentile only) and after:
+
+| photo | evenly lit | under a beam |
+|---|---|---|
+| 1200 x 800 | 0.04 s -> 0.06 s (48 markers both) | 0.01 s (3 markers) -> 0.04 s (48) |
+| 6000 x 4000 | 0.37 s -> 0.44 s (48 both) | 0.20 s (2 markers) -> 0.38 s (48) |
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,11 +58,14 @@ from lightcal.core.camera import Camera
 from lightcal.errors import InputError
 
 __all__ = [
+    "CONSISTENT_MODULES",
     "CONSISTENT_PX",
+    "MIN_STRETCHES",
     "STRETCHES",
     "FoundMarker",
     "MarkerRefusal",
     "MarkerSearch",
+    "Stretches",
     "detection_stretches",
     "detector_parameters",
     "find_markers",
@@ -66,8 +76,15 @@ STRETCHES = ("percentile", "gamma", "log", "clahe")
 """The stretches a photo is searched on, in this order (module docstring)."""
 
 CONSISTENT_PX = 3.0
-"""Largest distance between the corresponding corners of two detections of one marker
-(two stretches, or twice in one stretch) that are taken as the same marker, pixels."""
+CONSISTENT_MODULES = 0.5
+"""Two detections of one marker (two stretches, or twice in one stretch) are the same
+marker when their corresponding corners are within the larger of CONSISTENT_PX pixels
+and CONSISTENT_MODULES modules (bits) of the marker: on a blurred 24 MP photo the
+detector's corners of one marker differ by 3 - 4 px between stretches."""
+
+MIN_STRETCHES = 2
+"""Stretches always searched (`percentile` and `gamma`); the others only while some
+wanted marker is still missing."""
 
 GAMMA = 2.2
 """The `gamma` stretch's exponent is 1 / GAMMA."""
@@ -120,7 +137,7 @@ class FoundMarker:
         corners_px: (4, 2) its corners (u, v), pixels, in the detector's order (clockwise
             in the image), refined on the edges where `refined`.
         refined: (4,) True where the edge refinement placed the corner (else it is the
-            mean of the detections').
+            first stretch's detection).
         stretches: The stretches it was found on (`STRETCHES` order).
     """
 
@@ -168,40 +185,76 @@ class MarkerSearch:
         return "; ".join([line, *(str(r) for r in self.refused)])
 
 
-def detection_stretches(
-    image_u8: NDArray[np.uint8], image_f: NDArray[np.float64]
-) -> dict[str, NDArray[np.uint8]]:
-    """The 8-bit images of `STRETCHES` for one photo.
+class Stretches(Mapping[str, NDArray[np.uint8]]):
+    """The 8-bit images of `STRETCHES` for one photo, each made when first asked for.
 
     Args:
         image_u8: (H, W) the `percentile` image (what `marker_detection.detection_images`
             gives the detectors).
         image_f: (H, W) the photo, linear, its 0.5th percentile at 0 (the unclipped float
             of `detection_images`; an 8-bit photo as float).
+    """
+
+    def __init__(self, image_u8: NDArray[np.uint8], image_f: NDArray[np.float64]) -> None:
+        self._images: dict[str, NDArray[np.uint8]] = {"percentile": image_u8}
+        self._image_f = image_f
+        self._levels: NDArray[np.uint16] | None = None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(STRETCHES)
+
+    def __len__(self) -> int:
+        return len(STRETCHES)
+
+    def __getitem__(self, name: str) -> NDArray[np.uint8]:
+        if name not in self._images:
+            if name not in STRETCHES:
+                raise KeyError(name)
+            self._images[name] = self._make(name)
+        return self._images[name]
+
+    def _quantised(self) -> NDArray[np.uint16] | None:
+        """(H, W) the photo from 0 to its maximum in `_LEVELS` steps, None when dark."""
+        if self._levels is None:
+            image_f = self._image_f
+            if not np.all(np.isfinite(image_f)):
+                finite = np.isfinite(image_f)
+                top = float(image_f[finite].max(initial=0.0))
+                image_f = np.nan_to_num(image_f, nan=0.0, posinf=top, neginf=0.0)
+            top = float(image_f.max(initial=0.0))
+            if not top > 0.0:
+                return None
+            scaled = np.multiply(image_f, (_LEVELS - 1) / top, dtype=np.float32)
+            np.clip(scaled, 0.0, _LEVELS - 1, out=scaled)
+            self._levels = scaled.astype(np.uint16)
+        return self._levels
+
+    def _make(self, name: str) -> NDArray[np.uint8]:
+        levels = self._quantised()
+        if levels is None:  # nothing above the 0.5th percentile: black
+            return np.zeros(self._image_f.shape, dtype=np.uint8)
+        if name == "clahe":
+            clahe = cv2.createCLAHE(clipLimit=CLAHE_CLIP, tileGridSize=CLAHE_TILES)
+            return np.asarray(clahe.apply(self["log"]), dtype=np.uint8)
+        x = np.arange(_LEVELS, dtype=np.float64) / (_LEVELS - 1)
+        if name == "gamma":
+            lut = np.rint(255.0 * x ** (1.0 / GAMMA))
+        else:
+            lut = np.rint(255.0 * np.log1p(x / LOG_KNEE) / np.log1p(1.0 / LOG_KNEE))
+        return lut.astype(np.uint8)[levels]
+
+
+def detection_stretches(image_u8: NDArray[np.uint8], image_f: NDArray[np.float64]) -> Stretches:
+    """The 8-bit images of `STRETCHES` for one photo (`Stretches`: made when first used).
+
+    Args:
+        image_u8: (H, W) the `percentile` image.
+        image_f: (H, W) the photo, linear, its 0.5th percentile at 0.
 
     Returns:
         name -> (H, W) uint8, for every name of `STRETCHES`.
     """
-    finite = np.isfinite(image_f)
-    top = float(image_f[finite].max()) if np.any(finite) else 0.0
-    if not top > 0.0:
-        zeros = np.zeros(image_f.shape, dtype=np.uint8)
-        return {"percentile": image_u8, "gamma": zeros, "log": zeros, "clahe": zeros}
-    scale = (_LEVELS - 1) / top
-    scaled = np.nan_to_num(image_f, nan=0.0, posinf=top) * scale
-    np.clip(scaled, 0.0, _LEVELS - 1, out=scaled)
-    levels = scaled.astype(np.uint16)
-    x = np.arange(_LEVELS, dtype=np.float64) / (_LEVELS - 1)
-    gamma_lut = np.rint(255.0 * x ** (1.0 / GAMMA)).astype(np.uint8)
-    log_lut = np.rint(255.0 * np.log1p(x / LOG_KNEE) / np.log1p(1.0 / LOG_KNEE)).astype(np.uint8)
-    log_image = log_lut[levels]
-    clahe = cv2.createCLAHE(clipLimit=CLAHE_CLIP, tileGridSize=CLAHE_TILES)
-    return {
-        "percentile": image_u8,
-        "gamma": gamma_lut[levels],
-        "log": log_image,
-        "clahe": clahe.apply(log_image),
-    }
+    return Stretches(image_u8, image_f)
 
 
 def _corner_distance(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
@@ -215,40 +268,49 @@ def _fmt(quad: NDArray[np.float64]) -> str:
 
 
 def _merge(
-    dictionary: str, marker_id: int, seen: list[tuple[str, NDArray[np.float64]]]
+    dictionary: str, marker_id: int, seen: list[tuple[str, NDArray[np.float64]]], modules: int
 ) -> NDArray[np.float64] | MarkerRefusal:
-    """The mean corners (4, 2) of one marker's detections [(stretch, (4, 2))], or why not."""
+    """The corners (4, 2) of one marker's detections [(stretch, (4, 2))] in `STRETCHES`
+    order, or why not: the first stretch's, when every detection is within the tolerance
+    (`CONSISTENT_PX`, or half a module of a marker of `modules` modules a side) of
+    every other."""
     for stretch, quad in seen:
         if not np.all(np.isfinite(quad)):
             return MarkerRefusal(
                 dictionary, marker_id, f"the {stretch} stretch's detection has non-finite corners"
             )
+    first = seen[0][1]
+    side_px = float(np.mean(np.linalg.norm(np.roll(first, -1, axis=0) - first, axis=-1)))
+    tolerance = max(CONSISTENT_PX, CONSISTENT_MODULES * side_px / modules)
     worst, pair = 0.0, (0, 0)
     for i in range(len(seen)):
         for j in range(i + 1, len(seen)):
             d = _corner_distance(seen[i][1], seen[j][1])
             if d > worst:
                 worst, pair = d, (i, j)
-    if worst > CONSISTENT_PX:
+    if worst > tolerance:
         (sa, qa), (sb, qb) = seen[pair[0]], seen[pair[1]]
         where = f"twice by the {sa} stretch" if sa == sb else f"by the {sa} and {sb} stretches"
         return MarkerRefusal(
             dictionary,
             marker_id,
             f"found {where} at places {worst:.1f} px apart (centres {_fmt(qa)} and "
-            f"{_fmt(qb)}); expected the same corners within {CONSISTENT_PX:g} px",
+            f"{_fmt(qb)}); expected the same corners within {tolerance:.1f} px",
         )
-    return np.mean([quad for _, quad in seen], axis=0)
+    return first
 
 
 def _detect(
     images: Mapping[str, NDArray[np.uint8]], dictionary: str, wanted: NDArray[np.int64]
 ) -> dict[int, list[tuple[str, NDArray[np.float64]]]]:
-    """id -> [(stretch, corners (4, 2))] of the wanted markers on every stretch."""
+    """id -> [(stretch, corners (4, 2))] of the wanted markers, stretch by stretch in
+    `STRETCHES` order; after the first `MIN_STRETCHES`, only while some are missing."""
     detector = cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), detector_parameters())
     seen: dict[int, list[tuple[str, NDArray[np.float64]]]] = {}
     wanted_ids = set(wanted.tolist())
-    for stretch in STRETCHES:
+    for k, stretch in enumerate(STRETCHES):
+        if k >= MIN_STRETCHES and wanted_ids <= seen.keys():
+            break
         corners, ids, _ = detector.detectMarkers(images[stretch])
         if ids is None or len(corners) == 0:
             continue
@@ -312,7 +374,8 @@ def search_stretched(
         ids = np.unique(np.asarray(wanted[dictionary], dtype=np.int64).reshape(-1))
         seen = _detect(images, dictionary, ids)
         keys = sorted(seen)
-        merged = [_merge(dictionary, k, seen[k]) for k in keys]
+        modules = int(aruco_dictionary(dictionary).markerSize) + 2  # with the black border
+        merged = [_merge(dictionary, k, seen[k], modules) for k in keys]
         good = [
             (k, quad)
             for k, quad in zip(keys, merged, strict=True)
