@@ -217,7 +217,7 @@ def export(
         result: A `Calibration`, a `ResultFile` or a result file's path.
         fmt: "opencv", "blender", "mitsuba", "ros", "ies" or "ldt" (docs/conventions.md).
         out: The main file (Mitsuba's textures, ROS's URDF go beside it).
-        project: The project: its camera (Mitsuba's sensor) and the RIDs the
+        project: The project: its camera (Mitsuba's sensor, Blender's camera) and the RIDs the
             calibration did not estimate (a Calibration brings its own).
         light: The light to write as ies/ldt when several have a RID.
         force: Replace existing files.

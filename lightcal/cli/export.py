@@ -43,7 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--project",
         type=path_arg,
         default=None,
-        help="take the RID of lights the calibration did not estimate from this project",
+        help="take the RID of lights the calibration did not estimate from this project, "
+        "and give the Mitsuba sensor and the Blender camera its intrinsics",
     )
     p.add_argument("--force", action="store_true", help="replace an existing file")
     p.set_defaults(func=run)
