@@ -233,3 +233,21 @@ def test_the_app_state_loads_a_project_with_light_off_photos(tmp_path: Path) -> 
     image = cv2.imread(str(out / "images" / "view_00.png"), cv2.IMREAD_UNCHANGED)
     dark = cv2.imread(str(out / "images" / "view_00_dark.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(values, image.astype(np.float64) - dark)
+
+
+def test_synth_force_replaces_the_light_off_photos_of_an_earlier_dataset(tmp_path: Path) -> None:
+    out = tmp_path / "ds"
+    small = ["--views", "2", "--width", "80", "--height", "60", "--quiet"]
+    assert main(["synth", str(out), *small, "--ambient", "0.05", "--dark-frames"]) == 0
+    names = ["view_00.png", "view_00_dark.png", "view_01.png", "view_01_dark.png"]
+    assert sorted(p.name for p in (out / "images").iterdir()) == names
+    truth = json.loads((out / "truth.json").read_text())
+    black = truth["sensor"]["black_level_dn"]
+    for i, level in enumerate(truth["departures"]["ambient"]["levels_dn"]):
+        dark = cv2.imread(str(out / "images" / f"view_{i:02d}_dark.png"), cv2.IMREAD_UNCHANGED)
+        assert dark.dtype == np.uint16 and dark.shape == (60, 80)
+        # The room light alone, with its noise: the mean of 4800 pixels within 1 %.
+        assert float(dark.mean()) - black == pytest.approx(level, rel=0.01)
+    assert main(["synth", str(out), *small, "--force"]) == 0  # no room light now
+    assert sorted(p.name for p in (out / "images").iterdir()) == ["view_00.png", "view_01.png"]
+    assert load_project(out / "project.json").dark_paths == [None, None]
