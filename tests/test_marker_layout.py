@@ -153,6 +153,16 @@ def test_markers_one_module_apart_are_accepted():
         (LayoutMarker(TAG, 0, (0, 0), 0.08), LayoutMarker(TAG, 1, (0.1, 0), 0.08))
     )
     assert layout.n_markers == 2
+    # Two diamonds (45 degrees) whose bounding boxes meet but whose squares do not: the
+    # white-bordered squares reach 0.0625 m along (1, 1) / sqrt(2) from each centre.
+    apart = MarkerLayout(
+        (LayoutMarker(TAG, 0, (0, 0), 0.1, 45.0), LayoutMarker(TAG, 1, (0.15, 0.15), 0.1, 45.0))
+    )
+    assert apart.n_markers == 2
+    with pytest.raises(InputError, match=r"^markers\[1\]: DICT_APRILTAG_36h11 id 1 overlaps"):
+        MarkerLayout(
+            (LayoutMarker(TAG, 0, (0, 0), 0.1, 45.0), LayoutMarker(TAG, 1, (0.08, 0.08), 0.1, 45.0))
+        )
 
 
 @pytest.mark.parametrize("suffix", [".json", ".yaml"])

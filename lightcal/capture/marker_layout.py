@@ -170,9 +170,13 @@ class MarkerLayout:
                     "(dictionary, id) once",
                 )
             seen[key] = i
-        squares = [m.square_world(border_modules=1.0)[:, :2] for m in markers]
+        squares = np.stack([m.square_world(border_modules=1.0)[:, :2] for m in markers])
+        lo, hi = squares.min(axis=1), squares.max(axis=1)  # (n, 2) bounding boxes
+        boxes_meet = np.all(
+            (lo[:, None, :] < hi[None, :, :]) & (lo[None, :, :] < hi[:, None, :]), -1
+        )
         for i in range(len(markers)):
-            for j in range(i):
+            for j in np.flatnonzero(boxes_meet[i, :i]).tolist():
                 if _overlap(squares[i], squares[j]):
                     raise InputError(
                         f"markers[{i}]",
