@@ -17,7 +17,7 @@ from lightcal.cli.main import main
 from lightcal.errors import InputError
 from lightcal.io.project import load_project
 from lightcal.pipeline import image_data, load_images, noise_floor
-from lightcal.pipeline.select import image_noise
+from lightcal.pipeline.select import declared_noise
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
 GAIN, READ_VARIANCE = 0.5, 4.0
@@ -68,8 +68,8 @@ def test_the_light_off_photo_is_subtracted_and_its_noise_added(tmp_path: Path) -
     # Variance of image - dark: the image's a (beam + d) + c plus the dark's a d + c.
     level = float(dark.mean())
     noise = (GAIN, 2 * READ_VARIANCE + 2 * GAIN * level)
-    assert image_noise(project, loaded.dark_level(0)) == pytest.approx(noise)
-    assert image_noise(project) == (GAIN, READ_VARIANCE)
+    assert declared_noise(project, loaded.dark_level(0)) == pytest.approx(noise)
+    assert declared_noise(project) == (GAIN, READ_VARIANCE)
     assert noise_floor(project, img, dark_level=level) == pytest.approx(5 * math.sqrt(noise[1]))
     data = image_data(project, loaded, 0)
     assert data.noise == pytest.approx(noise)

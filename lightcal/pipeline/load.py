@@ -36,7 +36,7 @@ class LoadedImages:
         excluded: (H, W) bool per image: user mask pixels.
         camera: the intrinsics matching the images as read (binned when the reader binned).
         dark_levels: per image, the mean value of its light-off photo (whose noise adds
-            to the image's: `lightcal.pipeline.select.image_noise`), or None without one.
+            to the image's: `lightcal.pipeline.select.declared_noise`), or None without one.
     """
 
     images: list[LinearImage]

@@ -31,7 +31,7 @@ def regions_for(project: Project, image_index: int) -> list[Region]:
     return out
 
 
-def image_noise(project: Project, dark_level: float | None = None) -> tuple[float, float] | None:
+def declared_noise(project: Project, dark_level: float | None = None) -> tuple[float, float] | None:
     """The Poisson-Gaussian noise (gain, read_variance) of one image's pixel values, or
     None when the project declares no noise model.
 
@@ -50,13 +50,13 @@ def image_noise(project: Project, dark_level: float | None = None) -> tuple[floa
 
 def noise_floor(project: Project, image: LinearImage, *, dark_level: float | None = None) -> float:
     """Values at or below are too dark to use: the project's min_signal, else the offset
-    plus 5 read-noise sigmas (`image_noise`: the light-off photo's noise included), else
+    plus 5 read-noise sigmas (`declared_noise`: the light-off photo's noise included), else
     1 % of the image's 99th percentile."""
     sel = project.selection
     if sel.min_signal is not None:
         return sel.min_signal
     sensor = project.spec.sensor
-    noise = image_noise(project, dark_level)
+    noise = declared_noise(project, dark_level)
     if noise is not None:
         return sensor.offset + 5.0 * math.sqrt(noise[1])
     p99 = image.percentile_99
@@ -119,7 +119,7 @@ def image_data(
         fp = fp.subset(keep)
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
-    noise = image_noise(project, loaded.dark_level(index))
+    noise = declared_noise(project, loaded.dark_level(index))
     if noise is None:
         return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
     # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
