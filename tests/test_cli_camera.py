@@ -149,6 +149,17 @@ def test_calibrate_errors(tmp_path: Path, chessboard_folder: Path, capsys):
         f"lightcal camera: error: {grid}: an ArUco grid gives too few points per view for "
         "intrinsics: expected a chessboard or charuco board\n"
     )
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(
+        "type: markers\ndictionary: DICT_APRILTAG_36h11\nmarkers:\n"
+        "- {id: 0, center_world_m: [0, 0], size_m: 0.1}\n"
+    )
+    argv = ["camera", "calibrate", str(chessboard_folder), "--board", str(layout)]
+    assert main([*argv, "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"lightcal camera: error: {layout}: a markers board gives too few points per view for "
+        "intrinsics: expected a chessboard or charuco board\n"
+    )
     board = tmp_path / "chessboard.yaml"
     missing = tmp_path / "nothing.png"
     assert (

@@ -160,7 +160,7 @@ def _describe_sigma(camera: Camera) -> str:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from lightcal.capture.boards import CharucoBoard, Chessboard
+    from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, Chessboard
     from lightcal.capture.intrinsics import calibrate_intrinsics
     from lightcal.io.board_file import read_board
     from lightcal.io.images import read_image
@@ -173,9 +173,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
         )
     board = read_board(args.board)
     if not isinstance(board, Chessboard | CharucoBoard):
+        what = "an ArUco grid" if isinstance(board, ArucoGridBoard) else "a markers board"
         raise InputError(
             args.board,
-            "an ArUco grid gives too few points per view for intrinsics: expected a "
+            f"{what} gives too few points per view for intrinsics: expected a "
             "chessboard or charuco board",
         )
     paths = _expand(list(args.images))
