@@ -171,6 +171,8 @@ def _uploads_left(a: LightcalApp) -> list[Path]:
         ("images[1].path", "../../secret.png"),
         ("camera.path", "ABSOLUTE"),
         ("images[0].mask", "images/../../x/secret.png"),
+        ("images[0].dark", "ABSOLUTE"),
+        ("images[1].dark", "../secret.png"),
     ],
 )
 def test_uploaded_projects_stay_in_their_folder(
@@ -429,3 +431,33 @@ def test_sigterm_runs_the_final_autosave(synthetic: SyntheticProject, tmp_path: 
     assert "closed" in out and "Traceback" not in err
     assert json.loads(session.read_text())["format"] == "lightcal-app-session"
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_an_edited_project_keeps_every_file_it_names(tmp_path: Path) -> None:
+    """An upload that edits the project shown (an RID, an image) writes it elsewhere: every
+    path the project names, light-off photos included, is made absolute against the
+    project's folder, so the edited project reads the same files."""
+    from lightcal_app.upload_checks import project_paths
+    from lightcal_app.uploads import absolute_spec
+
+    from lightcal.io.project_spec import ProjectFile
+    from lightcal.resources import sample_project_dir
+
+    data = json.loads((sample_project_dir() / "project.json").read_text(encoding="utf-8"))
+    data["images"] = data["images"][:1]
+    data["images"][0].update(mask="masks/a.png", dark="dark/a.png")
+    data["sensor"].update(response="curve.json", model="map", vignetting="v.npy")
+    spec = ProjectFile.model_validate(data)
+    fixed = absolute_spec(spec, tmp_path)
+    for field, path in project_paths(fixed):
+        assert Path(path).is_absolute(), field
+        assert Path(path).is_relative_to(tmp_path.resolve()), field
+    assert {f for f, _ in project_paths(fixed)} == {
+        "camera.path",
+        "sensor.vignetting",
+        "sensor.response",
+        "images[0].path",
+        "images[0].mask",
+        "images[0].dark",
+        "lights[0].rid.path",
+    }

@@ -219,6 +219,7 @@ def project_paths(spec: ProjectFile) -> list[tuple[str, str]]:
     ]
     for i, im in enumerate(spec.images):
         out += [(f"images[{i}].path", im.path), (f"images[{i}].mask", im.mask)]
+        out += [(f"images[{i}].dark", im.dark)]
     out += [(f"lights[{j}].rid.path", ls.rid.path) for j, ls in enumerate(spec.lights)]
     return [(f, p) for f, p in out if p is not None]
 

@@ -125,7 +125,8 @@ def absolute_spec(spec: ProjectFile, folder: Path) -> ProjectFile:
         update={"vignetting": fix(spec.sensor.vignetting), "response": fix(spec.sensor.response)}
     )
     images = [
-        im.model_copy(update={"path": fix(im.path), "mask": fix(im.mask)}) for im in spec.images
+        im.model_copy(update={"path": fix(im.path), "mask": fix(im.mask), "dark": fix(im.dark)})
+        for im in spec.images
     ]
     lights = [
         ls.model_copy(update={"rid": ls.rid.model_copy(update={"path": fix(ls.rid.path)})})
