@@ -259,7 +259,7 @@ def test_uploads_are_refused_naming_the_file_and_what_was_expected(
         staging.build()
     assert str(info.value) == (
         "new project: missing: a camera file, or photos of a chessboard for the intrinsics; "
-        "the board file of the wall's markers (aruco_grid or charuco)"
+        "the board file of the wall's markers (aruco_grid, markers or charuco)"
     )
     # No usable photo: the build says why each was rejected, and leaves no build behind.
     staging.receive("camera", "camera.yaml", photos.camera.read_bytes())

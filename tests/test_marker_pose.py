@@ -282,7 +282,9 @@ def test_input_errors():
         estimate_pose(np.zeros((4, 4, 3)), CAMERA, GRID, source="img")
     with pytest.raises(
         InputError,
-        match=re.escape("board: expected an ArucoGridBoard or a CharucoBoard, got Chessboard"),
+        match=re.escape(
+            "board: expected an ArucoGridBoard, a CharucoBoard or a MarkerLayout, got Chessboard"
+        ),
     ):
         estimate_pose(np.zeros((1200, 1600)), CAMERA, Chessboard(9, 6, 0.03))  # type: ignore[arg-type]
     with pytest.raises(InputError, match=re.escape("min_markers: expected an int >= 1, got 0")):

@@ -13,7 +13,7 @@ import pytest
 from lightcal.capture import marker_search
 from lightcal.capture.board_layout import aruco_dictionary
 from lightcal.capture.marker_detection import detection_images, find_board_markers
-from lightcal.capture.marker_pose import estimate_pose
+from lightcal.capture.marker_pose import estimate_pose, pose_report
 from lightcal.capture.marker_search import (
     STRETCHES,
     MarkerRefusal,
@@ -21,6 +21,7 @@ from lightcal.capture.marker_search import (
     detector_parameters,
     find_markers,
 )
+from lightcal.errors import InputError
 from tests.test_marker_pose import CAMERA, GRID, scene
 
 # A beam centred left of the board (its saturated core, 2 % of the image, misses the
@@ -125,6 +126,27 @@ def test_a_marker_found_at_two_places_is_refused_with_the_reason(monkeypatch):
     assert found.marker_id == 3 and found.stretches == ("percentile", "log")
     assert np.all(found.refined)
     assert np.max(np.linalg.norm(found.corners_px - true[0], axis=-1)) < 0.1
+
+
+def test_the_pose_and_its_report_name_the_refused_markers(monkeypatch):
+    """What `lightcal init` prints per photo: the markers found, and each one refused with
+    why; a photo rejected for too few markers says which were seen and refused."""
+    _, image, R, t = scene("grid_1.5m_tilt30")
+    true = _true_corners(GRID.ids, R, t)
+    seen = {int(i): [("percentile", true[k])] for k, i in enumerate(GRID.ids)}
+    seen[5] = [("percentile", true[5]), ("gamma", true[5] + np.array([12.0, 0.0]))]
+    _forge(monkeypatch, seen)
+    pose = estimate_pose(image, CAMERA, GRID, source="view.png")
+    (refusal,) = pose.refused
+    assert refusal.startswith(f"marker 5 ({GRID.dictionary}) refused: found by the percentile")
+    assert pose.n_markers == GRID.n_markers - 1
+    line = pose_report([pose])
+    assert line.startswith(f"view.png: {GRID.n_markers - 1} markers, rms ")
+    assert line.endswith(f" m; {refusal}")
+    _forge(monkeypatch, {5: seen[5], 3: [("percentile", true[3])]})
+    with pytest.raises(InputError) as info:
+        estimate_pose(image, CAMERA, GRID, source="view.png")
+    assert str(info.value) == f"view.png: found 1 markers, need at least 4; {refusal}"
 
 
 def test_twice_in_one_stretch_and_non_finite_corners_are_refused(monkeypatch):

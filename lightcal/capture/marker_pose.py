@@ -40,14 +40,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from lightcal.capture.apriltag import printed_corners
 from lightcal.capture.boards import ArucoGridBoard, CharucoBoard, MarkerLayout
-from lightcal.capture.layout_detection import detect_layout
+from lightcal.capture.layout_detection import search_layout
 from lightcal.capture.marker_detection import (
     EDGE_SAMPLES,
     MIN_CHARUCO_CORNERS,
     STRETCH_PERCENTILES,
     detect_charuco,
-    detect_grid,
     detection_images,
+    search_grid,
     stretch_to_uint8,
 )
 from lightcal.capture.pose_fit import (
@@ -138,6 +138,9 @@ class MarkerPose:
         mask_polygons_world: (P, 4, 3) wall areas covered by the detected print (marker
             squares for an ArUco grid, chessboard squares around the detected corners
             for a ChArUco board).
+        refused: The markers seen but not used, each with why (`MarkerRefusal`'s words:
+            "marker 7 (DICT_4X4_50) refused: found at places 5.1 px apart"); `pose_report`
+            and a rejection for too few markers name them.
     """
 
     source: str
@@ -151,6 +154,7 @@ class MarkerPose:
     points_image: NDArray[np.float64] = field(repr=False)
     camera: Camera = field(repr=False)
     mask_polygons_world: NDArray[np.float64] = field(repr=False)
+    refused: tuple[str, ...] = ()
 
     @property
     def camera_center_world(self) -> NDArray[np.float64]:
@@ -217,6 +221,7 @@ class _BoardFind:
     points_image: NDArray[np.float64]
     polygons: NDArray[np.float64]
     problem: str | None = None
+    refused: tuple[str, ...] = ()
 
 
 def _find_board(
@@ -228,14 +233,23 @@ def _find_board(
 ) -> _BoardFind:
     """One board's markers (ArUco grid, layout) or ChArUco corners in one image."""
     if isinstance(board, ArucoGridBoard):
-        ids, points_world, points_image = detect_grid(image_u8, image_f, board, camera)
+        ids, points_world, points_image, search = search_grid(
+            image_u8, image_f, board, camera, source=source
+        )
         # The detector's corner order made the printed one (AprilTags: official images).
         quads = printed_corners(board.dictionary, points_image.reshape(-1, 4, 2))
-        return _BoardFind(ids, points_world, quads.reshape(-1, 2), board.outline_world(ids))
+        refused = tuple(str(r) for r in search.refused)
+        return _BoardFind(
+            ids, points_world, quads.reshape(-1, 2), board.outline_world(ids), refused=refused
+        )
     if isinstance(board, MarkerLayout):
-        indices, points_world, points_image = detect_layout(image_u8, image_f, board, camera)
+        indices, points_world, points_image, search = search_layout(
+            image_u8, image_f, board, camera, source=source
+        )
         ids = np.array([board.markers[i].id for i in indices], dtype=np.int64)
-        return _BoardFind(ids, points_world, points_image, board.outline_world(indices))
+        refused = tuple(str(r) for r in search.refused)
+        outline = board.outline_world(indices)
+        return _BoardFind(ids, points_world, points_image, outline, refused=refused)
     ids, corner_ids, points_world, points_image = detect_charuco(
         image_u8, image_f, board, camera, source
     )
@@ -305,10 +319,14 @@ def estimate_pose(
     image_u8, image_f = detection_images(image, camera, source)
 
     finds = [_find_board(image_u8, image_f, b, camera, source) for b in boards]
+    refused = tuple(r for f in finds for r in f.refused)
+    why = "".join(f"; {r}" for r in refused)  # what was seen but refused, and why
     if len(finds) == 1:
         found = finds[0]
         if found.ids.size < min_markers:
-            raise InputError(source, f"found {found.ids.size} markers, need at least {min_markers}")
+            raise InputError(
+                source, f"found {found.ids.size} markers, need at least {min_markers}{why}"
+            )
         if found.problem is not None:
             raise InputError(source, found.problem)
         ids, points_world, points_image = found.ids, found.points_world, found.points_image
@@ -317,7 +335,7 @@ def estimate_pose(
         used = [f for f in finds if f.problem is None]
         ids = np.concatenate([f.ids for f in used]) if used else np.zeros(0, np.int64)
         if ids.size < min_markers:
-            raise InputError(source, f"found {ids.size} markers, need at least {min_markers}")
+            raise InputError(source, f"found {ids.size} markers, need at least {min_markers}{why}")
         points_world = np.concatenate([f.points_world for f in used])
         points_image = np.concatenate([f.points_image for f in used])
         polygons = np.concatenate([f.polygons for f in used])
@@ -343,6 +361,7 @@ def estimate_pose(
         points_image=points_image,
         camera=camera,
         mask_polygons_world=polygons,
+        refused=refused,
     )
 
 
@@ -406,6 +425,7 @@ def pose_report(results: Sequence[MarkerPose | InputError]) -> str:
             lines.append(
                 f"{result.source}: {result.n_markers} markers, rms "
                 f"{result.reprojection_rms_px:.3f} px, camera at ({x:.4f}, {y:.4f}, {z:.4f}) m"
+                + "".join(f"; {r}" for r in result.refused)
             )
         else:
             lines.append(f"{result.source}: rejected: {result.detail}")
