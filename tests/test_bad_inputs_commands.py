@@ -80,7 +80,7 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _usage(
             "",
             "argument COMMAND: invalid choice: 'nosuch' (choose from 'sample', 'synth', "
-            "'calibrate', 'plan', 'render', 'export', 'schema', 'init', 'camera', "
+            "'calibrate', 'plan', 'render', 'export', 'schema', 'init', 'board', 'camera', "
             "'response', 'app', 'warmup')",
         ),
     ),
