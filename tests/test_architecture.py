@@ -33,7 +33,8 @@ ALLOWED: dict[str, frozenset[str]] = {
     "core": frozenset({"base"}),
     "io": frozenset({"base", "core"}),
     "capture": frozenset({"base", "core", "io"}),
-    "synthetic": frozenset({"base", "core", "io"}),
+    # synthetic data of what is photographed draws printed boards (capture) on the wall
+    "synthetic": frozenset({"base", "core", "io", "capture"}),
     "pipeline": frozenset({"base", "core", "io"}),
     "report": frozenset({"base", "core", "io", "pipeline"}),
     "resources": frozenset({"base", "io"}),

@@ -685,6 +685,20 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         ),
     ),
     (
+        "synth: --real-world with a scene option",
+        "synth {n} --real-world --ambient 0.1",
+        _error(
+            "synth",
+            "--ambient: does not apply with --real-world (its scene is the preset's; --views, "
+            "--width, --height, --seed, --force and --quiet do)",
+        ),
+    ),
+    (
+        "synth: --real-world --views 2",
+        "synth {n} --real-world --views 2",
+        _error("synth", "--views: expected 3 to 50 views, got 2"),
+    ),
+    (
         "synth: --format jpg",
         "synth {n} --format jpg",
         _usage("synth", "argument --format: invalid choice: 'jpg' (choose from 'png', 'tiff')"),

@@ -29,6 +29,9 @@ what the project declares in one everyday way, each recorded in truth.json under
 - `--attenuation C`: a medium (clear water): each value is multiplied by
   exp(-C (d_light + d_camera)), C in 1/m.
 
+`--real-world`: photos as a user's camera gives them and no project
+(`lightcal.cli.synth_real_world`).
+
 `--dark-frames` (with `--ambient`): also a light-off photo of each view, the room light
 alone through the same sensor with its own noise (`images/view_NN_dark.png`), declared as
 the image's `dark` in the project, which subtracts it before the fit.
@@ -43,6 +46,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
 from lightcal.cli.synth_departures import register_departures
+from lightcal.cli.synth_real_world import register_real_world
 from lightcal.errors import InputError
 from lightcal.synthetic.light_models import LIGHT_MODELS
 
@@ -222,7 +226,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--seed", type=int, default=0, help="random seed (0)")
     g.add_argument("--force", action="store_true", help="replace the dataset in OUT_DIR")
     g.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.set_defaults(func=run)
+    register_real_world(g)
+    defaults = {a.dest: (a.default, a.option_strings[0]) for a in p._actions if a.option_strings}
+    p.set_defaults(func=run, synth_defaults=defaults)
 
 
 def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
@@ -303,6 +309,10 @@ def _wall(args: argparse.Namespace) -> WallReflectance:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.real_world:
+        from lightcal.cli.synth_real_world import run_real_world
+
+        return run_real_world(args, args.synth_defaults)
     from lightcal.core.camera import Camera
     from lightcal.synthetic.camera_limits import (
         check_distortion,

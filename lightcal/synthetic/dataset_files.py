@@ -60,7 +60,7 @@ IMAGE_SUFFIX = {"png": ".png", "tiff": ".tif"}
 DARK_SUFFIX = "_dark"
 """A view's light-off photo is `images/view_NN_dark.png` (`SynthConfig.dark_frames`)."""
 
-_STALE_IMAGE = re.compile(r"view_\d+(_dark)?\.(png|tif)")
+_STALE_IMAGE = re.compile(r"view_\d+(_dark)?\.(png|tif|jpg)")
 
 TRUTH_FORMAT = "lightcal.synth_truth"
 """The `format` tag of truth.json."""
@@ -124,6 +124,9 @@ def publish(staging: Path, out_dir: Path, *, occupied: bool) -> None:
         if _STALE_IMAGE.fullmatch(p.name) and Path(IMAGES_DIR, p.name) not in new_files:
             p.unlink()
     for rel in [*(r for r in new_files if r != Path(PROJECT_NAME)), Path(PROJECT_NAME)]:
+        if not (staging / rel).exists():  # a dataset without a project (--real-world)
+            continue
+        (out_dir / rel).parent.mkdir(parents=True, exist_ok=True)
         (staging / rel).replace(out_dir / rel)
     shutil.rmtree(staging)
 
