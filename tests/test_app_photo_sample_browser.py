@@ -6,7 +6,7 @@ the page's upload buttons with the board files and the light's IES; the level fi
 prefilled from the photos' files (0 and 65535: a PNG does not say its sensor's levels),
 get the sample's 512 and 16383 (sample_data/README.md), the initial light its
 "ruler" guess (90, 0, 0) mm; Build, then Run. The light lands within 1 mm of
-sample_data/truth.json (the sample's own project: 0.50 mm, 1.1 sigma), where a build
+sample_data/truth.json (the sample's own project: 0.11 mm), where a build
 without the black level landed 10 cm off (issue 27). The built project's zip, downloaded
 from the page, unpacks into a project `lightcal calibrate` solves as well.
 
@@ -48,7 +48,7 @@ from tests.test_app_browser import (  # noqa: F401 - fixtures
 from tests.test_app_photo_project import make_service
 
 POSITION_TOLERANCE_M = 1e-3
-"""The issue's acceptance: within 1 mm of the truth (the sample's project gives 0.50 mm;
+"""The issue's acceptance: within 1 mm of the truth (the sample's project gives 0.11 mm;
 its 1-sigma is 0.25 - 0.43 mm per axis)."""
 
 SAMPLE_FIELDS = PhotoFields(initial_position_mm=(90, 0, 0), black_level=512, white_level=16383)
