@@ -147,8 +147,12 @@ def make_project(
 
 
 def run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) -> None:
-    """What the worker does with the solve's requests (Finished), without a thread."""
+    """What the worker does with the solve's requests (Finished), without a thread.
+
+    A session that ended with an outcome says so before its Finished request is queued:
+    the loop waits for that request too."""
     deadline = threading.Event()
+    handled = False
     for _ in range(int(timeout / 0.01)):
         with state.lock:
             pending = list(state.requests)
@@ -156,8 +160,14 @@ def run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) ->
         for req in pending:
             if isinstance(req, rq.Finished):
                 solve.finished(req.gen, req.outcome)
+                handled = True
         solve.poll()
-        if not solve.running() and not pending:
+        session = solve.session
+        # (A cancelled solve, "stopped" without an outcome, sends no request.)
+        ended = session is not None and session.outcome is not None
+        with state.lock:
+            shown = handled or state.solver_state in ("converged", "not converged")
+        if not solve.running() and not pending and (shown or not ended):
             return
         deadline.wait(0.01)
     raise AssertionError("the solve did not settle")
