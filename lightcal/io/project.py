@@ -21,7 +21,7 @@ import yaml
 
 from lightcal.core.camera import Camera
 from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
-from lightcal.core.problem import LightUnknown, WallUnknown
+from lightcal.core.problem import LightUnknown, MediumUnknown, WallUnknown
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
@@ -30,6 +30,7 @@ from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
+from lightcal.io.medium_spec import build_medium
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
     INTRINSIC_COUNTS,
@@ -114,6 +115,7 @@ class Project:
             or None.
         pose_intrinsics_jacobians: per image, the (6, p) d (delta, c) / d intrinsics of
             its pose (`PoseSpec.d_pose_d_intrinsics`, p = 4 + camera.n_dist) or None.
+        medium: the medium between the rig and the wall and what to estimate of it.
     """
 
     spec: ProjectFile
@@ -130,6 +132,7 @@ class Project:
     wall: WallUnknown = field(default_factory=WallUnknown)
     pose_covariances: list[np.ndarray | None] = field(default_factory=list)
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
+    medium: MediumUnknown = field(default_factory=MediumUnknown)
 
     @property
     def folder(self) -> Path:
@@ -351,6 +354,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         build_wall(spec.wall, source),
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
+        build_medium(spec.medium),
     )
 
 

@@ -3,7 +3,7 @@
 What `lightcal calibrate` prints and the report's summary writes (the app's Result tab
 shows the same quantities in a table): the position in millimetres in the camera frame
 (x right, y down, z forward), the axis by the paper's roll and pitch in degrees with its
-angle from the optical axis, and the scale.
+angle from the optical axis, and the scale; the medium's attenuation when there is one.
 """
 
 from __future__ import annotations
@@ -51,3 +51,15 @@ def light_lines(light: LightResult) -> list[str]:
         lines.append(f"  axis     {axis}")
     lines.append(f"  scale    {light.scale:.6g} ± {sigma_text(light.scale_sigma)}")
     return lines
+
+
+def medium_text(medium: dict) -> str | None:
+    """The medium in words ("medium: attenuation 0.301 ± 0.004 /m (estimated)"), or None
+    in air with nothing estimated."""
+    c = float(medium.get("attenuation_per_m", 0.0))
+    estimated = "attenuation_per_m" in medium.get("estimated", [])
+    if c == 0.0 and not estimated:
+        return None
+    s = medium.get("sigma", {}).get("attenuation_per_m")
+    sigma = f" ± {sigma_text(math.nan if s is None else s)}" if estimated else ""
+    return f"medium: attenuation {c:.4g}{sigma} /m ({'estimated' if estimated else 'given'})"
