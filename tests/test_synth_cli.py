@@ -129,6 +129,8 @@ ARGUMENT_ERRORS = [
     (["--pose-noise-mm", "-1"], "--pose-noise-mm: expected a value >= 0, got -1"),
     (["--half-angle-deg", "95"], "--half-angle-deg: expected a value in (0, 85) degrees, "
      "got 95.0"),
+    (["--declare-medium", "given"], "--declare-medium: given: expected --attenuation C > 0 "
+     "(the medium to declare)"),
 ]  # fmt: skip
 
 
@@ -138,3 +140,28 @@ def test_synth_argument_errors(tmp_path: Path, capsys, args: list[str], message:
     assert main(["synth", str(out), *SMALL, *args]) == 2
     assert capsys.readouterr().err == f"lightcal synth: error: {message}\n"
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("declare", "expected"),
+    [
+        ([], {"attenuation_per_m": 0.0, "estimate": []}),
+        (["--declare-medium", "given"], {"attenuation_per_m": 0.25, "estimate": []}),
+        (
+            ["--declare-medium", "estimated"],
+            {"attenuation_per_m": 0.0, "estimate": ["attenuation_per_m"]},
+        ),
+    ],
+)
+def test_synth_declares_the_medium_when_asked(tmp_path: Path, declare: list[str], expected):
+    """`--attenuation` alone is a departure (the project says air); `--declare-medium`
+    makes the project model the water, given or estimated; truth.json records C."""
+    out = tmp_path / "ds"
+    assert main(["synth", str(out), *SMALL, "--attenuation", "0.25", *declare, "--quiet"]) == 0
+    doc = json.loads((out / "project.json").read_text())
+    assert doc["medium"] == expected
+    project = load_project(out / "project.json")
+    assert project.medium.initial.attenuation_per_m == expected["attenuation_per_m"]
+    assert project.medium.estimate == tuple(expected["estimate"])
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["departures"]["attenuation"]["coefficient_per_m"] == 0.25

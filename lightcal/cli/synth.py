@@ -28,6 +28,10 @@ what the project declares in one everyday way, each recorded in truth.json under
   random field in [-1, 1] with 10-30 cm features, the same in every view.
 - `--attenuation C`: a medium (clear water): each value is multiplied by
   exp(-C (d_light + d_camera)), C in 1/m.
+
+`--declare-medium given|estimated` makes the project declare that water (`medium:` with
+the true C, or estimated from 0): data whose project models the medium
+(`lightcal/cli/synth_options.py`).
 """
 
 from __future__ import annotations
@@ -35,69 +39,23 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING
 
+from lightcal.cli.synth_options import (
+    MAX_POSE_MM,
+    build,
+    declared_medium,
+    departures_of,
+    register_departures,
+)
 from lightcal.errors import InputError
 from lightcal.synthetic.light_models import LIGHT_MODELS
 
 if TYPE_CHECKING:
     from lightcal.core.wall import WallReflectance
-    from lightcal.synthetic.departures import Departures
-
-T = TypeVar("T")
-
-MAX_POSE_MM = 100.0
-"""Largest --pose-noise-mm and --pose-error-mm."""
 
 DEFAULT_VIGNETTING = (-0.25, 0.05)
 """Radial fall-off of `--sensor map` without `--vignetting`: V = 0.8 in the corners."""
-
-# Configuration fields -> the options that set them, for error messages.
-_OPTIONS = {
-    "n_views": "--views",
-    "distance_range_m": "--distance",
-    "tilt_range_deg": "--tilt-deg",
-    "roll_range_deg": "--roll-deg",
-    "n_lights": "--lights",
-    "model": "--light",
-    "half_angle_deg": "--half-angle-deg",
-    "radius_range_m": "--light-radius-m",
-    "bit_depth": "--bit-depth",
-    "full_well_e": "--full-well-e",
-    "read_noise_e": "--read-noise-e",
-    "black_level_dn": "--black-level",
-    "exposure_target": "--exposure-target",
-    "vignetting_coeffs": "--vignetting",
-    "pose_noise_m": "--pose-noise-mm",
-    "pose_noise_deg": "--pose-noise-deg",
-    "init_offset_m": "--init-offset-m",
-    "init_offset_deg": "--init-offset-deg",
-    "seed": "--seed",
-    "K": "--fx/--fy/--cx/--cy",
-    "size": "--width/--height",
-    "fx": "--fx",
-    "fy": "--fy",
-    "cx": "--cx",
-    "cy": "--cy",
-    "roughness": "--roughness",
-    "ior": "--ior",
-    "albedo": "--albedo",
-    "sigma_deg": "--sigma-deg",
-    "wall": "--wall",
-    "dist": "--distortion",
-    "width": "--width",
-    "height": "--height",
-    "ambient_fraction": "--ambient",
-    "undeclared_vignetting": "--undeclared-vignetting",
-    "rid_rim_amplitude": "--rid-rim",
-    "gamma": "--gamma",
-    "pose_error_m": "--pose-error-mm",
-    "pose_error_deg": "--pose-error-deg",
-    "bow_m": "--bow-mm",
-    "albedo_texture_amplitude": "--albedo-texture",
-    "attenuation_per_m": "--attenuation",
-}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -210,143 +168,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument(
         "--pose-noise-deg", type=float, default=0.05, help="camera rotation error sigma (0.05)"
     )
-    _register_departures(p)
+    register_departures(p)
     g = p.add_argument_group("output")
     g.add_argument("--format", choices=("png", "tiff"), default="png", help="image files (png)")
     g.add_argument("--seed", type=int, default=0, help="random seed (0)")
     g.add_argument("--force", action="store_true", help="replace the dataset in OUT_DIR")
     g.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
-
-
-def _register_departures(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group(
-        "departures",
-        "data that departs from what project.json declares, recorded in truth.json under "
-        '"departures" (none by default)',
-    )
-    g.add_argument(
-        "--ambient",
-        type=float,
-        default=0.0,
-        metavar="FRACTION",
-        help="room light: add FRACTION x the brightest beam value of the median image to "
-        "every pixel, scaled by each image's exposure; the project estimates no offset (0)",
-    )
-    g.add_argument(
-        "--undeclared-vignetting",
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=("K1", "K2"),
-        help="the images carry the fall-off V = 1 + K1 r^2 + K2 r^4 (as --vignetting) "
-        "while the project declares --sensor radiance (none)",
-    )
-    g.add_argument(
-        "--rid-rim",
-        type=float,
-        default=0.0,
-        metavar="AMPLITUDE",
-        help="the light's true profile has a bright rim: the declared one x (1 + AMPLITUDE "
-        "exp(-((theta - theta_half) / w)^2)), w = 0.15 theta_half; the project gets the "
-        "plain profile (0)",
-    )
-    g.add_argument(
-        "--gamma",
-        type=float,
-        default=1.0,
-        metavar="G",
-        help="tone curve: the stored value above black is W (x / W)^(1/G), x the linear "
-        "value, W = white - black; the project declares linear data (1)",
-    )
-    g.add_argument(
-        "--pose-error-mm",
-        type=float,
-        default=0.0,
-        metavar="MM",
-        help="extra camera centre error sigma beyond --pose-noise-mm, whose covariance the "
-        "project still declares (0)",
-    )
-    g.add_argument(
-        "--pose-error-deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="extra camera rotation error sigma beyond --pose-noise-deg (0)",
-    )
-    g.add_argument(
-        "--bow-mm",
-        type=float,
-        default=0.0,
-        metavar="MM",
-        help="the wall is not flat: z = MM/1000 max(0, 1 - r^2 / (1 m)^2), r from where the "
-        "views look; MM > 0 bulges towards the cameras, < 0 a bowl; |MM| <= 100 (0)",
-    )
-    g.add_argument(
-        "--albedo-texture",
-        type=float,
-        default=0.0,
-        metavar="AMPLITUDE",
-        help="the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth random field in "
-        "[-1, 1] with 10-30 cm features; 0 <= AMPLITUDE < 1 (0)",
-    )
-    g.add_argument(
-        "--attenuation",
-        type=float,
-        default=0.0,
-        metavar="C",
-        help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m (0)",
-    )
-
-
-def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
-    """The departures of the options (millimetres checked before they become metres)."""
-    from lightcal.synthetic.departures import MAX_BOW_M, Departures
-
-    if not (math.isfinite(args.pose_error_mm) and args.pose_error_mm >= 0.0):
-        raise InputError(
-            "--pose-error-mm", f"expected a finite value >= 0, got {args.pose_error_mm:g}"
-        )
-    if args.pose_error_mm > MAX_POSE_MM:
-        raise InputError(
-            "--pose-error-mm", f"expected at most {MAX_POSE_MM:g} mm, got {args.pose_error_mm:g}"
-        )
-    limit_mm = MAX_BOW_M * 1000.0
-    if not (math.isfinite(args.bow_mm) and abs(args.bow_mm) <= limit_mm):
-        raise InputError(
-            "--bow-mm", f"expected a value within +-{limit_mm:g} mm, got {args.bow_mm:g}"
-        )
-    if args.undeclared_vignetting is not None and sensor_model != "radiance":
-        raise InputError(
-            "--undeclared-vignetting",
-            f"applies to --sensor radiance only, got --sensor {sensor_model}",
-        )
-    if args.rid_rim > 0.0 and args.light == "isotropic":
-        raise InputError(
-            "--rid-rim", "expected a light with a half-intensity angle, got --light isotropic"
-        )
-    vignetting = args.undeclared_vignetting
-    return _build(
-        lambda: Departures(
-            ambient_fraction=args.ambient,
-            undeclared_vignetting=None if vignetting is None else (vignetting[0], vignetting[1]),
-            rid_rim_amplitude=args.rid_rim,
-            gamma=args.gamma,
-            pose_error_m=args.pose_error_mm / 1000.0,
-            pose_error_deg=args.pose_error_deg,
-            bow_m=args.bow_mm / 1000.0,
-            albedo_texture_amplitude=args.albedo_texture,
-            attenuation_per_m=args.attenuation,
-        )
-    )
-
-
-def _build(make: Callable[[], T]) -> T:
-    """`make()`, with configuration errors renamed after the command-line option."""
-    try:
-        return make()
-    except InputError as exc:
-        raise InputError(_OPTIONS.get(exc.source, exc.source), exc.detail) from exc
 
 
 def _check_scene(args: argparse.Namespace) -> None:
@@ -373,7 +201,7 @@ def _wall(args: argparse.Namespace) -> WallReflectance:
     from lightcal.synthetic.walls import WALL_PARAMETERS, true_wall
 
     names = [name for parameters in WALL_PARAMETERS.values() for name in parameters]
-    return _build(lambda: true_wall(args.wall, {name: getattr(args, name) for name in names}))
+    return build(lambda: true_wall(args.wall, {name: getattr(args, name) for name in names}))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -398,8 +226,8 @@ def run(args: argparse.Namespace) -> int:
         coeffs = tuple(args.vignetting) if args.vignetting is not None else DEFAULT_VIGNETTING
     if not args.out_dir.strip():
         raise InputError("OUT_DIR", f"expected the path of a dataset folder, got {args.out_dir!r}")
-    _build(lambda: check_image_size(args.width, args.height))
-    _build(
+    build(lambda: check_image_size(args.width, args.height))
+    build(
         lambda: check_intrinsics(
             args.width, args.height, fx=args.fx, fy=args.fy, cx=args.cx, cy=args.cy
         )
@@ -407,9 +235,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.pose_noise_mm >= 0.0:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
     _check_scene(args)
-    departures = _departures(args, sensor_model)
+    departures = departures_of(args, sensor_model)
+    medium = declared_medium(args)
     fx = 0.9 * args.width if args.fx is None else args.fx
-    camera = _build(
+    camera = build(
         lambda: Camera.from_params(
             fx=fx,
             fy=fx if args.fy is None else args.fy,
@@ -420,8 +249,8 @@ def run(args: argparse.Namespace) -> int:
             dist=tuple(args.distortion),
         )
     )
-    _build(lambda: check_distortion(camera))
-    scene = _build(
+    build(lambda: check_distortion(camera))
+    scene = build(
         lambda: SceneConfig(
             n_views=args.views,
             distance_range_m=(args.distance[0], args.distance[1]),
@@ -429,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
             roll_range_deg=(-abs(args.roll_deg), abs(args.roll_deg)),
         )
     )
-    rig = _build(
+    rig = build(
         lambda: RigConfig(
             n_lights=args.lights,
             model=args.light,
@@ -437,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
             radius_range_m=(args.light_radius_m[0], args.light_radius_m[1]),
         )
     )
-    sensor = _build(
+    sensor = build(
         lambda: SensorConfig(
             bit_depth=args.bit_depth,
             full_well_e=args.full_well_e,
@@ -449,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
             vignetting_coeffs=coeffs,
         )
     )
-    config = _build(
+    config = build(
         lambda: SynthConfig(
             camera=camera,
             scene=scene,
@@ -463,6 +292,7 @@ def run(args: argparse.Namespace) -> int:
             image_format=args.format,
             wall=_wall(args),
             departures=departures,
+            medium=medium,
         )
     )
 
@@ -477,7 +307,7 @@ def run(args: argparse.Namespace) -> int:
     check_target(Path(args.out_dir), force=args.force)  # before compiling and rendering
     ensure_kernels(quiet=args.quiet)
     try:
-        dataset = _build(
+        dataset = build(
             lambda: write_dataset(
                 args.out_dir, config, force=args.force, progress=None if args.quiet else progress
             )

@@ -65,6 +65,7 @@ from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
 from lightcal.io.camera_file import read_camera, write_camera
+from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.project import (
     CameraSpec,
     ExposureSpec,
@@ -72,9 +73,7 @@ from lightcal.io.project import (
     LightSpec,
     NoiseSpec,
     ProjectFile,
-    SelectionSpec,
     SensorSpec,
-    SolverSpec,
     build_rid,
     load_project,
     save_project,
@@ -89,6 +88,7 @@ from lightcal.synthetic.dataset_files import (
     ImageFormat,
     camera_dict,
     check_target,
+    declared_pose_covariance,
     encode_image,
     initial_spec,
     make_staging,
@@ -157,6 +157,7 @@ class SynthConfig:
         wall: The wall's true reflectance (the project written says Lambertian, as a
             user's first project would; truth.json records the true model).
         departures: How the data departs from what the project declares (none by default).
+        medium: What the project declares of the medium (air unless `--declare-medium`).
     """
 
     camera: Camera
@@ -171,6 +172,7 @@ class SynthConfig:
     image_format: ImageFormat = "png"
     wall: WallReflectance = LAMBERTIAN
     departures: Departures = field(default_factory=Departures)
+    medium: MediumSpec = field(default_factory=MediumSpec)
 
     def __post_init__(self) -> None:
         for name, high in _LARGEST.items():
@@ -388,11 +390,7 @@ def _write_into(
             )
 
     # The project: the measured poses with the covariance of their error.
-    pose_covariance = None
-    if config.pose_noise_m > 0.0 or config.pose_noise_deg > 0.0:
-        pose_covariance = np.diag(
-            [math.radians(config.pose_noise_deg) ** 2] * 3 + [config.pose_noise_m**2] * 3
-        )
+    pose_covariance = declared_pose_covariance(config.pose_noise_m, config.pose_noise_deg)
     gain, read_variance = noise_model(sensor)
     spec = ProjectFile(
         camera=CameraSpec(path=CAMERA_NAME),
@@ -421,8 +419,7 @@ def _write_into(
             )
             for j, light in enumerate(rig.lights)
         ],
-        selection=SelectionSpec(),
-        solver=SolverSpec(),
+        medium=config.medium,  # the default selection and solver
     )
 
     # The truth.

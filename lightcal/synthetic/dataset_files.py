@@ -284,3 +284,11 @@ def read_truth(path: str | Path) -> dict[str, Any]:
     if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT:
         raise InputError(p, f"expected a truth file with format {TRUTH_FORMAT!r}")
     return data
+
+
+def declared_pose_covariance(noise_m: float, noise_deg: float) -> NDArray[np.float64] | None:
+    """(6, 6) the covariance the project declares for each measured pose (rotation
+    perturbation in rad^2, then the centre in m^2), or None without pose noise."""
+    if noise_m == 0.0 and noise_deg == 0.0:
+        return None
+    return np.diag([math.radians(noise_deg) ** 2] * 3 + [noise_m**2] * 3)
