@@ -54,6 +54,7 @@ class Family:
     light_model: str = "cos_power"
     n_lights: int = 1
     wall: dict[str, Any] | None = None
+    medium: dict[str, Any] | None = None
     selection: dict[str, Any] | None = None
     report: bool = False
     parallel: bool = False  # every flux call on the thread pool, however small
@@ -89,6 +90,14 @@ FAMILIES: tuple[Family, ...] = (
         selection={"strategy": "all", "binning": 1},
     ),
     Family("wall models: Oren-Nayar", wall={"model": "oren_nayar", "estimate": ["sigma_deg"]}),
+    # The medium's kernels: per pixel, serial and parallel, and on whole images (report).
+    Family(
+        "water (the medium)",
+        size=_DENSE,
+        medium={"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]},
+        selection={"strategy": "all", "binning": 1},
+        report=True,
+    ),
 )
 
 
@@ -206,6 +215,8 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     project["selection"] = family.selection or {"strategy": "random", "n_per_image": 120}
     if family.wall is not None:
         project["wall"] = family.wall
+    if family.medium is not None:
+        project["medium"] = family.medium
     if not family.noise_model:
         project["sensor"].pop("noise", None)
     dataset.project_path.write_text(json.dumps(project), encoding="utf-8")
