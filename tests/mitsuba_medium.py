@@ -61,10 +61,20 @@ class WaterImages:
 
 
 def render_in_water(
-    width: int, height: int, spp: int, attenuation_per_m: float, variant: str
+    width: int,
+    height: int,
+    spp: int,
+    attenuation_per_m: float,
+    variant: str,
+    *,
+    scattering_albedo: float = 0.0,
+    phase_g: float = 0.0,
 ) -> tuple[WaterImages, object]:
     """Render the scene in water with both renderers; also returns lightcal's scene
-    (camera, view, rig) for further renders."""
+    (camera, view, rig) for further renders. With a scattering albedo a (sigma_s =
+    a sigma_t, Henyey-Greenstein phase g) Mitsuba renders single scattering (max_depth
+    2: the camera ray's first interaction, on the wall or in the water, lit by the
+    spot) and lightcal the same medium with beta = sigma_s pi / albedo of the wall."""
     import mitsuba as mi
 
     from lightcal.core.camera import Camera
@@ -90,7 +100,8 @@ def render_in_water(
     R_cw = view.R_camera_world
     light = Light(rid, R_cw @ (light_world - view.center_world), R_cw @ R_world_light, scale=1.0)
     rig = Rig.single(light)
-    medium = Medium(attenuation_per_m)
+    sigma_s = scattering_albedo * attenuation_per_m
+    medium = Medium(attenuation_per_m, sigma_s * math.pi / ALBEDO, phase_g)
     ours = render_image(camera, view, rig, medium=medium).filled(np.nan)
 
     pixels = np.stack(np.meshgrid(np.arange(width), np.arange(height)), -1).reshape(-1, 2)
@@ -105,7 +116,12 @@ def render_in_water(
         {
             "type": "scene",
             "integrator": {"type": "volpath", "max_depth": 2},
-            "water": {"type": "homogeneous", "sigma_t": attenuation_per_m, "albedo": 0.0},
+            "water": {
+                "type": "homogeneous",
+                "sigma_t": attenuation_per_m,
+                "albedo": scattering_albedo,
+                "phase": {"type": "hg", "g": phase_g},
+            },
             "sensor": {
                 "type": "perspective",
                 "fov": math.degrees(2.0 * math.atan(width / 2 / fx)),

@@ -315,7 +315,18 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
         "medium parameter unknown",
         _set("medium", {"estimate": ["scattering"]}),
-        "medium.estimate[0]: Input should be 'attenuation_per_m'",
+        "medium.estimate[0]: Input should be 'attenuation_per_m' or 'backscatter_per_m'",
+    ),
+    (
+        "medium phase g beyond 0.99",
+        _set("medium", {"backscatter_per_m": 0.5, "phase_g": 1.5}),
+        "medium.phase_g: Input should be less than or equal to 0.99",
+    ),
+    (
+        "medium backscatter with the cos4 sensor model",
+        lambda p: (_set("sensor.model", "cos4")(p), _set("medium", {"backscatter_per_m": 0.5})(p)),
+        "medium.backscatter_per_m: the backscatter is modelled for sensor.model radiance; "
+        "got 'cos4'",
     ),
     (
         "medium parameter twice",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from lightcal.errors import InputError
 
@@ -67,6 +67,8 @@ OPTIONS = {
     "bow_m": "--bow-mm",
     "albedo_texture_amplitude": "--albedo-texture",
     "attenuation_per_m": "--attenuation",
+    "backscatter_per_m": "--backscatter",
+    "phase_g": "--phase-g",
     "medium": "--declare-medium",
 }
 
@@ -159,11 +161,28 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m (0)",
     )
     g.add_argument(
+        "--backscatter",
+        type=float,
+        default=0.0,
+        metavar="BETA",
+        help="the water scatters the beam back: each pixel gains BETA x the single-"
+        "scattering integral along its ray (attenuated by --attenuation), BETA in 1/m; "
+        "--sensor radiance only (0)",
+    )
+    g.add_argument(
+        "--phase-g",
+        type=float,
+        default=0.9,
+        metavar="G",
+        help="the Henyey-Greenstein asymmetry of --backscatter's scattering (0.9)",
+    )
+    g.add_argument(
         "--declare-medium",
         choices=("given", "estimated"),
         default=None,
-        help="the project declares the water of --attenuation: given (its true C) or "
-        "estimated (from 0, with the light); truth.json still records C (none)",
+        help="the project declares the water of --attenuation and --backscatter: given "
+        "(their true values) or estimated (from 0, with the light; --phase-g given); "
+        "truth.json still records them (none)",
     )
 
 
@@ -205,6 +224,8 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             bow_m=args.bow_mm / 1000.0,
             albedo_texture_amplitude=args.albedo_texture,
             attenuation_per_m=args.attenuation,
+            backscatter_per_m=args.backscatter,
+            phase_g=args.phase_g,
         )
     )
 
@@ -215,10 +236,19 @@ def declared_medium(args: argparse.Namespace) -> MediumSpec:
 
     if args.declare_medium is None:
         return MediumSpec()
+    g = args.phase_g
     if args.declare_medium == "estimated":
-        return MediumSpec(attenuation_per_m=0.0, estimate=["attenuation_per_m"])
-    if not args.attenuation > 0.0:
+        names: list[Any] = ["attenuation_per_m"]
+        if args.backscatter > 0.0:
+            names.append("backscatter_per_m")
+        return build(lambda: MediumSpec(phase_g=g, estimate=names))
+    if not (args.attenuation > 0.0 or args.backscatter > 0.0):
         raise InputError(
-            "--declare-medium", "given: expected --attenuation C > 0 (the medium to declare)"
+            "--declare-medium",
+            "given: expected --attenuation C > 0 or --backscatter BETA > 0 (the medium to declare)",
         )
-    return build(lambda: MediumSpec(attenuation_per_m=args.attenuation))
+    return build(
+        lambda: MediumSpec(
+            attenuation_per_m=args.attenuation, backscatter_per_m=args.backscatter, phase_g=g
+        )
+    )

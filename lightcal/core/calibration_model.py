@@ -302,7 +302,8 @@ class CalibrationModel:
         wall_grad = None
         if not wall.is_lambertian:
             wall_grad = np.empty((N, len(wall.parameter_names)))
-        medium_grad = np.empty(N) if lay.medium.stop > lay.medium.start else None
+        medium_idx = lay.medium_unknown.indices
+        medium_grad = np.empty((N, max(medium_idx) + 1)) if medium_idx else None
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -337,7 +338,7 @@ class CalibrationModel:
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
             if medium_grad is not None:
-                A[:, lay.medium.start] += value_per_flux * medium_grad
+                A[:, lay.medium] += value_per_flux * medium_grad[:, medium_idx]
         stats = sk.finish_rows(
             A,
             total,

@@ -31,11 +31,12 @@ from lightcal.core.footprint import (
     check_vignetting,
     pixel_footprints,
 )
+from lightcal.core.kernels.backscatter import add_scatter_image
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.image import render_image_fused
 from lightcal.core.kernels.medium import attenuate_image
 from lightcal.core.kernels.wall import apply_wall
-from lightcal.core.medium import AIR, Medium, apply_medium
+from lightcal.core.medium import AIR, Medium, apply_medium, scatter_grid, scatter_nodes
 from lightcal.core.rid_stack import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
@@ -45,6 +46,15 @@ def _check_subsamples(rid_subsamples: int) -> int:
     if not (isinstance(rid_subsamples, int | np.integer) and rid_subsamples >= 1):
         raise ValueError(f"rid_subsamples: expected an integer >= 1, got {rid_subsamples!r}")
     return int(rid_subsamples)
+
+
+def _check_scatter_sensor(medium: Medium, sensor: str) -> None:
+    """The backscatter is a radiance: rendered for the `radiance` sensor model only."""
+    if medium.scatters and sensor != "radiance":
+        raise ValueError(
+            f"medium: backscatter_per_m: the backscatter is rendered for the radiance "
+            f"sensor model; got {sensor!r}"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,8 +68,9 @@ class Shading:
         grad_rotation: (L, N, 3) d value / d delta, delta a left rotation perturbation of
             R_camera_light in the camera frame (R -> exp(delta) R), or None.
         grad_wall: (N, P) d value / d (the wall model's parameters), or None.
-        grad_medium: (N, 1) d value / d (the medium's attenuation coefficient, 1/m), or
-            None.
+        grad_medium: (N, 2) d value / d (the medium's attenuation and backscatter
+            coefficients, 1/m) in a medium that scatters, (N, 1) d value / d c in one
+            that does not, or None (without gradients, or in air).
     """
 
     values: np.ma.MaskedArray
@@ -106,8 +117,9 @@ def light_flux(
         wall_grad_out: (N, P) array receiving d flux / d (wall parameters) when want_grad
             (P the model's parameter count); ignored for a Lambertian wall.
         medium: the medium between the rig and the wall.
-        medium_grad_out: (N,) array receiving d flux / d c (the medium's attenuation
-            coefficient) when want_grad; ignored for air.
+        medium_grad_out: with want_grad, (N, 1) receiving d flux / d c (the medium's
+            attenuation coefficient) or (N, 2) d flux / d (c, beta) (its backscatter);
+            computed in air too.
 
     Returns:
         flux: (N,) exposure * sum_k weight_k Phi_k / I0; 0 where the footprint is invalid
@@ -156,16 +168,19 @@ def light_flux(
     if not wall.is_lambertian:
         _apply_wall(footprints, view, L_world, wall, flux, grad, wall_grad_out)
     if not medium.is_clear or (grad is not None and medium_grad_out is not None):
-        # At c = 0 (T = 1 exactly: the values unchanged) only for d flux / d c.
+        # In air (T = 1 exactly: the values unchanged) only for the derivatives.
         apply_medium(
             footprints.centers_world,
             L_world,
+            R_world_light,
+            light.rid.data(),
             view.center_world,
             medium,
             flux,
             grad,
+            exposure=view.exposure,
             extra_grads=None if wall.is_lambertian else wall_grad_out,
-            d_attenuation_out=medium_grad_out if grad is not None else None,
+            d_medium_out=medium_grad_out if grad is not None else None,
         )
     return flux, grad
 
@@ -239,8 +254,11 @@ def shade(
     grot = np.zeros((n_l, n, 3)) if want_grad else None
     gwall = np.zeros((n, n_p)) if want_grad else None
     wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
-    gmedium = np.zeros((n, 1)) if want_grad else None
-    medium_grad = np.zeros(n) if want_grad else None
+    # d/dbeta only where the medium scatters (at beta = 0 it costs the scattering integral).
+    gmedium = None
+    if want_grad and not medium.is_clear:
+        gmedium = np.zeros((n, 2 if medium.scatters else 1))
+    medium_grad = np.zeros_like(gmedium) if gmedium is not None else None
     R = view.R_camera_world
     for i, light in enumerate(rig.lights):
         flux[i], grad = light_flux(
@@ -262,7 +280,7 @@ def shade(
         if wall_grad is not None and gwall is not None:
             gwall += light.scale * wall_grad
         if medium_grad is not None and gmedium is not None:
-            gmedium[:, 0] += light.scale * medium_grad
+            gmedium += light.scale * medium_grad
     scales = np.array([light.scale for light in rig.lights])
     total = offset + scales @ flux
     values = np.ma.masked_array(np.where(footprints.valid, total, np.nan), mask=~footprints.valid)
@@ -301,6 +319,7 @@ def render_pixels(
     Returns:
         (N,) masked array of values, masked where the footprint is invalid.
     """
+    _check_scatter_sensor(medium, sensor)
     fp = pixel_footprints(
         camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
     )
@@ -334,6 +353,7 @@ def render_image(
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     n_sub = _check_subsamples(rid_subsamples)
+    _check_scatter_sensor(medium, sensor)
     b = int(binning)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
     # Lights on or behind the wall illuminate nothing in this view.
@@ -364,7 +384,9 @@ def _render_in_medium(
     medium: Medium,
 ) -> tuple[np.ndarray, np.ndarray]:
     """`_render_fused` with each light's value times its transmittance T at the
-    footprint centres (`attenuate_image`): one fused pass per light, whose T differs."""
+    footprint centres (`attenuate_image`): one fused pass per light, whose T differs;
+    then each light's backscatter along the rays to those centres (`add_scatter_image`,
+    exact on the nodes of `scatter_grid`, interpolated between them)."""
     grid_xy, grid_ok = GRID_CACHE.get(camera)
     view_args = (
         grid_xy,
@@ -380,6 +402,24 @@ def _render_in_medium(
         for k in range(1, len(lit)):
             out, _ = _render_fused(camera, view, lit[k : k + 1], sensor, vmap, b, n_sub, 0.0, wall)
             attenuate_image(*view_args, lit[k][1], c, out, total, True, 0.0)
+        if medium.scatters:
+            nodes, weights = scatter_nodes()
+            node_rows, node_cols = scatter_grid(total.shape)
+            for light, L_world, R_world_light in lit:
+                add_scatter_image(
+                    *view_args,
+                    L_world,
+                    np.ascontiguousarray(R_world_light),
+                    light.rid.data(),
+                    c,
+                    medium.phase_g,
+                    nodes,
+                    weights,
+                    light.scale * view.exposure * medium.backscatter_per_m,
+                    node_rows,
+                    node_cols,
+                    total,
+                )
     return total, invalid
 
 

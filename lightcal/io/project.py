@@ -354,7 +354,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         build_wall(spec.wall, source),
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
-        build_medium(spec.medium),
+        build_medium(spec.medium, spec.sensor.model, source),
     )
 
 

@@ -54,12 +54,18 @@ def light_lines(light: LightResult) -> list[str]:
 
 
 def medium_text(medium: dict) -> str | None:
-    """The medium in words ("medium: attenuation 0.301 ± 0.004 /m (estimated)"), or None
-    in air with nothing estimated."""
-    c = float(medium.get("attenuation_per_m", 0.0))
-    estimated = "attenuation_per_m" in medium.get("estimated", [])
-    if c == 0.0 and not estimated:
-        return None
-    s = medium.get("sigma", {}).get("attenuation_per_m")
-    sigma = f" ± {sigma_text(math.nan if s is None else s)}" if estimated else ""
-    return f"medium: attenuation {c:.4g}{sigma} /m ({'estimated' if estimated else 'given'})"
+    """The medium in words ("medium: attenuation 0.301 ± 0.004 /m (estimated), backscatter
+    0.5 /m (given, g 0.9)"), or None in air with nothing estimated."""
+    estimated = medium.get("estimated", [])
+    parts = []
+    for name, label in (("attenuation_per_m", "attenuation"), ("backscatter_per_m", "backscatter")):
+        v = float(medium.get(name, 0.0))
+        if v == 0.0 and name not in estimated:
+            continue
+        s = medium.get("sigma", {}).get(name)
+        sigma = f" ± {sigma_text(math.nan if s is None else s)}" if name in estimated else ""
+        how = "estimated" if name in estimated else "given"
+        if name == "backscatter_per_m":
+            how += f", g {float(medium.get('phase_g', 0.9)):.3g}"
+        parts.append(f"{label} {v:.4g}{sigma} /m ({how})")
+    return "medium: " + ", ".join(parts) if parts else None

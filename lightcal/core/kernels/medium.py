@@ -160,7 +160,7 @@ def apply_attenuation(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _corner_row(
+def corner_row(
     grid_xy: np.ndarray,
     grid_ok: np.ndarray,
     j: int,
@@ -171,6 +171,46 @@ def _corner_row(
     """Wall points (px, py) of corner row j (`wall_point`; (0, 0) where it misses)."""
     for u in range(px.shape[0]):
         px[u], py[u], _ = wall_point(grid_xy[j, u, 0], grid_xy[j, u, 1], grid_ok[j, u], view, False)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def centre_sums_row(
+    grid_xy: np.ndarray,
+    grid_ok: np.ndarray,
+    view: tuple[float, ...],
+    r: int,
+    b: int,
+    rows_x: np.ndarray,
+    rows_y: np.ndarray,
+    top: int,
+    sx: np.ndarray,
+    sy: np.ndarray,
+) -> int:
+    """Sums sx, sy (W // b,) of the wall points of the 4 corners of each pixel of the b x b
+    super-pixels of row r (divide by 4 b^2 for the footprint centres), rows_x / rows_y
+    (2, W + 1) holding the corner rows, row `top` the upper one (computed by the caller
+    for the first row); returns the new `top`."""
+    w = rows_x.shape[1] - 1
+    wb = sx.shape[0]
+    for jj in range(b):
+        tx, ty = rows_x[top], rows_y[top]
+        bx, by = rows_x[1 - top], rows_y[1 - top]
+        corner_row(grid_xy, grid_ok, r * b + jj + 1, view, bx, by)
+        top = 1 - top
+        if b == 1:
+            for u in range(w):
+                sx[u] = (tx[u] + tx[u + 1]) + (bx[u] + bx[u + 1])
+                sy[u] = (ty[u] + ty[u + 1]) + (by[u] + by[u + 1])
+            continue
+        if jj == 0:
+            sx[:] = 0.0
+            sy[:] = 0.0
+        for col in range(wb):
+            for ii in range(b):
+                u = col * b + ii
+                sx[col] += (tx[u] + tx[u + 1]) + (bx[u] + bx[u + 1])
+                sy[col] += (ty[u] + ty[u + 1]) + (by[u] + by[u + 1])
+    return top
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
@@ -222,26 +262,9 @@ def attenuate_image(
         exponent = np.empty(wb)  # -c path, then T
         r_begin = ch * hb // n_chunks
         top = 0  # the row of rows_x / rows_y holding the upper corner row
-        _corner_row(grid_xy, grid_ok, r_begin * b, view, rows_x[0], rows_y[0])
+        corner_row(grid_xy, grid_ok, r_begin * b, view, rows_x[0], rows_y[0])
         for r in range(r_begin, (ch + 1) * hb // n_chunks):
-            for jj in range(b):
-                tx, ty = rows_x[top], rows_y[top]
-                bx, by = rows_x[1 - top], rows_y[1 - top]
-                _corner_row(grid_xy, grid_ok, r * b + jj + 1, view, bx, by)
-                top = 1 - top
-                if b == 1:
-                    for u in range(w):
-                        sx[u] = (tx[u] + tx[u + 1]) + (bx[u] + bx[u + 1])
-                        sy[u] = (ty[u] + ty[u + 1]) + (by[u] + by[u + 1])
-                    continue
-                if jj == 0:
-                    sx[:] = 0.0
-                    sy[:] = 0.0
-                for col in range(wb):
-                    for ii in range(b):
-                        u = col * b + ii
-                        sx[col] += (tx[u] + tx[u + 1]) + (bx[u] + bx[u + 1])
-                        sy[col] += (ty[u] + ty[u + 1]) + (by[u] + by[u + 1])
+            top = centre_sums_row(grid_xy, grid_ok, view, r, b, rows_x, rows_y, top, sx, sy)
             # Three loops, each vectorised (one loop with exp inline is not).
             for col in range(wb):
                 mx = sx[col] * norm
