@@ -64,6 +64,7 @@ class Family:
 # Beyond the kinds of light and wall, numba compiles a kernel once per combination of
 # argument types (read-only arrays count), and the large problems run parallel twins of
 # the small ones' kernels: sparse and dense selections, small and large images, both.
+_WATER = ["attenuation_per_m", "backscatter_per_m"]
 _DENSE = (200, 150)  # 30,000 pixels: above every kernel's parallel threshold (20,000)
 FAMILIES: tuple[Family, ...] = (
     Family("sparse pixels, cos^m, solver"),
@@ -90,11 +91,10 @@ FAMILIES: tuple[Family, ...] = (
         selection={"strategy": "all", "binning": 1},
     ),
     Family("wall models: Oren-Nayar", wall={"model": "oren_nayar", "estimate": ["sigma_deg"]}),
-    # The medium's kernels: per pixel, serial and parallel, and on whole images (report).
     Family(
-        "water (the medium)",
+        "water (the medium: per pixel, serial and parallel, and whole images)",
         size=_DENSE,
-        medium={"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]},
+        medium={"attenuation_per_m": 0.2, "backscatter_per_m": 0.3, "estimate": _WATER},
         selection={"strategy": "all", "binning": 1},
         report=True,
     ),
