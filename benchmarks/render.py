@@ -15,6 +15,9 @@ tracemalloc) belongs to that measurement alone:
 - pixels: `render_pixels` of N random pixels of that camera (cold: first call; warm:
   best of several), and `shade` with the footprints precomputed, as the solver calls it,
   without and with the gradients;
+- medium: the full frame and `shade` with gradients in air and in water (one light,
+  c = 0.3 /m), and their ratio (the issue's target: within 2x); the full frame with
+  backscatter too (beta = 0.6 /m, g = 0.8);
 - baseline: `lightcal.core.render_reference`, the plain vectorised NumPy implementation
   of the same model, timed on a subset (a band of rows, or a random subset of the pixels)
   and scaled to the full count: the printout says which.
@@ -284,8 +287,38 @@ def measure_mitsuba(width: int, height: int, spp: int) -> dict[str, Any]:
     }
 
 
+def measure_medium(width: int, height: int, n: int, repeats: int) -> dict[str, Any]:
+    """In air and in water (c = 0.3 /m, `lightcal.core.medium`): the full frame warm
+    (`render_image`, also with backscatter) and `shade` with gradients of n pixels (the
+    solver's call), each the best of `repeats` interleaved runs (so a load change hits
+    all alike)."""
+    from lightcal.core import render
+    from lightcal.core.medium import Medium
+
+    _warm_kernels()
+    camera, view, rig = make_scene(width, height, "cos_power")
+    water = Medium(0.3)
+    murky = Medium(0.3, 0.6, 0.8)  # with backscatter
+    fp = render.pixel_footprints(camera, view, random_pixels(width, height, n))
+    calls = {
+        "image_air_s": lambda: render.render_image(camera, view, rig),
+        "image_water_s": lambda: render.render_image(camera, view, rig, medium=water),
+        "image_murky_s": lambda: render.render_image(camera, view, rig, medium=murky),
+        "shade_air_s": lambda: render.shade(fp, view, rig, want_grad=True),
+        "shade_water_s": lambda: render.shade(fp, view, rig, want_grad=True, medium=water),
+    }
+    for call in calls.values():
+        call()  # the medium's kernels loaded
+    best = dict.fromkeys(calls, math.inf)
+    for _ in range(repeats):
+        for name, call in calls.items():
+            best[name] = min(best[name], _timed(call)[0])
+    return {**best, "pixels": n, "peak_mb": peak_rss_mb()}
+
+
 MEASURES: dict[str, Callable[..., dict[str, Any]]] = {
     "mitsuba": measure_mitsuba,
+    "medium": measure_medium,
     "compile": measure_compile,
     "image": measure_image,
     "pixels": measure_pixels,
@@ -484,6 +517,18 @@ def main(argv: list[str] | None = None) -> int:
             )
     print()
     print_table(rows)
+    med = run_measure("medium", width, height, counts[-1], repeats)
+    print()
+    print(
+        f"medium (water, c = 0.3 /m) against air, cos_power: full frame {width} x {height} "
+        f"warm {med['image_air_s']:.3f} s in air, {med['image_water_s']:.3f} s in water "
+        f"({med['image_water_s'] / med['image_air_s']:.2f}x), {med['image_murky_s']:.3f} s "
+        f"with backscatter ({med['image_murky_s'] / med['image_air_s']:.1f}x: 24 nodes a "
+        f"pixel); shade with gradients of "
+        f"{med['pixels']:,} pixels {med['shade_air_s']:.3f} s in air, "
+        f"{med['shade_water_s']:.3f} s in water "
+        f"({med['shade_water_s'] / med['shade_air_s']:.2f}x; target: within 2x)"
+    )
     if importlib.util.find_spec("mitsuba") is not None:
         # An independent renderer as a peer: the same image, the same light.
         mw, mh = (240, 180) if args.quick else (960, 720)

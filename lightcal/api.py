@@ -166,6 +166,7 @@ def render(
     gain, the offset and the fitted wall of the result."""
     import numpy as np
 
+    from lightcal.core.medium import medium_from_description
     from lightcal.core.scene import Light, Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
@@ -187,6 +188,10 @@ def render(
         wall = wall_from_description(file.wall)
     except ValueError as exc:
         raise InputError(source, f"wall: {exc}") from exc
+    try:
+        medium = medium_from_description(file.medium)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from exc
     gains = {im.name: im.gain for im in file.images}
     ensure_compiled(notify)
     loaded = load_images(project, progress=progress)
@@ -198,6 +203,7 @@ def render(
         offset=file.offset,
         progress=progress,
         wall=wall,
+        medium=medium,
     )
 
 

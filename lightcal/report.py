@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
@@ -37,7 +38,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
-from lightcal.pipeline.result_text import axis_text, position_text
+from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
 
 FIGURE_THREADS = min(2, os.cpu_count() or 1)
@@ -53,8 +54,10 @@ def render_views(
     offset: float = 0.0,
     progress: ProgressFn | None = None,
     wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
 ) -> list[np.ma.MaskedArray]:
-    """Render every project image with `rig` on `wall`: (H, W) masked arrays."""
+    """Render every project image with `rig` on `wall` through `medium`: (H, W) masked
+    arrays."""
     out = []
     n = len(project.views)
     for i, view in enumerate(project.views):
@@ -71,6 +74,7 @@ def render_views(
                 offset=offset,
                 rid_subsamples=project.solver.rid_subsamples,
                 wall=wall,
+                medium=medium,
             )
         )
     if progress is not None:
@@ -115,6 +119,7 @@ def write_report(
         offset=result.offset,
         progress=progress,
         wall=model.layout.wall_of(x),
+        medium=model.layout.medium_of(x),
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 
@@ -274,6 +279,9 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         f"- wall: {markdown_text(wall.get('model', 'lambertian'))}"
         + (f" ({params})" if params else "")
     )
+    medium = medium_text(result.medium)
+    if medium is not None:
+        lines.append(f"- {medium}")
     fit = result.fit
     if fit:
         if not fit["adequate"]:

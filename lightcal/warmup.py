@@ -54,6 +54,7 @@ class Family:
     light_model: str = "cos_power"
     n_lights: int = 1
     wall: dict[str, Any] | None = None
+    medium: dict[str, Any] | None = None
     selection: dict[str, Any] | None = None
     report: bool = False
     parallel: bool = False  # every flux call on the thread pool, however small
@@ -63,6 +64,7 @@ class Family:
 # Beyond the kinds of light and wall, numba compiles a kernel once per combination of
 # argument types (read-only arrays count), and the large problems run parallel twins of
 # the small ones' kernels: sparse and dense selections, small and large images, both.
+_WATER = ["attenuation_per_m", "backscatter_per_m"]
 _DENSE = (200, 150)  # 30,000 pixels: above every kernel's parallel threshold (20,000)
 FAMILIES: tuple[Family, ...] = (
     Family("sparse pixels, cos^m, solver"),
@@ -89,6 +91,13 @@ FAMILIES: tuple[Family, ...] = (
         selection={"strategy": "all", "binning": 1},
     ),
     Family("wall models: Oren-Nayar", wall={"model": "oren_nayar", "estimate": ["sigma_deg"]}),
+    Family(
+        "water (the medium: per pixel, serial and parallel, and whole images)",
+        size=_DENSE,
+        medium={"attenuation_per_m": 0.2, "backscatter_per_m": 0.3, "estimate": _WATER},
+        selection={"strategy": "all", "binning": 1},
+        report=True,
+    ),
 )
 
 
@@ -206,6 +215,8 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     project["selection"] = family.selection or {"strategy": "random", "n_per_image": 120}
     if family.wall is not None:
         project["wall"] = family.wall
+    if family.medium is not None:
+        project["medium"] = family.medium
     if not family.noise_model:
         project["sensor"].pop("noise", None)
     dataset.project_path.write_text(json.dumps(project), encoding="utf-8")

@@ -27,6 +27,7 @@ import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.pose import axis_from_angles, rotation_from_axis
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.render import render_image, shade
@@ -143,6 +144,7 @@ def observe(
     noise_model: bool = False,
     wall: WallReflectance = LAMBERTIAN,
     measured_camera: Camera | None = None,
+    medium: Medium = AIR,
 ) -> list[ImageData]:
     """Random lit pixels of each view, as the solver sees them.
 
@@ -162,6 +164,7 @@ def observe(
         wall: the true wall's reflectance.
         measured_camera: the intrinsics the solver is told (intrinsics error); default
             `camera`.
+        medium: the true medium between the rig and the wall.
 
     Returns:
         One `ImageData` per view with all-valid footprints built from `measured_views`
@@ -179,7 +182,7 @@ def observe(
         pix = pix[rng.permutation(len(pix))]
         fp_true = pixel_footprints(camera, view, pix)
         fp_told = pixel_footprints(told_camera, told_view, pix)
-        values = shade(fp_true, view, rig, wall=wall).values.filled(np.nan)
+        values = shade(fp_true, view, rig, wall=wall, medium=medium).values.filled(np.nan)
         ok = fp_true.valid & fp_told.valid & np.isfinite(values)
         peak = float(np.nanmax(np.where(ok, values, np.nan))) if ok.any() else 0.0
         ok &= values > min_fraction * peak

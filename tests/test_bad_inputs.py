@@ -298,6 +298,47 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "wall: the lambertian wall takes no parameters and estimates none",
     ),
     (
+        "medium attenuation negative",
+        _set("medium", {"attenuation_per_m": -0.1}),
+        "medium.attenuation_per_m: Input should be greater than or equal to 0",
+    ),
+    (
+        "medium attenuation NaN",
+        _set("medium", {"attenuation_per_m": math.nan}),
+        "medium.attenuation_per_m: Input should be a finite number",
+    ),
+    (
+        "medium attenuation beyond the bound",
+        _set("medium", {"attenuation_per_m": 20}),
+        "medium.attenuation_per_m: Input should be less than or equal to 10",
+    ),
+    (
+        "medium parameter unknown",
+        _set("medium", {"estimate": ["scattering"]}),
+        "medium.estimate[0]: Input should be 'attenuation_per_m' or 'backscatter_per_m'",
+    ),
+    (
+        "medium phase g beyond 0.99",
+        _set("medium", {"backscatter_per_m": 0.5, "phase_g": 1.5}),
+        "medium.phase_g: Input should be less than or equal to 0.99",
+    ),
+    (
+        "medium backscatter with the cos4 sensor model",
+        lambda p: (_set("sensor.model", "cos4")(p), _set("medium", {"backscatter_per_m": 0.5})(p)),
+        "medium.backscatter_per_m: the backscatter is modelled for sensor.model radiance; "
+        "got 'cos4'",
+    ),
+    (
+        "medium parameter twice",
+        _set("medium", {"estimate": ["attenuation_per_m", "attenuation_per_m"]}),
+        "medium.estimate: expected each parameter once",
+    ),
+    (
+        "medium key unknown",
+        _set("medium", {"attenuation": 0.2}),
+        "medium.attenuation: Extra inputs are not permitted",
+    ),
+    (
         "camera file missing",
         _set("camera.path", "nope.yaml"),
         "camera.path: camera file not found: {folder}/nope.yaml",

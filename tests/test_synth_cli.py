@@ -129,6 +129,11 @@ ARGUMENT_ERRORS = [
     (["--pose-noise-mm", "-1"], "--pose-noise-mm: expected a value >= 0, got -1"),
     (["--half-angle-deg", "95"], "--half-angle-deg: expected a value in (0, 85) degrees, "
      "got 95.0"),
+    (["--declare-medium", "given"], "--declare-medium: given: expected --attenuation C > 0 "
+     "or --backscatter BETA > 0 (the medium to declare)"),
+    (["--backscatter", "0.5", "--sensor", "cos4"], "--backscatter: applies to the radiance "
+     "sensor model only, got 'cos4'"),
+    (["--phase-g", "1.5"], "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),
 ]  # fmt: skip
 
 
@@ -138,3 +143,42 @@ def test_synth_argument_errors(tmp_path: Path, capsys, args: list[str], message:
     assert main(["synth", str(out), *SMALL, *args]) == 2
     assert capsys.readouterr().err == f"lightcal synth: error: {message}\n"
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("declare", "expected"),
+    [
+        ([], {"attenuation_per_m": 0.0, "backscatter_per_m": 0.0, "estimate": []}),
+        (
+            ["--declare-medium", "given"],
+            {"attenuation_per_m": 0.25, "backscatter_per_m": 0.5, "estimate": []},
+        ),
+        (
+            ["--declare-medium", "estimated"],
+            {
+                "attenuation_per_m": 0.0,
+                "backscatter_per_m": 0.0,
+                "estimate": ["attenuation_per_m", "backscatter_per_m"],
+            },
+        ),
+    ],
+)
+def test_synth_declares_the_medium_when_asked(tmp_path: Path, declare: list[str], expected):
+    """`--attenuation` and `--backscatter` alone are departures (the project says air);
+    `--declare-medium` makes the project model the water, given or estimated (g given);
+    truth.json records both."""
+    out = tmp_path / "ds"
+    water = ["--attenuation", "0.25", "--backscatter", "0.5", "--phase-g", "0.7"]
+    assert main(["synth", str(out), *SMALL, *water, *declare, "--quiet"]) == 0
+    doc = json.loads((out / "project.json").read_text())
+    assert {k: doc["medium"][k] for k in expected} == expected
+    assert doc["medium"]["phase_g"] == (0.7 if declare else 0.9)
+    project = load_project(out / "project.json")
+    medium = project.medium.initial
+    assert medium.attenuation_per_m == expected["attenuation_per_m"]
+    assert medium.backscatter_per_m == expected["backscatter_per_m"]
+    assert project.medium.estimate == tuple(expected["estimate"])
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["departures"]["attenuation"]["coefficient_per_m"] == 0.25
+    assert truth["departures"]["backscatter"]["beta_per_m"] == 0.5
+    assert truth["departures"]["backscatter"]["phase_g"] == 0.7

@@ -202,6 +202,38 @@ def test_attenuation_applies_each_light_its_own_distance(tmp_path: Path):
     assert np.all(np.abs(image(departed, 0) - expected)[ok] <= 0.5 + 1e-6)
 
 
+def test_backscatter_adds_beta_times_the_ray_integral(tmp_path: Path):
+    """Water that scatters: each pixel gains scale x exposure x beta x S over the same
+    water without backscatter, S the integral along the ray to the pixel centre's wall
+    point (here by adaptive quadrature, `tests/test_medium.py`)."""
+    from lightcal.core.medium import Medium
+    from tests.test_medium import _scatter_reference
+
+    c, beta, g = 0.3, 3.0, 0.5
+    clear = write_dataset(tmp_path / "clear", config(departures=Departures(attenuation_per_m=c)))
+    murky = write_dataset(
+        tmp_path / "murky",
+        config(departures=Departures(attenuation_per_m=c, backscatter_per_m=beta, phase_g=g)),
+    )
+    light, view = murky.rig.lights[0], murky.views[0]
+    points, _ = surface_points(murky.camera, view, BowedWall(0.0))
+    ok = valid(murky, 0)
+    rows, cols = np.nonzero(ok)
+    pick = np.arange(0, rows.size, max(1, rows.size // 40))
+    s = np.array(
+        [
+            _scatter_reference(points[r, q], view.center_world, light, view, Medium(c, beta, g))
+            for r, q in zip(rows[pick], cols[pick], strict=True)
+        ]
+    )
+    expected = light.scale * view.exposure * beta * s
+    gained = (image(murky, 0) - image(clear, 0))[rows[pick], cols[pick]]
+    assert expected.max() > 20.0  # a visible veil, DN
+    assert np.all(np.abs(gained - expected) <= 1.0)
+    truth = read_departures(read_truth(murky.truth_path))
+    assert truth["backscatter"]["beta_per_m"] == beta and truth["backscatter"]["phase_g"] == g
+
+
 # ----------------------------------------------------------------- undeclared vignetting
 
 
@@ -481,6 +513,7 @@ def test_every_departure_together_is_recorded_and_the_dataset_loads(tmp_path: Pa
         bow_m=-0.01,
         albedo_texture_amplitude=0.1,
         attenuation_per_m=0.1,
+        backscatter_per_m=0.2,
     )
     assert departures.names == DEPARTURE_NAMES
     cfg = config(sensor=SensorConfig(), departures=departures)
@@ -494,6 +527,7 @@ def test_every_departure_together_is_recorded_and_the_dataset_loads(tmp_path: Pa
     assert found["bow"]["shape"] == "bowl" and found["gamma"]["gamma"] == 1.8
     assert found["ambient"]["fraction"] == 0.05
     assert found["attenuation"]["coefficient_per_m"] == 0.1
+    assert found["backscatter"]["beta_per_m"] == 0.2 and found["backscatter"]["phase_g"] == 0.9
     json.dumps(truth)
     assert len(load_project(dataset.project_path).views) == 4
 
@@ -540,6 +574,7 @@ def test_cli_departure_options_reach_truth_json(tmp_path: Path, no_warmup: None)
         "synth", str(out), *SMALL, "--ambient", "0.1", "--undeclared-vignetting", "-0.3", "0.05",
         "--rid-rim", "0.25", "--gamma", "2.2", "--pose-error-mm", "2", "--pose-error-deg", "0.3",
         "--bow-mm", "15", "--albedo-texture", "0.2", "--attenuation", "0.05",
+        "--backscatter", "0.3", "--phase-g", "0.6",
     ]  # fmt: skip
     assert main(argv) == 0
     found = read_departures(json.loads((out / "truth.json").read_text()))
@@ -554,6 +589,11 @@ def test_cli_departure_options_reach_truth_json(tmp_path: Path, no_warmup: None)
     assert found["bow"]["depth_mm"] == pytest.approx(15.0)
     assert found["albedo_texture"]["amplitude"] == 0.2
     assert found["attenuation"]["coefficient_per_m"] == 0.05
+    assert found["backscatter"] == {
+        "beta_per_m": 0.3,
+        "phase_g": 0.6,
+        "formula": found["backscatter"]["formula"],
+    }
     project = load_project(out / "project.json")
     assert (
         project.spec.sensor.model == "radiance" and project.spec.lights[0].rid.type == "cos_power"

@@ -155,6 +155,7 @@ class OverlayImages:
             offset=0.0,
             rid_subsamples=self.project.solver.rid_subsamples,
             wall=display.wall,
+            medium=display.medium,
         )
         if sensor == "paper":
             # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.

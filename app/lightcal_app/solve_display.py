@@ -46,6 +46,7 @@ def estimate_display(
         setup_rev,
         model.layout.wall_of(x),
         fall_off,
+        model.layout.medium_of(x),
     )
 
 

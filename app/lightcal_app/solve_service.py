@@ -168,6 +168,7 @@ class SolveService:
             rev,
             project.wall.initial,
             project.spec.sensor.model,
+            project.medium.initial,
         )
         with st.lock:
             if st.session_gen == gen and st.solve_project is project:
@@ -187,7 +188,11 @@ class SolveService:
         if not datas:
             return None
         model = CalibrationModel(
-            datas, self._lights(project, guess, datas), project.solver, project.wall
+            datas,
+            self._lights(project, guess, datas),
+            project.solver,
+            project.wall,
+            project.medium,
         )
         return model, index
 

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from lightcal.core.footprint import SensorModel
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.scene import Rig
 from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
@@ -177,6 +178,8 @@ class Display:
             plastic wall `auto` chose renders its highlight).
         fall_off: the camera's fall-off model they render with (`sensor.model` of the
             project solved); None: the loaded project's.
+        medium: the medium between the rig and the wall they render through (the
+            estimate's when its attenuation is estimated).
     """
 
     rig: Rig
@@ -186,6 +189,7 @@ class Display:
     setup_rev: int
     wall: WallReflectance = LAMBERTIAN
     fall_off: SensorModel | None = None
+    medium: Medium = AIR
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.pipeline import build_model, calibrate, load_images
     from lightcal.pipeline.auto_start import auto_initial_lines, with_auto_initial
     from lightcal.pipeline.load import prepare_solve
-    from lightcal.pipeline.result_text import light_lines
+    from lightcal.pipeline.result_text import light_lines, medium_text
     from lightcal.pipeline.results import stop_reason
     from lightcal.pipeline.solve import start_words
 
@@ -127,6 +127,9 @@ def run(args: argparse.Namespace) -> int:
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         output.print(f"wall: {result.wall['model']} ({params})", highlight=False)
+    medium = medium_text(result.medium)
+    if medium is not None:
+        output.print(medium, highlight=False)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"

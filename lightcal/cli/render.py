@@ -25,6 +25,7 @@ def run(args: argparse.Namespace) -> int:
     import tifffile
 
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
+    from lightcal.core.medium import medium_from_description
     from lightcal.core.scene import Light, Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.errors import InputError
@@ -66,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
+    try:
+        medium = medium_from_description(result.medium)
+    except ValueError as exc:
+        raise InputError(args.result, str(exc)) from exc
     # Before any work: --out holds no input of the project, and no render replaces the
     # result file (even with --force).
     check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
@@ -91,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
             offset=result.offset,
             progress=progress,
             wall=wall,
+            medium=medium,
         )
     for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)

@@ -29,6 +29,10 @@ what the project declares in one everyday way, each recorded in truth.json under
 - `--attenuation C`: a medium (clear water): each value is multiplied by
   exp(-C (d_light + d_camera)), C in 1/m.
 
+`--declare-medium given|estimated` makes the project declare that water (`medium:` with
+the true C, or estimated from 0): data whose project models the medium
+(`lightcal/cli/synth_options.py`).
+
 `--real-world`: photos as a user's camera gives them and no project
 (`lightcal.cli.synth_real_world`).
 
@@ -42,72 +46,24 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING
 
-from lightcal.cli.synth_departures import register_departures
+from lightcal.cli.synth_options import (
+    MAX_POSE_MM,
+    build,
+    declared_medium,
+    departures_of,
+    register_departures,
+)
 from lightcal.cli.synth_real_world import register_real_world
 from lightcal.errors import InputError
 from lightcal.synthetic.light_models import LIGHT_MODELS
 
 if TYPE_CHECKING:
     from lightcal.core.wall import WallReflectance
-    from lightcal.synthetic.departures import Departures
-
-T = TypeVar("T")
-
-MAX_POSE_MM = 100.0
-"""Largest --pose-noise-mm and --pose-error-mm."""
 
 DEFAULT_VIGNETTING = (-0.25, 0.05)
 """Radial fall-off of `--sensor map` without `--vignetting`: V = 0.8 in the corners."""
-
-# Configuration fields -> the options that set them, for error messages.
-_OPTIONS = {
-    "n_views": "--views",
-    "distance_range_m": "--distance",
-    "tilt_range_deg": "--tilt-deg",
-    "roll_range_deg": "--roll-deg",
-    "n_lights": "--lights",
-    "model": "--light",
-    "half_angle_deg": "--half-angle-deg",
-    "radius_range_m": "--light-radius-m",
-    "bit_depth": "--bit-depth",
-    "full_well_e": "--full-well-e",
-    "read_noise_e": "--read-noise-e",
-    "black_level_dn": "--black-level",
-    "exposure_target": "--exposure-target",
-    "vignetting_coeffs": "--vignetting",
-    "pose_noise_m": "--pose-noise-mm",
-    "pose_noise_deg": "--pose-noise-deg",
-    "init_offset_m": "--init-offset-m",
-    "init_offset_deg": "--init-offset-deg",
-    "seed": "--seed",
-    "K": "--fx/--fy/--cx/--cy",
-    "size": "--width/--height",
-    "fx": "--fx",
-    "fy": "--fy",
-    "cx": "--cx",
-    "cy": "--cy",
-    "roughness": "--roughness",
-    "ior": "--ior",
-    "albedo": "--albedo",
-    "sigma_deg": "--sigma-deg",
-    "wall": "--wall",
-    "dist": "--distortion",
-    "width": "--width",
-    "height": "--height",
-    "ambient_fraction": "--ambient",
-    "undeclared_vignetting": "--undeclared-vignetting",
-    "rid_rim_amplitude": "--rid-rim",
-    "gamma": "--gamma",
-    "pose_error_m": "--pose-error-mm",
-    "pose_error_deg": "--pose-error-deg",
-    "bow_m": "--bow-mm",
-    "albedo_texture_amplitude": "--albedo-texture",
-    "attenuation_per_m": "--attenuation",
-    "dark_frames": "--dark-frames",
-}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -231,56 +187,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run, synth_defaults=defaults)
 
 
-def _departures(args: argparse.Namespace, sensor_model: str) -> Departures:
-    """The departures of the options (millimetres checked before they become metres)."""
-    from lightcal.synthetic.departures import MAX_BOW_M, Departures
-
-    if not (math.isfinite(args.pose_error_mm) and args.pose_error_mm >= 0.0):
-        raise InputError(
-            "--pose-error-mm", f"expected a finite value >= 0, got {args.pose_error_mm:g}"
-        )
-    if args.pose_error_mm > MAX_POSE_MM:
-        raise InputError(
-            "--pose-error-mm", f"expected at most {MAX_POSE_MM:g} mm, got {args.pose_error_mm:g}"
-        )
-    limit_mm = MAX_BOW_M * 1000.0
-    if not (math.isfinite(args.bow_mm) and abs(args.bow_mm) <= limit_mm):
-        raise InputError(
-            "--bow-mm", f"expected a value within +-{limit_mm:g} mm, got {args.bow_mm:g}"
-        )
-    if args.undeclared_vignetting is not None and sensor_model != "radiance":
-        raise InputError(
-            "--undeclared-vignetting",
-            f"applies to --sensor radiance only, got --sensor {sensor_model}",
-        )
-    if args.rid_rim > 0.0 and args.light == "isotropic":
-        raise InputError(
-            "--rid-rim", "expected a light with a half-intensity angle, got --light isotropic"
-        )
-    vignetting = args.undeclared_vignetting
-    return _build(
-        lambda: Departures(
-            ambient_fraction=args.ambient,
-            undeclared_vignetting=None if vignetting is None else (vignetting[0], vignetting[1]),
-            rid_rim_amplitude=args.rid_rim,
-            gamma=args.gamma,
-            pose_error_m=args.pose_error_mm / 1000.0,
-            pose_error_deg=args.pose_error_deg,
-            bow_m=args.bow_mm / 1000.0,
-            albedo_texture_amplitude=args.albedo_texture,
-            attenuation_per_m=args.attenuation,
-        )
-    )
-
-
-def _build(make: Callable[[], T]) -> T:
-    """`make()`, with configuration errors renamed after the command-line option."""
-    try:
-        return make()
-    except InputError as exc:
-        raise InputError(_OPTIONS.get(exc.source, exc.source), exc.detail) from exc
-
-
 def _check_scene(args: argparse.Namespace) -> None:
     """The single-value scene options (SceneConfig takes them as ranges)."""
     from lightcal.synthetic.views import MAX_TILT_DEG
@@ -305,7 +211,7 @@ def _wall(args: argparse.Namespace) -> WallReflectance:
     from lightcal.synthetic.walls import WALL_PARAMETERS, true_wall
 
     names = [name for parameters in WALL_PARAMETERS.values() for name in parameters]
-    return _build(lambda: true_wall(args.wall, {name: getattr(args, name) for name in names}))
+    return build(lambda: true_wall(args.wall, {name: getattr(args, name) for name in names}))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -334,8 +240,8 @@ def run(args: argparse.Namespace) -> int:
         coeffs = tuple(args.vignetting) if args.vignetting is not None else DEFAULT_VIGNETTING
     if not args.out_dir.strip():
         raise InputError("OUT_DIR", f"expected the path of a dataset folder, got {args.out_dir!r}")
-    _build(lambda: check_image_size(args.width, args.height))
-    _build(
+    build(lambda: check_image_size(args.width, args.height))
+    build(
         lambda: check_intrinsics(
             args.width, args.height, fx=args.fx, fy=args.fy, cx=args.cx, cy=args.cy
         )
@@ -343,15 +249,16 @@ def run(args: argparse.Namespace) -> int:
     if not args.pose_noise_mm >= 0.0:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
     _check_scene(args)
-    departures = _departures(args, sensor_model)
+    departures = departures_of(args, sensor_model)
     if args.dark_frames and not args.ambient > 0.0:
         raise InputError(
             "--dark-frames",
             "expected room light to photograph (--ambient FRACTION > 0): without it a "
             "light-off photo is black",
         )
+    medium = declared_medium(args)
     fx = 0.9 * args.width if args.fx is None else args.fx
-    camera = _build(
+    camera = build(
         lambda: Camera.from_params(
             fx=fx,
             fy=fx if args.fy is None else args.fy,
@@ -362,8 +269,8 @@ def run(args: argparse.Namespace) -> int:
             dist=tuple(args.distortion),
         )
     )
-    _build(lambda: check_distortion(camera))
-    scene = _build(
+    build(lambda: check_distortion(camera))
+    scene = build(
         lambda: SceneConfig(
             n_views=args.views,
             distance_range_m=(args.distance[0], args.distance[1]),
@@ -371,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
             roll_range_deg=(-abs(args.roll_deg), abs(args.roll_deg)),
         )
     )
-    rig = _build(
+    rig = build(
         lambda: RigConfig(
             n_lights=args.lights,
             model=args.light,
@@ -379,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
             radius_range_m=(args.light_radius_m[0], args.light_radius_m[1]),
         )
     )
-    sensor = _build(
+    sensor = build(
         lambda: SensorConfig(
             bit_depth=args.bit_depth,
             full_well_e=args.full_well_e,
@@ -391,7 +298,7 @@ def run(args: argparse.Namespace) -> int:
             vignetting_coeffs=coeffs,
         )
     )
-    config = _build(
+    config = build(
         lambda: SynthConfig(
             camera=camera,
             scene=scene,
@@ -405,6 +312,7 @@ def run(args: argparse.Namespace) -> int:
             image_format=args.format,
             wall=_wall(args),
             departures=departures,
+            medium=medium,
             dark_frames=args.dark_frames,
         )
     )
@@ -420,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
     check_target(Path(args.out_dir), force=args.force)  # before compiling and rendering
     ensure_kernels(quiet=args.quiet)
     try:
-        dataset = _build(
+        dataset = build(
             lambda: write_dataset(
                 args.out_dir, config, force=args.force, progress=None if args.quiet else progress
             )

@@ -13,21 +13,24 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.light_bounds import parameter_bounds
+from lightcal.core.medium import Medium
 from lightcal.core.pose import axis_from_angles, axis_jacobian
 from lightcal.core.problem import (
     LOG_CLIP,
     ImageData,
     LightUnknown,
+    MediumUnknown,
     ParameterLayout,
     WallUnknown,
     poisson_gaussian_sigma,
+    with_curve_range,
 )
 from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import light_flux, shade
@@ -53,6 +56,8 @@ class CalibrationModel:
         options: solver options.
         wall: the wall's reflectance model and which of its parameters to estimate
             (default: a Lambertian wall).
+        medium: the medium between the rig and the wall and which of its parameters to
+            estimate (default: air).
     """
 
     def __init__(
@@ -61,13 +66,14 @@ class CalibrationModel:
         unknowns: list[LightUnknown],
         options: SolverOptions,
         wall: WallUnknown | None = None,
+        medium: MediumUnknown | None = None,
     ) -> None:
         if not images:
             raise ValueError("calibration: expected at least one image with selected pixels")
         if not unknowns:
             raise ValueError("calibration: expected at least one light")
         self.images = images
-        self.unknowns = [_with_curve_range(u, images) for u in unknowns]
+        self.unknowns = [with_curve_range(u, images) for u in unknowns]
         unknowns = self.unknowns
         self.options = options
         self.layout = ParameterLayout.build(
@@ -77,6 +83,7 @@ class CalibrationModel:
             estimate_offset=options.estimate_offset,
             offset0=options.offset,
             wall=wall,
+            medium=medium,
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -215,7 +222,12 @@ class CalibrationModel:
         rms = np.full(len(self.images), np.nan)
         lay = self.layout
         at_x = _StateAtX(
-            lay.rig(x), lay.gain_factors(x), lay.offset(x), self._pose_maps(x), lay.wall_of(x)
+            lay.rig(x),
+            lay.gain_factors(x),
+            lay.offset(x),
+            self._pose_maps(x),
+            lay.wall_of(x),
+            lay.medium_of(x),
         )
         for i in range(len(self.images)):
             rows = slice(self.bounds[i], self.bounds[i + 1])
@@ -290,6 +302,8 @@ class CalibrationModel:
         wall_grad = None
         if not wall.is_lambertian:
             wall_grad = np.empty((N, len(wall.parameter_names)))
+        medium_idx = lay.medium_unknown.indices
+        medium_grad = np.empty((N, max(medium_idx) + 1)) if medium_idx else None
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -301,6 +315,8 @@ class CalibrationModel:
                 grad_out=grad_buffer,
                 wall=wall,
                 wall_grad_out=wall_grad,
+                medium=at_x.medium,
+                medium_grad_out=medium_grad,
             )
             assert grad_world is not None
             if fluxes is not None:
@@ -321,6 +337,8 @@ class CalibrationModel:
                 A[:, block.rid] = self._rid_jacobian(x, i, j, block)
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
+            if medium_grad is not None:
+                A[:, lay.medium] += value_per_flux * medium_grad[:, medium_idx]
         stats = sk.finish_rows(
             A,
             total,
@@ -336,7 +354,7 @@ class CalibrationModel:
 
     def _unwritten_columns(self, gain_column: int, offset_column: int) -> list[int]:
         """The columns of an image's [J r] that `_image_system` does not assign (zeroed
-        first): other images' gains and the wall's (which it adds to)."""
+        first): other images' gains, the wall's and the medium's (which it adds to)."""
         lay = self.layout
         written = {lay.n, gain_column, offset_column}
         for block in lay.blocks:
@@ -365,6 +383,7 @@ class CalibrationModel:
                     Rig(tuple(lights)),
                     rid_subsamples=self.options.rid_subsamples,
                     wall=lay.wall_of(x),
+                    medium=lay.medium_of(x),
                 )
                 vals.append(gain * sh.values.filled(np.nan))
             out[:, c] = (vals[0] - vals[1]) / (2 * h)
@@ -395,6 +414,7 @@ class CalibrationModel:
                     rig,
                     rid_subsamples=self.options.rid_subsamples,
                     wall=wall,
+                    medium=lay.medium_of(x),
                 )
                 sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
@@ -446,26 +466,6 @@ class CalibrationModel:
         return parameter_bounds(self.layout, self.images, self.options.position_bound_m)
 
 
-def _with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
-    """A "curve" RID without a set range spans the angles the selected pixels are seen
-    at from the initial light (knots beyond them would be unobservable)."""
-    if unknown.estimate_rid != "curve" or unknown.curve_max_angle_rad is not None:
-        return unknown
-    light = unknown.initial
-    largest = 0.0
-    for im in images:
-        L = light.position_world(im.view)
-        axis = light.rotation_world(im.view)[:, 2]
-        w = im.footprints.corners_world.mean(axis=(1, 2)) - L
-        cos = (w @ axis) / np.linalg.norm(w, axis=1)
-        largest = max(largest, float(np.arccos(np.clip(cos.min(), -1.0, 1.0))))
-    # 1 % margin keeps the seen pixels off the last knot, where f drops to 0; knots far
-    # beyond the angles the pixels are seen at are unobservable and
-    # make the solve wander (measured: 1.05 and 1.15 x fail to converge on tests).
-    theta_max = min(math.radians(89.0), 1.01 * largest) if largest > 0 else None
-    return replace(unknown, curve_max_angle_rad=theta_max)
-
-
 class _Buffers:
     """Work arrays reused across images and evaluations: fresh multi-MB arrays cost a
     page fault per 4 kB on first touch (~10 ms per 375,000-pixel image system)."""
@@ -488,10 +488,12 @@ class _Buffers:
 
 @dataclass(frozen=True)
 class _StateAtX:
-    """What every image's system needs at x: the lights, gains, offset, pose maps, wall."""
+    """What every image's system needs at x: the lights, gains, offset, pose maps, wall,
+    medium."""
 
     rig: Rig
     gains: np.ndarray
     offset: float
     pose_maps: list[np.ndarray]
     wall: WallReflectance
+    medium: Medium

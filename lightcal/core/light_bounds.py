@@ -71,4 +71,5 @@ def parameter_bounds(
         lo[s + 2] = max(min(z0, 0.0) - LIGHT_MOUNT_MARGIN_M, -b)
         hi[s + 2] = max(z_max(d), z0 + 1e-9)
     lo[layout.wall], hi[layout.wall] = layout.wall_bounds()
+    lo[layout.medium], hi[layout.medium] = layout.medium_bounds()
     return lo, hi

@@ -4,8 +4,8 @@ The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, t
 concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
 the log of its scale and optionally its RID parameters; then optionally one log-gain per
 image but the first (the first image's gain is fixed: a global gain is the lights'
-scales), optionally the offset b, and last the wall model's estimated parameters
-(`WallUnknown`).
+scales), optionally the offset b, then the wall model's estimated parameters
+(`WallUnknown`) and last the medium's (`MediumUnknown`).
 
 RID estimation (the paper's future work), for symmetric lights:
 - ``cos_power``: f = cos^m(theta) with x holding log m;
@@ -16,12 +16,13 @@ RID estimation (the paper's future work), for symmetric lights:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 
 from lightcal.core.footprint import Footprints
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
 from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
 from lightcal.core.scene import Light, Rig, View
@@ -155,6 +156,35 @@ class WallUnknown:
         return [self.initial.parameter_names.index(nm) for nm in self.estimate]
 
 
+@dataclass(frozen=True, eq=False)
+class MediumUnknown:
+    """The medium between the rig and the wall, and which of its parameters to estimate.
+
+    Args:
+        initial: the medium with its initial (or fixed) parameter values.
+        estimate: names of the parameters to estimate (of `Medium.parameter_names`).
+    """
+
+    initial: Medium = AIR
+    estimate: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "estimate", tuple(self.estimate))
+        names = Medium.parameter_names
+        for nm in self.estimate:
+            if nm not in names:
+                raise ValueError(
+                    f"medium: estimate: no parameter {nm!r}; expected {', '.join(names)}"
+                )
+        if len(set(self.estimate)) != len(self.estimate):
+            raise ValueError("medium: estimate: expected each parameter once")
+
+    @property
+    def indices(self) -> list[int]:
+        """Positions of the estimated parameters in the medium's parameter vector."""
+        return [Medium.parameter_names.index(nm) for nm in self.estimate]
+
+
 #: Log-parameters (scales, the cos^m exponent) are clipped to +-LOG_CLIP before exp.
 LOG_CLIP = 300.0
 
@@ -215,6 +245,8 @@ class ParameterLayout:
     x0: np.ndarray = field(repr=False)
     wall_unknown: WallUnknown = field(default_factory=WallUnknown)
     wall: slice = field(default_factory=lambda: slice(0, 0))
+    medium_unknown: MediumUnknown = field(default_factory=MediumUnknown)
+    medium: slice = field(default_factory=lambda: slice(0, 0))
 
     @classmethod
     def build(
@@ -226,6 +258,7 @@ class ParameterLayout:
         estimate_offset: bool,
         offset0: float,
         wall: WallUnknown | None = None,
+        medium: MediumUnknown | None = None,
     ) -> ParameterLayout:
         blocks: list[_LightBlock] = []
         names: list[str] = []
@@ -281,6 +314,13 @@ class ParameterLayout:
         for k, nm in zip(wall.indices, wall.estimate, strict=True):
             x0.append(float(p0[k]))
             names.append(f"wall.{nm}")
+        wall_slice = slice(start, len(x0))
+        medium = medium if medium is not None else MediumUnknown()
+        start = len(x0)
+        p0 = medium.initial.parameters()
+        for k, nm in zip(medium.indices, medium.estimate, strict=True):
+            x0.append(float(p0[k]))
+            names.append(f"medium.{nm}")
         return cls(
             blocks,
             n_images,
@@ -293,6 +333,8 @@ class ParameterLayout:
             names,
             np.array(x0, dtype=np.float64),
             wall,
+            wall_slice,
+            medium,
             slice(start, len(x0)),
         )
 
@@ -342,6 +384,21 @@ class ParameterLayout:
         idx = self.wall_unknown.indices
         return np.array([b[k][0] for k in idx]), np.array([b[k][1] for k in idx])
 
+    def medium_of(self, x: np.ndarray) -> Medium:
+        """The medium at x (its estimated parameters taken from x)."""
+        m = self.medium_unknown
+        if not m.estimate:
+            return m.initial
+        p = m.initial.parameters()
+        p[m.indices] = x[self.medium]
+        return m.initial.with_parameters(p)
+
+    def medium_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds (k,) of the estimated medium parameters."""
+        b = Medium.parameter_bounds
+        idx = self.medium_unknown.indices
+        return np.array([b[k][0] for k in idx]), np.array([b[k][1] for k in idx])
+
 
 def _fit_cos_power(rid: RID) -> float:
     """The cos^m exponent with the same half-intensity angle as `rid`."""
@@ -360,3 +417,23 @@ def with_view(view: View, **changes: object) -> View:
     }
     fields.update(changes)
     return View(**fields)  # type: ignore[arg-type]
+
+
+def with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:
+    """A "curve" RID without a set range spans the angles the selected pixels are seen
+    at from the initial light (knots beyond them would be unobservable)."""
+    if unknown.estimate_rid != "curve" or unknown.curve_max_angle_rad is not None:
+        return unknown
+    light = unknown.initial
+    largest = 0.0
+    for im in images:
+        L = light.position_world(im.view)
+        axis = light.rotation_world(im.view)[:, 2]
+        w = im.footprints.corners_world.mean(axis=(1, 2)) - L
+        cos = (w @ axis) / np.linalg.norm(w, axis=1)
+        largest = max(largest, float(np.arccos(np.clip(cos.min(), -1.0, 1.0))))
+    # 1 % margin keeps the seen pixels off the last knot, where f drops to 0; knots far
+    # beyond the angles the pixels are seen at are unobservable and
+    # make the solve wander (measured: 1.05 and 1.15 x fail to converge on tests).
+    theta_max = min(math.radians(89.0), 1.01 * largest) if largest > 0 else None
+    return replace(unknown, curve_max_angle_rad=theta_max)

@@ -31,9 +31,12 @@ from lightcal.core.footprint import (
     check_vignetting,
     pixel_footprints,
 )
+from lightcal.core.kernels.backscatter import add_scatter_image
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.image import render_image_fused
+from lightcal.core.kernels.medium import attenuate_image
 from lightcal.core.kernels.wall import apply_wall
+from lightcal.core.medium import AIR, Medium, apply_medium, scatter_grid, scatter_nodes
 from lightcal.core.rid_stack import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
@@ -43,6 +46,15 @@ def _check_subsamples(rid_subsamples: int) -> int:
     if not (isinstance(rid_subsamples, int | np.integer) and rid_subsamples >= 1):
         raise ValueError(f"rid_subsamples: expected an integer >= 1, got {rid_subsamples!r}")
     return int(rid_subsamples)
+
+
+def _check_scatter_sensor(medium: Medium, sensor: str) -> None:
+    """The backscatter is a radiance: rendered for the `radiance` sensor model only."""
+    if medium.scatters and sensor != "radiance":
+        raise ValueError(
+            f"medium: backscatter_per_m: the backscatter is rendered for the radiance "
+            f"sensor model; got {sensor!r}"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +68,9 @@ class Shading:
         grad_rotation: (L, N, 3) d value / d delta, delta a left rotation perturbation of
             R_camera_light in the camera frame (R -> exp(delta) R), or None.
         grad_wall: (N, P) d value / d (the wall model's parameters), or None.
+        grad_medium: (N, 2) d value / d (the medium's attenuation and backscatter
+            coefficients, 1/m) in a medium that scatters, (N, 1) d value / d c in one
+            that does not, or None (without gradients, or in air).
     """
 
     values: np.ma.MaskedArray
@@ -63,6 +78,7 @@ class Shading:
     grad_position: np.ndarray | None
     grad_rotation: np.ndarray | None
     grad_wall: np.ndarray | None = None
+    grad_medium: np.ndarray | None = None
 
 
 def light_in_view(light: Light, view: View) -> tuple[np.ndarray, np.ndarray]:
@@ -80,11 +96,14 @@ def light_flux(
     grad_out: np.ndarray | None = None,
     wall: WallReflectance = LAMBERTIAN,
     wall_grad_out: np.ndarray | None = None,
+    medium: Medium = AIR,
+    medium_grad_out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """One light's flux into pixels per unit scale, and its world-frame gradients.
 
     A wall model other than Lambertian multiplies each pixel's flux by its relative
-    reflectance B (`lightcal.core.wall`) at the footprint centre.
+    reflectance B (`lightcal.core.wall`) at the footprint centre, a medium other than
+    air by its transmittance T (`lightcal.core.medium`) there.
 
     Args:
         footprints: from `pixel_footprints` for this view.
@@ -97,6 +116,10 @@ def light_flux(
         wall: the wall's reflectance model.
         wall_grad_out: (N, P) array receiving d flux / d (wall parameters) when want_grad
             (P the model's parameter count); ignored for a Lambertian wall.
+        medium: the medium between the rig and the wall.
+        medium_grad_out: with want_grad, (N, 1) receiving d flux / d c (the medium's
+            attenuation coefficient) or (N, 2) d flux / d (c, beta) (its backscatter);
+            computed in air too.
 
     Returns:
         flux: (N,) exposure * sum_k weight_k Phi_k / I0; 0 where the footprint is invalid
@@ -118,6 +141,8 @@ def light_flux(
             grad.fill(0.0)
         if wall_grad_out is not None:
             wall_grad_out.fill(0.0)
+        if medium_grad_out is not None:
+            medium_grad_out.fill(0.0)
         return flux, grad
     outputs = (flux, grad if grad is not None else np.zeros((1, 6)))
     light_args = (L_world, np.ascontiguousarray(R_world_light), light.rid.data(), n_sub, want_grad)
@@ -142,6 +167,21 @@ def light_flux(
         grad *= view.exposure
     if not wall.is_lambertian:
         _apply_wall(footprints, view, L_world, wall, flux, grad, wall_grad_out)
+    if not medium.is_clear or (grad is not None and medium_grad_out is not None):
+        # In air (T = 1 exactly: the values unchanged) only for the derivatives.
+        apply_medium(
+            footprints.centers_world,
+            L_world,
+            R_world_light,
+            light.rid.data(),
+            view.center_world,
+            medium,
+            flux,
+            grad,
+            exposure=view.exposure,
+            extra_grads=None if wall.is_lambertian else wall_grad_out,
+            d_medium_out=medium_grad_out if grad is not None else None,
+        )
     return flux, grad
 
 
@@ -189,6 +229,7 @@ def shade(
     rid_subsamples: int = 1,
     want_grad: bool = False,
     wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
 ) -> Shading:
     """Render pixel values from precomputed footprints.
 
@@ -200,6 +241,7 @@ def shade(
         rid_subsamples: n, RID sub-sampling of each footprint quad (n x n).
         want_grad: also compute the gradients (see `Shading`).
         wall: the wall's reflectance model.
+        medium: the medium between the rig and the wall.
 
     Returns:
         The shading.
@@ -212,6 +254,11 @@ def shade(
     grot = np.zeros((n_l, n, 3)) if want_grad else None
     gwall = np.zeros((n, n_p)) if want_grad else None
     wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
+    # d/dbeta only where the medium scatters (at beta = 0 it costs the scattering integral).
+    gmedium = None
+    if want_grad and not medium.is_clear:
+        gmedium = np.zeros((n, 2 if medium.scatters else 1))
+    medium_grad = np.zeros_like(gmedium) if gmedium is not None else None
     R = view.R_camera_world
     for i, light in enumerate(rig.lights):
         flux[i], grad = light_flux(
@@ -222,6 +269,8 @@ def shade(
             want_grad=want_grad,
             wall=wall,
             wall_grad_out=wall_grad,
+            medium=medium,
+            medium_grad_out=medium_grad,
         )
         if grad is not None:
             assert gpos is not None and grot is not None
@@ -230,10 +279,12 @@ def shade(
             grot[i] = grad[:, 3:] @ (light.scale * R.T)
         if wall_grad is not None and gwall is not None:
             gwall += light.scale * wall_grad
+        if medium_grad is not None and gmedium is not None:
+            gmedium += light.scale * medium_grad
     scales = np.array([light.scale for light in rig.lights])
     total = offset + scales @ flux
     values = np.ma.masked_array(np.where(footprints.valid, total, np.nan), mask=~footprints.valid)
-    return Shading(values, flux, gpos, grot, gwall)
+    return Shading(values, flux, gpos, grot, gwall, gmedium)
 
 
 def render_pixels(
@@ -248,6 +299,7 @@ def render_pixels(
     offset: float = 0.0,
     rid_subsamples: int = 1,
     wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
 ) -> np.ma.MaskedArray:
     """Render (super-)pixels of one view.
 
@@ -262,14 +314,18 @@ def render_pixels(
         offset: black level / ambient offset.
         rid_subsamples: RID sub-sampling n per footprint (n x n).
         wall: the wall's reflectance model.
+        medium: the medium between the rig and the wall.
 
     Returns:
         (N,) masked array of values, masked where the footprint is invalid.
     """
+    _check_scatter_sensor(medium, sensor)
     fp = pixel_footprints(
         camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
     )
-    return shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall).values
+    return shade(
+        fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium
+    ).values
 
 
 def render_image(
@@ -283,6 +339,7 @@ def render_image(
     offset: float = 0.0,
     rid_subsamples: int = 1,
     wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
 ) -> np.ma.MaskedArray:
     """Render a whole image, optionally binned.
 
@@ -296,6 +353,7 @@ def render_image(
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     n_sub = _check_subsamples(rid_subsamples)
+    _check_scatter_sensor(medium, sensor)
     b = int(binning)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
     # Lights on or behind the wall illuminate nothing in this view.
@@ -304,8 +362,65 @@ def render_image(
         for light in rig.lights
         if light.position_world(view)[2] > 0.0
     ]
-    out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset, wall)
+    if medium.is_clear or not lit:
+        out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset, wall)
+    else:
+        out, invalid = _render_in_medium(
+            camera, view, lit, sensor, vmap, b, n_sub, offset, wall, medium
+        )
     return np.ma.masked_array(out, mask=invalid, copy=False)
+
+
+def _render_in_medium(
+    camera: Camera,
+    view: View,
+    lit: list[tuple[Light, np.ndarray, np.ndarray]],
+    sensor: SensorModel,
+    vmap: np.ndarray,
+    b: int,
+    n_sub: int,
+    offset: float,
+    wall: WallReflectance,
+    medium: Medium,
+) -> tuple[np.ndarray, np.ndarray]:
+    """`_render_fused` with each light's value times its transmittance T at the
+    footprint centres (`attenuate_image`): one fused pass per light, whose T differs;
+    then each light's backscatter along the rays to those centres (`add_scatter_image`,
+    exact on the nodes of `scatter_grid`, interpolated between them)."""
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
+    view_args = (
+        grid_xy,
+        grid_ok,
+        np.ascontiguousarray(view.R_camera_world),
+        np.ascontiguousarray(view.center_world),
+        b,
+    )
+    total, invalid = _render_fused(camera, view, lit[:1], sensor, vmap, b, n_sub, 0.0, wall)
+    c = medium.attenuation_per_m
+    with numba.parallel_chunksize(1):
+        attenuate_image(*view_args, lit[0][1], c, total, total, False, float(offset))
+        for k in range(1, len(lit)):
+            out, _ = _render_fused(camera, view, lit[k : k + 1], sensor, vmap, b, n_sub, 0.0, wall)
+            attenuate_image(*view_args, lit[k][1], c, out, total, True, 0.0)
+        if medium.scatters:
+            nodes, weights = scatter_nodes()
+            node_rows, node_cols = scatter_grid(total.shape)
+            for light, L_world, R_world_light in lit:
+                add_scatter_image(
+                    *view_args,
+                    L_world,
+                    np.ascontiguousarray(R_world_light),
+                    light.rid.data(),
+                    c,
+                    medium.phase_g,
+                    nodes,
+                    weights,
+                    light.scale * view.exposure * medium.backscatter_per_m,
+                    node_rows,
+                    node_cols,
+                    total,
+                )
+    return total, invalid
 
 
 def _render_fused(

@@ -21,7 +21,7 @@ import yaml
 
 from lightcal.core.camera import Camera
 from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
-from lightcal.core.problem import LightUnknown, WallUnknown
+from lightcal.core.problem import LightUnknown, MediumUnknown, WallUnknown
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
@@ -31,6 +31,7 @@ from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.dark_frames import dark_paths
 from lightcal.io.document import read_document
+from lightcal.io.medium_spec import build_medium
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
     INTRINSIC_COUNTS,
@@ -117,6 +118,7 @@ class Project:
             its pose (`PoseSpec.d_pose_d_intrinsics`, p = 4 + camera.n_dist) or None.
         dark_paths: per image, its resolved light-off photo (`images[i].dark`) or None
             (`lightcal.io.dark_frames`); empty: none.
+        medium: the medium between the rig and the wall and what to estimate of it.
     """
 
     spec: ProjectFile
@@ -134,6 +136,7 @@ class Project:
     pose_covariances: list[np.ndarray | None] = field(default_factory=list)
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
     dark_paths: list[Path | None] = field(default_factory=list)
+    medium: MediumUnknown = field(default_factory=MediumUnknown)
 
     @property
     def folder(self) -> Path:
@@ -356,6 +359,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
+        build_medium(spec.medium, spec.sensor.model, source),
     )
 
 

@@ -29,6 +29,7 @@ from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
+from lightcal.io.medium_spec import MediumSpec
 
 PROJECT_VERSION: Literal[1] = 1
 
@@ -429,6 +430,7 @@ class ProjectFile(_Model):
     selection: SelectionSpec = Field(default_factory=SelectionSpec)
     solver: SolverSpec = Field(default_factory=SolverSpec)
     wall: WallSpec = Field(default_factory=WallSpec)
+    medium: MediumSpec = Field(default_factory=MediumSpec)
 
 
 _UNION_BRANCHES = frozenset({"float", "int", "str", "bool", "list", "dict"})

@@ -28,6 +28,9 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   (for the plot), ``findings`` (what matters and what to try) and ``notes`` (what was
   seen but is too small to act on). docs/model.md, "Is the fit explained by the noise?".
 - ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
+- ``medium``: ``attenuation_per_m`` and ``backscatter_per_m`` (1/m; 0 in air),
+  ``phase_g``, which parameters were ``estimated`` and their ``sigma``
+  (`lightcal.core.medium`).
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
   words with their sizes; ``uncertainty_breakdown`` the same per term and light as
@@ -211,6 +214,11 @@ class ResultFile(_Model):
         default_factory=lambda: {"model": "lambertian"},
         description="wall model, parameters, estimated names and their sigma",
     )
+    medium: dict[str, Any] = Field(
+        default_factory=lambda: {"attenuation_per_m": 0.0, "estimated": [], "sigma": {}},
+        description="the medium between the rig and the wall: attenuation_per_m and "
+        "backscatter_per_m (1/m), phase_g, the estimated parameters' names and their sigma",
+    )
     uncertainty: list[str] = Field(
         default_factory=list,
         description="the terms the covariance and sigmas include, in words with their sizes",
@@ -297,6 +305,7 @@ def result_to_file(
         ),
         fit=result.fit or None,
         wall=result.wall,
+        medium=_nan_to_none(result.medium),
         uncertainty=result.uncertainty_terms,
         uncertainty_breakdown=_nan_to_none(result.uncertainty_breakdown),
         undetermined=result.undetermined,

@@ -112,6 +112,7 @@ def _light_shares(model: CalibrationModel, x: np.ndarray) -> np.ndarray:
             rig,
             rid_subsamples=model.options.rid_subsamples,
             wall=model.layout.wall_of(x),
+            medium=model.layout.medium_of(x),
         )
         share += gains[i] * np.array([light.scale for light in rig.lights]) * sh.flux.sum(axis=1)
     return share

@@ -75,10 +75,13 @@ def _renderer(
     """(i, view, footprints) -> image i's rendered values at the solution x."""
     lay = model.layout
     rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
+    medium = lay.medium_of(x)
     rid_subsamples = model.options.rid_subsamples
 
     def render(i: int, view: View, fp: Footprints) -> np.ndarray:
-        sh = shade(fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall)
+        sh = shade(
+            fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
+        )
         return offset + float(gains[i]) * sh.values.filled(np.nan)
 
     return render

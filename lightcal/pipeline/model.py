@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import shade
@@ -28,6 +29,7 @@ def fit_scales(
     unknowns: list[LightUnknown],
     offset: float,
     wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
 ) -> list[float]:
     """Linear least-squares scales of the lights at their initial poses (positive).
 
@@ -47,7 +49,7 @@ def fit_scales(
         step = -(-len(im.observed) // SCALE_FIT_PIXELS)
         if step > 1:  # indices, not a strided slice: the kernels take contiguous arrays
             im = im.subset(np.arange(0, len(im.observed), step))
-        sh = shade(im.footprints, im.view, rig, wall=wall)
+        sh = shade(im.footprints, im.view, rig, wall=wall, medium=medium)
         Ay = np.empty((len(im.observed), n_l + 1), order="F")
         Ay[:, :n_l] = (sh.flux / im.sigma).T
         Ay[:, n_l] = (im.observed - offset) / im.sigma
@@ -106,7 +108,7 @@ def build_model(
             "or off the wall); check the selection and sensor settings",
         )
     unknowns = list(lights) if lights is not None else starting_lights(project, data)
-    model = CalibrationModel(data, unknowns, project.solver, project.wall)
+    model = CalibrationModel(data, unknowns, project.solver, project.wall, project.medium)
     if model.m <= model.layout.n:
         raise InputError(
             project.path,
@@ -124,7 +126,7 @@ def starting_lights(
     scales the project leaves to be fitted (`scale` not given) fitted to `images`.
 
     Args:
-        project: the project (which scales are fitted, the offset, the wall).
+        project: the project (which scales are fitted, the offset, the wall, the medium).
         images: the selected pixels; none: the scales are left as they are.
         lights: lights to start from instead of the project's (e.g. the app's guess).
     """
@@ -135,7 +137,9 @@ def starting_lights(
         if ls.initial == "auto" or ls.initial.scale is None
     ]
     if auto and images:
-        scales = fit_scales(images, unknowns, project.solver.offset, project.wall.initial)
+        scales = fit_scales(
+            images, unknowns, project.solver.offset, project.wall.initial, project.medium.initial
+        )
         for j in auto:
             u = unknowns[j]
             unknowns[j] = replace(u, initial=u.initial.replace(scale=scales[j]))

@@ -171,7 +171,7 @@ class InformationState:
         N = self.N if N is None else N
         lay = self.model.layout
         single = CalibrationModel(
-            [image], self.model.unknowns, self.model.options, lay.wall_unknown
+            [image], self.model.unknowns, self.model.options, lay.wall_unknown, lay.medium_unknown
         )
         index = [lay.names.index(nm) for nm in single.layout.names]
         J = single.jacobian(self.x[index])

@@ -167,7 +167,14 @@ def candidate_image(
     fp = pixel_footprints(camera, view, pix)
     lay = model.layout
     rig, wall = lay.rig(x), lay.wall_of(x)
-    values = shade(fp, view, rig, rid_subsamples=model.options.rid_subsamples, wall=wall)
+    values = shade(
+        fp,
+        view,
+        rig,
+        rid_subsamples=model.options.rid_subsamples,
+        wall=wall,
+        medium=lay.medium_of(x),
+    )
     v = values.values.filled(np.nan)
     ok = fp.valid & np.isfinite(v)
     if not ok.any():

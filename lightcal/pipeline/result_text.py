@@ -3,7 +3,7 @@
 What `lightcal calibrate` prints and the report's summary writes (the app's Result tab
 shows the same quantities in a table): the position in millimetres in the camera frame
 (x right, y down, z forward), the axis by the paper's roll and pitch in degrees with its
-angle from the optical axis, and the scale.
+angle from the optical axis, and the scale; the medium's attenuation when there is one.
 """
 
 from __future__ import annotations
@@ -51,3 +51,21 @@ def light_lines(light: LightResult) -> list[str]:
         lines.append(f"  axis     {axis}")
     lines.append(f"  scale    {light.scale:.6g} ± {sigma_text(light.scale_sigma)}")
     return lines
+
+
+def medium_text(medium: dict) -> str | None:
+    """The medium in words ("medium: attenuation 0.301 ± 0.004 /m (estimated), backscatter
+    0.5 /m (given, g 0.9)"), or None in air with nothing estimated."""
+    estimated = medium.get("estimated", [])
+    parts = []
+    for name, label in (("attenuation_per_m", "attenuation"), ("backscatter_per_m", "backscatter")):
+        v = float(medium.get(name, 0.0))
+        if v == 0.0 and name not in estimated:
+            continue
+        s = medium.get("sigma", {}).get(name)
+        sigma = f" ± {sigma_text(math.nan if s is None else s)}" if name in estimated else ""
+        how = "estimated" if name in estimated else "given"
+        if name == "backscatter_per_m":
+            how += f", g {float(medium.get('phase_g', 0.9)):.3g}"
+        parts.append(f"{label} {v:.4g}{sigma} /m ({how})")
+    return "medium: " + ", ".join(parts) if parts else None

@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.misfit_verdict import significant_digits
 from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
@@ -161,6 +162,8 @@ class CalibrationResult:
     history: list[IterationReport] = field(default_factory=list, repr=False)
     fit: dict = field(default_factory=dict)
     wall: dict = field(default_factory=lambda: {"model": "lambertian"})
+    # The medium: {"attenuation_per_m", "estimated", "sigma"} (`medium_summary`).
+    medium: dict = field(default_factory=lambda: medium_summary(AIR))
     uncertainty_terms: list[str] = field(default_factory=list)
     # Per term of the covariance: {"term", "systematic", "lights": [{"name",
     # "position_sigma_m", "axis_sigma_deg"}]} (`uncertainty_breakdown`).
@@ -306,6 +309,7 @@ def summarise(
         history=outcome.history,
         fit=diagnosis.to_dict(),
         wall=_wall_summary(model, x, cov),
+        medium=_medium_summary(model, x, cov),
         uncertainty_terms=_sized_terms(unc.terms, breakdown),
         uncertainty_breakdown=breakdown,
         undetermined=undetermined,
@@ -410,6 +414,25 @@ def _wall_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> di
     out["estimated"] = ["sigma_deg" if n == "sigma" else n for n in lay.wall_unknown.estimate]
     out["sigma"] = sig
     return out
+
+
+def medium_summary(
+    medium: Medium, estimated: tuple[str, ...] = (), sigma: dict[str, float] | None = None
+) -> dict:
+    """The medium's parameters, which were estimated and their 1-sigma (a result's
+    `medium`)."""
+    return {**medium.describe(), "estimated": list(estimated), "sigma": dict(sigma or {})}
+
+
+def _medium_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict:
+    """`medium_summary` of the solution x, sigmas from the covariance."""
+    lay = model.layout
+    estimated = lay.medium_unknown.estimate
+    sigma = {
+        name: math.sqrt(max(cov[lay.medium.start + k, lay.medium.start + k], 0.0))
+        for k, name in enumerate(estimated)
+    }
+    return medium_summary(lay.medium_of(x), estimated, sigma)
 
 
 def _bound_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:

@@ -123,7 +123,10 @@ def coarse_start(
     k = max(2, model.m // COARSE_PIXELS)
     # Indices, not strided views: the kernels take contiguous arrays.
     images = [im.subset(np.arange(0, len(im.observed), k)) for im in model.images]
-    coarse = CalibrationModel(images, model.unknowns, model.options, model.layout.wall_unknown)
+    lay = model.layout
+    coarse = CalibrationModel(
+        images, model.unknowns, model.options, lay.wall_unknown, lay.medium_unknown
+    )
     if coarse.layout.names != model.layout.names or coarse.m <= coarse.layout.n:
         return None
     if on_stage is not None:

@@ -59,7 +59,7 @@ def undetermined_wall(wall: dict) -> bool:
 
 
 def restarted(model: CalibrationModel, x: np.ndarray, **changes: object) -> CalibrationModel:
-    """A model like `model` (images, lights, options, wall replaced by `changes`) whose
+    """A model like `model` (images, lights, options, wall, medium replaced by `changes`) whose
     lights start at their estimate in x."""
     lights = [
         replace(u, initial=model.layout.light_of(b, x))
@@ -70,6 +70,7 @@ def restarted(model: CalibrationModel, x: np.ndarray, **changes: object) -> Cali
         "unknowns": lights,
         "options": model.options,
         "wall": model.layout.wall_unknown,
+        "medium": model.layout.medium_unknown,
     }
     fields.update(changes)
     return CalibrationModel(**fields)  # type: ignore[arg-type]

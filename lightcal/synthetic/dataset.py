@@ -63,6 +63,7 @@ from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
 from lightcal.io.camera_file import read_camera, write_camera
+from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.project import (
     CameraSpec,
     ExposureSpec,
@@ -70,9 +71,7 @@ from lightcal.io.project import (
     LightSpec,
     NoiseSpec,
     ProjectFile,
-    SelectionSpec,
     SensorSpec,
-    SolverSpec,
     build_rid,
     load_project,
     save_project,
@@ -87,6 +86,7 @@ from lightcal.synthetic.dataset_files import (
     TRUTH_NAME,
     ImageFormat,
     check_target,
+    declared_pose_covariance,
     encode_image,
     initial_spec,
     make_staging,
@@ -158,6 +158,7 @@ class SynthConfig:
         dark_frames: With room light (`Departures.ambient_fraction` > 0), also write a
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
+        medium: What the project declares of the medium (air unless `--declare-medium`).
     """
 
     camera: Camera
@@ -173,6 +174,7 @@ class SynthConfig:
     wall: WallReflectance = LAMBERTIAN
     departures: Departures = field(default_factory=Departures)
     dark_frames: bool = False
+    medium: MediumSpec = field(default_factory=MediumSpec)
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -404,11 +406,7 @@ def _write_into(
             )
 
     # The project: the measured poses with the covariance of their error.
-    pose_covariance = None
-    if config.pose_noise_m > 0.0 or config.pose_noise_deg > 0.0:
-        pose_covariance = np.diag(
-            [math.radians(config.pose_noise_deg) ** 2] * 3 + [config.pose_noise_m**2] * 3
-        )
+    pose_covariance = declared_pose_covariance(config.pose_noise_m, config.pose_noise_deg)
     gain, read_variance = noise_model(sensor)
     spec = ProjectFile(
         camera=CameraSpec(path=CAMERA_NAME),
@@ -438,8 +436,7 @@ def _write_into(
             )
             for j, light in enumerate(rig.lights)
         ],
-        selection=SelectionSpec(),
-        solver=SolverSpec(),
+        medium=config.medium,  # the default selection and solver
     )
 
     # The truth.

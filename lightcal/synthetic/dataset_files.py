@@ -357,3 +357,11 @@ def truth_document(
             "sensor": asdict(config.sensor),
         },
     }
+
+
+def declared_pose_covariance(noise_m: float, noise_deg: float) -> NDArray[np.float64] | None:
+    """(6, 6) the covariance the project declares for each measured pose (rotation
+    perturbation in rad^2, then the centre in m^2), or None without pose noise."""
+    if noise_m == 0.0 and noise_deg == 0.0:
+        return None
+    return np.diag([math.radians(noise_deg) ** 2] * 3 + [noise_m**2] * 3)

@@ -17,6 +17,7 @@ angles in degrees):
 - `albedo_texture`: amplitude, wavelengths_m, directions_deg, phases_rad, weights,
   formula;
 - `attenuation`: coefficient_per_m, formula.
+- `backscatter`: beta_per_m, phase_g, formula.
 
 The true lights (the rimmed profile included) are in truth.json's "lights" as always.
 """
@@ -134,5 +135,12 @@ def departures_truth(
         out["attenuation"] = {
             "coefficient_per_m": departures.attenuation_per_m,
             "formula": "each light's value * exp(-coefficient * (d_light + d_camera))",
+        }
+    if "backscatter" in names:
+        out["backscatter"] = {
+            "beta_per_m": departures.backscatter_per_m,
+            "phase_g": departures.phase_g,
+            "formula": "each light adds scale * exposure * beta * S, S the single-scattering "
+            "integral along the pixel's ray (lightcal.core.medium.backscatter)",
         }
     return out

@@ -16,6 +16,7 @@ calibration's diagnostics can be tested on data whose fault is known:
 | `bow` | `bow_m` | the wall bulges towards the cameras (or is dented) |
 | `albedo_texture` | `albedo_texture_amplitude` | the wall's albedo varies smoothly |
 | `attenuation` | `attenuation_per_m` | a clear but absorbing medium (water) |
+| `backscatter` | `backscatter_per_m`, `phase_g` | the water scatters the beam back to the camera |
 
 The exact definitions are in `Departures`; `lightcal.synthetic.imaging` applies them and
 `describe` writes the parameters that truth.json records under "departures" (name ->
@@ -49,6 +50,7 @@ DEPARTURE_NAMES = (
     "bow",
     "albedo_texture",
     "attenuation",
+    "backscatter",
 )
 """The departures' names in truth.json, in the order they are listed there."""
 
@@ -71,6 +73,9 @@ GAMMA_RANGE = (0.1, 10.0)
 
 MAX_ATTENUATION_PER_M = 2.0
 """Largest `attenuation_per_m`, 1/m: beyond, exp(-C d) leaves no beam over metres."""
+
+MAX_BACKSCATTER_PER_M = 100.0
+"""Largest `backscatter_per_m`, 1/m."""
 
 MAX_POSE_ERROR_M = 0.1
 """Largest `pose_error_m`, metres."""
@@ -122,6 +127,11 @@ class Departures:
         attenuation_per_m: C >= 0, 1/m. A medium (clear water): each light's contribution
             to a pixel is multiplied by exp(-C (d_light + d_camera)), the distances from
             the light and from the camera centre to the pixel's point on the wall.
+        backscatter_per_m: beta >= 0, 1/m, and phase_g: g in [-0.99, 0.99]. The medium
+            scatters each light's beam back along the pixels' rays: each pixel gains
+            beta S, S the single-scattering integral with the Henyey-Greenstein phase g
+            (`lightcal.core.medium.backscatter`, attenuated by C) along the ray to the
+            pixel centre's point on the wall (the `radiance` sensor model only).
     """
 
     ambient_fraction: float = 0.0
@@ -133,6 +143,8 @@ class Departures:
     bow_m: float = 0.0
     albedo_texture_amplitude: float = 0.0
     attenuation_per_m: float = 0.0
+    backscatter_per_m: float = 0.0
+    phase_g: float = 0.9
 
     def __post_init__(self) -> None:
         for name in ("ambient_fraction", "rid_rim_amplitude", "attenuation_per_m"):
@@ -142,10 +154,18 @@ class Departures:
             value = getattr(self, name)
             _check(name, value, value >= 0.0, "a finite value >= 0")
         _check("gamma", self.gamma, self.gamma > 0.0, "a finite value > 0")
+        _check(
+            "backscatter_per_m",
+            self.backscatter_per_m,
+            self.backscatter_per_m >= 0.0,
+            "a finite value >= 0",
+        )
+        _check("phase_g", self.phase_g, abs(self.phase_g) <= 0.99, "a value in [-0.99, 0.99]")
         for name, high, unit in (
             ("ambient_fraction", MAX_AMPLITUDE, ""),
             ("rid_rim_amplitude", MAX_AMPLITUDE, ""),
             ("attenuation_per_m", MAX_ATTENUATION_PER_M, " per metre"),
+            ("backscatter_per_m", MAX_BACKSCATTER_PER_M, " per metre"),
             ("pose_error_m", MAX_POSE_ERROR_M, " m"),
             ("pose_error_deg", MAX_POSE_ERROR_DEG, " degrees"),
         ):
@@ -185,15 +205,19 @@ class Departures:
             "bow": self.bow_m != 0.0,
             "albedo_texture": self.albedo_texture_amplitude > 0.0,
             "attenuation": self.attenuation_per_m > 0.0,
+            "backscatter": self.backscatter_per_m > 0.0,
         }
         return tuple(name for name in DEPARTURE_NAMES if on[name])
 
     @property
     def changes_beam(self) -> bool:
         """Whether the beam's image needs more than the flat renderer (`render_image`):
-        a bowed wall, an albedo texture or attenuation."""
+        a bowed wall, an albedo texture, attenuation or backscatter."""
         return (
-            self.bow_m != 0.0 or self.albedo_texture_amplitude > 0.0 or self.attenuation_per_m > 0.0
+            self.bow_m != 0.0
+            or self.albedo_texture_amplitude > 0.0
+            or self.attenuation_per_m > 0.0
+            or self.backscatter_per_m > 0.0
         )
 
 

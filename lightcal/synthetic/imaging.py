@@ -9,7 +9,8 @@ existed. With them, in this order:
    `render_image` (one light at a time with attenuation). Each light's contribution is
    multiplied by exp(-C d_light) and the pixel by exp(-C d_camera) (`attenuation`), and
    by the albedo 1 + A t(x, y) (`albedo_texture`), all at the pixel centre's point on the
-   wall (its footprint centre to second order in the footprint's size).
+   wall (its footprint centre to second order in the footprint's size); then each light's
+   backscatter along the ray to that point is added (`backscatter`).
 2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
    times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
    is added to every pixel, also those that do not see the wall; then everything is
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import SensorModel
+from lightcal.core.medium import Medium, backscatter
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig, View
 from lightcal.core.vignetting import RadialVignetting
@@ -58,6 +60,8 @@ class Imaging:
         wall_shape: The bowed wall, or None for the plane z = 0.
         texture: The albedo texture, or None.
         attenuation_per_m: C of the medium, 1/m (0: none).
+        backscatter_per_m, phase_g: beta of the medium's backscatter, 1/m (0: none), and
+            the Henyey-Greenstein g of its scattering.
         undeclared_vignetting: (H, W) the undeclared fall-off V, or None.
     """
 
@@ -69,6 +73,8 @@ class Imaging:
     wall_shape: BowedWall | None = None
     texture: AlbedoTexture | None = None
     attenuation_per_m: float = 0.0
+    backscatter_per_m: float = 0.0
+    phase_g: float = 0.9
     undeclared_vignetting: NDArray[np.float64] | None = None
 
     def _render(self, view: View, rig: Rig) -> np.ma.MaskedArray:
@@ -79,7 +85,7 @@ class Imaging:
     def beam(self, view: View) -> np.ma.MaskedArray:
         """(H, W) the lights' signal, masked where the pixel does not see the wall."""
         plain = self.wall_shape is None and self.texture is None
-        if plain and self.attenuation_per_m == 0.0:
+        if plain and self.attenuation_per_m == 0.0 and self.backscatter_per_m == 0.0:
             return self._render(view, self.rig)
         if self.wall_shape is not None:
             shading = shade_height_field(
@@ -112,7 +118,19 @@ class Imaging:
             total = per_light.sum(axis=0)
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
+        if self.backscatter_per_m > 0.0:
+            total = total + self._backscatter(view, points)
         return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
+
+    def _backscatter(self, view: View, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(H, W) every light's backscatter along the rays to `points` (H, W, 3)."""
+        medium = Medium(self.attenuation_per_m, self.backscatter_per_m, self.phase_g)
+        flat = points.reshape(-1, 3)
+        out = np.zeros(flat.shape[0])
+        for light in self.rig.lights:
+            s = backscatter(flat, view.center_world, light, view, medium)
+            out += light.scale * view.exposure * medium.backscatter_per_m * s
+        return out.reshape(points.shape[:2])
 
     def ambient(self, views: list[View], fraction: float) -> AmbientLevels:
         """The ambient levels of `views` for room light of `fraction` (`ambient_levels`
@@ -229,6 +247,10 @@ def make_imaging(
     Raises:
         InputError: the undeclared fall-off reaches 0 or below inside the image.
     """
+    if departures.backscatter_per_m > 0.0 and sensor != "radiance":
+        raise InputError(
+            "backscatter_per_m", f"applies to the radiance sensor model only, got {sensor!r}"
+        )
     wall_shape = None
     if departures.bow_m != 0.0:
         wall_shape = BowedWall(departures.bow_m, view_target_center(views), BOW_RADIUS_M)
@@ -256,5 +278,7 @@ def make_imaging(
         wall_shape=wall_shape,
         texture=texture,
         attenuation_per_m=departures.attenuation_per_m,
+        backscatter_per_m=departures.backscatter_per_m,
+        phase_g=departures.phase_g,
         undeclared_vignetting=undeclared,
     )

@@ -12,6 +12,8 @@
 - `image`: `render_image_fused`, a whole image of a rig in one pass (`render.render_image`);
 - `wall`: the wall's relative reflectance B (`lightcal.core.wall`): per pixel with the
   chain rule on a light's flux and gradients, and on whole images.
+- `medium`: the medium's transmittance T (`lightcal.core.medium`): per pixel with the
+  chain rule on a light's flux and gradients, and on whole images.
 
 The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
 one `rid_stack.RIDStack`). `lightcal.core.render_reference` is the plain NumPy

@@ -1,0 +1,87 @@
+"""The project file's `medium` section: what lies between the rig and the wall.
+
+    medium:
+      attenuation_per_m: 0.2          # c, 1/m (the start when it is estimated)
+      backscatter_per_m: 0.5          # beta, 1/m: single scattering along the rays (radiance)
+      phase_g: 0.9                    # its Henyey-Greenstein asymmetry (given)
+      estimate: [attenuation_per_m, backscatter_per_m]   # default: given
+
+Without the section the rig is in air (c = 0, nothing estimated). The model is
+docs/model.md's "Medium"; `build_medium` turns the section into the core's
+`MediumUnknown`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from lightcal.core.medium import MAX_ATTENUATION_PER_M, MAX_BACKSCATTER_PER_M, MAX_PHASE_G, Medium
+from lightcal.core.problem import MediumUnknown
+from lightcal.errors import InputError
+
+__all__ = ["MediumParameterName", "MediumSpec", "build_medium"]
+
+MediumParameterName = Literal["attenuation_per_m", "backscatter_per_m"]
+
+
+class MediumSpec(BaseModel):
+    """The medium between the rig and the wall (docs/model.md, "Medium").
+
+    `attenuation_per_m`: the attenuation coefficient c of a homogeneous medium, 1/m:
+    every value is multiplied by exp(-c (d_light + d_camera)), the distances from the
+    light and from the camera to the wall point. `backscatter_per_m`: beta, the light the
+    beam scatters back along each pixel's ray, relative to the wall's diffuse reflectance
+    (sigma_s pi / albedo), 1/m; `phase_g` the Henyey-Greenstein asymmetry of that
+    scattering (given). `estimate`: the parameters to estimate with the light(s),
+    starting from the given values.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+    attenuation_per_m: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=MAX_ATTENUATION_PER_M,
+        description="attenuation coefficient c, 1/m (0: air; clear ocean water 0.05-0.5); "
+        "the start when estimated",
+    )
+    backscatter_per_m: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=MAX_BACKSCATTER_PER_M,
+        description="backscatter coefficient beta relative to the wall's diffuse "
+        "reflectance (sigma_s pi / albedo), 1/m; the start when estimated",
+    )
+    phase_g: float = Field(
+        default=0.9,
+        ge=-MAX_PHASE_G,
+        le=MAX_PHASE_G,
+        description="Henyey-Greenstein asymmetry g of the scattering (ocean water ~0.9)",
+    )
+    estimate: list[MediumParameterName] = Field(
+        default_factory=list, description="the medium's parameters to estimate"
+    )
+
+    @field_validator("estimate")
+    @classmethod
+    def _once(cls, value: list[str]) -> list[str]:
+        if len(set(value)) != len(value):
+            raise ValueError("expected each parameter once")
+        return value
+
+
+def build_medium(spec: MediumSpec, sensor_model: str, source: str | Path) -> MediumUnknown:
+    """The core's `MediumUnknown` of a medium section; backscatter (given or estimated)
+    needs the `radiance` sensor model (the renderer's backscatter is a radiance)."""
+    scatters = spec.backscatter_per_m > 0.0 or "backscatter_per_m" in spec.estimate
+    if scatters and sensor_model != "radiance":
+        raise InputError(
+            source,
+            "medium.backscatter_per_m: the backscatter is modelled for sensor.model "
+            f"radiance; got {sensor_model!r}",
+        )
+    medium = Medium(spec.attenuation_per_m, spec.backscatter_per_m, spec.phase_g)
+    return MediumUnknown(medium, tuple(spec.estimate))
