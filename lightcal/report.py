@@ -37,6 +37,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
+from lightcal.pipeline.fall_off_result import fall_off_text
 from lightcal.pipeline.result_text import axis_text, position_text
 from lightcal.pipeline.results import stop_reason
 
@@ -53,8 +54,10 @@ def render_views(
     offset: float = 0.0,
     progress: ProgressFn | None = None,
     wall: WallReflectance = LAMBERTIAN,
+    fall_off: np.ndarray | None = None,
 ) -> list[np.ma.MaskedArray]:
-    """Render every project image with `rig` on `wall`: (H, W) masked arrays."""
+    """Render every project image with `rig` on `wall`: (H, W) masked arrays; `fall_off`
+    (H, W), an estimated fall-off V, multiplies the values above the offset."""
     out = []
     n = len(project.views)
     for i, view in enumerate(project.views):
@@ -73,6 +76,8 @@ def render_views(
                 wall=wall,
             )
         )
+        if fall_off is not None:
+            out[-1] = offset + (out[-1] - offset) * fall_off
     if progress is not None:
         progress("rendering", n, n)
     return out
@@ -115,6 +120,11 @@ def write_report(
         offset=result.offset,
         progress=progress,
         wall=model.layout.wall_of(x),
+        fall_off=(
+            None
+            if model.layout.fall_off_unknown is None
+            else model.layout.fall_off_unknown.image(x[model.layout.fall_off])
+        ),
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 
@@ -274,6 +284,8 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         f"- wall: {markdown_text(wall.get('model', 'lambertian'))}"
         + (f" ({params})" if params else "")
     )
+    if result.fall_off is not None:
+        lines.append(f"- {markdown_prose(fall_off_text(result.fall_off))}")
     fit = result.fit
     if fit:
         if not fit["adequate"]:

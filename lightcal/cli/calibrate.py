@@ -127,6 +127,10 @@ def run(args: argparse.Namespace) -> int:
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         output.print(f"wall: {result.wall['model']} ({params})", highlight=False)
+    if result.fall_off is not None:
+        from lightcal.pipeline.fall_off_result import fall_off_text
+
+        output.print(fall_off_text(result.fall_off), highlight=False, soft_wrap=True)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"

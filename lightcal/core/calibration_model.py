@@ -77,6 +77,7 @@ class CalibrationModel:
             estimate_offset=options.estimate_offset,
             offset0=options.offset,
             wall=wall,
+            fall_off=options.fall_off,
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -321,6 +322,7 @@ class CalibrationModel:
                 A[:, block.rid] = self._rid_jacobian(x, i, j, block)
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
+        lay.apply_fall_off(A, total, im.footprints, x, g, fluxes)  # V, when estimated
         stats = sk.finish_rows(
             A,
             total,
@@ -346,7 +348,7 @@ class CalibrationModel:
         return [c for c in range(lay.n + 1) if c not in written]
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
-        """d m_render / d (RID params of light j) on image i by central differences."""
+        """d m_render / d (RID params of light j) on image i by central differences, V = 1."""
         im = self.images[i]
         lay = self.layout
         gain = lay.gain_factors(x)[i]
@@ -396,7 +398,8 @@ class CalibrationModel:
                     rid_subsamples=self.options.rid_subsamples,
                     wall=wall,
                 )
-                sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
+                signal = lay.with_fall_off(gains[i] * sh.values.filled(np.nan), im.footprints, x)
+                sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)

@@ -4,8 +4,8 @@ The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, t
 concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
 the log of its scale and optionally its RID parameters; then optionally one log-gain per
 image but the first (the first image's gain is fixed: a global gain is the lights'
-scales), optionally the offset b, and last the wall model's estimated parameters
-(`WallUnknown`).
+scales), optionally the offset b, the wall model's estimated parameters
+(`WallUnknown`) and last the fall-off's coefficients (`lightcal.core.fall_off`).
 
 RID estimation (the paper's future work), for symmetric lights:
 - ``cos_power``: f = cos^m(theta) with x holding log m;
@@ -21,6 +21,7 @@ from typing import Literal
 
 import numpy as np
 
+from lightcal.core.fall_off import FallOffUnknown, apply_fall_off
 from lightcal.core.footprint import Footprints
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
 from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
@@ -215,6 +216,8 @@ class ParameterLayout:
     x0: np.ndarray = field(repr=False)
     wall_unknown: WallUnknown = field(default_factory=WallUnknown)
     wall: slice = field(default_factory=lambda: slice(0, 0))
+    fall_off_unknown: FallOffUnknown | None = None
+    fall_off: slice = field(default_factory=lambda: slice(0, 0))
 
     @classmethod
     def build(
@@ -226,6 +229,7 @@ class ParameterLayout:
         estimate_offset: bool,
         offset0: float,
         wall: WallUnknown | None = None,
+        fall_off: FallOffUnknown | None = None,
     ) -> ParameterLayout:
         blocks: list[_LightBlock] = []
         names: list[str] = []
@@ -281,6 +285,10 @@ class ParameterLayout:
         for k, nm in zip(wall.indices, wall.estimate, strict=True):
             x0.append(float(p0[k]))
             names.append(f"wall.{nm}")
+        wall_slice = slice(start, len(x0))
+        if fall_off is not None:  # V = 1 to start: the coefficients 0
+            x0.extend([0.0] * fall_off.order)
+            names.extend(fall_off.names)
         return cls(
             blocks,
             n_images,
@@ -293,7 +301,9 @@ class ParameterLayout:
             names,
             np.array(x0, dtype=np.float64),
             wall,
-            slice(start, len(x0)),
+            wall_slice,
+            fall_off,
+            slice(wall_slice.stop, len(x0)),
         )
 
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
@@ -335,6 +345,40 @@ class ParameterLayout:
         p = w.initial.parameters()
         p[w.indices] = x[self.wall]
         return w.initial.with_parameters(p)
+
+    def fall_off_factor(self, pixels: np.ndarray, x: np.ndarray) -> np.ndarray | None:
+        """(N,) the estimated fall-off V at x of (binned) `pixels` (N, 2); None when the
+        fall-off is not estimated (V = 1)."""
+        f = self.fall_off_unknown
+        return None if f is None else f.factor(pixels, x[self.fall_off])
+
+    def with_fall_off(
+        self, values: np.ndarray, footprints: Footprints, x: np.ndarray
+    ) -> np.ndarray:
+        """(N,) rendered values above the offset times V at x of `footprints`' pixels."""
+        v = self.fall_off_factor(footprints.pixels, x)
+        return values if v is None else values * v
+
+    def apply_fall_off(
+        self,
+        A: np.ndarray,
+        total: np.ndarray,
+        footprints: Footprints,
+        x: np.ndarray,
+        gain: float,
+        fluxes: list[np.ndarray] | None,
+    ) -> None:
+        """V at x on one image's system (`lightcal.core.fall_off.apply_fall_off`): A
+        (N, n + 1), total (N,) and each light's flux (N,) in `fluxes` (when given) of
+        `footprints`' pixels multiplied in place; nothing when the fall-off is not
+        estimated (V = 1)."""
+        f = self.fall_off_unknown
+        if f is None:
+            return
+        powers = f.powers(footprints.pixels)
+        v = apply_fall_off(A, total, self.n, powers, x[self.fall_off], self.fall_off, gain)
+        if fluxes is not None:
+            fluxes[:] = [flux * v for flux in fluxes]
 
     def wall_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds (k,) of the estimated wall parameters."""

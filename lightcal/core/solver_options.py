@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from lightcal.core.fall_off import FallOffUnknown
 from lightcal.core.problem import Loss
 
 # Each light's position may move at most this far (per camera-frame axis) from the origin.
@@ -62,6 +63,8 @@ class SolverOptions:
             again from there: sigmas from the noisy observations weight pixels whose noise
             happened to be negative more, which biases the estimate (measured: ~3 mm at
             SNR ~35, removed by one re-weighting).
+        fall_off: a radial fall-off to estimate with the lights (`lightcal.core.fall_off`;
+            the project's `sensor.estimate_fall_off`), or None: V = 1.
     """
 
     loss: Loss = "linear"
@@ -75,6 +78,7 @@ class SolverOptions:
     position_bound_m: float = DEFAULT_POSITION_BOUND_M
     compress: bool | None = None
     reweight: bool = True
+    fall_off: FallOffUnknown | None = None
 
     def __post_init__(self) -> None:
         if self.loss not in ("linear", "huber", "soft_l1", "cauchy"):

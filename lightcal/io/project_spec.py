@@ -190,6 +190,15 @@ _SELECTION = SelectionOptions()
 _SOLVER = SolverOptions()
 
 
+class FallOffSpec(_Model):
+    """A radial fall-off V = 1 + c1 r^2 + ... + cK r^(2K) estimated with the lights
+    (docs/model.md, "The fall-off estimated from the photos"): r is 1 at the sensor's
+    corners, from the image centre; V multiplies the sensor model's values."""
+
+    model: Literal["radial"] = "radial"
+    order: int = Field(default=2, ge=1, le=3, description="K, the number of coefficients")
+
+
 class SensorSpec(_Model):
     model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
     vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
@@ -203,6 +212,11 @@ class SensorSpec(_Model):
     )
     estimate_offset: bool = _SOLVER.estimate_offset
     noise: NoiseSpec | None = None
+    estimate_fall_off: FallOffSpec | None = Field(
+        default=None,
+        description="estimate the camera's radial fall-off with the lights; null: V as "
+        "the sensor model says",
+    )
 
     @model_validator(mode="after")
     def _map_needs_file(self) -> SensorSpec:

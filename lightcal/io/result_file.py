@@ -28,6 +28,9 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   (for the plot), ``findings`` (what matters and what to try) and ``notes`` (what was
   seen but is too small to act on). docs/model.md, "Is the fit explained by the noise?".
 - ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
+- ``fall_off``: the camera's fall-off when the project estimates it
+  (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
+  ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
   words with their sizes; ``uncertainty_breakdown`` the same per term and light as
@@ -234,6 +237,11 @@ class ResultFile(_Model):
         default="",
         description="where the iterations began when not at the initial guess (empty: there)",
     )
+    fall_off: dict[str, Any] | None = Field(
+        default=None,
+        description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
+        " coefficients, their sigma, V at the corners; null when not estimated",
+    )
 
     @field_validator("version")
     @classmethod
@@ -302,6 +310,7 @@ def result_to_file(
         undetermined=result.undetermined,
         f_scale_used=result.f_scale_used,
         start=result.start,
+        fall_off=_nan_to_none(result.fall_off),
     )
 
 

@@ -16,6 +16,7 @@ from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
+from lightcal.pipeline.fall_off_result import fall_off_problems, fall_off_summary, fall_off_warnings
 from lightcal.pipeline.fit_check import check_fit
 from lightcal.pipeline.measurements import Measurements, model_only
 
@@ -171,6 +172,7 @@ class CalibrationResult:
     f_scale_used: float | None = None
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
     start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
+    fall_off: dict | None = None  # the estimated fall-off (`fall_off_summary`), or None
 
     @property
     def fit_adequate(self) -> bool:
@@ -271,6 +273,8 @@ def summarise(
         else []
     )
     undetermined += dark  # a light that lights no selected pixel: its pose is not determined
+    fall_off = fall_off_summary(model, x, cov)
+    undetermined += fall_off_problems(model, x, fall_off)
     breakdown = _breakdown(model, unc.components, jacobians, unknown)
     offset_sigma = None
     if lay.offset_index is not None:
@@ -298,6 +302,7 @@ def summarise(
             + undetermined[: 1 if unknown else 0]
             + variety_warnings(model, np.nan_to_num(cov))
             + [f"misfit: {f}" for f in diagnosis.findings]
+            + fall_off_warnings(fall_off)
             + list(notes or [])
         ),
         parameter_names=list(lay.names),
@@ -312,6 +317,7 @@ def summarise(
         f_scale_used=outcome.f_scale_used,
         start=outcome.start,
         start_costs=outcome.start_costs,
+        fall_off=fall_off,
     )
 
 
