@@ -67,14 +67,20 @@ def test_extremes_and_implausible_coefficients():
 
 
 @pytest.mark.parametrize(
-    ("options", "wall"),
+    ("options", "wall", "last"),
     [
-        ({"estimate_gains": True, "estimate_offset": True, "offset": 3.0}, None),
-        ({}, WallUnknown(PlasticWall(0.3, 1.5, 2.0), ("roughness", "specular_weight"))),
+        # Equal exposures: the estimated offset is the room light too (no "ambient").
+        ({"estimate_gains": True, "estimate_offset": True, "offset": 3.0}, None, "offset"),
+        (
+            {"estimate_ambient": False},
+            WallUnknown(PlasticWall(0.3, 1.5, 2.0), ("roughness", "specular_weight")),
+            "wall.specular_weight",
+        ),
+        ({"estimate_ambient": True, "estimate_gains": True}, None, "ambient"),
     ],
-    ids=["gains_offset", "plastic_wall"],
+    ids=["gains_offset", "plastic_wall", "ambient_gains"],
 )
-def test_jacobian_matches_finite_differences(options: dict, wall: WallUnknown | None):
+def test_jacobian_matches_finite_differences(options: dict, wall: WallUnknown | None, last: str):
     light = cs.symmetric_light()
     images = cs.observe(
         CAMERA, cs.views(3, seed=2), Rig.single(light), n_per_image=40,
@@ -82,9 +88,14 @@ def test_jacobian_matches_finite_differences(options: dict, wall: WallUnknown | 
     )  # fmt: skip
     opts = SolverOptions(fall_off=_fall_off(3), **options)
     model = CalibrationModel(images, [LightUnknown(cs.start_near(light))], opts, wall)
-    assert model.layout.names[-3:] == ["fall_off.c1", "fall_off.c2", "fall_off.c3"]
+    names = ["fall_off.c1", "fall_off.c2", "fall_off.c3"]
+    tail = [*names, last] if last == "ambient" else [last, *names]
+    assert model.layout.names[-4:] == tail
     x = model.layout.x0.copy()
     x[model.layout.fall_off] = [-0.3, 0.08, 0.01]  # away from 0: products with V tested
+    if model.layout.ambient_index is not None:
+        x[model.layout.ambient_index] = 40.0
+        x[model.layout.gains] = [0.2, -0.3]
     J = model.jacobian(x)
     Jn = _numeric_jacobian(model, x)
     for k, name in enumerate(model.layout.names):
@@ -145,3 +156,49 @@ def test_bad_fall_off_is_an_error_naming_the_field(fields: dict, message: str):
     with pytest.raises(ValueError) as info:
         FallOffUnknown(**args)
     assert str(info.value) == message
+
+
+def test_room_light_grows_with_the_exposure_and_goes_through_v():
+    """m = b + g_i (lights + e_i a) V: the closed form, with images of different exposures."""
+    light = cs.symmetric_light()
+    views = [cs.with_exposure(v, e) for v, e in zip(cs.views(2, seed=4), (1.0, 0.5), strict=True)]
+    images = cs.observe(CAMERA, views, Rig.single(light), n_per_image=30,
+                        rng=np.random.default_rng(3))  # fmt: skip
+    options = SolverOptions(
+        offset=2.0, fall_off=_fall_off(), estimate_ambient=True, estimate_gains=True
+    )
+    model = CalibrationModel(images, [LightUnknown(light)], options)
+    x = model.layout.x0.copy()
+    x[model.layout.fall_off] = TRUE_COEFFS
+    x[model.layout.ambient_index] = 30.0
+    x[model.layout.gains] = [math.log(1.5)]
+    r = model.residuals(x)
+    reference = RadialVignetting.centered(TRUE_COEFFS, width=CAMERA.width, height=CAMERA.height)
+    for i, (im, g, e) in enumerate(zip(images, (1.0, 1.5), (1.0, 0.5), strict=True)):
+        v = reference.evaluate(im.footprints.pixels)
+        lights = g * shade(im.footprints, im.view, Rig.single(light)).values
+        rendered = 2.0 + v * (lights + g * e * 30.0)
+        expected = (im.observed - rendered) / im.sigma
+        np.testing.assert_allclose(r[model.bounds[i] : model.bounds[i + 1]], expected, rtol=1e-12)
+
+
+def test_recovers_the_room_light_beside_the_offset_when_exposures_differ():
+    """Room light (g_i e_i a) and a black-level error (b) are told apart by the exposures."""
+    light = cs.symmetric_light()
+    exposures = np.linspace(0.5, 2.0, 8)
+    views = [cs.with_exposure(v, e) for v, e in zip(cs.views(8, seed=7), exposures, strict=True)]
+    clean = cs.observe(CAMERA, views, Rig.single(light), n_per_image=150,
+                       rng=np.random.default_rng(8))  # fmt: skip
+    peak = max(float(im.observed.max()) for im in clean)
+    a, b = 0.05 * peak, 3.0
+    images = [
+        ImageData(im.name, im.view, im.footprints, im.observed + im.view.exposure * a + b, im.sigma)
+        for im in clean
+    ]
+    options = SolverOptions(estimate_ambient=True, estimate_offset=True)
+    model = CalibrationModel(images, [LightUnknown(cs.start_near(light))], options)
+    out = run_least_squares(model)
+    assert model.layout.ambient(out.x) == pytest.approx(a, rel=1e-6)
+    assert model.layout.offset(out.x) == pytest.approx(b, rel=1e-6)
+    position, axis = cs.pose_errors(model.layout.rig(out.x).lights[0], light)
+    assert position < 1e-6 and axis < 1e-5

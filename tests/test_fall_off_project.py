@@ -190,7 +190,9 @@ def test_view_variety_decides_how_much_the_fall_off_costs() -> None:
         sigmas = []
         for fall_off in (None, FallOffUnknown(2, camera().width, camera().height)):
             model = CalibrationModel(
-                images, [LightUnknown(light)], SolverOptions(fall_off=fall_off)
+                images,
+                [LightUnknown(light)],
+                SolverOptions(fall_off=fall_off, estimate_ambient=False),
             )
             C = np.linalg.inv(model.normal_matrix(model.layout.x0))
             sigmas.append(math.sqrt(np.trace(C[:3, :3])))
@@ -206,7 +208,8 @@ def test_a_fall_off_no_lens_has_makes_the_result_undetermined() -> None:
     images = cs.observe(cs.small_camera(), cs.views(3), Rig.single(light), n_per_image=50,
                         rng=np.random.default_rng(2))  # fmt: skip
     f = FallOffUnknown(2, cs.small_camera().width, cs.small_camera().height)
-    model = CalibrationModel(images, [LightUnknown(light)], SolverOptions(fall_off=f))
+    options = SolverOptions(fall_off=f, estimate_ambient=False)
+    model = CalibrationModel(images, [LightUnknown(light)], options)
     x = model.layout.x0.copy()
     cov = np.eye(model.layout.n) * 1e-6
     assert fall_off_problems(model, x, fall_off_summary(model, x, cov)) == []

@@ -27,6 +27,7 @@ from lightcal.core.problem import (
     LightUnknown,
     ParameterLayout,
     WallUnknown,
+    ambient_estimated,
     poisson_gaussian_sigma,
 )
 from lightcal.core.qr_factors import economic_r, stack_r_factors
@@ -78,6 +79,7 @@ class CalibrationModel:
             offset0=options.offset,
             wall=wall,
             fall_off=options.fall_off,
+            estimate_ambient=ambient_estimated(images, options),
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -322,7 +324,7 @@ class CalibrationModel:
                 A[:, block.rid] = self._rid_jacobian(x, i, j, block)
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
-        lay.apply_fall_off(A, total, im.footprints, x, g, fluxes)  # V, when estimated
+        lay.apply_sensor_terms(A, total, im, x, g, fluxes)  # room light, V: when estimated
         stats = sk.finish_rows(
             A,
             total,
@@ -378,12 +380,10 @@ class CalibrationModel:
         return self.options.reweight and any(im.noise is not None for im in self.images)
 
     def set_weights_at(self, x: np.ndarray | None) -> None:
-        """Pixel sigmas from the data (None) or from the values rendered at x.
-
-        At x, an image with a noise model (gain, read_variance) gets
-        sigma = sqrt(gain * max(v - offset, 0) + read_variance) of its rendered values v;
-        images without one keep their sigmas.
-        """
+        """Pixel sigmas from the data (None) or from the values rendered at x: an image
+        with a noise model (gain, read_variance) gets sigma = sqrt(gain * max(v - offset,
+        0) + read_variance) of its rendered values v (room light and fall-off included);
+        images without one keep their sigmas."""
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
@@ -398,7 +398,7 @@ class CalibrationModel:
                     rid_subsamples=self.options.rid_subsamples,
                     wall=wall,
                 )
-                signal = lay.with_fall_off(gains[i] * sh.values.filled(np.nan), im.footprints, x)
+                signal = lay.image_values(sh.values, im, x, gains[i])
                 sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas

@@ -84,8 +84,9 @@ CAUSES: dict[str, Cause] = {
         Cause(
             "ambient",
             "a constant light adds to every pixel: room light, or a wrong black level",
-            "turn the room light off or take a light-off photo, check the black level, or "
-            "set `estimate_offset: true`",
+            "set `sensor.estimate_ambient: true` (room light, which grows with each image's "
+            "exposure) or `sensor.estimate_offset: true` (a black level, the same in every "
+            "image), or turn the room light off",
         ),
         Cause(
             "vignetting",

@@ -5,7 +5,15 @@ concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.cor
 the log of its scale and optionally its RID parameters; then optionally one log-gain per
 image but the first (the first image's gain is fixed: a global gain is the lights'
 scales), optionally the offset b, the wall model's estimated parameters
-(`WallUnknown`) and last the fall-off's coefficients (`lightcal.core.fall_off`).
+(`WallUnknown`), the fall-off's coefficients (`lightcal.core.fall_off`) and last the
+room light's level a (`ParameterLayout.ambient_index`).
+
+Room light (ambient) is a uniform radiance on the wall: image i records it as
+g_i e_i a (its gain and exposure: the room's light grows with the exposure time as the
+beam's does) through the estimated fall-off V, unlike the offset b, which is the same in
+every image whatever its exposure. With equal exposures the two are one column: then
+the offset, when estimated, is the room light too, and a is not a parameter
+(`ambient_estimated`).
 
 RID estimation (the paper's future work), for symmetric lights:
 - ``cos_power``: f = cos^m(theta) with x holding log m;
@@ -17,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -156,6 +164,29 @@ class WallUnknown:
         return [self.initial.parameter_names.index(nm) for nm in self.estimate]
 
 
+class _SensorOptions(Protocol):
+    """What `ambient_estimated` reads of the solver's options."""
+
+    @property
+    def estimate_ambient(self) -> bool: ...
+
+    @property
+    def estimate_offset(self) -> bool: ...
+
+
+def ambient_estimated(images: list[ImageData], options: _SensorOptions) -> bool:
+    """Whether the room light (g_i e_i a) is a parameter: when the options ask for it,
+    unless an estimated offset b is the same column, every image having the same
+    exposure e_i (to 1e-9 relative): both then add one constant to every pixel (free
+    gains g_i start at 1 and barely tell them apart), and the offset is the room light."""
+    if not options.estimate_ambient:
+        return False
+    if not options.estimate_offset:
+        return True
+    exposures = np.array([float(im.view.exposure) for im in images])
+    return bool(np.ptp(exposures) > 1e-9 * np.abs(exposures).max())
+
+
 #: Log-parameters (scales, the cos^m exponent) are clipped to +-LOG_CLIP before exp.
 LOG_CLIP = 300.0
 
@@ -218,6 +249,7 @@ class ParameterLayout:
     wall: slice = field(default_factory=lambda: slice(0, 0))
     fall_off_unknown: FallOffUnknown | None = None
     fall_off: slice = field(default_factory=lambda: slice(0, 0))
+    ambient_index: int | None = None
 
     @classmethod
     def build(
@@ -230,6 +262,7 @@ class ParameterLayout:
         offset0: float,
         wall: WallUnknown | None = None,
         fall_off: FallOffUnknown | None = None,
+        estimate_ambient: bool = False,
     ) -> ParameterLayout:
         blocks: list[_LightBlock] = []
         names: list[str] = []
@@ -289,6 +322,12 @@ class ParameterLayout:
         if fall_off is not None:  # V = 1 to start: the coefficients 0
             x0.extend([0.0] * fall_off.order)
             names.extend(fall_off.names)
+        fall_off_slice = slice(wall_slice.stop, len(x0))
+        ambient_index = None
+        if estimate_ambient:  # a dark room to start
+            ambient_index = len(x0)
+            x0.append(0.0)
+            names.append("ambient")
         return cls(
             blocks,
             n_images,
@@ -303,7 +342,8 @@ class ParameterLayout:
             wall,
             wall_slice,
             fall_off,
-            slice(wall_slice.stop, len(x0)),
+            fall_off_slice,
+            ambient_index,
         )
 
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
@@ -352,30 +392,52 @@ class ParameterLayout:
         f = self.fall_off_unknown
         return None if f is None else f.factor(pixels, x[self.fall_off])
 
-    def with_fall_off(
-        self, values: np.ndarray, footprints: Footprints, x: np.ndarray
+    def ambient(self, x: np.ndarray) -> float:
+        """The room light's level a at x (value units at exposure and gain 1; 0 when not
+        estimated)."""
+        return float(x[self.ambient_index]) if self.ambient_index is not None else 0.0
+
+    def sensor_values(
+        self, values: np.ndarray, footprints: Footprints, x: np.ndarray, exposure_gain: float
     ) -> np.ndarray:
-        """(N,) rendered values above the offset times V at x of `footprints`' pixels."""
+        """(N,) what the sensor terms make of the lights' values above the offset
+        `values` (N,) at x: (values + g e a) V of `footprints`' pixels, `exposure_gain`
+        the image's g e."""
+        if self.ambient_index is not None:
+            values = values + exposure_gain * self.ambient(x)
         v = self.fall_off_factor(footprints.pixels, x)
         return values if v is None else values * v
 
-    def apply_fall_off(
+    def image_values(
+        self, values: np.ma.MaskedArray, image: ImageData, x: np.ndarray, gain: float
+    ) -> np.ndarray:
+        """(N,) `image`'s rendered values above the offset at x from its lights' shaded
+        `values` (N,) (NaN where masked) and its gain g: g (values + e a) V."""
+        lights = gain * values.filled(np.nan)
+        return self.sensor_values(lights, image.footprints, x, gain * float(image.view.exposure))
+
+    def apply_sensor_terms(
         self,
         A: np.ndarray,
         total: np.ndarray,
-        footprints: Footprints,
+        image: ImageData,
         x: np.ndarray,
         gain: float,
         fluxes: list[np.ndarray] | None,
     ) -> None:
-        """V at x on one image's system (`lightcal.core.fall_off.apply_fall_off`): A
-        (N, n + 1), total (N,) and each light's flux (N,) in `fluxes` (when given) of
-        `footprints`' pixels multiplied in place; nothing when the fall-off is not
-        estimated (V = 1)."""
+        """The room light and the fall-off at x on one image's system, in place: total
+        (N,) (sum over lights of scale * flux) gains e a and its column of A (N, n + 1)
+        d m / d a = g e; then A's columns, total and each light's flux (N,) in `fluxes`
+        (when given) are multiplied by V (`lightcal.core.fall_off.apply_fall_off`).
+        Nothing when neither is estimated."""
+        if self.ambient_index is not None:
+            exposure = float(image.view.exposure)
+            total += exposure * self.ambient(x)
+            A[:, self.ambient_index] = gain * exposure
         f = self.fall_off_unknown
         if f is None:
             return
-        powers = f.powers(footprints.pixels)
+        powers = f.powers(image.footprints.pixels)
         v = apply_fall_off(A, total, self.n, powers, x[self.fall_off], self.fall_off, gain)
         if fluxes is not None:
             fluxes[:] = [flux * v for flux in fluxes]

@@ -211,6 +211,7 @@ class SensorSpec(_Model):
         default=_SOLVER.offset, description="known (or initial) offset after black level"
     )
     estimate_offset: bool = _SOLVER.estimate_offset
+    estimate_ambient: bool = _SOLVER.estimate_ambient  # room light, grows with exposure
     noise: NoiseSpec | None = None
     estimate_fall_off: FallOffSpec | None = Field(
         default=None,

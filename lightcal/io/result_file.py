@@ -28,6 +28,8 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   (for the plot), ``findings`` (what matters and what to try) and ``notes`` (what was
   seen but is too small to act on). docs/model.md, "Is the fit explained by the noise?".
 - ``wall``: the wall model, its parameters, which were ``estimated`` and their ``sigma``.
+- ``ambient``, ``ambient_sigma``: the room light's level (pixel units at exposure and
+  gain 1) when the project estimates it (``sensor.estimate_ambient``); null otherwise.
 - ``fall_off``: the camera's fall-off when the project estimates it
   (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
   ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
@@ -237,6 +239,12 @@ class ResultFile(_Model):
         default="",
         description="where the iterations began when not at the initial guess (empty: there)",
     )
+    ambient: float | None = Field(
+        default=None,
+        description="the room light's level, pixel units at exposure and gain 1 "
+        "(sensor.estimate_ambient); null when not estimated",
+    )
+    ambient_sigma: float | None = Field(default=None, description="1-sigma of ambient")
     fall_off: dict[str, Any] | None = Field(
         default=None,
         description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
@@ -311,6 +319,8 @@ def result_to_file(
         f_scale_used=result.f_scale_used,
         start=result.start,
         fall_off=_nan_to_none(result.fall_off),
+        ambient=result.ambient,
+        ambient_sigma=_nan_to_none(result.ambient_sigma),
     )
 
 

@@ -1,6 +1,7 @@
-"""The estimated fall-off of a calibration (`sensor.estimate_fall_off`) in the result: its
-coefficients with their 1-sigma, the fall-off at the sensor's corners, whether the data
-determine it, and its line of text for `lightcal calibrate` and the report.
+"""The estimated sensor terms of a calibration in the result: the fall-off
+(`sensor.estimate_fall_off`), its coefficients with their 1-sigma, the fall-off at the
+sensor's corners, whether the data determine it, and the lines of text of it and of the
+room light (`sensor.estimate_ambient`) for `lightcal calibrate` and the report.
 
 A fall-off the data do not determine (one that leaves the range of a lens's, or that
 ends on its search box) makes the result not converged, with its reason in
@@ -92,3 +93,9 @@ def fall_off_text(summary: dict) -> str:
         f"fall-off: radial, V = 1 {' '.join(terms)} ({summary['corner_value']:.3f} ± "
         f"{corner_sigma} at the corners)"
     )
+
+
+def ambient_text(ambient: float, sigma: float | None) -> str:
+    """ "room light: 12.3 ± 0.41 (pixel units at exposure and gain 1)"."""
+    s = f"{sigma:.2g}" if sigma is not None and math.isfinite(sigma) else "undetermined"
+    return f"room light: {ambient:.4g} ± {s} (pixel units at exposure and gain 1)"

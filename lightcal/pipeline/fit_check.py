@@ -79,7 +79,8 @@ def _renderer(
 
     def render(i: int, view: View, fp: Footprints) -> np.ndarray:
         sh = shade(fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall)
-        return offset + lay.with_fall_off(float(gains[i]) * sh.values.filled(np.nan), fp, x)
+        lights = float(gains[i]) * sh.values.filled(np.nan)
+        return offset + lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
 
     return render
 

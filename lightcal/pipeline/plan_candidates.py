@@ -168,7 +168,7 @@ def candidate_image(
     lay = model.layout
     rig, wall = lay.rig(x), lay.wall_of(x)
     values = shade(fp, view, rig, rid_subsamples=model.options.rid_subsamples, wall=wall)
-    v = lay.with_fall_off(values.values.filled(np.nan), fp, x)
+    v = lay.sensor_values(values.values.filled(np.nan), fp, x, view.exposure)
     ok = fp.valid & np.isfinite(v)
     if not ok.any():
         return None

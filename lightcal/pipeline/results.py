@@ -173,6 +173,9 @@ class CalibrationResult:
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
     start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
     fall_off: dict | None = None  # the estimated fall-off (`fall_off_summary`), or None
+    # The room light's level at exposure and gain 1 and its sigma; None: not estimated.
+    ambient: float | None = None
+    ambient_sigma: float | None = None
 
     @property
     def fit_adequate(self) -> bool:
@@ -318,6 +321,12 @@ def summarise(
         start=outcome.start,
         start_costs=outcome.start_costs,
         fall_off=fall_off,
+        ambient=None if lay.ambient_index is None else lay.ambient(x),
+        ambient_sigma=(
+            None
+            if lay.ambient_index is None
+            else math.sqrt(max(cov[lay.ambient_index, lay.ambient_index], 0.0))
+        ),
     )
 
 
