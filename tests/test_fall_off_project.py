@@ -223,3 +223,22 @@ def test_a_fall_off_no_lens_has_makes_the_result_undetermined() -> None:
     cov[-1, -1] = np.nan  # an undetermined sigma
     (problem,) = fall_off_problems(model, x, fall_off_summary(model, x, cov))
     assert "(its sigma is undetermined)" in problem
+
+
+def test_room_light_and_vignetting_together(tmp_path: Path) -> None:
+    """Both departures at once, both terms estimated: measured 0.70 mm and 0.020 deg,
+    c = -0.250 +- 0.005, 0.047 +- 0.005 (with the fall-off alone the fit test names
+    `ambient`, 120 mm off; with the room light alone `vignetting`, 64 mm off)."""
+    both = {"sensor": {"estimate_ambient": True, "estimate_fall_off": {"order": 2}}}
+    departures = Departures(ambient_fraction=0.05, undeclared_vignetting=VIGNETTING)
+    result, truth = _calibrate(Case("both", None, departures, declared=both), tmp_path)
+    assert exit_code(result) == 0, result.warnings
+    position, position_sigma, axis, axis_sigma = errors(result, truth)
+    assert position < 2e-3 and axis < 0.1
+    assert position < 3.0 * position_sigma and axis < 3.0 * axis_sigma
+    f = result.fall_off
+    assert f is not None
+    for c, s, true in zip(f["coefficients"], f["sigma"], VIGNETTING, strict=True):
+        assert abs(c - true) < 3.0 * s
+    assert result.ambient is not None and result.ambient_sigma is not None
+    assert result.ambient > 10.0 * result.ambient_sigma
