@@ -163,13 +163,14 @@ def render(
 ) -> list[np.ma.MaskedArray]:
     """Every project image rendered with the calibrated lights, as `lightcal render` does:
     (H, W) masked arrays (masked off the wall), in the images' units, with each image's
-    gain, the offset and the fitted wall of the result."""
+    gain, the offset, the fitted wall and the room light and fall-off of the result."""
     import numpy as np
 
     from lightcal.core.scene import Light, Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
     from lightcal.pipeline import load_images
+    from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
     project = _as_project(project)
@@ -187,6 +188,10 @@ def render(
         wall = wall_from_description(file.wall)
     except ValueError as exc:
         raise InputError(source, f"wall: {exc}") from exc
+    try:  # the sensor terms the result estimated
+        fall_off = fall_off_map(file.fall_off, project.camera.width, project.camera.height)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from exc
     gains = {im.name: im.gain for im in file.images}
     ensure_compiled(notify)
     loaded = load_images(project, progress=progress)
@@ -198,6 +203,8 @@ def render(
         offset=file.offset,
         progress=progress,
         wall=wall,
+        fall_off=fall_off,
+        ambient=file.ambient or 0.0,
     )
 
 

@@ -19,6 +19,8 @@ from lightcal.core.fall_off import FallOffUnknown
 from lightcal.core.problem import ImageData, LightUnknown, poisson_gaussian_sigma
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions
+from lightcal.core.vignetting import RadialVignetting
+from lightcal.errors import InputError
 from lightcal.io.project import load_project
 from lightcal.io.result_file import read_result, result_to_file, write_result
 from lightcal.pipeline import calibrate_project
@@ -242,3 +244,30 @@ def test_room_light_and_vignetting_together(tmp_path: Path) -> None:
         assert abs(c - true) < 3.0 * s
     assert result.ambient is not None and result.ambient_sigma is not None
     assert result.ambient > 10.0 * result.ambient_sigma
+
+
+def test_render_applies_the_estimated_fall_off(vignetted) -> None:
+    """`lightcal render` (the API's `render`) draws the result's fall-off: the render with
+    it over the one without is V of its coefficients, pixel by pixel (offset 0)."""
+    from lightcal import api
+
+    (result, _), folder = vignetted
+    file = result_to_file(result)
+    with_v = api.render(folder / "project.json", file, notify=None)
+    without = api.render(folder / "project.json", file.model_copy(update={"fall_off": None}),
+                         notify=None)  # fmt: skip
+    project = load_project(folder / "project.json")
+    f = result.fall_off
+    assert f is not None and result.offset == 0.0
+    v = RadialVignetting.centered(
+        f["coefficients"], width=project.camera.width, height=project.camera.height
+    ).image()
+    for a, b in zip(with_v, without, strict=True):
+        lit = ~np.ma.getmaskarray(b) & (np.ma.filled(b, 0.0) > 0.0)
+        np.testing.assert_allclose(a[lit] / b[lit], v[lit], rtol=1e-6)
+    bad = file.model_copy(update={"fall_off": {"coefficients": "none"}})
+    with pytest.raises(InputError) as info:
+        api.render(folder / "project.json", bad, notify=None)
+    assert str(info.value) == (
+        "the result: fall_off.coefficients: expected a list of 1 to 3 numbers, got 'none'"
+    )

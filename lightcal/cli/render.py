@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
+    from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
     project = load_project(args.project)
@@ -66,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
+    try:  # the sensor terms the result estimated
+        fall_off = fall_off_map(result.fall_off, project.camera.width, project.camera.height)
+    except ValueError as exc:
+        raise InputError(args.result, str(exc)) from exc
     # Before any work: --out holds no input of the project, and no render replaces the
     # result file (even with --force).
     check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
@@ -91,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
             offset=result.offset,
             progress=progress,
             wall=wall,
+            fall_off=fall_off,
+            ambient=result.ambient or 0.0,
         )
     for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)

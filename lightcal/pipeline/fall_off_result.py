@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from lightcal.core.fall_off import FALL_OFF_MAX_ORDER, FallOffUnknown
 from lightcal.core.solver import CalibrationModel
 
 LOOSE_CORNER_SIGMA = 0.02
@@ -99,3 +100,26 @@ def ambient_text(ambient: float, sigma: float | None) -> str:
     """ "room light: 12.3 ± 0.41 (pixel units at exposure and gain 1)"."""
     s = f"{sigma:.2g}" if sigma is not None and math.isfinite(sigma) else "undetermined"
     return f"room light: {ambient:.4g} ± {s} (pixel units at exposure and gain 1)"
+
+
+def fall_off_map(fall_off: dict | None, width: int, height: int) -> np.ndarray | None:
+    """(H, W) V of a result's `fall_off` on a camera of `width` x `height` pixels, for
+    rendering the result (`lightcal render`); None when the result has none.
+
+    Raises:
+        ValueError: `fall_off` has no finite "coefficients" list (what is wrong, to be
+            reported with the result file's name).
+    """
+    if fall_off is None:
+        return None
+    coeffs = fall_off.get("coefficients")
+    if not (
+        isinstance(coeffs, list)
+        and 0 < len(coeffs) <= FALL_OFF_MAX_ORDER
+        and all(isinstance(c, int | float) and math.isfinite(c) for c in coeffs)
+    ):
+        raise ValueError(
+            f"fall_off.coefficients: expected a list of 1 to {FALL_OFF_MAX_ORDER} numbers, "
+            f"got {coeffs!r}"
+        )
+    return FallOffUnknown(len(coeffs), width, height).image(np.array(coeffs, dtype=np.float64))
