@@ -271,3 +271,18 @@ def test_render_applies_the_estimated_fall_off(vignetted) -> None:
     assert str(info.value) == (
         "the result: fall_off.coefficients: expected a list of 1 to 3 numbers, got 'none'"
     )
+
+
+@pytest.mark.parametrize(
+    ("name", "key"),
+    [
+        ("vignetting", "`sensor.estimate_fall_off: {order: 2}`"),
+        ("room light", "`sensor.estimate_ambient: true`"),
+    ],
+)
+def test_the_fit_test_names_the_key_that_models_the_departure(
+    tmp_path: Path, name: str, key: str
+) -> None:
+    result, _ = _calibrate(_case(name, estimate=False), tmp_path)
+    (finding, *_) = result.fit["findings"]
+    assert key in finding, finding

@@ -92,7 +92,9 @@ CAUSES: dict[str, Cause] = {
             "vignetting",
             "the residuals fall off toward the image corners: a lens fall-off "
             "(vignetting) the project does not declare",
-            "declare the fall-off (`sensor: {model: map}` with a flat-field, or `cos4`)",
+            "declare the fall-off (`sensor: {model: map}` with a flat-field, or `cos4`), or "
+            "estimate it with the light (`sensor.estimate_fall_off: {order: 2}`, with views "
+            "at several distances)",
         ),
         Cause(
             "response",
