@@ -188,13 +188,15 @@ def render(
         wall = wall_from_description(file.wall)
     except ValueError as exc:
         raise InputError(source, f"wall: {exc}") from exc
-    try:  # the sensor terms the result estimated
-        fall_off = fall_off_map(file.fall_off, project.camera.width, project.camera.height)
+    try:  # the sensor terms the result estimated (checked before any work)
+        fall_off_map(file.fall_off, project.camera.width, project.camera.height)
     except ValueError as exc:
         raise InputError(source, str(exc)) from exc
     gains = {im.name: im.gain for im in file.images}
     ensure_compiled(notify)
     loaded = load_images(project, progress=progress)
+    # On the images' grid (a raw reader's binned one when it binned): r is the same.
+    fall_off = fall_off_map(file.fall_off, loaded.camera.width, loaded.camera.height)
     return render_views(
         project,
         loaded,

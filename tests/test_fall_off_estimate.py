@@ -202,3 +202,31 @@ def test_recovers_the_room_light_beside_the_offset_when_exposures_differ():
     assert model.layout.offset(out.x) == pytest.approx(b, rel=1e-6)
     position, axis = cs.pose_errors(model.layout.rig(out.x).lights[0], light)
     assert position < 1e-6 and axis < 1e-5
+
+
+def test_a_planned_view_takes_v_at_the_camera_s_pixels():
+    """The selection works in 4 x 4 super-pixels, a planned view in the camera's pixels:
+    its rendered values carry V of those pixels (`camera_pixel_model`)."""
+    from lightcal.pipeline.plan import camera_pixel_model, camera_pixel_options
+    from lightcal.pipeline.plan_candidates import PlanGrid, candidate_image
+
+    light = cs.symmetric_light()
+    views = cs.views(3, seed=2)
+    images = cs.observe(CAMERA, views, Rig.single(light), n_per_image=40,
+                        rng=np.random.default_rng(1))  # fmt: skip
+    options = SolverOptions(fall_off=_fall_off(binning=4))
+    model = CalibrationModel(images, [LightUnknown(light)], options)
+    unbinned = camera_pixel_options(options).fall_off
+    assert unbinned is not None and unbinned.binning == 1 and unbinned.order == 2
+    x = model.layout.x0.copy()
+    x[model.layout.fall_off] = TRUE_COEFFS
+    planned = camera_pixel_model(model)
+    assert planned.layout.names == model.layout.names
+    image = candidate_image(planned, x, CAMERA, views[0], PlanGrid(), "plan")
+    assert image is not None
+    lights = shade(image.footprints, image.view, Rig.single(light)).values
+    v = _fall_off(binning=1).factor(image.footprints.pixels, TRUE_COEFFS)
+    np.testing.assert_allclose(image.observed, lights * v, rtol=1e-12)
+    assert (
+        np.abs(v - _fall_off(binning=4).factor(image.footprints.pixels, TRUE_COEFFS)).max() > 0.05
+    )

@@ -305,3 +305,27 @@ def test_a_dense_binned_selection_recovers_the_fall_off(tmp_path: Path) -> None:
     assert f is not None
     for c, s, true in zip(f["coefficients"], f["sigma"], VIGNETTING, strict=True):
         assert abs(c - true) < 3.0 * s and s < 0.005
+
+
+def test_the_fall_off_follows_the_grid_the_images_are_read_on(folder) -> None:
+    """A raw reader that bins 2 x 2 gives images of the camera binned: r is measured on
+    that grid (its centre and half diagonal are the sensor's), so the model's fall-off
+    takes the images' size."""
+    from lightcal.pipeline.load import LoadedImages
+    from lightcal.pipeline.model import solver_options
+
+    doc = _doc()
+    doc["sensor"] = {"estimate_fall_off": {"order": 2}}
+    project = load_project(_write(folder, doc))
+    cam = project.camera
+    same = solver_options(project, LoadedImages([], [], cam))
+    assert same is project.solver
+    binned = solver_options(project, LoadedImages([], [], cam.binned(2))).fall_off
+    assert binned is not None
+    assert (binned.width, binned.height) == (cam.width // 2, cam.height // 2)
+    # The super-pixel (0, 0) of the binned grid is the full sensor's pixel (0.5, 0.5):
+    # the same r either way.
+    full = project.solver.fall_off
+    assert full is not None
+    corner = full.r2(np.array([[0.5, 0.5]]))
+    np.testing.assert_allclose(binned.r2(np.array([[0, 0]])), corner, rtol=1e-12)

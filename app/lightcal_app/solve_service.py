@@ -33,6 +33,7 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
+from lightcal.pipeline.model import solver_options
 from lightcal.pipeline.results import stop_reason
 from lightcal.pipeline.solve import Calibration, calibrate, start_words
 from lightcal_app.requests import Finished
@@ -181,14 +182,13 @@ class SolveService:
         index of each of its images; None when no image has pixels."""
         st = self.state
         with st.lock:
-            project = st.solve_project
+            project, loaded = st.solve_project, st.loaded
             guess = list(st.guess)
             datas, index = self.selection.usable()
         if not datas:
             return None
-        model = CalibrationModel(
-            datas, self._lights(project, guess, datas), project.solver, project.wall
-        )
+        options = solver_options(project, loaded)  # the fall-off on the images' grid
+        model = CalibrationModel(datas, self._lights(project, guess, datas), options, project.wall)
         return model, index
 
     def ensure_session(self, client: Any = None) -> bool:

@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         wall = wall_from_description(result.wall)
     except ValueError as exc:
         raise InputError(args.result, f"wall: {exc}") from exc
-    try:  # the sensor terms the result estimated
-        fall_off = fall_off_map(result.fall_off, project.camera.width, project.camera.height)
+    try:  # the sensor terms the result estimated (checked before any work)
+        fall_off_map(result.fall_off, project.camera.width, project.camera.height)
     except ValueError as exc:
         raise InputError(args.result, str(exc)) from exc
     # Before any work: --out holds no input of the project, and no render replaces the
@@ -88,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
+        # On the images' grid (a raw reader's binned one when it binned): r is the same.
+        fall_off = fall_off_map(result.fall_off, loaded.camera.width, loaded.camera.height)
         renders = render_views(
             project,
             loaded,
