@@ -46,6 +46,8 @@ def estimate_display(
         setup_rev,
         model.layout.wall_of(x),
         fall_off,
+        tuple(float(c) for c in x[model.layout.fall_off]),
+        model.layout.ambient(x),
     )
 
 

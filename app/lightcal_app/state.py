@@ -177,6 +177,9 @@ class Display:
             plastic wall `auto` chose renders its highlight).
         fall_off: the camera's fall-off model they render with (`sensor.model` of the
             project solved); None: the loaded project's.
+        fall_off_coeffs: (K,) the estimated radial fall-off's c_1..c_K
+            (`sensor.estimate_fall_off`; `lightcal.core.fall_off`); empty: none.
+        ambient: the estimated room light a (value at exposure and gain 1; 0: none).
     """
 
     rig: Rig
@@ -186,6 +189,8 @@ class Display:
     setup_rev: int
     wall: WallReflectance = LAMBERTIAN
     fall_off: SensorModel | None = None
+    fall_off_coeffs: tuple[float, ...] = ()
+    ambient: float = 0.0
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""
