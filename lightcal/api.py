@@ -163,7 +163,7 @@ def render(
 ) -> list[np.ma.MaskedArray]:
     """Every project image rendered with the calibrated lights, as `lightcal render` does:
     (H, W) masked arrays (masked off the wall), in the images' units, with each image's
-    gain, the offset and the fitted wall of the result."""
+    gain, the offset, the fitted wall and the room light and fall-off of the result."""
     import numpy as np
 
     from lightcal.core.medium import medium_from_description
@@ -171,6 +171,7 @@ def render(
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
     from lightcal.pipeline import load_images
+    from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
     project = _as_project(project)
@@ -192,9 +193,15 @@ def render(
         medium = medium_from_description(file.medium)
     except ValueError as exc:
         raise InputError(source, str(exc)) from exc
+    try:  # the sensor terms the result estimated (checked before any work)
+        fall_off_map(file.fall_off, project.camera.width, project.camera.height)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from exc
     gains = {im.name: im.gain for im in file.images}
     ensure_compiled(notify)
     loaded = load_images(project, progress=progress)
+    # On the images' grid (a raw reader's binned one when it binned): r is the same.
+    fall_off = fall_off_map(file.fall_off, loaded.camera.width, loaded.camera.height)
     return render_views(
         project,
         loaded,
@@ -204,6 +211,8 @@ def render(
         progress=progress,
         wall=wall,
         medium=medium,
+        fall_off=fall_off,
+        ambient=file.ambient or 0.0,
     )
 
 

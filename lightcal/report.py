@@ -38,6 +38,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
+from lightcal.pipeline.fall_off_result import ambient_text, fall_off_text
 from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
 
@@ -55,9 +56,13 @@ def render_views(
     progress: ProgressFn | None = None,
     wall: WallReflectance = LAMBERTIAN,
     medium: Medium = AIR,
+    fall_off: np.ndarray | None = None,
+    ambient: float = 0.0,
 ) -> list[np.ma.MaskedArray]:
     """Render every project image with `rig` on `wall` through `medium`: (H, W) masked
-    arrays."""
+    arrays. `ambient`, an estimated room light (value at exposure and gain 1), adds
+    gain x exposure x it; `fall_off` (H, W), an estimated fall-off V, multiplies the
+    values above the offset."""
     out = []
     n = len(project.views)
     for i, view in enumerate(project.views):
@@ -77,6 +82,9 @@ def render_views(
                 medium=medium,
             )
         )
+        if ambient != 0.0 or fall_off is not None:
+            room = g * view.exposure * ambient
+            out[-1] = offset + (out[-1] - offset + room) * (1.0 if fall_off is None else fall_off)
     if progress is not None:
         progress("rendering", n, n)
     return out
@@ -120,6 +128,12 @@ def write_report(
         progress=progress,
         wall=model.layout.wall_of(x),
         medium=model.layout.medium_of(x),
+        fall_off=(
+            None
+            if model.layout.fall_off_unknown is None
+            else model.layout.fall_off_unknown.image(x[model.layout.fall_off])
+        ),
+        ambient=model.layout.ambient(x),
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 
@@ -282,6 +296,10 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
     medium = medium_text(result.medium)
     if medium is not None:
         lines.append(f"- {medium}")
+    if result.fall_off is not None:
+        lines.append(f"- {markdown_prose(fall_off_text(result.fall_off))}")
+    if result.ambient is not None:
+        lines.append(f"- {markdown_prose(ambient_text(result.ambient, result.ambient_sigma))}")
     fit = result.fit
     if fit:
         if not fit["adequate"]:

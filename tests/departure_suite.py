@@ -45,6 +45,12 @@ CASES = (
     Case("rough matte", "rough_matte", wall=OrenNayarWall(math.radians(25.0))),
     Case("bright rim", "profile", Departures(rid_rim_amplitude=0.3)),
     Case("room light", "ambient", Departures(ambient_fraction=0.05)),
+    Case(
+        "room light, est.",
+        None,
+        Departures(ambient_fraction=0.05),
+        declared={"sensor": {"estimate_ambient": True}},
+    ),
     Case("vignetting", "vignetting", Departures(undeclared_vignetting=(-0.25, 0.05))),
     Case("gamma 1.5", "response", Departures(gamma=1.5)),
     Case("bad poses", "images", Departures(pose_error_m=0.004, pose_error_deg=0.4)),

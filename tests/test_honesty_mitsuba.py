@@ -95,6 +95,24 @@ def test_the_sigma_covers_every_departure(tmp_path_factory, scenario: str, named
         assert any(b["term"] == "wall flatness" for b in result.uncertainty_breakdown)
 
 
+def test_room_light_is_estimated_with_estimate_ambient(tmp_path_factory) -> None:
+    """Measured: 2.3 mm (sigma 2.7), 0.13 deg (0.16); 62 mm and 2.7 deg without it, 18 mm
+    and 0.9 deg with `estimate_offset` instead."""
+    project = session_dataset(tmp_path_factory, "ambient", seed=0)
+    doc = json.loads(project.read_text())
+    doc.setdefault("sensor", {})["estimate_ambient"] = True
+    estimated = project.with_name("estimate_ambient.json")
+    estimated.write_text(json.dumps(doc))
+    _, _, result = calibrate_project(load_project(estimated))
+    truth = read_truth(project.parent / "truth.json")["lights"][0]
+    position, position_sigma, axis, axis_sigma = errors(result, truth)
+    assert exit_code(result) == 0, result.warnings
+    assert position < 3e-3 and axis < 0.2
+    assert position <= 2.0 * position_sigma and axis <= 2.0 * axis_sigma
+    assert result.ambient is not None and result.ambient_sigma is not None
+    assert result.ambient > 10.0 * result.ambient_sigma
+
+
 def test_the_declared_flatness_is_what_covers_the_bow(tmp_path_factory) -> None:
     """Without it the bowed wall's error is beyond its sigma: no residual shows a bow."""
     project = session_dataset(tmp_path_factory, "bowed", seed=0)

@@ -36,8 +36,14 @@ def test_solver_and_sensor_spec_defaults_are_the_solver_options():
         SensorSpec, SolverOptions()
     )
     names = {name for name, _, _ in shared}
-    # compress and reweight are not in the project file: always their option defaults.
-    assert names == {f.name for f in dataclasses.fields(SolverOptions)} - {"compress", "reweight"}
+    # compress and reweight are not in the project file: always their option defaults;
+    # fall_off is built from sensor.estimate_fall_off and the camera (default null: None).
+    assert names == {f.name for f in dataclasses.fields(SolverOptions)} - {
+        "compress",
+        "reweight",
+        "fall_off",
+    }
+    assert SensorSpec().estimate_fall_off is None and SolverOptions().fall_off is None
     for name, spec_default, option_default in shared:
         assert spec_default == option_default, name
 

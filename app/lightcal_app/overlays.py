@@ -160,7 +160,21 @@ class OverlayImages:
         if sensor == "paper":
             # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
             out = out / float(self.geo.render_binning**2)
+        if display.ambient:  # the estimated room light, as the model adds it
+            out = out + view.exposure * display.ambient
+        if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel
+            out = out * self._estimated_fall_off(display.fall_off_coeffs, out.shape)
         return out + display.offset
+
+    def _estimated_fall_off(self, coeffs: tuple[float, ...], shape: tuple[int, ...]) -> np.ndarray:
+        """(h, w) V of `coeffs` on the rendered (binned) grid (`FallOffUnknown`)."""
+        from lightcal.core.fall_off import FallOffUnknown
+
+        cam, b = self.geo.camera, self.geo.render_binning
+        f = FallOffUnknown(len(coeffs), cam.width, cam.height, b)
+        v, u = np.mgrid[0 : shape[0], 0 : shape[1]]
+        pixels = np.stack([u.ravel(), v.ravel()], axis=1)
+        return f.factor(pixels, np.array(coeffs)).reshape(shape)
 
     def residual(self, index: int, rendered: np.ma.MaskedArray) -> np.ma.MaskedArray:
         """(h, w) real minus rendered on the binned grid, masked where either is unknown."""

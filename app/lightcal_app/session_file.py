@@ -116,6 +116,9 @@ class SolveSettingsModel(_Model):
     estimate_offset: bool
     fall_off: str = Field(max_length=40)
     estimate_rid: list[Annotated[str, Field(max_length=40)]] = Field(max_length=64)
+    # Files before these fields: off, as the project file's defaults.
+    estimate_ambient: bool = False
+    estimate_fall_off: int = Field(default=0, ge=0, le=3)
 
 
 class SessionFile(_Model):
@@ -331,6 +334,8 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             saved.estimate_offset,
             saved.fall_off,
             tuple(saved.estimate_rid),
+            saved.estimate_ambient,
+            saved.estimate_fall_off,
         )
         try:
             check_settings(state.project, settings)

@@ -47,6 +47,8 @@ def estimate_display(
         model.layout.wall_of(x),
         fall_off,
         model.layout.medium_of(x),
+        tuple(float(c) for c in x[model.layout.fall_off]),
+        model.layout.ambient(x),
     )
 
 

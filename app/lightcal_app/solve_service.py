@@ -33,6 +33,7 @@ from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.errors import LightcalError
 from lightcal.io.project import Project
 from lightcal.pipeline import measurements_for, starting_lights, summarise
+from lightcal.pipeline.model import solver_options
 from lightcal.pipeline.results import stop_reason
 from lightcal.pipeline.solve import Calibration, calibrate, start_words
 from lightcal_app.requests import Finished
@@ -182,18 +183,14 @@ class SolveService:
         index of each of its images; None when no image has pixels."""
         st = self.state
         with st.lock:
-            project = st.solve_project
+            project, loaded = st.solve_project, st.loaded
             guess = list(st.guess)
             datas, index = self.selection.usable()
         if not datas:
             return None
-        model = CalibrationModel(
-            datas,
-            self._lights(project, guess, datas),
-            project.solver,
-            project.wall,
-            project.medium,
-        )
+        options = solver_options(project, loaded)  # the fall-off on the images' grid
+        lights = self._lights(project, guess, datas)
+        model = CalibrationModel(datas, lights, options, project.wall, project.medium)
         return model, index
 
     def ensure_session(self, client: Any = None) -> bool:

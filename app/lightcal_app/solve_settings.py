@@ -2,12 +2,14 @@
 edit by hand before `lightcal calibrate`.
 
 `SolveSettings` holds the wall model (`wall.model`, `auto` included), the mirror
-exclusion (`selection.exclude_mirror_deg`), the offset (`sensor.estimate_offset`: room
-light or a black level left in the images), the camera's fall-off (`sensor.model`) and
-each light's RID estimate (`lights[].estimate_rid`). `project_for_solve` makes the
-project the solve uses: the loaded project with those keys set, built by
-`lightcal.io.project.project_from_spec` exactly as a project file with them would be, so
-the page solves what `lightcal calibrate` solves on the edited file.
+exclusion (`selection.exclude_mirror_deg`), the offset (`sensor.estimate_offset`: a
+black level left in the images), the room light (`sensor.estimate_ambient`), the
+camera's fall-off (`sensor.model`) and the radial one estimated with the light
+(`sensor.estimate_fall_off`), and each light's RID estimate (`lights[].estimate_rid`).
+`project_for_solve` makes the project the solve uses: the loaded project with those
+keys set, built by `lightcal.io.project.project_from_spec` exactly as a project file
+with them would be, so the page solves what `lightcal calibrate` solves on the edited
+file.
 """
 
 from __future__ import annotations
@@ -16,10 +18,11 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal, get_args
 
+from lightcal.core.fall_off import FALL_OFF_MAX_ORDER
 from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
 from lightcal.io.project import Project, project_from_spec
-from lightcal.io.project_spec import WallModelName, WallSpec
+from lightcal.io.project_spec import FallOffSpec, WallModelName, WallSpec
 from lightcal.pipeline.wall_choice import candidate_named
 
 FallOff = Literal["radiance", "cos4", "paper", "map"]
@@ -28,6 +31,8 @@ RidEstimate = Literal["none", "cos_power", "curve"]
 WALL_MODELS: tuple[str, ...] = get_args(WallModelName)
 FALL_OFFS: tuple[str, ...] = get_args(FallOff)
 RID_ESTIMATES: tuple[str, ...] = get_args(RidEstimate)
+FALL_OFF_ORDERS: tuple[str, ...] = ("off", "r^2", "r^2, r^4", "r^2, r^4, r^6")
+"""The Solve tab's words for `sensor.estimate_fall_off`'s order 0 (off) to 3."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +45,8 @@ class SolveSettings:
         estimate_offset: `sensor.estimate_offset`.
         fall_off: `sensor.model` ("map" only for a project with a vignetting file).
         estimate_rid: per light, `lights[j].estimate_rid`.
+        estimate_ambient: `sensor.estimate_ambient`.
+        estimate_fall_off: the order of `sensor.estimate_fall_off`; 0: off (null).
     """
 
     wall_model: str
@@ -47,6 +54,8 @@ class SolveSettings:
     estimate_offset: bool
     fall_off: str
     estimate_rid: tuple[str, ...]
+    estimate_ambient: bool = False
+    estimate_fall_off: int = 0
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -58,6 +67,10 @@ def settings_of(project: Project) -> SolveSettings:
         estimate_offset=spec.sensor.estimate_offset,
         fall_off=spec.sensor.model,
         estimate_rid=tuple(ls.estimate_rid for ls in spec.lights),
+        estimate_ambient=spec.sensor.estimate_ambient,
+        estimate_fall_off=(
+            0 if spec.sensor.estimate_fall_off is None else spec.sensor.estimate_fall_off.order
+        ),
     )
 
 
@@ -77,6 +90,16 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
     if settings.fall_off == "map" and project.vignetting_path is None:
         raise InputError(
             "sensor.model", "'map' needs the project's vignetting file (sensor.vignetting)"
+        )
+    order = settings.estimate_fall_off
+    if (
+        isinstance(order, bool)
+        or not isinstance(order, int)
+        or not 0 <= order <= FALL_OFF_MAX_ORDER
+    ):
+        raise InputError(
+            "sensor.estimate_fall_off.order",
+            f"expected 0 (off) to {FALL_OFF_MAX_ORDER}, got {order!r}",
         )
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
@@ -116,7 +139,16 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
                 update={"exclude_mirror_deg": settings.exclude_mirror_deg or None}
             ),
             "sensor": spec.sensor.model_copy(
-                update={"estimate_offset": settings.estimate_offset, "model": settings.fall_off}
+                update={
+                    "estimate_offset": settings.estimate_offset,
+                    "model": settings.fall_off,
+                    "estimate_ambient": settings.estimate_ambient,
+                    "estimate_fall_off": (
+                        FallOffSpec(order=settings.estimate_fall_off)
+                        if settings.estimate_fall_off
+                        else None
+                    ),
+                }
             ),
             "lights": [
                 ls.model_copy(update={"estimate_rid": value})

@@ -180,6 +180,9 @@ class Display:
             project solved); None: the loaded project's.
         medium: the medium between the rig and the wall they render through (the
             estimate's when its attenuation is estimated).
+        fall_off_coeffs: (K,) the estimated radial fall-off's c_1..c_K
+            (`sensor.estimate_fall_off`; `lightcal.core.fall_off`); empty: none.
+        ambient: the estimated room light a (value at exposure and gain 1; 0: none).
     """
 
     rig: Rig
@@ -190,6 +193,8 @@ class Display:
     wall: WallReflectance = LAMBERTIAN
     fall_off: SensorModel | None = None
     medium: Medium = AIR
+    fall_off_coeffs: tuple[float, ...] = ()
+    ambient: float = 0.0
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""

@@ -130,6 +130,14 @@ def run(args: argparse.Namespace) -> int:
     medium = medium_text(result.medium)
     if medium is not None:
         output.print(medium, highlight=False)
+    if result.fall_off is not None:
+        from lightcal.pipeline.fall_off_result import fall_off_text
+
+        output.print(fall_off_text(result.fall_off), highlight=False, soft_wrap=True)
+    if result.ambient is not None:
+        from lightcal.pipeline.fall_off_result import ambient_text
+
+        output.print(ambient_text(result.ambient, result.ambient_sigma), highlight=False)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"

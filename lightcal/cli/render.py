@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
+    from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
     project = load_project(args.project)
@@ -71,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
         medium = medium_from_description(result.medium)
     except ValueError as exc:
         raise InputError(args.result, str(exc)) from exc
+    try:  # the sensor terms the result estimated (checked before any work)
+        fall_off_map(result.fall_off, project.camera.width, project.camera.height)
+    except ValueError as exc:
+        raise InputError(args.result, str(exc)) from exc
     # Before any work: --out holds no input of the project, and no render replaces the
     # result file (even with --force).
     check_output_folder(args.out, option="--out", inputs=project_inputs(project), force=args.force)
@@ -88,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     with stage_progress() as progress:
         loaded = load_images(project, progress=progress)
+        # On the images' grid (a raw reader's binned one when it binned): r is the same.
+        fall_off = fall_off_map(result.fall_off, loaded.camera.width, loaded.camera.height)
         renders = render_views(
             project,
             loaded,
@@ -97,6 +104,8 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
             wall=wall,
             medium=medium,
+            fall_off=fall_off,
+            ambient=result.ambient or 0.0,
         )
     for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)

@@ -19,14 +19,14 @@ import numpy as np
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
+from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
-from lightcal.core.medium import Medium
+from lightcal.core.medium import Medium, MediumUnknown
 from lightcal.core.pose import axis_from_angles, axis_jacobian
 from lightcal.core.problem import (
     LOG_CLIP,
     ImageData,
     LightUnknown,
-    MediumUnknown,
     ParameterLayout,
     WallUnknown,
     poisson_gaussian_sigma,
@@ -54,10 +54,8 @@ class CalibrationModel:
         images: the selected pixels of each image.
         unknowns: the lights to calibrate.
         options: solver options.
-        wall: the wall's reflectance model and which of its parameters to estimate
-            (default: a Lambertian wall).
-        medium: the medium between the rig and the wall and which of its parameters to
-            estimate (default: air).
+        wall: the wall's reflectance and what to estimate of it (default: Lambertian).
+        medium: the medium between rig and wall, what to estimate of it (default: air).
     """
 
     def __init__(
@@ -84,6 +82,8 @@ class CalibrationModel:
             offset0=options.offset,
             wall=wall,
             medium=medium,
+            fall_off=options.fall_off,
+            estimate_ambient=ambient_estimated(images, options),
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -339,6 +339,7 @@ class CalibrationModel:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
             if medium_grad is not None:
                 A[:, lay.medium] += value_per_flux * medium_grad[:, medium_idx]
+        lay.apply_sensor_terms(A, total, im, x, g, fluxes)  # room light, V: when estimated
         stats = sk.finish_rows(
             A,
             total,
@@ -364,7 +365,7 @@ class CalibrationModel:
         return [c for c in range(lay.n + 1) if c not in written]
 
     def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
-        """d m_render / d (RID params of light j) on image i by central differences."""
+        """d m_render / d (RID params of light j) on image i by central differences, V = 1."""
         im = self.images[i]
         lay = self.layout
         gain = lay.gain_factors(x)[i]
@@ -395,12 +396,10 @@ class CalibrationModel:
         return self.options.reweight and any(im.noise is not None for im in self.images)
 
     def set_weights_at(self, x: np.ndarray | None) -> None:
-        """Pixel sigmas from the data (None) or from the values rendered at x.
-
-        At x, an image with a noise model (gain, read_variance) gets
-        sigma = sqrt(gain * max(v - offset, 0) + read_variance) of its rendered values v;
-        images without one keep their sigmas.
-        """
+        """Pixel sigmas from the data (None) or from the values rendered at x: an image
+        with a noise model (gain, read_variance) gets sigma = sqrt(gain * max(v - offset,
+        0) + read_variance) of its rendered values v (room light and fall-off included);
+        images without one keep their sigmas."""
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
@@ -416,7 +415,8 @@ class CalibrationModel:
                     wall=wall,
                     medium=lay.medium_of(x),
                 )
-                sigma = poisson_gaussian_sigma(gains[i] * sh.values.filled(np.nan), im.noise)
+                signal = lay.image_values(sh.values, im, x, gains[i])
+                sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)

@@ -27,7 +27,8 @@ def parameter_bounds(
     at least a quarter of the start's forward room z_max(0) - z0. Scales and RID
     parameters stay unbounded: bounding them degrades trf's steps (it scales
     variables by their distance to finite bounds); the model clips their
-    exponentials instead (`ParameterLayout`).
+    exponentials instead (`ParameterLayout`). Wall parameters and fall-off coefficients
+    keep their models' boxes.
 
     Args:
         layout: the parameter vector's layout (its start x0, blocks and wall columns).
@@ -72,4 +73,6 @@ def parameter_bounds(
         hi[s + 2] = max(z_max(d), z0 + 1e-9)
     lo[layout.wall], hi[layout.wall] = layout.wall_bounds()
     lo[layout.medium], hi[layout.medium] = layout.medium_bounds()
+    if layout.fall_off_unknown is not None:
+        lo[layout.fall_off], hi[layout.fall_off] = layout.fall_off_unknown.bounds()
     return lo, hi

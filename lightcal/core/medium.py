@@ -32,6 +32,7 @@ __all__ = [
     "AIR",
     "MAX_ATTENUATION_PER_M",
     "Medium",
+    "MediumUnknown",
     "apply_medium",
     "backscatter",
     "footprint_spread",
@@ -302,3 +303,32 @@ def footprint_spread(
         axis=1
     )
     return np.abs(mean - center) / center
+
+
+@dataclass(frozen=True, eq=False)
+class MediumUnknown:
+    """The medium between the rig and the wall, and which of its parameters to estimate.
+
+    Args:
+        initial: the medium with its initial (or fixed) parameter values.
+        estimate: names of the parameters to estimate (of `Medium.parameter_names`).
+    """
+
+    initial: Medium = AIR
+    estimate: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "estimate", tuple(self.estimate))
+        names = Medium.parameter_names
+        for nm in self.estimate:
+            if nm not in names:
+                raise ValueError(
+                    f"medium: estimate: no parameter {nm!r}; expected {', '.join(names)}"
+                )
+        if len(set(self.estimate)) != len(self.estimate):
+            raise ValueError("medium: estimate: expected each parameter once")
+
+    @property
+    def indices(self) -> list[int]:
+        """Positions of the estimated parameters in the medium's parameter vector."""
+        return [Medium.parameter_names.index(nm) for nm in self.estimate]

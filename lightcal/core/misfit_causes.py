@@ -84,14 +84,17 @@ CAUSES: dict[str, Cause] = {
         Cause(
             "ambient",
             "a constant light adds to every pixel: room light, or a wrong black level",
-            "turn the room light off or take a light-off photo, check the black level, or "
-            "set `estimate_offset: true`",
+            "set `sensor.estimate_ambient: true` (room light, which grows with each image's "
+            "exposure) or `sensor.estimate_offset: true` (a black level, the same in every "
+            "image), or turn the room light off",
         ),
         Cause(
             "vignetting",
             "the residuals fall off toward the image corners: a lens fall-off "
             "(vignetting) the project does not declare",
-            "declare the fall-off (`sensor: {model: map}` with a flat-field, or `cos4`)",
+            "declare the fall-off (`sensor: {model: map}` with a flat-field, or `cos4`), or "
+            "estimate it with the light (`sensor.estimate_fall_off: {order: 2}`, with views "
+            "at several distances)",
         ),
         Cause(
             "response",

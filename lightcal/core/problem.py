@@ -4,8 +4,17 @@ The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, t
 concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
 the log of its scale and optionally its RID parameters; then optionally one log-gain per
 image but the first (the first image's gain is fixed: a global gain is the lights'
-scales), optionally the offset b, then the wall model's estimated parameters
-(`WallUnknown`) and last the medium's (`MediumUnknown`).
+scales), optionally the offset b, the wall model's estimated parameters
+(`WallUnknown`), the fall-off's coefficients (`lightcal.core.fall_off`), the room
+light's level a (`ParameterLayout.ambient_index`) and last the medium's
+(`MediumUnknown`).
+
+Room light (ambient) is a uniform radiance on the wall: image i records it as
+g_i e_i a (its gain and exposure: the room's light grows with the exposure time as the
+beam's does) through the estimated fall-off V, unlike the offset b, which is the same in
+every image whatever its exposure. With equal exposures the two are one column: then
+the offset, when estimated, is the room light too, and a is not a parameter
+(`ambient_estimated`).
 
 RID estimation (the paper's future work), for symmetric lights:
 - ``cos_power``: f = cos^m(theta) with x holding log m;
@@ -21,8 +30,9 @@ from typing import Literal
 
 import numpy as np
 
+from lightcal.core.fall_off import FallOffUnknown, apply_fall_off
 from lightcal.core.footprint import Footprints
-from lightcal.core.medium import AIR, Medium
+from lightcal.core.medium import Medium, MediumUnknown
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
 from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
 from lightcal.core.scene import Light, Rig, View
@@ -156,35 +166,6 @@ class WallUnknown:
         return [self.initial.parameter_names.index(nm) for nm in self.estimate]
 
 
-@dataclass(frozen=True, eq=False)
-class MediumUnknown:
-    """The medium between the rig and the wall, and which of its parameters to estimate.
-
-    Args:
-        initial: the medium with its initial (or fixed) parameter values.
-        estimate: names of the parameters to estimate (of `Medium.parameter_names`).
-    """
-
-    initial: Medium = AIR
-    estimate: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "estimate", tuple(self.estimate))
-        names = Medium.parameter_names
-        for nm in self.estimate:
-            if nm not in names:
-                raise ValueError(
-                    f"medium: estimate: no parameter {nm!r}; expected {', '.join(names)}"
-                )
-        if len(set(self.estimate)) != len(self.estimate):
-            raise ValueError("medium: estimate: expected each parameter once")
-
-    @property
-    def indices(self) -> list[int]:
-        """Positions of the estimated parameters in the medium's parameter vector."""
-        return [Medium.parameter_names.index(nm) for nm in self.estimate]
-
-
 #: Log-parameters (scales, the cos^m exponent) are clipped to +-LOG_CLIP before exp.
 LOG_CLIP = 300.0
 
@@ -245,6 +226,9 @@ class ParameterLayout:
     x0: np.ndarray = field(repr=False)
     wall_unknown: WallUnknown = field(default_factory=WallUnknown)
     wall: slice = field(default_factory=lambda: slice(0, 0))
+    fall_off_unknown: FallOffUnknown | None = None
+    fall_off: slice = field(default_factory=lambda: slice(0, 0))
+    ambient_index: int | None = None
     medium_unknown: MediumUnknown = field(default_factory=MediumUnknown)
     medium: slice = field(default_factory=lambda: slice(0, 0))
 
@@ -258,6 +242,8 @@ class ParameterLayout:
         estimate_offset: bool,
         offset0: float,
         wall: WallUnknown | None = None,
+        fall_off: FallOffUnknown | None = None,
+        estimate_ambient: bool = False,
         medium: MediumUnknown | None = None,
     ) -> ParameterLayout:
         blocks: list[_LightBlock] = []
@@ -315,6 +301,15 @@ class ParameterLayout:
             x0.append(float(p0[k]))
             names.append(f"wall.{nm}")
         wall_slice = slice(start, len(x0))
+        if fall_off is not None:  # V = 1 to start: the coefficients 0
+            x0.extend([0.0] * fall_off.order)
+            names.extend(fall_off.names)
+        fall_off_slice = slice(wall_slice.stop, len(x0))
+        ambient_index = None
+        if estimate_ambient:  # a dark room to start
+            ambient_index = len(x0)
+            x0.append(0.0)
+            names.append("ambient")
         medium = medium if medium is not None else MediumUnknown()
         start = len(x0)
         p0 = medium.initial.parameters()
@@ -334,6 +329,9 @@ class ParameterLayout:
             np.array(x0, dtype=np.float64),
             wall,
             wall_slice,
+            fall_off,
+            fall_off_slice,
+            ambient_index,
             medium,
             slice(start, len(x0)),
         )
@@ -377,6 +375,62 @@ class ParameterLayout:
         p = w.initial.parameters()
         p[w.indices] = x[self.wall]
         return w.initial.with_parameters(p)
+
+    def fall_off_factor(self, pixels: np.ndarray, x: np.ndarray) -> np.ndarray | None:
+        """(N,) the estimated fall-off V at x of (binned) `pixels` (N, 2); None when the
+        fall-off is not estimated (V = 1)."""
+        f = self.fall_off_unknown
+        return None if f is None else f.factor(pixels, x[self.fall_off])
+
+    def ambient(self, x: np.ndarray) -> float:
+        """The room light's level a at x (value units at exposure and gain 1; 0 when not
+        estimated)."""
+        return float(x[self.ambient_index]) if self.ambient_index is not None else 0.0
+
+    def sensor_values(
+        self, values: np.ndarray, footprints: Footprints, x: np.ndarray, exposure_gain: float
+    ) -> np.ndarray:
+        """(N,) what the sensor terms make of the lights' values above the offset
+        `values` (N,) at x: (values + g e a) V of `footprints`' pixels, `exposure_gain`
+        the image's g e."""
+        if self.ambient_index is not None:
+            values = values + exposure_gain * self.ambient(x)
+        v = self.fall_off_factor(footprints.pixels, x)
+        return values if v is None else values * v
+
+    def image_values(
+        self, values: np.ma.MaskedArray, image: ImageData, x: np.ndarray, gain: float
+    ) -> np.ndarray:
+        """(N,) `image`'s rendered values above the offset at x from its lights' shaded
+        `values` (N,) (NaN where masked) and its gain g: g (values + e a) V."""
+        lights = gain * values.filled(np.nan)
+        return self.sensor_values(lights, image.footprints, x, gain * float(image.view.exposure))
+
+    def apply_sensor_terms(
+        self,
+        A: np.ndarray,
+        total: np.ndarray,
+        image: ImageData,
+        x: np.ndarray,
+        gain: float,
+        fluxes: list[np.ndarray] | None,
+    ) -> None:
+        """The room light and the fall-off at x on one image's system, in place: total
+        (N,) (sum over lights of scale * flux) gains e a and its column of A (N, n + 1)
+        d m / d a = g e; then A's columns, total and each light's flux (N,) in `fluxes`
+        (when given) are multiplied by V (`lightcal.core.fall_off.apply_fall_off`).
+        Nothing when neither is estimated."""
+        if self.ambient_index is not None:
+            exposure = float(image.view.exposure)
+            total += exposure * self.ambient(x)
+            A[:, self.ambient_index] = gain * exposure
+        f = self.fall_off_unknown
+        if f is None:
+            return
+        powers = f.powers(image.footprints.pixels)
+        v = apply_fall_off(A, total, self.n, powers, x[self.fall_off], self.fall_off, gain)
+        if fluxes is not None:
+            fluxes[:] = [flux * v for flux in fluxes]
 
     def wall_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds (k,) of the estimated wall parameters."""

@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from lightcal.core.fall_off import FallOffUnknown
 from lightcal.core.problem import Loss
 
 # Each light's position may move at most this far (per camera-frame axis) from the origin.
@@ -62,6 +63,14 @@ class SolverOptions:
             again from there: sigmas from the noisy observations weight pixels whose noise
             happened to be negative more, which biases the estimate (measured: ~3 mm at
             SNR ~35, removed by one re-weighting).
+        estimate_ambient: estimate the room light's level a: g_i e_i a in image i, which
+            grows with the exposure (`lightcal.core.problem`). Measured: 5 % room light
+            moves the light 119 mm without it, 0.85 mm with it, and a dark room's
+            position sigma grows 1.12x; off by default, as an estimated RID profile's
+            tail trades with it (docs/model.md). Not a parameter when an estimated
+            offset already is the same column (`ambient_estimated`).
+        fall_off: a radial fall-off to estimate with the lights (`lightcal.core.fall_off`;
+            the project's `sensor.estimate_fall_off`), or None: V = 1.
     """
 
     loss: Loss = "linear"
@@ -75,6 +84,8 @@ class SolverOptions:
     position_bound_m: float = DEFAULT_POSITION_BOUND_M
     compress: bool | None = None
     reweight: bool = True
+    fall_off: FallOffUnknown | None = None
+    estimate_ambient: bool = False
 
     def __post_init__(self) -> None:
         if self.loss not in ("linear", "huber", "soft_l1", "cauchy"):

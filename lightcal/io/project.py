@@ -10,6 +10,7 @@ an `InputError` naming the file and the field (e.g. ``images[3].T_camera_world``
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ import numpy as np
 import yaml
 
 from lightcal.core.camera import Camera
+from lightcal.core.fall_off import FallOffUnknown
 from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
 from lightcal.core.problem import LightUnknown, MediumUnknown, WallUnknown
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
@@ -338,6 +340,11 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
 
     selection = spec.selection.to_options()
     solver = spec.solver.to_options(spec.sensor)
+    if spec.sensor.estimate_fall_off is not None:
+        binning = sel.binning if sel.strategy == "all" else 1  # the selection's super-pixels
+        order = spec.sensor.estimate_fall_off.order
+        fall_off = FallOffUnknown(order, camera.width, camera.height, binning)
+        solver = dataclasses.replace(solver, fall_off=fall_off)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
         if spec.sensor.vignetting

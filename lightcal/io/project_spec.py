@@ -30,6 +30,7 @@ from lightcal.core.solver import SolverOptions
 from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
 from lightcal.io.medium_spec import MediumSpec
+from lightcal.io.spec_errors import format_loc, on_literal_branch
 
 PROJECT_VERSION: Literal[1] = 1
 
@@ -196,6 +197,15 @@ _SELECTION = SelectionOptions()
 _SOLVER = SolverOptions()
 
 
+class FallOffSpec(_Model):
+    """A radial fall-off V = 1 + c1 r^2 + ... + cK r^(2K) estimated with the lights
+    (docs/model.md, "The fall-off estimated from the photos"): r is 1 at the sensor's
+    corners, from the image centre; V multiplies the sensor model's values."""
+
+    model: Literal["radial"] = "radial"
+    order: int = Field(default=2, ge=1, le=3, description="K, the number of coefficients")
+
+
 class SensorSpec(_Model):
     model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
     vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
@@ -208,7 +218,13 @@ class SensorSpec(_Model):
         default=_SOLVER.offset, description="known (or initial) offset after black level"
     )
     estimate_offset: bool = _SOLVER.estimate_offset
+    estimate_ambient: bool = _SOLVER.estimate_ambient  # room light, grows with exposure
     noise: NoiseSpec | None = None
+    estimate_fall_off: FallOffSpec | None = Field(
+        default=None,
+        description="estimate the camera's radial fall-off with the lights; null: V as "
+        "the sensor model says",
+    )
 
     @model_validator(mode="after")
     def _map_needs_file(self) -> SensorSpec:
@@ -433,30 +449,6 @@ class ProjectFile(_Model):
     medium: MediumSpec = Field(default_factory=MediumSpec)
 
 
-_UNION_BRANCHES = frozenset({"float", "int", "str", "bool", "list", "dict"})
-_TAGS = ("function-", "literal[")  # pydantic's names of validator and literal branches
-
-
-def _on_literal_branch(err: Any) -> bool:
-    """The error of a union's literal branch ("Input should be 'auto'"), said only when
-    no other branch has a more telling one."""
-    return any(isinstance(part, str) and part.startswith("literal[") for part in err["loc"])
-
-
-def _format_loc(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, str) and (
-            part in _UNION_BRANCHES or part.endswith(("Spec", "Spec]")) or part.startswith(_TAGS)
-        ):
-            continue  # the name of a union's branch (ExposureSpec, float), not a field
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
 def parse_project(data: Any, source: str | Path) -> ProjectFile:
     """Validate a project document (already parsed JSON/YAML); InputError on any problem."""
     if not isinstance(data, dict):
@@ -475,12 +467,12 @@ def parse_project(data: Any, source: str | Path) -> ProjectFile:
         errors = exc.errors()
         # The most specific problem: where a value may take several forms (a number or
         # exposure settings), the branch that got deepest says what is wrong.
-        err = max(errors, key=lambda e: (len(e["loc"]), not _on_literal_branch(e)))
+        err = max(errors, key=lambda e: (len(e["loc"]), not on_literal_branch(e)))
         more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
-        if len({_format_loc(e["loc"][:3]) for e in errors}) == 1:
+        if len({format_loc(e["loc"][:3]) for e in errors}) == 1:
             more = ""  # the other problems are the same field's other forms
         msg = err["msg"].removeprefix("Value error, ")
-        raise InputError(source, f"{_format_loc(err['loc'])}: {msg}{more}") from exc
+        raise InputError(source, f"{format_loc(err['loc'])}: {msg}{more}") from exc
 
 
 def project_schema() -> dict[str, Any]:

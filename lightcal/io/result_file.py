@@ -31,6 +31,11 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``medium``: ``attenuation_per_m`` and ``backscatter_per_m`` (1/m; 0 in air),
   ``phase_g``, which parameters were ``estimated`` and their ``sigma``
   (`lightcal.core.medium`).
+- ``ambient``, ``ambient_sigma``: the room light's level (pixel units at exposure and
+  gain 1) when the project estimates it (``sensor.estimate_ambient``); null otherwise.
+- ``fall_off``: the camera's fall-off when the project estimates it
+  (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
+  ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
   words with their sizes; ``uncertainty_breakdown`` the same per term and light as
@@ -242,6 +247,17 @@ class ResultFile(_Model):
         default="",
         description="where the iterations began when not at the initial guess (empty: there)",
     )
+    ambient: float | None = Field(
+        default=None,
+        description="the room light's level, pixel units at exposure and gain 1 "
+        "(sensor.estimate_ambient); null when not estimated",
+    )
+    ambient_sigma: float | None = Field(default=None, description="1-sigma of ambient")
+    fall_off: dict[str, Any] | None = Field(
+        default=None,
+        description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
+        " coefficients, their sigma, V at the corners; null when not estimated",
+    )
 
     @field_validator("version")
     @classmethod
@@ -311,6 +327,9 @@ def result_to_file(
         undetermined=result.undetermined,
         f_scale_used=result.f_scale_used,
         start=result.start,
+        fall_off=_nan_to_none(result.fall_off),
+        ambient=result.ambient,
+        ambient_sigma=_nan_to_none(result.ambient_sigma),
     )
 
 

@@ -82,7 +82,8 @@ def _renderer(
         sh = shade(
             fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
         )
-        return offset + float(gains[i]) * sh.values.filled(np.nan)
+        lights = float(gains[i]) * sh.values.filled(np.nan)
+        return offset + lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
 
     return render
 

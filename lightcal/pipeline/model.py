@@ -12,7 +12,7 @@ from lightcal.core.problem import ImageData, LightUnknown
 from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import shade
 from lightcal.core.scene import Rig
-from lightcal.core.solver import CalibrationModel
+from lightcal.core.solver import CalibrationModel, SolverOptions
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
 from lightcal.io.project import Project
@@ -76,6 +76,17 @@ def fit_scales(
     return [float(max(v, 1e-3 * largest)) for v in s]
 
 
+def solver_options(project: Project, loaded: LoadedImages) -> SolverOptions:
+    """The project's solver options for its images as read: an estimated fall-off's
+    r is measured on the grid the images have (`loaded.camera`: a raw reader's binned
+    grid when it binned), whose centre and half diagonal are the sensor's."""
+    f = project.solver.fall_off
+    cam = loaded.camera
+    if f is None or (f.width, f.height) == (cam.width, cam.height):
+        return project.solver
+    return replace(project.solver, fall_off=replace(f, width=cam.width, height=cam.height))
+
+
 def build_model(
     project: Project,
     loaded: LoadedImages,
@@ -108,7 +119,8 @@ def build_model(
             "or off the wall); check the selection and sensor settings",
         )
     unknowns = list(lights) if lights is not None else starting_lights(project, data)
-    model = CalibrationModel(data, unknowns, project.solver, project.wall, project.medium)
+    options = solver_options(project, loaded)
+    model = CalibrationModel(data, unknowns, options, project.wall, project.medium)
     if model.m <= model.layout.n:
         raise InputError(
             project.path,

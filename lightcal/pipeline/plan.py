@@ -41,14 +41,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.core.light_axis import axis_jacobian
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
-from lightcal.core.solver import CalibrationModel
+from lightcal.core.solver import CalibrationModel, SolverOptions
 from lightcal.core.uncertainty import noise_inflation
 from lightcal.errors import InputError
 from lightcal.pipeline.plan_candidates import (
@@ -138,6 +138,23 @@ class Sigmas:
     log_det: float
 
 
+def camera_pixel_options(options: SolverOptions) -> SolverOptions:
+    """The solver options of a planned view, whose pixels are the camera's (binning 1):
+    an estimated fall-off then maps them, not the selection's super-pixels."""
+    f = options.fall_off
+    if f is None or f.binning == 1:
+        return options
+    return replace(options, fall_off=replace(f, binning=1))
+
+
+def camera_pixel_model(model: CalibrationModel) -> CalibrationModel:
+    """`model` with `camera_pixel_options` (itself when they are its own)."""
+    options = camera_pixel_options(model.options)
+    if options is model.options:
+        return model
+    return CalibrationModel(model.images, model.unknowns, options, model.layout.wall_unknown)
+
+
 class InformationState:
     """The normal matrix N of the views so far (grown by one gain column per added view
     when gains are estimated) and the map from a candidate's columns into it.
@@ -170,8 +187,9 @@ class InformationState:
         """N (+) 0 + J_v^T J_v for the candidate `image` (rows scaled, see the class)."""
         N = self.N if N is None else N
         lay = self.model.layout
+        options = camera_pixel_options(self.model.options)  # a planned view's pixels
         single = CalibrationModel(
-            [image], self.model.unknowns, self.model.options, lay.wall_unknown, lay.medium_unknown
+            [image], self.model.unknowns, options, lay.wall_unknown, lay.medium_unknown
         )
         index = [lay.names.index(nm) for nm in single.layout.names]
         J = single.jacobian(self.x[index])
@@ -289,12 +307,15 @@ def plan_views(
     exposure = float(np.median([im.view.exposure for im in model.images]))
     pool = candidates(camera, grid, wall_centre([im.view for im in model.images]), exposure)
     peak = typical_peak(model, state.x)
+    at_camera_pixels = camera_pixel_model(model)
     images = []
     for k, c in enumerate(pool):
         if progress is not None:
             progress("rendering candidates", k, len(pool))
         images.append(
-            candidate_image(model, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak)
+            candidate_image(
+                at_camera_pixels, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak
+            )
         )
     if progress is not None:
         progress("rendering candidates", len(pool), len(pool))

@@ -175,7 +175,7 @@ def candidate_image(
         wall=wall,
         medium=lay.medium_of(x),
     )
-    v = values.values.filled(np.nan)
+    v = lay.sensor_values(values.values.filled(np.nan), fp, x, view.exposure)
     ok = fp.valid & np.isfinite(v)
     if not ok.any():
         return None

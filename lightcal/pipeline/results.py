@@ -17,6 +17,7 @@ from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
+from lightcal.pipeline.fall_off_result import fall_off_problems, fall_off_summary, fall_off_warnings
 from lightcal.pipeline.fit_check import check_fit
 from lightcal.pipeline.measurements import Measurements, model_only
 
@@ -174,6 +175,10 @@ class CalibrationResult:
     f_scale_used: float | None = None
     start: str = ""  # `SolveOutcome.start`: where the reported iterations began
     start_costs: list[float] = field(default_factory=list, repr=False)  # and its costs
+    fall_off: dict | None = None  # the estimated fall-off (`fall_off_summary`), or None
+    # The room light's level at exposure and gain 1 and its sigma; None: not estimated.
+    ambient: float | None = None
+    ambient_sigma: float | None = None
 
     @property
     def fit_adequate(self) -> bool:
@@ -274,6 +279,8 @@ def summarise(
         else []
     )
     undetermined += dark  # a light that lights no selected pixel: its pose is not determined
+    fall_off = fall_off_summary(model, x, cov)
+    undetermined += fall_off_problems(model, x, fall_off)
     breakdown = _breakdown(model, unc.components, jacobians, unknown)
     offset_sigma = None
     if lay.offset_index is not None:
@@ -301,6 +308,7 @@ def summarise(
             + undetermined[: 1 if unknown else 0]
             + variety_warnings(model, np.nan_to_num(cov))
             + [f"misfit: {f}" for f in diagnosis.findings]
+            + fall_off_warnings(fall_off)
             + list(notes or [])
         ),
         parameter_names=list(lay.names),
@@ -316,6 +324,13 @@ def summarise(
         f_scale_used=outcome.f_scale_used,
         start=outcome.start,
         start_costs=outcome.start_costs,
+        fall_off=fall_off,
+        ambient=None if lay.ambient_index is None else lay.ambient(x),
+        ambient_sigma=(
+            None
+            if lay.ambient_index is None
+            else math.sqrt(max(cov[lay.ambient_index, lay.ambient_index], 0.0))
+        ),
     )
 
 

@@ -13,6 +13,7 @@ from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
 from lightcal_app.solve_display import light_angles_deg
 from lightcal_app.solve_settings import (
+    FALL_OFF_ORDERS,
     FALL_OFFS,
     RID_ESTIMATES,
     WALL_MODELS,
@@ -114,10 +115,16 @@ class SolvePanel(TabPanel):
                 "direction of the first estimate and solve again (0: keep all)",
             )
             self.offset = self.gui.add_checkbox(
-                "estimate offset (room light)",
+                "estimate offset (black level)",
                 settings.estimate_offset,
-                hint="sensor.estimate_offset: a constant added to every pixel (room light, a "
-                "black level left in the images) estimated with the light",
+                hint="sensor.estimate_offset: a constant added to every pixel, the same in "
+                "every image (a black level left in the images) estimated with the light",
+            )
+            self.ambient = self.gui.add_checkbox(
+                "estimate room light",
+                settings.estimate_ambient,
+                hint="sensor.estimate_ambient: light from the room on the wall, which grows "
+                "with each image's exposure, estimated with the light",
             )
             self.fall_off = self.gui.add_dropdown(
                 "camera fall-off",
@@ -125,6 +132,14 @@ class SolvePanel(TabPanel):
                 initial_value=settings.fall_off,
                 hint="sensor.model: radiance (none), cos4, paper (the paper's model) or "
                 "map (the project's vignetting file)",
+            )
+            self.estimate_fall_off = self.gui.add_dropdown(
+                "estimate fall-off",
+                FALL_OFF_ORDERS,
+                initial_value=FALL_OFF_ORDERS[settings.estimate_fall_off],
+                hint="sensor.estimate_fall_off: a radial fall-off 1 + c1 r^2 + ... fitted "
+                "with the light (r^2: order 1, to r^6: order 3); needs views at several "
+                "distances",
             )
             self.rid_estimates = [
                 self.gui.add_dropdown(
@@ -139,7 +154,14 @@ class SolvePanel(TabPanel):
         self._settings_lights = [u.initial.name for u in project.lights]
         self._settings_fall_offs = fall_offs
         changed = self.guard(lambda e: self.ctl.set_solve_settings(self._settings()))
-        handles: list[Any] = [self.wall_model, self.mirror, self.offset, self.fall_off]
+        handles: list[Any] = [
+            self.wall_model,
+            self.mirror,
+            self.offset,
+            self.ambient,
+            self.fall_off,
+            self.estimate_fall_off,
+        ]
         for h in [*handles, *self.rid_estimates]:
             h.on_update(changed)
 
@@ -150,6 +172,8 @@ class SolvePanel(TabPanel):
             estimate_offset=bool(self.offset.value),
             fall_off=str(self.fall_off.value),
             estimate_rid=tuple(str(h.value) for h in self.rid_estimates),
+            estimate_ambient=bool(self.ambient.value),
+            estimate_fall_off=FALL_OFF_ORDERS.index(str(self.estimate_fall_off.value)),
         )
 
     def set_project(self, project: Project) -> None:
@@ -168,6 +192,8 @@ class SolvePanel(TabPanel):
         self.flag.assign(self.mirror, s.exclude_mirror_deg)
         self.flag.assign(self.offset, s.estimate_offset)
         self.flag.assign(self.fall_off, s.fall_off)
+        self.flag.assign(self.ambient, s.estimate_ambient)
+        self.flag.assign(self.estimate_fall_off, FALL_OFF_ORDERS[s.estimate_fall_off])
         for handle, value in zip(self.rid_estimates, s.estimate_rid, strict=False):
             self.flag.assign(handle, value)
 
