@@ -676,6 +676,25 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--attenuation: expected at most 2 per metre, got 100"),
     ),
     (
+        "synth: --declare-medium without water",
+        "synth {n} --declare-medium given",
+        _error(
+            "synth",
+            "--declare-medium: given: expected --attenuation C > 0 or --backscatter BETA > 0 "
+            "(the medium to declare)",
+        ),
+    ),
+    (
+        "synth: --backscatter with another sensor model",
+        "synth {n} --backscatter 0.5 --sensor cos4",
+        _error("synth", "--backscatter: applies to the radiance sensor model only, got 'cos4'"),
+    ),
+    (
+        "synth: --phase-g 1.5",
+        "synth {n} --phase-g 1.5",
+        _error("synth", "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),
+    ),
+    (
         "synth: --dark-frames without room light",
         "synth {n} --dark-frames",
         _error(
