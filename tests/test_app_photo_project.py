@@ -134,8 +134,9 @@ def test_photos_uploaded_one_at_a_time_build_a_project(photos: Photos, tmp_path:
     again = staging.build(options=PhotoOptions(initial_position_m=(0.05, 0.0, 0.0)))
     assert not project.path.exists() and again.project.path.exists()
     assert again.warnings == (
-        "no light file nor half angle given: the light is assumed to have a cos^m profile "
-        "of half angle 30 degrees (give its IES/LDT file or half angle for a true fit)",
+        "no light file nor half angle given: the light's profile is taken as cos^m, its "
+        "exponent estimated from a start at a half angle of 30 degrees (give its IES/LDT file "
+        "or half angle if known)",
     )
     assert load_project(again.project.path).spec.lights[0].initial.position_m == [0.05, 0, 0]
     with pytest.raises(InputError) as info:  # before any work, named as the page labels it

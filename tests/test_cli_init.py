@@ -218,14 +218,18 @@ def test_library_result_and_defaults(scene):
     wide = np.asarray(cv2.imread(str(root / "masks" / "wall_2.png"), cv2.IMREAD_UNCHANGED)) > 0
     assert np.all(wide[narrow]) and wide.sum() > 1.2 * narrow.sum()
     assert result.warnings == [
-        "no light file nor half angle given: the light is assumed to have a cos^m profile "
-        "of half angle 30 degrees (give its IES/LDT file or half angle for a true fit)"
+        "no light file nor half angle given: the light's profile is taken as cos^m, its "
+        "exponent estimated from a start at a half angle of 30 degrees (give its IES/LDT file "
+        "or half angle if known)"
     ]
     spec = result.spec
     assert spec.lights[0].rid.type == "half_angle" and spec.lights[0].rid.half_angle_deg == 30.0
-    assert spec.lights[0].initial.position_m == [0.0, 0.0, 0.0]
-    assert spec.lights[0].initial.axis_camera == [0.0, 0.0, 1.0]
+    assert spec.lights[0].estimate_rid == "cos_power"
+    assert spec.lights[0].initial == "auto"  # no guess given: from the beam
     assert spec.sensor.black_level is None
+    assert spec.sensor.estimate_offset is False  # 16-bit photos: their black is known
+    # Every pixel, binned to at most 300,000 super-pixels (3 images of 1200 x 800: 2 x 2).
+    assert (spec.selection.strategy, spec.selection.binning) == ("all", 2)
     assert (root / "sub.yaml").read_text().startswith("version: 1\n")  # YAML by suffix
     assert load_project(root / "sub.yaml").names == accepted
 

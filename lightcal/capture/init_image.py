@@ -79,6 +79,7 @@ class ImageOutcome:
         d_pose_d_intrinsics: (6, p) how the pose moves with the camera's intrinsics
             (`marker_pose.pose_intrinsics_jacobian`), when the camera file has an
             intrinsics covariance, else None.
+        bit_depth: Bits per sample of an accepted image, else None.
     """
 
     name: str
@@ -88,6 +89,7 @@ class ImageOutcome:
     exposure: Exposure | None = None
     mask_path: Path | None = None
     d_pose_d_intrinsics: np.ndarray | None = None
+    bit_depth: int | None = None
 
     @property
     def accepted(self) -> bool:
@@ -184,4 +186,6 @@ def process_image(
     mask = everything.marker_mask(height, width, margin_px=mask_margin_px)
     filename = f"{name}.png"
     atomic_write_bytes(staging_dir / filename, _encode_mask(mask))
-    return ImageOutcome(name, path, pose, None, image.exposure, masks_dir / filename, d_pose)
+    return ImageOutcome(
+        name, path, pose, None, image.exposure, masks_dir / filename, d_pose, image.bit_depth
+    )

@@ -70,17 +70,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--initial-position",
         type=float,
         nargs=3,
-        default=(0.0, 0.0, 0.0),
+        default=None,
         metavar=("X", "Y", "Z"),
-        help="initial light position in the camera frame (x right, y down, z forward), metres",
+        help="initial light position in the camera frame (x right, y down, z forward), metres "
+        "(default: with --initial-axis 0 0 0, else initial: auto, the guess from the beam)",
     )
     p.add_argument(
         "--initial-axis",
         type=float,
         nargs=3,
-        default=(0.0, 0.0, 1.0),
+        default=None,
         metavar=("X", "Y", "Z"),
-        help="initial light axis in the camera frame (default 0 0 1: the optical axis)",
+        help="initial light axis in the camera frame (default: with --initial-position 0 0 1, "
+        "the optical axis, else initial: auto, the guess from the beam in the photos)",
     )
     p.add_argument("--out", type=Path, default=Path("project.json"), help="project file to write")
     p.add_argument(
@@ -155,16 +157,18 @@ def check_options(args: argparse.Namespace) -> None:
     if half is not None and not (math.isfinite(half) and 0.0 < half < 90.0):
         raise InputError("--half-angle-deg", f"expected a value in (0, 90) degrees, got {half:g}")
     for option, values, unit in (
-        ("--initial-position", args.initial_position, " (metres)"),
-        ("--initial-axis", args.initial_axis, ""),
+        ("--initial-position", args.initial_position or (0.0, 0.0, 0.0), " (metres)"),
+        ("--initial-axis", args.initial_axis or (0.0, 0.0, 1.0), ""),
     ):
         if not all(math.isfinite(v) for v in values):
             raise InputError(option, f"expected three finite numbers{unit}, got {_numbers(values)}")
     from lightcal.capture.init_checks import axis_problem, position_problem
 
+    position = args.initial_position or (0.0, 0.0, 0.0)
+    axis = args.initial_axis or (0.0, 0.0, 1.0)
     for option, values, problem in (
-        ("--initial-position", args.initial_position, position_problem(args.initial_position)),
-        ("--initial-axis", args.initial_axis, axis_problem(args.initial_axis)),
+        ("--initial-position", position, position_problem(position)),
+        ("--initial-axis", axis, axis_problem(axis)),
     ):
         if problem is not None:
             raise InputError(option, f"{problem}, got {_numbers(values)}")

@@ -32,7 +32,7 @@ def register_real_world(p: argparse.ArgumentParser) -> None:
         "response, init, calibrate): 8-bit sRGB JPEGs (quality 90) of four AprilTags "
         "tag36h11 at the corners of a 1.2 x 0.7 m rectangle (markers.yaml), a 14-degree beam "
         "that overexposes the tag nearest its centre, room light, sensor noise, EXIF "
-        "exposure times; bracket/ holds 5 JPEGs of one view 2 stops apart for lightcal "
+        "exposure times; bracket/ holds 9 JPEGs of one view 1 stop apart for lightcal "
         "response; truth.json the light's pose. Only --views (8), --width (800), --height "
         "(600), --seed, --force and --quiet apply",
     )

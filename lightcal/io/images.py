@@ -19,7 +19,10 @@ What "linear" needs, per kind of data:
   of the channels used is.
 - 8-bit data is gamma-encoded by almost every camera, so it is refused unless a
   response curve (`lightcal.io.response`) linearises it, or the caller vouches that it
-  is linear with `assume_linear=True`. With a curve, `black_level` is in linear units.
+  is linear with `assume_linear=True`. With a curve, `black_level` is in linear units,
+  and codes from `RESPONSE_SATURATION_CODE` up count as saturated: a curve fitted from a
+  bracket (Debevec) gives its top codes almost no weight, and a JPEG's ringing beside a
+  clipped area makes codes there that are neither the clip nor the scene.
 - Float data: no white level unless given (then nothing is saturated and `white_level`
   is `math.inf`); NaN or infinite pixels are an error.
 - Colour images give luminance 0.2126 R + 0.7152 G + 0.0722 B of the (linear) channels,
@@ -55,6 +58,13 @@ from lightcal.io.raw import RawChannel, read_raw
 from lightcal.io.response import ResponseCurve
 
 __all__ = ["RAW_EXTENSIONS", "SUPPORTED_EXTENSIONS", "Channel", "read_image", "read_mask"]
+
+RESPONSE_SATURATION_CODE = 243
+"""An 8-bit code from which a pixel read through a response curve counts as saturated
+(the top 5 % of the codes). On `lightcal synth --real-world` (sRGB JPEGs of quality 90, a
+beam clipped at its centre, a curve of `lightcal response` within 1 % of sRGB below code
+240), the light lands 12.8 mm from the truth with codes 254-255 saturated, 1.0 mm with
+codes 243-255."""
 
 Channel = Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"]
 """Which light to read: see `read_image`."""
@@ -271,7 +281,7 @@ def _from_integer(
             linear = response.linearize(data)
         except InputError as error:
             raise InputError(path, error.detail) from None
-        saturated = _saturated(data, channel, saturation_threshold(code_white, 0.0))
+        saturated = _saturated(data, channel, RESPONSE_SATURATION_CODE)
         black = 0.0 if black_level is None else float(black_level)
         full_scale = response.values[-1]
         weights = _channel_weights_bgr(channel)

@@ -24,7 +24,7 @@ from lightcal.errors import InputError
 from lightcal.io.response import ResponseCurve, fit_response_debevec
 from lightcal.io.text_files import check_regular_file
 
-SAMPLE_SIDE = 40
+SAMPLE_SIDE = 30
 """`fit_bracket_curve` fits on SAMPLE_SIDE^2 pixel locations."""
 SMOOTHNESS = 100.0
 """Debevec's lambda for that many locations (the data rows grow with them)."""

@@ -103,8 +103,10 @@ LIGHT_AIM_CAMERA_M = (0.32, -0.20, 1.8)
 """A camera-frame point on the light's axis: up and to the right of the optical axis."""
 EXPOSURE_TIME_S = 1.0 / 60.0
 """The photos' exposure time (EXIF); the bracket's are 2^stop times it."""
-BRACKET_STOPS = (-4, -2, 0, 2, 4)
-"""The bracket's exposures, stops from the photos'."""
+BRACKET_STOPS = (-4, -3, -2, -1, 0, 1, 2, 3, 4)
+"""The bracket's exposures, stops from the photos' (a camera's 9-shot bracket). With 5
+shots 2 stops apart the fitted curve's wiggles put the light 3 mm from the truth; with
+these, 1 mm."""
 _DISTANCE_RANGE_M = (1.5, 2.3)
 _MAX_TILT_DEG = 20.0
 _MAX_ROLL_DEG = 12.0
