@@ -516,6 +516,16 @@ def run_pipeline(folder: Path) -> None:
         code = lightcal_main(argv)
         if code != 0:
             raise SystemExit(f"make_sample_data: lightcal {argv[0]} failed with exit code {code}")
+    paper_selection(folder / "project.json")
+
+
+def paper_selection(path: Path) -> None:
+    """The sample solves the paper's way: 100 random pixels per image (`lightcal init`
+    selects every pixel, binned to at most 300,000 super-pixels)."""
+    from lightcal.io.project import SelectionSpec, load_project, save_project
+
+    spec = load_project(path).spec
+    save_project(spec.model_copy(update={"selection": SelectionSpec()}), path)
 
 
 def check_calibration(folder: Path, truth: dict[str, Any]) -> None:
