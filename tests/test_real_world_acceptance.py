@@ -115,8 +115,9 @@ def test_the_users_commands_calibrate_the_light(dataset: Path, tmp_path: Path, c
         angles.append(np.degrees(np.arccos(cos)))
         shifts.append(np.linalg.norm(view.center_world - np.array(true["center_world_m"])))
     print(f"init's poses: within {max(angles):.3f} deg and {1e3 * max(shifts):.1f} mm")
-    # measured 0.2 deg and 7.1 mm (view_03, rms 0.69 px; the others <= 0.24 px)
-    assert max(angles) < 0.3 and max(shifts) < 0.01
+    # measured 0.092 deg and 4.3 mm; 0.19 deg and 7.1 mm when the edge refinement kept
+    # corners the detector put 1.4-2.1 px off (its limit was 1.5 px, now 3 px)
+    assert max(angles) < 0.15 and max(shifts) < 0.005
 
     # calibrate, as init left the project: initial: auto from the beam.
     spec = json.loads((tmp_path / "project.json").read_text())
@@ -136,7 +137,10 @@ def test_the_users_commands_calibrate_the_light(dataset: Path, tmp_path: Path, c
     cos = np.dot(light["axis_camera"], true["axis_camera"])
     error_deg = np.degrees(np.arccos(min(1.0, cos)))
     print(f"the light: {error_mm:.2f} mm and {error_deg:.4f} deg from the truth")
-    assert error_mm < 2.0 and error_deg < 0.1  # measured 0.18 mm, 0.003 deg
+    assert error_mm < 2.0 and error_deg < 0.1  # the bound; measured 0.18 mm, 0.003 deg
+    # Tighter, so that the fixes stay: 1.8 mm when codes 243-253 of the JPEGs count as
+    # unsaturated (lightcal.io.images.RESPONSE_SATURATION_CODE).
+    assert error_mm < 1.0
 
 
 def test_random_starts_reach_the_solution(tmp_path: Path) -> None:
