@@ -14,6 +14,7 @@ import math
 import subprocess
 import sys
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -384,7 +385,8 @@ def test_the_build_request_switches_the_app_and_names_rejected_photos(
         "Value refused",
         "half angle (deg): expected a value in (0, 90) degrees, got 95.0",
     )
-    service.request_build(PhotoFields(initial_position_mm=(50, 0, 0)), client="page")
+    fields = PhotoFields(initial_position_mm=(50, 0, 0), initial_auto=False)
+    service.request_build(replace(fields, half_angle_known=True), client="page")
     assert len(messages.items) == n_messages + 1
     (req,) = list(state.requests)
     state.requests.clear()

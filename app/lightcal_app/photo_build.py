@@ -85,7 +85,8 @@ def build_project(
     else:
         camera_path, camera = _calibrate(area, out_dir, staged, progress)
     light = None if staged.light is None else area / LIGHT_DIR / staged.light
-    # Without a light file nor a half angle, init_project takes 30 degrees and says so.
+    # Without a light file nor a half angle, init_project estimates the cos^m exponent
+    # from 30 degrees and says so.
     half = options.half_angle_deg if light is None else None
     n = len(staged.wall_photos)
     done = [0]

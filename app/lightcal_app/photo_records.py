@@ -38,6 +38,8 @@ LABELS = {
     "half_angle_deg": "half angle (deg)",
     "initial_position_mm": "initial light (mm)",
     "initial_axis": "initial axis",
+    "initial_auto": "guess the light from the beam",
+    "half_angle_known": "the half angle is known",
     "black_level": "black level",
     "white_level": "white level",
     "min_markers": "fewest markers",
@@ -227,7 +229,9 @@ class PhotoOptions:
     Attributes:
         half_angle_deg: the light's half-intensity angle, used without a light file
             (None: `DEFAULT_HALF_ANGLE_DEG`, as `lightcal init`).
-        initial_position_m: the initial guess of the light, camera frame, m.
+        initial_position_m: the initial guess of the light, camera frame, m; None with
+            `initial_axis_camera` None: `initial: auto`, the guess from the beam in the
+            photos (`lightcal init` without --initial-position and --initial-axis).
         initial_axis_camera: the initial guess of its axis, camera frame.
         black_level, white_level: the images' levels (None: `read_image`'s defaults, the
             files' own: a raw file's per-channel levels, 0 and 2^bits - 1 for integers).
@@ -241,8 +245,8 @@ class PhotoOptions:
     """
 
     half_angle_deg: float | None = None
-    initial_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    initial_axis_camera: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    initial_position_m: tuple[float, float, float] | None = None
+    initial_axis_camera: tuple[float, float, float] | None = None
     black_level: float | None = None
     white_level: float | None = None
     min_markers: int = 4

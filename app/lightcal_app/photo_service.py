@@ -70,8 +70,10 @@ class PhotoFields:
     """
 
     half_angle_deg: float = DEFAULT_HALF_ANGLE_DEG
+    half_angle_known: bool = False
     initial_position_mm: Sequence[float] = (0.0, 0.0, 0.0)
     initial_axis: Sequence[float] = (0.0, 0.0, 1.0)
+    initial_auto: bool = True
     black_level: float | None = None
     white_level: float | None = None
     min_markers: int | float = 4
@@ -151,9 +153,9 @@ def check_fields(fields: PhotoFields, levels: FileLevels | None = None) -> Photo
     x, y, z = (float(v) for v in position)
     ax, ay, az = axis
     return PhotoOptions(
-        half_angle_deg=half,
-        initial_position_m=(x, y, z),
-        initial_axis_camera=(ax, ay, az),
+        half_angle_deg=half if fields.half_angle_known else None,
+        initial_position_m=None if fields.initial_auto else (x, y, z),
+        initial_axis_camera=None if fields.initial_auto else (ax, ay, az),
         black_level=black,
         white_level=white,
         min_markers=markers,

@@ -112,10 +112,10 @@ class BuildPhotoProject(FromBrowser):
     """Build a project from the photos received (`lightcal_app.photo_project`) and show it.
 
     `half_angle_deg` is used without a light file; `initial_position_m` is the light's
-    initial guess in the camera frame, m."""
+    initial guess in the camera frame, m (None: from the beam in the photos)."""
 
     half_angle_deg: float | None = None
-    initial_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    initial_position_m: tuple[float, float, float] | None = None
 
 
 Request = (

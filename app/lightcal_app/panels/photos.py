@@ -79,9 +79,23 @@ class PhotosPanel(TabPanel):
             min=0.5,
             max=89.5,
             step=0.5,
-            hint="the light's half-intensity angle (a cos^m profile), used without a light file",
+            hint="the light's half-intensity angle (a cos^m profile), used without a light file "
+            "when ticked below",
+        )
+        self.half_angle_known = gui.add_checkbox(
+            LABELS["half_angle_known"],
+            False,
+            hint="without a light file: ticked, the cos^m profile of this half angle; "
+            "unticked, its exponent is estimated with the pose (from 30 degrees), as "
+            "lightcal init without --half-angle-deg",
         )
         limit_mm = POSITION_LIMIT_M * 1e3
+        self.initial_auto = gui.add_checkbox(
+            LABELS["initial_auto"],
+            True,
+            hint="the initial guess from the beam in the photos (initial: auto, as lightcal "
+            "init without --initial-position); untick to use the position and axis below",
+        )
         self.initial_position = gui.add_vector3(
             LABELS["initial_position_mm"],
             (0.0, 0.0, 0.0),
@@ -182,8 +196,10 @@ class PhotosPanel(TabPanel):
         """The build's fields as the page holds them now."""
         return PhotoFields(
             half_angle_deg=float(self.half_angle.value),
+            half_angle_known=bool(self.half_angle_known.value),
             initial_position_mm=tuple(self.initial_position.value),
             initial_axis=tuple(self.initial_axis.value),
+            initial_auto=bool(self.initial_auto.value),
             black_level=float(self.black_level.value),
             white_level=float(self.white_level.value),
             min_markers=self.min_markers.value,
