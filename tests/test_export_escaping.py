@@ -310,6 +310,10 @@ def _summary(name: str):
         uncertainty_terms=[name],
         start=name,
         start_costs=[],
+        medium={},  # air
+        fall_off=None,
+        ambient=None,
+        ambient_sigma=None,
     )
     project = NS(path=Path(name.replace("/", "_") or "p"))
     return _summary_markdown(project, result, [(name, 0.1)])  # type: ignore[arg-type]
