@@ -154,8 +154,8 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
         page.get_by_text(f"wall photos ({k + 1})").wait_for()
     # The level fields: what the PNG files say (they do not know the sensor's black).
     page.get_by_text("levels of view_00.png (16-bit PNG): black 0, white 65535").wait_for()
-    assert page.get_by_label("black level").input_value() == "0"
-    assert page.get_by_label("white level").input_value() == "65535"
+    assert page.get_by_label("black level", exact=True).input_value() == "0"
+    assert page.get_by_label("white level", exact=True).input_value() == "65535"
     chess = tmp_path / "chessboard photos.zip"
     with zipfile.ZipFile(chess, "w") as zf:
         for path in sorted((sample / "chessboard").iterdir()):
@@ -174,8 +174,8 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     page.get_by_text("Ready: press Build project.").wait_for()
 
     # A black level above the white level is refused at Build, naming the field.
-    page.get_by_label("black level").fill("70000")
-    page.get_by_label("black level").press("Enter")
+    page.get_by_label("black level", exact=True).fill("70000")
+    page.get_by_label("black level", exact=True).press("Enter")
     wait_for(lambda: panel.fields().black_level == 70000, "the black level")
     old = app.state.project
     page.get_by_role("button", name="Build project").click()
@@ -186,8 +186,8 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
 
     # What lightcal init is told in the README: the levels and the initial guess.
     for label, value in (("black level", "512"), ("white level", "16383")):
-        page.get_by_label(label).fill(value)
-        page.get_by_label(label).press("Enter")
+        page.get_by_label(label, exact=True).fill(value)
+        page.get_by_label(label, exact=True).press("Enter")
     wait_for(lambda: panel.fields().black_level == 512, "the black level")
     wait_for(lambda: panel.fields().white_level == 16383, "the white level")
     page.get_by_label("guess the light from the beam").uncheck()  # the README's ruler guess
@@ -200,7 +200,7 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     page.get_by_text("Ready: press Build project.").wait_for()
     app.wait_idle(SLOW_S)
     assert panel.fields() == SAMPLE_FIELDS
-    assert page.get_by_label("black level").input_value() == "512"
+    assert page.get_by_label("black level", exact=True).input_value() == "512"
     shot(page, "photos_sample_staged_1280x800.png")
 
     page.get_by_role("button", name="Build project").click()
@@ -239,7 +239,7 @@ def test_the_sample_photos_built_in_the_page_solve_within_1_mm(
     page, _ = open_page(browser, app, size=(1920, 1080))
     page.get_by_role("tab", name="Files").click()
     page.get_by_text("Built: 12 of 12 photos accepted, 0 rejected").wait_for()
-    assert page.get_by_label("black level").input_value() == "512"
+    assert page.get_by_label("black level", exact=True).input_value() == "512"
     page.get_by_text("Built: 12 of 12 photos accepted").scroll_into_view_if_needed()
     shot(page, "photos_sample_built_1920x1080.png")
     page.context.close()
