@@ -119,6 +119,9 @@ class SolveSettingsModel(_Model):
     # Files before these fields: off, as the project file's defaults.
     estimate_ambient: bool = False
     estimate_fall_off: int = Field(default=0, ge=0, le=3)
+    medium_estimate: list[Annotated[str, Field(max_length=40)]] = Field(
+        default_factory=list, max_length=2
+    )
 
 
 class SessionFile(_Model):
@@ -336,6 +339,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             tuple(saved.estimate_rid),
             saved.estimate_ambient,
             saved.estimate_fall_off,
+            tuple(saved.medium_estimate),
         )
         try:
             check_settings(state.project, settings)

@@ -5,7 +5,8 @@ edit by hand before `lightcal calibrate`.
 exclusion (`selection.exclude_mirror_deg`), the offset (`sensor.estimate_offset`: a
 black level left in the images), the room light (`sensor.estimate_ambient`), the
 camera's fall-off (`sensor.model`) and the radial one estimated with the light
-(`sensor.estimate_fall_off`), and each light's RID estimate (`lights[].estimate_rid`).
+(`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`) and
+what is estimated of the water (`medium.estimate`, from the project's values).
 `project_for_solve` makes the project the solve uses: the loaded project with those
 keys set, built by `lightcal.io.project.project_from_spec` exactly as a project file
 with them would be, so the page solves what `lightcal calibrate` solves on the edited
@@ -33,6 +34,13 @@ FALL_OFFS: tuple[str, ...] = get_args(FallOff)
 RID_ESTIMATES: tuple[str, ...] = get_args(RidEstimate)
 FALL_OFF_ORDERS: tuple[str, ...] = ("off", "r^2", "r^2, r^4", "r^2, r^4, r^6")
 """The Solve tab's words for `sensor.estimate_fall_off`'s order 0 (off) to 3."""
+MEDIUM_ESTIMATES: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "attenuation": ("attenuation_per_m",),
+    "backscatter": ("backscatter_per_m",),
+    "attenuation, backscatter": ("attenuation_per_m", "backscatter_per_m"),
+}
+"""The Solve tab's words for `medium.estimate`."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +55,7 @@ class SolveSettings:
         estimate_rid: per light, `lights[j].estimate_rid`.
         estimate_ambient: `sensor.estimate_ambient`.
         estimate_fall_off: the order of `sensor.estimate_fall_off`; 0: off (null).
+        medium_estimate: `medium.estimate` (a value of `MEDIUM_ESTIMATES`).
     """
 
     wall_model: str
@@ -56,6 +65,7 @@ class SolveSettings:
     estimate_rid: tuple[str, ...]
     estimate_ambient: bool = False
     estimate_fall_off: int = 0
+    medium_estimate: tuple[str, ...] = ()
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -71,6 +81,7 @@ def settings_of(project: Project) -> SolveSettings:
         estimate_fall_off=(
             0 if spec.sensor.estimate_fall_off is None else spec.sensor.estimate_fall_off.order
         ),
+        medium_estimate=tuple(spec.medium.estimate),
     )
 
 
@@ -100,6 +111,12 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
         raise InputError(
             "sensor.estimate_fall_off.order",
             f"expected 0 (off) to {FALL_OFF_MAX_ORDER}, got {order!r}",
+        )
+    if tuple(settings.medium_estimate) not in MEDIUM_ESTIMATES.values():
+        raise InputError(
+            "medium.estimate",
+            f"expected one of {', '.join(map(repr, MEDIUM_ESTIMATES))}, got "
+            f"{settings.medium_estimate!r}",
         )
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
@@ -154,6 +171,7 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
                 ls.model_copy(update={"estimate_rid": value})
                 for ls, value in zip(spec.lights, settings.estimate_rid, strict=True)
             ],
+            "medium": spec.medium.model_copy(update={"estimate": list(settings.medium_estimate)}),
         }
     )
     return project_from_spec(edited, project.path)

@@ -15,6 +15,7 @@ from lightcal_app.solve_display import light_angles_deg
 from lightcal_app.solve_settings import (
     FALL_OFF_ORDERS,
     FALL_OFFS,
+    MEDIUM_ESTIMATES,
     RID_ESTIMATES,
     WALL_MODELS,
     SolveSettings,
@@ -141,6 +142,15 @@ class SolvePanel(TabPanel):
                 "with the light (r^2: order 1, to r^6: order 3); needs views at several "
                 "distances",
             )
+            words = {v: k for k, v in MEDIUM_ESTIMATES.items()}
+            self.medium = self.gui.add_dropdown(
+                "estimate water",
+                tuple(MEDIUM_ESTIMATES),
+                initial_value=words.get(settings.medium_estimate, "none"),
+                hint="medium.estimate: the water's attenuation c and backscatter beta fitted "
+                "with the light, from the project's medium values (none: as given; backscatter "
+                "with the radiance fall-off only)",
+            )
             self.rid_estimates = [
                 self.gui.add_dropdown(
                     f"estimate RID: {u.initial.name}",
@@ -161,6 +171,7 @@ class SolvePanel(TabPanel):
             self.ambient,
             self.fall_off,
             self.estimate_fall_off,
+            self.medium,
         ]
         for h in [*handles, *self.rid_estimates]:
             h.on_update(changed)
@@ -174,6 +185,7 @@ class SolvePanel(TabPanel):
             estimate_rid=tuple(str(h.value) for h in self.rid_estimates),
             estimate_ambient=bool(self.ambient.value),
             estimate_fall_off=FALL_OFF_ORDERS.index(str(self.estimate_fall_off.value)),
+            medium_estimate=MEDIUM_ESTIMATES[str(self.medium.value)],
         )
 
     def set_project(self, project: Project) -> None:
@@ -194,6 +206,8 @@ class SolvePanel(TabPanel):
         self.flag.assign(self.fall_off, s.fall_off)
         self.flag.assign(self.ambient, s.estimate_ambient)
         self.flag.assign(self.estimate_fall_off, FALL_OFF_ORDERS[s.estimate_fall_off])
+        words = {v: k for k, v in MEDIUM_ESTIMATES.items()}
+        self.flag.assign(self.medium, words.get(s.medium_estimate, "none"))
         for handle, value in zip(self.rid_estimates, s.estimate_rid, strict=False):
             self.flag.assign(handle, value)
 
