@@ -25,8 +25,9 @@ RID estimation (the paper's future work), for symmetric lights:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -369,12 +370,7 @@ class ParameterLayout:
 
     def wall_of(self, x: np.ndarray) -> WallReflectance:
         """The wall model at x (its estimated parameters taken from x)."""
-        w = self.wall_unknown
-        if not w.estimate:
-            return w.initial
-        p = w.initial.parameters()
-        p[w.indices] = x[self.wall]
-        return w.initial.with_parameters(p)
+        return _estimated(self.wall_unknown, x[self.wall])
 
     def fall_off_factor(self, pixels: np.ndarray, x: np.ndarray) -> np.ndarray | None:
         """(N,) the estimated fall-off V at x of (binned) `pixels` (N, 2); None when the
@@ -434,24 +430,32 @@ class ParameterLayout:
 
     def wall_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds (k,) of the estimated wall parameters."""
-        b = self.wall_unknown.initial.parameter_bounds
-        idx = self.wall_unknown.indices
-        return np.array([b[k][0] for k in idx]), np.array([b[k][1] for k in idx])
+        return _box(self.wall_unknown.initial.parameter_bounds, self.wall_unknown.indices)
 
     def medium_of(self, x: np.ndarray) -> Medium:
         """The medium at x (its estimated parameters taken from x)."""
-        m = self.medium_unknown
-        if not m.estimate:
-            return m.initial
-        p = m.initial.parameters()
-        p[m.indices] = x[self.medium]
-        return m.initial.with_parameters(p)
+        return _estimated(self.medium_unknown, x[self.medium])
 
     def medium_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds (k,) of the estimated medium parameters."""
-        b = Medium.parameter_bounds
-        idx = self.medium_unknown.indices
-        return np.array([b[k][0] for k in idx]), np.array([b[k][1] for k in idx])
+        return _box(Medium.parameter_bounds, self.medium_unknown.indices)
+
+
+def _estimated(unknown: WallUnknown | MediumUnknown, values: np.ndarray) -> Any:
+    """The unknown's model (a wall, a medium) with its estimated parameters set to
+    `values` (k,); its initial model when nothing of it is estimated."""
+    if not unknown.estimate:
+        return unknown.initial
+    p = unknown.initial.parameters()
+    p[unknown.indices] = values
+    return unknown.initial.with_parameters(p)
+
+
+def _box(
+    bounds: Sequence[tuple[float, float]], indices: list[int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(lower (k,), upper (k,)) of the parameters `indices` of a model's `bounds`."""
+    return np.array([bounds[k][0] for k in indices]), np.array([bounds[k][1] for k in indices])
 
 
 def _fit_cos_power(rid: RID) -> float:
