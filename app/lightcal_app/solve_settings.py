@@ -41,6 +41,8 @@ MEDIUM_ESTIMATES: dict[str, tuple[str, ...]] = {
     "attenuation, backscatter": ("attenuation_per_m", "backscatter_per_m"),
 }
 """The Solve tab's words for `medium.estimate`."""
+MEDIUM_WORDS: dict[tuple[str, ...], str] = {v: k for k, v in MEDIUM_ESTIMATES.items()}
+"""`medium.estimate` -> the Solve tab's words for it."""
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from lightcal_app.solve_settings import (
     FALL_OFF_ORDERS,
     FALL_OFFS,
     MEDIUM_ESTIMATES,
+    MEDIUM_WORDS,
     RID_ESTIMATES,
     WALL_MODELS,
     SolveSettings,
@@ -142,11 +143,10 @@ class SolvePanel(TabPanel):
                 "with the light (r^2: order 1, to r^6: order 3); needs views at several "
                 "distances",
             )
-            words = {v: k for k, v in MEDIUM_ESTIMATES.items()}
             self.medium = self.gui.add_dropdown(
                 "estimate water",
                 tuple(MEDIUM_ESTIMATES),
-                initial_value=words.get(settings.medium_estimate, "none"),
+                initial_value=MEDIUM_WORDS.get(settings.medium_estimate, "none"),
                 hint="medium.estimate: the water's attenuation c and backscatter beta fitted "
                 "with the light, from the project's medium values (none: as given; backscatter "
                 "with the radiance fall-off only)",
@@ -206,8 +206,7 @@ class SolvePanel(TabPanel):
         self.flag.assign(self.fall_off, s.fall_off)
         self.flag.assign(self.ambient, s.estimate_ambient)
         self.flag.assign(self.estimate_fall_off, FALL_OFF_ORDERS[s.estimate_fall_off])
-        words = {v: k for k, v in MEDIUM_ESTIMATES.items()}
-        self.flag.assign(self.medium, words.get(s.medium_estimate, "none"))
+        self.flag.assign(self.medium, MEDIUM_WORDS.get(s.medium_estimate, "none"))
         for handle, value in zip(self.rid_estimates, s.estimate_rid, strict=False):
             self.flag.assign(handle, value)
 
