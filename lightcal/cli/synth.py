@@ -314,6 +314,7 @@ def run(args: argparse.Namespace) -> int:
             departures=departures,
             medium=medium,
             dark_frames=args.dark_frames,
+            albedo_map=args.declare_albedo_map,
         )
     )
 

@@ -29,6 +29,7 @@ from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.spec_errors import format_loc, on_literal_branch
 
@@ -377,7 +378,8 @@ class WallSpec(_Model):
     Lambertian, test the fit, and where it fails also plastic and oren_nayar, keeping
     the model the Bayesian information criterion prefers. `flatness_mm`: how far the wall
     may depart from a plane (a dome or bowl of that depth), which the images cannot
-    reveal; it enters the uncertainty (docs/model.md, "Uncertainty").
+    reveal; it enters the uncertainty (docs/model.md, "Uncertainty"). `albedo_map`: an
+    uneven albedo shared by the views, estimated with the light (`AlbedoMapSpec`).
     """
 
     model: WallModelName = "lambertian"
@@ -389,6 +391,10 @@ class WallSpec(_Model):
         le=1000.0,
         allow_inf_nan=False,
         description="the wall's flatness tolerance, mm (0: flat); it widens the sigmas",
+    )
+    albedo_map: AlbedoMapSpec | None = Field(
+        default=None,
+        description="estimate the wall's albedo map with the light (null: an even wall)",
     )
 
     @model_validator(mode="after")

@@ -87,6 +87,7 @@ from lightcal.synthetic.dataset_files import (
     ImageFormat,
     check_target,
     declared_pose_covariance,
+    declared_wall,
     encode_image,
     initial_spec,
     make_staging,
@@ -159,6 +160,8 @@ class SynthConfig:
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
         medium: What the project declares of the medium (air unless `--declare-medium`).
+        albedo_map: The project declares `wall.albedo_map` (its defaults) and the dense
+            selection it needs (`dataset_files.declared_wall`; `--declare-albedo-map`).
     """
 
     camera: Camera
@@ -175,6 +178,7 @@ class SynthConfig:
     departures: Departures = field(default_factory=Departures)
     dark_frames: bool = False
     medium: MediumSpec = field(default_factory=MediumSpec)
+    albedo_map: bool = False
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -436,7 +440,8 @@ def _write_into(
             )
             for j, light in enumerate(rig.lights)
         ],
-        medium=config.medium,  # the default selection and solver
+        medium=config.medium,  # the default solver
+        **declared_wall(config.camera, albedo_map=config.albedo_map),
     )
 
     # The truth.
