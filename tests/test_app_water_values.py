@@ -145,6 +145,7 @@ def test_the_solve_uses_the_typed_values_as_given_and_as_the_start(
     assert st.result is not None
     assert st.result.medium["attenuation_per_m"] == ATTENUATION_PER_M
     assert st.result.medium["estimated"] == []
+    assert "Water: attenuation 0.3 /m (given)" in app.panels.result.result_md.content
     # What `lightcal calibrate` gives on the file with the value typed.
     data = json.loads(water.read_text())
     data["medium"] = {"attenuation_per_m": ATTENUATION_PER_M}
@@ -177,6 +178,7 @@ def test_the_solve_uses_the_typed_values_as_given_and_as_the_start(
     assert abs(c / ATTENUATION_PER_M - 1.0) < 0.05, c
     assert _shown(app)["c"] == round(c, 3) != start
     assert "Showing the solve's **estimate** of c" in app.panels.light.water.text.content
+    assert f"Water: attenuation {c:.4g} ± " in app.panels.result.result_md.content
     assert st.display is not None and st.display.medium.attenuation_per_m == c
     # The CLI on the file with that start and estimate.
     data["medium"] = {"attenuation_per_m": start, "estimate": ["attenuation_per_m"]}
