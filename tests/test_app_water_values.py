@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from lightcal_app.panels.water import water_text
 from lightcal_app.server import LightcalApp, build_app
 from lightcal_app.session_file import SessionFile, apply_session, read_session
 from lightcal_app.solve_settings import MEDIUM_ESTIMATES
@@ -26,6 +27,7 @@ from lightcal.core.medium import (
     MAX_ATTENUATION_PER_M,
     MAX_BACKSCATTER_PER_M,
     MAX_PHASE_G,
+    Medium,
 )
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
@@ -289,3 +291,17 @@ def test_backscatter_needs_the_radiance_fall_off(app: LightcalApp) -> None:
     with pytest.raises(InputError, match=r"^medium\.backscatter_per_m: the backscatter"):
         ctl.set_solve_settings(dataclasses.replace(st.solve_settings, fall_off="cos4"))
     assert st.solve_settings.fall_off == "radiance"
+
+
+def test_the_folder_says_what_its_values_are() -> None:
+    start, fitted = Medium(0.1, 0.2), Medium(0.31, 0.5)
+    both = ("attenuation_per_m", "backscatter_per_m")
+    assert water_text(fitted, start, both, estimate_shown=True) == (
+        "Showing the solve's **estimate** of c and β; it started from c\u00a0=\u00a00.1, "
+        "β\u00a0=\u00a00.2."
+    )
+    assert water_text(start, start, both[:1], estimate_shown=False) == (
+        "The solve **estimates** c, starting from the value typed here."
+    )
+    assert water_text(start, start, (), estimate_shown=False).startswith("**Given**")
+    assert water_text(AIR, AIR, (), estimate_shown=False).startswith("**Air**")

@@ -55,7 +55,9 @@ def water_text(
     `estimate_shown`, else `start` (`estimated`: `medium.estimate`)."""
     fitted = " and ".join(SYMBOLS[name] for name in estimated)
     if estimated and estimate_shown:
-        began = ", ".join(f"{SYMBOLS[name]} = {getattr(start, name):g}" for name in estimated)
+        began = ", ".join(  # (no-break spaces: "c = 0.1" on one line)
+            f"{SYMBOLS[name]}\u00a0=\u00a0{getattr(start, name):g}" for name in estimated
+        )
         return f"Showing the solve's **estimate** of {fitted}; it started from {began}."
     if estimated:
         return f"The solve **estimates** {fitted}, starting from the value typed here."
