@@ -149,8 +149,8 @@ class SolvePanel(TabPanel):
                 tuple(MEDIUM_ESTIMATES),
                 initial_value=MEDIUM_WORDS.get(settings.medium_estimate, "none"),
                 hint="medium.estimate: the water's attenuation c and backscatter beta fitted "
-                "with the light, from the project's medium values (none: as given; backscatter "
-                "with the radiance fall-off only)",
+                "with the light, starting from the Light tab's Water values (none: as given; "
+                "backscatter with the radiance fall-off only)",
             )
             self.rid_estimates = [
                 self.gui.add_dropdown(
