@@ -45,7 +45,8 @@ FIELDS: dict[str, tuple[str, str]] = {
 }
 """Per value of the medium: its label and hint."""
 
-SYMBOLS = {"attenuation_per_m": "c", "backscatter_per_m": "β"}
+SYMBOLS = {"attenuation_per_m": "c", "backscatter_per_m": "β", "phase_g": "g"}
+"""The symbol of each value in the folder's text (another name: itself)."""
 
 
 def water_text(
@@ -53,10 +54,10 @@ def water_text(
 ) -> str:
     """What the folder says of the values shown: `shown`, the solve's estimate when
     `estimate_shown`, else `start` (`estimated`: `medium.estimate`)."""
-    fitted = " and ".join(SYMBOLS[name] for name in estimated)
+    fitted = " and ".join(SYMBOLS.get(name, name) for name in estimated)
     if estimated and estimate_shown:
         began = ", ".join(  # (no-break spaces: "c = 0.1" on one line)
-            f"{SYMBOLS[name]}\u00a0=\u00a0{getattr(start, name):g}" for name in estimated
+            f"{SYMBOLS.get(name, name)}\u00a0=\u00a0{getattr(start, name):g}" for name in estimated
         )
         return f"Showing the solve's **estimate** of {fitted}; it started from {began}."
     if estimated:
