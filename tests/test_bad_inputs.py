@@ -315,8 +315,7 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
         "medium parameter unknown",
         _set("medium", {"estimate": ["scattering"]}),
-        "medium.estimate[0]: Input should be 'attenuation_per_m', 'backscatter_per_m' or "
-        "'phase_g'",
+        "medium.estimate[0]: Input should be 'attenuation_per_m', 'backscatter_per_m' or 'phase_g'",
     ),
     (
         "medium phase g estimated without backscatter",
