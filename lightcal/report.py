@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcal.core.albedo_map import AlbedoMap
+from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
@@ -69,6 +70,9 @@ def render_views(
     wall point."""
     out = []
     n = len(project.views)
+    room_factor = room_light_image(
+        loaded.camera, project.spec.sensor.model, vignetting_for(project, loaded.camera)
+    )
     for i, view in enumerate(project.views):
         if progress is not None:
             progress("rendering", i, n)
@@ -87,7 +91,9 @@ def render_views(
             )
         )
         if ambient != 0.0 or fall_off is not None or albedo is not None:
-            room = g * view.exposure * ambient
+            room: float | np.ndarray = g * view.exposure * ambient
+            if ambient != 0.0 and room_factor is not None:  # the lens's fall-off on it
+                room = room * room_factor
             factor = np.ones(out[-1].shape) if fall_off is None else fall_off
             if albedo is not None:
                 factor = factor * albedo_image(albedo, loaded.camera, view)
