@@ -70,10 +70,15 @@ def test_estimate_water_in_the_page_gives_the_cli_answer_of_the_edited_file(
 
 def test_a_medium_estimate_the_page_does_not_offer_is_refused(water: Path) -> None:
     project = load_project(water)
-    wrong = dataclasses.replace(settings_of(project), medium_estimate=("phase_g",))
+    # (Each set of c, beta and g is offered, in that order: a file's other order is
+    # read in it.)
+    wrong = dataclasses.replace(
+        settings_of(project), medium_estimate=("phase_g", "backscatter_per_m")
+    )
     with pytest.raises(InputError) as info:
         check_settings(project, wrong)
     assert str(info.value) == (
         "medium.estimate: expected one of 'none', 'attenuation', 'backscatter', "
-        "'attenuation, backscatter', got ('phase_g',)"
+        "'attenuation, backscatter', 'backscatter, g', 'attenuation, backscatter, g', 'g', "
+        "'attenuation, g', got ('phase_g', 'backscatter_per_m')"
     )

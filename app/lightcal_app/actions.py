@@ -176,8 +176,10 @@ class Actions:
             if st.project is not project:
                 return  # another project arrived meanwhile
             # The fall-off changes which pixels are usable: the selection is redone (the
-            # water's values alone leave it as it is).
-            selection = replace(settings, medium=None) != replace(st.solve_settings, medium=None)
+            # water's values and the albedo map alone leave it as it is).
+            selection = replace(settings, medium=None, albedo_map=None) != replace(
+                st.solve_settings, medium=None, albedo_map=None
+            )
             st.solve_settings = settings
             st.solve_project = solve_project
             st.resume_x = None
@@ -278,6 +280,13 @@ class Actions:
         with st.lock:
             st.show_selection = bool(show)
             st.mark("selection", "widgets", changed=True)
+
+    def set_show_albedo(self, show: bool) -> None:
+        """Draw the estimated albedo map on the wall, or not."""
+        st = self.state
+        with st.lock:
+            st.show_albedo = bool(show)
+            st.mark("light", "widgets", changed=True)
 
     def set_rays(self, which: str) -> None:
         """Rays for "none", "all" or one image name."""

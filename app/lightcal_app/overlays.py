@@ -25,6 +25,7 @@ from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
 from lightcal.io.project import Project
 from lightcal.pipeline import LoadedImages
+from lightcal.pipeline.albedo_result import albedo_image
 from lightcal_app.state import Display, OverlayKind, UserRegion
 
 INCLUDE_RGB = (40, 210, 60)
@@ -142,7 +143,8 @@ class OverlayImages:
         return bin_values(vmap, b) if b > 1 else vmap
 
     def render(self, index: int, display: Display) -> np.ma.MaskedArray:
-        """(h, w) rendered values of image `index` on the binned grid (masked off the wall)."""
+        """(h, w) rendered values of image `index` on the binned grid (masked off the wall),
+        as the model has them: the estimated room light, fall-off and albedo map in."""
         view = self.project.views[index]
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model
@@ -164,6 +166,8 @@ class OverlayImages:
             out = out + view.exposure * display.ambient
         if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel
             out = out * self._estimated_fall_off(display.fall_off_coeffs, out.shape)
+        if display.albedo is not None:  # and the wall's albedo where each one looks
+            out = out * albedo_image(display.albedo, self.geo.render_camera, view)
         return out + display.offset
 
     def _estimated_fall_off(self, coeffs: tuple[float, ...], shape: tuple[int, ...]) -> np.ndarray:

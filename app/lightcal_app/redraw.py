@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from lightcal.core.scene import Light
+from lightcal_app.albedo_scene import AlbedoOnWall
 from lightcal_app.overlays import OverlayImages, dimmed, draw_name, shared_vmax
 from lightcal_app.plan_scene import PlanScene
 from lightcal_app.scene3d import Scene3D
@@ -36,6 +37,7 @@ class Redrawer:
         self.state = state
         self.scene = scene
         self.plan_scene = PlanScene(scene.scene)
+        self.albedo_wall = AlbedoOnWall(scene.scene)
         self.overlays = overlays
         self.panels: Any = None
         self.truth: list[LightGuess] | None = None
@@ -119,6 +121,11 @@ class Redrawer:
                 self.scene.set_lights(lights)
                 rig = frame.display.rig if frame.display is not None else None
                 self.scene.set_rays(rig, frame.wall_points, frame.rays_image)
+                self.albedo_wall.draw(
+                    frame.display.albedo if frame.display is not None else None,
+                    visible=frame.show_albedo,
+                    rebuilt="scene" in d,
+                )
             if d & {"plan", "scene"}:
                 self.scene.set_outlines_only(frame.show_plan and frame.plan is not None)
                 self.plan_scene.draw(

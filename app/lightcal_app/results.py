@@ -19,6 +19,7 @@ from lightcal.io.project import Project
 from lightcal.io.project_identity import project_identity
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
+from lightcal.pipeline.albedo_result import albedo_text
 from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
 from lightcal_app.state import PreviousResult
@@ -105,7 +106,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
 
 def _wall_and_fit(result: CalibrationResult) -> list[str]:
     """The wall model with its parameters, the water (as `lightcal calibrate` prints it;
-    nothing in air) and the fit test's verdict."""
+    nothing in air), the wall's albedo map (when estimated) and the fit test's verdict."""
     wall = result.wall
     sig = wall.get("sigma", {})
     lines = [f"#### Wall: {wall.get('model', 'lambertian')}"]
@@ -118,6 +119,9 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
     water = medium_text(result.medium)
     if water is not None:
         lines += ["", f"Water: {md_prose(water.removeprefix('medium: '))}", ""]
+    if result.albedo_map is not None:  # as `lightcal calibrate` prints it
+        albedo = albedo_text(result.albedo_map).removeprefix("wall albedo map: ")
+        lines += ["", f"Wall albedo map: {md_prose(albedo)}", ""]
     fit = result.fit
     if fit:
         if not fit["adequate"]:

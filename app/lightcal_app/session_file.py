@@ -27,6 +27,7 @@ from lightcal.core.medium import Medium
 from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError, LightcalError
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.atomic import atomic_write_text
 from lightcal_app.limits import (
     MAX_BINNING,
@@ -140,10 +141,12 @@ class SolveSettingsModel(_Model):
     estimate_ambient: bool = False
     estimate_fall_off: int = Field(default=0, ge=0, le=3)
     medium_estimate: list[Annotated[str, Field(max_length=40)]] = Field(
-        default_factory=list, max_length=2
+        default_factory=list, max_length=3
     )
     # None (and files before this field): the project's values.
     medium: MediumModel | None = None
+    # `wall.albedo_map`; None (and files before this field): off.
+    albedo_map: AlbedoMapSpec | None = None
 
 
 class SessionFile(_Model):
@@ -161,6 +164,7 @@ class SessionFile(_Model):
     overlay_default: OverlayKind = "real"
     overlay_per_image: dict[Name, OverlayKind] = Field(default_factory=dict)
     show_selection: bool = True
+    show_albedo: bool = True
     rays_image: Name = "none"
     ref_image: Count = 0
     # Files before this field: the project's own settings.
@@ -242,6 +246,7 @@ def session_from_state(state: AppState) -> SessionFile:
         overlay_default=state.overlay_default,
         overlay_per_image=dict(state.overlay_per_image),
         show_selection=state.show_selection,
+        show_albedo=state.show_albedo,
         solve_settings=SolveSettingsModel.model_validate(asdict(state.solve_settings)),
         rays_image=state.rays_image,
         ref_image=state.ref_image,
@@ -347,6 +352,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
         k: v for k, v in session.overlay_per_image.items() if known(k, "overlay")
     }
     state.show_selection = session.show_selection
+    state.show_albedo = session.show_albedo
     if session.rays_image in ("none", "all") or session.rays_image in names:
         state.rays_image = session.rays_image
     if session.ref_image < len(state.project.names):
@@ -363,6 +369,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             saved.estimate_fall_off,
             tuple(saved.medium_estimate),
             None if saved.medium is None else Medium(**saved.medium.model_dump()),
+            saved.albedo_map,
         )
         try:
             check_settings(state.project, settings)

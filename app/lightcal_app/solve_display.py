@@ -49,6 +49,7 @@ def estimate_display(
         model.layout.medium_of(x),
         tuple(float(c) for c in x[model.layout.fall_off]),
         model.layout.ambient(x),
+        model.albedo_map(x),
     )
 
 

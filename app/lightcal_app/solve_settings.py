@@ -7,7 +7,8 @@ black level left in the images), the room light (`sensor.estimate_ambient`), the
 camera's fall-off (`sensor.model`) and the radial one estimated with the light
 (`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`), the
 water's values (`medium.attenuation_per_m`, `backscatter_per_m`, `phase_g`: the Light
-tab's Water folder) and what is estimated of them (`medium.estimate`).
+tab's Water folder), what is estimated of them (`medium.estimate`) and the wall's
+albedo map (`wall.albedo_map`).
 `project_for_solve` makes the project the solve uses: the loaded project with those
 keys set, built by `lightcal.io.project.project_from_spec` exactly as a project file
 with them would be, so the page solves what `lightcal calibrate` solves on the edited
@@ -21,10 +22,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Literal, get_args
 
+from pydantic import ValidationError
+
 from lightcal.core.fall_off import FALL_OFF_MAX_ORDER
 from lightcal.core.medium import MAX_PHASE_G, Medium
 from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.project import Project, project_from_spec
 from lightcal.io.project_spec import FallOffSpec, WallModelName, WallSpec
 from lightcal.pipeline.wall_choice import candidate_named
@@ -42,8 +46,13 @@ MEDIUM_ESTIMATES: dict[str, tuple[str, ...]] = {
     "attenuation": ("attenuation_per_m",),
     "backscatter": ("backscatter_per_m",),
     "attenuation, backscatter": ("attenuation_per_m", "backscatter_per_m"),
+    "backscatter, g": ("backscatter_per_m", "phase_g"),
+    "attenuation, backscatter, g": ("attenuation_per_m", "backscatter_per_m", "phase_g"),
+    "g": ("phase_g",),
+    "attenuation, g": ("attenuation_per_m", "phase_g"),
 }
-"""The Solve tab's words for `medium.estimate`."""
+"""The Solve tab's words for `medium.estimate`: each set of `Medium.parameter_names`, in
+their order (g alone or with c: beside a given backscatter, which it shapes)."""
 MEDIUM_WORDS: dict[tuple[str, ...], str] = {v: k for k, v in MEDIUM_ESTIMATES.items()}
 """`medium.estimate` -> the Solve tab's words for it."""
 MEDIUM_BOUNDS: dict[str, tuple[float, float]] = {
@@ -68,6 +77,7 @@ class SolveSettings:
         medium_estimate: `medium.estimate` (a value of `MEDIUM_ESTIMATES`).
         medium: the water's values (`medium.attenuation_per_m`, `backscatter_per_m`,
             `phase_g`): given, or the start of those estimated; None: the project's.
+        albedo_map: `wall.albedo_map` (its spacing and prior); None: off.
     """
 
     wall_model: str
@@ -79,6 +89,7 @@ class SolveSettings:
     estimate_fall_off: int = 0
     medium_estimate: tuple[str, ...] = ()
     medium: Medium | None = None
+    albedo_map: AlbedoMapSpec | None = None
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -94,8 +105,9 @@ def settings_of(project: Project) -> SolveSettings:
         estimate_fall_off=(
             0 if spec.sensor.estimate_fall_off is None else spec.sensor.estimate_fall_off.order
         ),
-        medium_estimate=tuple(spec.medium.estimate),
+        medium_estimate=tuple(n for n in Medium.parameter_names if n in spec.medium.estimate),
         medium=project.medium.initial,
+        albedo_map=spec.wall.albedo_map,
     )
 
 
@@ -165,6 +177,15 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
             "the backscatter is modelled with the camera fall-off radiance (sensor.model) "
             f"only, not {settings.fall_off!r}: set backscatter to 0 or the fall-off to radiance",
         )
+    if "phase_g" in settings.medium_estimate and not (
+        medium.scatters or "backscatter_per_m" in settings.medium_estimate
+    ):
+        raise InputError(
+            "medium.estimate",
+            "g shapes the backscatter: expected a backscatter above 0 (Light tab, Water) "
+            "or estimated with g",
+        )
+    check_albedo_map(project, settings, medium)
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
             "lights.estimate_rid",
@@ -185,6 +206,43 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
     return settings
 
 
+def albedo_map_spec(spacing_mm: float, variation: float, smoothness: float) -> AlbedoMapSpec:
+    """The `wall.albedo_map` of values typed in a page; InputError naming the key of a
+    value out of the project file's range."""
+    try:
+        return AlbedoMapSpec(spacing_mm=spacing_mm, variation=variation, smoothness=smoothness)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        key = ".".join(str(part) for part in err["loc"])
+        words = str(err["msg"]).replace("Input should be", "expected a number")
+        raise InputError(f"wall.albedo_map.{key}", words) from exc
+
+
+def check_albedo_map(project: Project, settings: SolveSettings, medium: Medium) -> None:
+    """InputError (key `wall.albedo_map`) when the settings' albedo map is not one the
+    project takes: not an `AlbedoMapSpec`, or with what the core refuses beside it (a
+    robust loss: the map is solved by linear least squares; backscatter: the map scales
+    the wall's light, not the water's veil)."""
+    albedo = settings.albedo_map
+    if albedo is None:
+        return
+    if not isinstance(albedo, AlbedoMapSpec):
+        raise InputError("wall.albedo_map", f"expected its spacing and prior, got {albedo!r}")
+    loss = project.spec.solver.loss
+    if loss != "linear":
+        raise InputError(
+            "wall.albedo_map",
+            f"the albedo map needs the linear loss; the project's solver.loss is {loss!r} "
+            "(set it to linear in the project file)",
+        )
+    if medium.scatters or "backscatter_per_m" in settings.medium_estimate:
+        raise InputError(
+            "wall.albedo_map",
+            "the albedo map scales the wall's light, not the water's backscatter veil: "
+            "set the backscatter to 0 (and not estimated), or turn the albedo map off",
+        )
+
+
 def project_for_solve(project: Project, settings: SolveSettings) -> Project:
     """The project with the settings' keys set (the project itself when they are its
     own); InputError when the edited project is refused (an RID estimate of a light
@@ -196,6 +254,7 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
     if settings.wall_model != wall.model:
         # Another model: its default parameters (a model's own do not carry over).
         wall = WallSpec(model=settings.wall_model, flatness_mm=wall.flatness_mm)  # type: ignore[arg-type]
+    wall = wall.model_copy(update={"albedo_map": settings.albedo_map})
     edited = spec.model_copy(
         update={
             "wall": wall,

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from lightcal.core.albedo_map import AlbedoMap
 from lightcal.core.footprint import SensorModel
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.scene import Rig
@@ -183,6 +184,8 @@ class Display:
         fall_off_coeffs: (K,) the estimated radial fall-off's c_1..c_K
             (`sensor.estimate_fall_off`; `lightcal.core.fall_off`); empty: none.
         ambient: the estimated room light a (value at exposure and gain 1; 0: none).
+        albedo: the estimated albedo map of the wall (`wall.albedo_map`); None: an
+            even wall.
     """
 
     rig: Rig
@@ -195,6 +198,7 @@ class Display:
     medium: Medium = AIR
     fall_off_coeffs: tuple[float, ...] = ()
     ambient: float = 0.0
+    albedo: AlbedoMap | None = None
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""
@@ -254,6 +258,7 @@ class AppState:
         self.overlay_default: OverlayKind = "real"
         self.overlay_per_image: dict[str, OverlayKind] = {}
         self.show_selection = True
+        self.show_albedo = True  # the estimated albedo map on the wall (View tab)
         self.rays_image: str = project.names[0]
         self.focus_image: str | None = None  # highlighted, the others dimmed (View tab)
         self.ref_image = 0
@@ -367,6 +372,7 @@ class Frame:
         regions: per image the user regions that apply.
         points: per image the clicked pixels.
         show_selection: draw the selection on the images.
+        show_albedo: draw the estimated albedo map on the wall.
         rays_image: image whose rays are drawn ("all", "none" or a name).
         ref_image: the image whose camera carries the gizmo.
         solver_state, solver_message, history, parameter_names, result: the solve.
@@ -401,6 +407,7 @@ class Frame:
     show_plan: bool = True
     estimate_key: EstimateKey = (0, 0, -1, "idle")
     focus_image: int | None = None
+    show_albedo: bool = True
 
 
 def take_frame(state: AppState) -> Frame:
@@ -435,6 +442,7 @@ def take_frame(state: AppState) -> Frame:
         show_plan=state.show_plan,
         estimate_key=state.estimate_key(),
         focus_image=None if state.focus_image is None else names.index(state.focus_image),
+        show_albedo=state.show_albedo,
     )
     state.dirty.clear()
     return frame

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import viser
 
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.project import Project
 from lightcal_app.controller import Controller
 from lightcal_app.panels.base import Programmatic, TabPanel
@@ -21,6 +23,7 @@ from lightcal_app.solve_settings import (
     RID_ESTIMATES,
     WALL_MODELS,
     SolveSettings,
+    albedo_map_spec,
     settings_of,
 )
 from lightcal_app.state import MAX_ITERATION_S, Frame
@@ -29,6 +32,28 @@ from lightcal_app.text import md_prose
 #: uPlot's padding (top, right, bottom, left), px: room for the top tick's label and the
 #: last iteration's, which uPlot centres on the plot's edges (and so cut in half).
 PLOT_PADDING = (12, 14, 0, 0)
+
+ALBEDO_NUMBERS = (
+    ("spacing (mm)", "spacing_mm", 1.0, 1000.0, 1.0, "the distance between the map's nodes"),
+    (
+        "variation",
+        "variation",
+        0.001,
+        10.0,
+        0.01,
+        "the albedo's expected spread about its mean (0.3: +-30 %)",
+    ),
+    (
+        "smoothness",
+        "smoothness",
+        0.001,
+        10.0,
+        0.01,
+        "how much the albedo may bend from one node to the next (a second difference's 1-sigma)",
+    ),
+)
+"""The albedo map's numbers: (label, `wall.albedo_map` key, lowest, highest, step, hint);
+the ranges are the project file's (`AlbedoMapSpec`)."""
 
 COLOURS = ("#1c7ed6", "#2f9e44", "#e8590c", "#ae3ec9", "#f08c00", "#0c8599")
 
@@ -44,6 +69,21 @@ def status_text(frame: Any) -> str:
         f"|gradient| {last.gradient_norm:.3g}, "
         f"{last.nfev} evaluations"
         + (" (re-weighted: pixel sigmas from the rendered values)" if last.reweighted else "")
+    )
+
+
+def albedo_note(settings: SolveSettings, strategies: Sequence[str]) -> str:
+    """What the albedo map needs that the selection (its strategy, and each image's
+    own) does not give: a dense selection; empty without a map or with one."""
+    if settings.albedo_map is None:
+        return ""
+    sparse = sorted({s for s in strategies if s != "all"})
+    if not sparse:
+        return ""
+    return (
+        f"⚠ The albedo map needs a dense selection: the Pixels tab selects "
+        f"{' and '.join(sparse)} pixels, too few for each of its nodes. Choose the strategy "
+        "*all* (binned, e.g. 4) there; with this one the map stays near its prior."
     )
 
 
@@ -148,9 +188,10 @@ class SolvePanel(TabPanel):
                 "estimate water",
                 tuple(MEDIUM_ESTIMATES),
                 initial_value=MEDIUM_WORDS.get(settings.medium_estimate, "none"),
-                hint="medium.estimate: the water's attenuation c and backscatter beta fitted "
-                "with the light, starting from the Light tab's Water values (none: as given; "
-                "backscatter with the radiance fall-off only)",
+                hint="medium.estimate: the water's attenuation c, backscatter beta and its "
+                "phase g fitted with the light, starting from the Light tab's Water values "
+                "(none: as given; backscatter with the radiance fall-off only; g with a "
+                "backscatter)",
             )
             self.rid_estimates = [
                 self.gui.add_dropdown(
@@ -162,6 +203,7 @@ class SolvePanel(TabPanel):
                 )
                 for u, value in zip(project.lights, settings.estimate_rid, strict=True)
             ]
+            self._build_albedo_map(settings.albedo_map)
         self._settings_lights = [u.initial.name for u in project.lights]
         self._settings_fall_offs = fall_offs
         changed = self.guard(lambda e: self.ctl.set_solve_settings(self._settings()))
@@ -173,9 +215,42 @@ class SolvePanel(TabPanel):
             self.fall_off,
             self.estimate_fall_off,
             self.medium,
+            self.albedo_map,
+            *self.albedo_values,
         ]
         for h in [*handles, *self.rid_estimates]:
             h.on_update(changed)
+
+    def _build_albedo_map(self, albedo: AlbedoMapSpec | None) -> None:
+        """The wall's albedo map (`wall.albedo_map`): on or off, its spacing and prior
+        (the project's, else the file's defaults), and a word on what it needs."""
+        shown = albedo or AlbedoMapSpec()
+        gui = self.gui
+        self.albedo_map = gui.add_checkbox(
+            "estimate the wall's albedo map",
+            albedo is not None,
+            hint="wall.albedo_map: an uneven wall (paint, paper sheets, a textured floor) "
+            "estimated with the light as a smooth map on the wall; needs a dense selection "
+            "(Pixels tab: strategy all, binned), the linear loss and no backscatter",
+        )
+        self.albedo_values = tuple(
+            gui.add_number(
+                f"albedo map: {label}",
+                initial_value=getattr(shown, key),
+                min=low,
+                max=high,
+                step=step,
+                hint=f"wall.albedo_map.{key}: {words}",
+            )
+            for label, key, low, high, step, words in ALBEDO_NUMBERS
+        )
+        self.albedo_note = gui.add_markdown("")
+
+    def _albedo_setting(self) -> AlbedoMapSpec | None:
+        if not self.albedo_map.value:
+            return None
+        spacing, variation, smoothness = (float(h.value) for h in self.albedo_values)
+        return albedo_map_spec(spacing, variation, smoothness)
 
     def _settings(self) -> SolveSettings:
         with self.ctl.state.lock:
@@ -190,6 +265,7 @@ class SolvePanel(TabPanel):
             estimate_ambient=bool(self.ambient.value),
             estimate_fall_off=FALL_OFF_ORDERS.index(str(self.estimate_fall_off.value)),
             medium_estimate=MEDIUM_ESTIMATES[str(self.medium.value)],
+            albedo_map=self._albedo_setting(),
         )
 
     def set_project(self, project: Project) -> None:
@@ -204,6 +280,8 @@ class SolvePanel(TabPanel):
         st = self.ctl.state
         with st.lock:
             s = st.solve_settings
+            strategies = [st.selection.strategy]
+            strategies += [v.strategy for v in st.selection_per_image.values()]
         self.flag.assign(self.wall_model, s.wall_model)
         self.flag.assign(self.mirror, s.exclude_mirror_deg)
         self.flag.assign(self.offset, s.estimate_offset)
@@ -213,6 +291,14 @@ class SolvePanel(TabPanel):
         self.flag.assign(self.medium, MEDIUM_WORDS.get(s.medium_estimate, "none"))
         for handle, value in zip(self.rid_estimates, s.estimate_rid, strict=False):
             self.flag.assign(handle, value)
+        self.flag.assign(self.albedo_map, s.albedo_map is not None)
+        if s.albedo_map is not None:
+            a = s.albedo_map
+            for number, v in zip(
+                self.albedo_values, (a.spacing_mm, a.variation, a.smoothness), strict=True
+            ):
+                self.flag.assign(number, v)
+        self.albedo_note.content = albedo_note(s, strategies)
 
     def _parameter_plot(self, title: str) -> Any:
         empty = np.zeros(0)

@@ -7,7 +7,9 @@ from typing import Any
 
 import viser
 
+from lightcal.core.albedo_map import AlbedoMap
 from lightcal.io.project import Project
+from lightcal_app.albedo_scene import albedo_picture
 from lightcal_app.controller import Controller
 from lightcal_app.overlays import legend_picture
 from lightcal_app.panels.base import LiveText, Programmatic, TabPanel
@@ -26,6 +28,8 @@ SCENE_LEGEND = """**In the scene**
   **gizmo** (arrows move it, rings turn it)
 - *yellow*: **rays** from the light to the selected pixels' spots on the wall (rays for)
 - *green* bulb: the **true light** (demo data only): where the solve should end
+- *blue* / *red* on the wall: the wall's estimated **albedo map** (darker / brighter than
+  its mean; when the solve estimates it)
 
 **On the images**
 - *green*: **selected pixels** (dots; a dense selection as its outline)
@@ -33,6 +37,17 @@ SCENE_LEGEND = """**In the scene**
 - *green* / *red* lines: include / exclude **regions**; *yellow* crosses: clicked pixels"""
 """What every mark of the 3-D scene and the pictures means (the colours of
 `lightcal_app.scene3d` and `lightcal_app.overlays`)."""
+
+
+def albedo_words(albedo: AlbedoMap | None) -> str:
+    """The albedo map's colours on the wall, with their scale; empty without a map."""
+    if albedo is None:
+        return ""
+    vmax = albedo_picture(albedo, max_side_px=1).vmax
+    return (
+        f"**Albedo map** on the wall: its albedo over its mean − 1, ±{100 * vmax:.2g} % "
+        "(blue darker, red brighter; the wall shows where no pixel saw it)."
+    )
 
 
 class ViewPanel(TabPanel):
@@ -62,6 +77,12 @@ class ViewPanel(TabPanel):
         self.rays = gui.add_dropdown(
             "rays from the light for", ["none", "all", *names], initial_value=st.rays_image
         )
+        self.show_albedo = gui.add_checkbox(
+            "show the albedo map on the wall",
+            initial_value=st.show_albedo,
+            hint="the wall's albedo map the solve estimates (Solve tab), drawn on the wall",
+        )
+        self.albedo_md = gui.add_markdown("")
         self.scene_legend = gui.add_markdown(SCENE_LEGEND)
         self.legend_text = LiveText(gui, LEGEND_BEFORE)
         self.legend = gui.add_image(legend_picture(1.0), label="residual scale", format="png")
@@ -99,6 +120,7 @@ class ViewPanel(TabPanel):
         self.overlay_image.on_update(g(focus))
         self.look_through.on_click(self._look_through)
         self.rays.on_update(g(lambda e: ctl.set_rays(self.rays.value)))
+        self.show_albedo.on_update(g(lambda e: ctl.set_show_albedo(self.show_albedo.value)))
 
     def _look_through(self, event: Any) -> None:
         """Move the browser's camera (all browsers when the click has no client) to the
@@ -135,8 +157,12 @@ class ViewPanel(TabPanel):
                 self.flag.assign(self.overlay_all, st.overlay_default)
                 self.flag.assign(self.rays, st.rays_image)
                 self.flag.assign(self.focus, st.focus_image is not None)
+                self.flag.assign(self.show_albedo, st.show_albedo)
                 if st.focus_image is not None:
                     self.flag.assign(self.overlay_image, st.focus_image)
+        if d & {"light", "scene", "widgets"}:
+            albedo = frame.display.albedo if frame.display is not None else None
+            self.albedo_md.content = albedo_words(albedo)
         if not d & {"overlays", "scene", "widgets"}:
             return
         if legend_vmax is not None and self._legend_shown != legend_vmax:
