@@ -399,7 +399,7 @@ class SolveService:
                 st.solver_message += f"; {MISFIT_WORDS}"
             self._last_session_state = st.solver_state
             st.finished_snapshot = session_from_state(st) if result is not None else None
-            st.mark("result", "status", changed=True)
+            st.mark("result", "status", "light", "overlays", changed=True)
 
     def poll(self) -> None:
         """Take the session's news (paused, failed) into the state."""

@@ -45,8 +45,8 @@ def albedo_words(albedo: AlbedoMap | None) -> str:
         return ""
     vmax = albedo_picture(albedo, max_side_px=1).vmax
     return (
-        f"**Albedo map** on the wall: its albedo over its mean − 1, ±{100 * vmax:.2g} % "
-        "(blue darker, red brighter; the wall shows where no pixel saw it)."
+        f"**Albedo map** on the wall: the albedo over its mean, colours to ±{100 * vmax:.2g} % "
+        "(blue darker, red brighter; the grey wall where no pixel saw it)."
     )
 
 
