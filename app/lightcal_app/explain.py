@@ -49,7 +49,8 @@ SECTIONS: tuple[tuple[str, str, str | None], ...] = (
         "Lambertian wall turns it into the radiance the pixel sees: "
         "Φ_Q = I0 f(θ, φ) Ω_Q, E = Φ_Q / A_Q, and the pixel value "
         "m = k g_i V(u, v) ρ E / π + b (k the scale, g_i the image's exposure, V the "
-        "camera's fall-off, ρ the wall's albedo, b the offset).",
+        "camera's fall-off, ρ the wall's albedo, b the offset; with the Solve tab's albedo "
+        "map, ρ a(x, y): the wall's unevenness, estimated with the light).",
         "solid_angle.png",
     ),
     (
