@@ -354,12 +354,17 @@ def test_the_setting_and_the_solved_map_come_back_from_the_autosave(
         assert st.solve_settings.albedo_map == AlbedoMapSpec(spacing_mm=40.0)
         assert st.solver_state == "converged" and st.result is not None
         np.testing.assert_array_equal(st.result.x, result.x)
-        # The map of the restored estimate: the same nodes, values to 1e-3 (the solve's
-        # pixel weights, from the values rendered where its first pass ended, are not in
-        # the session: the restored model weighs by the data; measured 1.5e-4).
+        # The result as it ended: its pixel weights (rendered where the solve's first pass
+        # ended) come back with it, and so its map and covariance.
         again, before = albedo_map_of(st.result.albedo_map), albedo_map_of(result.albedo_map)
         np.testing.assert_array_equal(again.weight > 0, before.weight > 0)
-        np.testing.assert_allclose(again.delta, before.delta, atol=1e-3)
+        np.testing.assert_allclose(again.delta, before.delta, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(st.result.covariance, dtype=float),
+            np.asarray(result.covariance, dtype=float),
+            rtol=1e-9,
+            atol=1e-18,
+        )
         display = st.display
         assert display is not None and display.albedo is not None  # drawn on the wall again
         assert b.controller.redrawer.albedo_wall.shown is display.albedo

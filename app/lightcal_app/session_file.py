@@ -113,6 +113,8 @@ class SolveModel(_Model):
     status: int | None = Field(default=None, ge=-2, le=4)
     message: str = Field(default="", max_length=2000)
     time_s: float = Field(default=0.0, ge=0.0, le=1e7)
+    # The parameters the result's pixel weights were rendered at (`SolveEnd.weights_at`).
+    weights_at: list[float] | None = None
 
 
 def _medium_value(name: str) -> Any:
@@ -210,6 +212,11 @@ def session_from_state(state: AppState) -> SessionFile:
             status=state.result.status if state.result is not None else None,
             message=state.result.message if state.result is not None else "",
             time_s=state.result.time_s if state.result is not None else 0.0,
+            weights_at=(
+                None
+                if state.result is None or state.result_weights_at is None
+                else [float(v) for v in state.result_weights_at]
+            ),
             history=[
                 IterationModel(
                     iteration=r.iteration,
@@ -393,5 +400,12 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
         ]
         solve = session.solve
         if solve.state in ("converged", "not converged") and solve.status is not None:
-            state.resume_end = SolveEnd(solve.state, solve.status, solve.message, solve.time_s)  # type: ignore[arg-type]
+            weights = None if solve.weights_at is None else np.array(solve.weights_at)
+            state.resume_end = SolveEnd(
+                solve.state,  # type: ignore[arg-type]
+                solve.status,
+                solve.message,
+                solve.time_s,
+                weights,
+            )
     return warnings

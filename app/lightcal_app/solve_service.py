@@ -368,8 +368,7 @@ class SolveService:
         with st.lock:
             if st.session_gen != gen or self.model is None:
                 return
-            model = self.model
-            project, loaded = st.solve_project, st.loaded
+            model, project, loaded = self.model, st.solve_project, st.loaded
         result = None
         if isinstance(outcome, Calibration):
             model, result, outcome = outcome.model, outcome.result, outcome.outcome
@@ -388,7 +387,7 @@ class SolveService:
             # page draws and exports from now on.
             self.model = self._stage_model = model
             st.display = self.estimate_display(model, outcome.x)
-            st.result = result
+            st.result, st.result_weights_at = result, model.weights_at
             # One vocabulary: idle, running, paused, converged, not converged (with why).
             converged = result.converged if result is not None else outcome.success
             st.solver_state = "converged" if converged else "not converged"
@@ -483,6 +482,7 @@ class SolveService:
         # A finished solve: its status, reason, time and full result (fit test and
         # uncertainties with the images' noise and poses), as when it ended.
         last = history[-1]
+        self.model.set_weights_at(end.weights_at)  # as its result was computed
         outcome = SolveOutcome(
             x=resume.copy(),
             status=end.status,

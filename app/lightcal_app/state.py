@@ -90,12 +90,15 @@ class SolveEnd:
         status: the solver's status code (`SolveOutcome.status`).
         message: the solver's own message (`stop_reason` puts it in plain words).
         time_s: the solver's time (pauses excluded), s.
+        weights_at: (n,) the parameters its pixel weights were rendered at (the solve's
+            re-weighting; `CalibrationModel.set_weights_at`), None: the data's sigmas.
     """
 
     state: Literal["converged", "not converged"]
     status: int
     message: str
     time_s: float
+    weights_at: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -279,6 +282,9 @@ class AppState:
         self.display: Display | None = None
         self.resume_x: np.ndarray | None = None
         self.resume_end: SolveEnd | None = None  # a restored solve that had finished
+        # The parameters the finished result's pixel weights were rendered at (its model's
+        # `weights_at`), kept in the session so that a restored result is computed alike.
+        self.result_weights_at: np.ndarray | None = None
         # The settings and solve at the end of the last finished solve (a SessionFile),
         # and the finished result an edit or a reset replaced (kept, with undo).
         self.finished_snapshot: SessionFile | None = None
