@@ -370,3 +370,26 @@ def test_the_setting_and_the_solved_map_come_back_from_the_autosave(
         assert b.controller.redrawer.albedo_wall.shown is display.albedo
     finally:
         b.close()
+
+
+def test_the_dense_binned_selection_the_map_needs_is_drawn_as_its_outline(
+    textured: tuple[Path, Path],
+) -> None:
+    """All pixels binned 4 x 4 (the map's selection): an outline over the picture, not a
+    lattice of dots covering half of it (measured before: 56 % of the picture; now 1 %)."""
+    from lightcal_app.overlays import OUTLINE_FRACTION
+    from lightcal_app.selection_service import SelectionService
+
+    project = load_project(textured[0])
+    state = AppState(project, load_images(project))
+    SelectionService(state, notify=_quiet).compute()
+    assert state.selected_binning[0] == 4 and len(state.selected[0]) == 9600
+    overlays = OverlayImages(project, state.loaded)
+    real = overlays.picture(0, "real")
+    drawn = overlays.draw_selection(
+        real.copy(), 0, selected=state.selected[0], binning=4, regions=(), points=()
+    )
+    changed = np.any(drawn != real, axis=-1)
+    assert 0 < changed.mean() < OUTLINE_FRACTION
+    h, w = changed.shape
+    assert not changed[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4].any()

@@ -1,6 +1,7 @@
 """The wall's albedo map in a real headless Chromium: ticked in the Solve tab, Run solves
 with it, the estimated map is drawn on the wall in the 3D view (blue and red patches
-where the wall was grey), the View tab's toggle hides it, and the Result tab says it."""
+where the wall was grey), the View tab's toggle hides it, the Result tab says it, and
+the Solve tab says when the selection is too sparse for it."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 from lightcal_app.server import LightcalApp, build_app
+from lightcal_app.state import SelectionSettings
 
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from tests.test_app_albedo_map import textured  # noqa: F401  (a fixture)
@@ -92,3 +94,11 @@ def test_ticked_run_draws_the_map_on_the_wall(
     page.get_by_role("tab", name="Result").click()
     page.get_by_text("Wall albedo map:").first.wait_for()
     shot(page, "app_albedo_result_tab.png")
+
+    # A sparse selection: the Solve tab says the map needs a dense one.
+    app.controller.set_selection(SelectionSettings(strategy="random", n_per_image=100))
+    assert app.wait_idle(SLOW_S)
+    page.get_by_role("tab", name="Solve").click()
+    note = page.get_by_text("The albedo map needs a dense selection", exact=False)
+    note.scroll_into_view_if_needed()
+    shot(page, "app_albedo_sparse_note.png")

@@ -240,10 +240,15 @@ class OverlayImages:
             d[:, 1] = np.clip(d[:, 1], 0, geo.height - 1)
             marks = np.zeros((geo.height, geo.width), np.uint8)
             marks[d[:, 1], d[:, 0]] = 1
-            radius = max(1, round(0.5 * binning * geo.width / geo.camera.width))
+            cell = binning * geo.width / geo.camera.width  # a (super-)pixel, picture px
+            radius = max(1, round(0.5 * cell))
             if len(selected) < 4000:
                 radius = max(radius, 2)
-            kernel = np.ones((2 * radius - 1, 2 * radius - 1), np.uint8)
+            # At least a whole (super-)pixel: a dense binned selection's marks then touch,
+            # and its outline is drawn (a 4 x 4 binned `all` covered half the picture
+            # with a lattice of dots, hiding the residuals the albedo map flattens).
+            side = max(2 * radius - 1, math.ceil(cell - 1e-9))
+            kernel = np.ones((side, side), np.uint8)
             hit = cv2.dilate(marks, kernel)
             if hit.mean() > OUTLINE_FRACTION:
                 # A dense selection (`all`, a fine grid) would paint the picture over:
