@@ -80,6 +80,8 @@ def test_ticked_run_draws_the_map_on_the_wall(
     page.get_by_label("albedo map: smoothness", exact=True).scroll_into_view_if_needed()
     shot(page, "app_albedo_solve_tab.png")
 
+    app.controller.set_overlay("residual")  # flat: the map is in the render
+    assert app.wait_idle(SLOW_S)
     page.get_by_role("tab", name="View").click()
     page.get_by_text("Albedo map", exact=True).wait_for()
     toggle = page.get_by_label("show the albedo map on the wall", exact=True)
