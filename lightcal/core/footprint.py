@@ -144,6 +144,10 @@ class Footprints:
         valid: (N,) pixels whose every corner ray hits the wall in front of the camera.
         area_m2: (N,) footprint area (the union's), m^2.
         grid: where the quads come from when they are not kept, else None.
+        normals_world: (N, 3) on a wall mesh (`lightcal.core.wall_mesh`), each
+            footprint's unit normal (its vector area) turned towards the camera (NaN for
+            invalid pixels): a light lights the pixel only on that side. None on the
+            plane z = 0 (normal +z).
     """
 
     pixels: np.ndarray
@@ -152,6 +156,7 @@ class Footprints:
     valid: np.ndarray
     area_m2: np.ndarray
     grid: GridCorners | None = None
+    normals_world: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if (self.stored_corners is None) == (self.grid is None):
@@ -186,6 +191,7 @@ class Footprints:
             self.valid[rows],
             self.area_m2[rows],
             self.grid,
+            None if self.normals_world is None else self.normals_world[rows],
         )
 
     @functools.cached_property

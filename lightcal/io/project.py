@@ -29,6 +29,7 @@ from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.core.wall import WALL_MODELS, make_wall
+from lightcal.core.wall_mesh import WallMesh
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.dark_frames import dark_paths
@@ -62,6 +63,7 @@ from lightcal.io.project_spec import (
     parse_project,
     project_schema,
 )
+from lightcal.io.wall_mesh_file import read_wall_mesh
 
 __all__ = [
     "INTRINSIC_COUNTS",
@@ -121,6 +123,7 @@ class Project:
         dark_paths: per image, its resolved light-off photo (`images[i].dark`) or None
             (`lightcal.io.dark_frames`); empty: none.
         medium: the medium between the rig and the wall and what to estimate of it.
+        wall_mesh: the wall's shape (`wall.mesh`), or None: the plane z = 0.
     """
 
     spec: ProjectFile
@@ -139,6 +142,7 @@ class Project:
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
     dark_paths: list[Path | None] = field(default_factory=list)
     medium: MediumUnknown = field(default_factory=MediumUnknown)
+    wall_mesh: WallMesh | None = None
 
     @property
     def folder(self) -> Path:
@@ -244,6 +248,13 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     `source`'s folder."""
     folder = source.parent
     camera = _build_camera(spec.camera, folder, source)
+    wall_mesh = None
+    if spec.wall.mesh is not None:
+        path = _resolve(folder, spec.wall.mesh, source, "wall.mesh", "wall mesh file")
+        wall_mesh = read_wall_mesh(path)
+    # A light behind the wall's lowest point is behind it (with a mesh: a bound).
+    floor_z = 0.0 if wall_mesh is None else wall_mesh.z_range_m[0]
+    where_floor = "" if wall_mesh is None else " m, the wall mesh's lowest point"
     sel = spec.selection
     if sel.strategy == "all" and sel.binning > min(camera.width, camera.height):
         raise InputError(
@@ -317,11 +328,12 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                 raise InputError(source, f"{field}.initial: {exc}") from exc
         for i, view in enumerate(views):
             z = float(light.position_world(view)[2])
-            if z <= 0.0:
+            if z <= floor_z:
                 raise InputError(
                     source,
                     f"{field}.initial.position_m: the light is on or behind the wall in image "
-                    f"{names[i]!r} (world z = {z:.3g} m); expected it in front (z > 0)",
+                    f"{names[i]!r} (world z = {z:.3g} m); expected it in front "
+                    f"(z > {floor_z:.3g}{where_floor})",
                 )
         pose_kind = None if ls.pose == "auto" else ls.pose
         lights.append(
@@ -367,6 +379,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
         build_medium(spec.medium, spec.sensor.model, source),
+        wall_mesh,
     )
 
 

@@ -377,7 +377,10 @@ class WallSpec(_Model):
     Lambertian, test the fit, and where it fails also plastic and oren_nayar, keeping
     the model the Bayesian information criterion prefers. `flatness_mm`: how far the wall
     may depart from a plane (a dome or bowl of that depth), which the images cannot
-    reveal; it enters the uncertainty (docs/model.md, "Uncertainty").
+    reveal; it enters the uncertainty (docs/model.md, "Uncertainty"). `mesh`: the wall's
+    shape as a triangle mesh file (world frame, metres; relative to the project file),
+    when it is not the plane z = 0 (docs/model.md, "Non-planar targets"); with a mesh,
+    `flatness_mm` is the mesh's own tolerance.
     """
 
     model: WallModelName = "lambertian"
@@ -390,11 +393,21 @@ class WallSpec(_Model):
         allow_inf_nan=False,
         description="the wall's flatness tolerance, mm (0: flat); it widens the sigmas",
     )
+    mesh: str | None = Field(
+        default=None,
+        description="the wall's shape: a triangle mesh file (any format trimesh reads), "
+        "world frame, metres, relative to the project file; none: the plane z = 0",
+    )
 
     @model_validator(mode="after")
     def _auto_alone(self) -> WallSpec:
         if self.model in ("auto", "lambertian") and (self.parameters or self.estimate):
             raise ValueError(f"the {self.model} wall takes no parameters and estimates none")
+        if self.mesh is not None and self.model != "lambertian":
+            raise ValueError(
+                f"mesh: only the lambertian model is modelled on a wall mesh, got model "
+                f"{self.model!r} (the other reflectance models take the wall's normal as +z)"
+            )
         return self
 
 

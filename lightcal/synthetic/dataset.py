@@ -72,6 +72,7 @@ from lightcal.io.project import (
     NoiseSpec,
     ProjectFile,
     SensorSpec,
+    WallSpec,
     build_rid,
     load_project,
     save_project,
@@ -120,6 +121,7 @@ from lightcal.synthetic.scenes import (
     signal_scale,
     white_level,
 )
+from lightcal.synthetic.wall_meshes import write_synthetic_wall_mesh
 
 __all__ = [
     "TRUTH_FORMAT",
@@ -159,6 +161,8 @@ class SynthConfig:
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
         medium: What the project declares of the medium (air unless `--declare-medium`).
+        declare_wall_mesh: write the true wall's mesh (`wall_meshes`) and declare it as
+            the project's `wall.mesh` (`--declare-wall-mesh`).
     """
 
     camera: Camera
@@ -175,6 +179,7 @@ class SynthConfig:
     departures: Departures = field(default_factory=Departures)
     dark_frames: bool = False
     medium: MediumSpec = field(default_factory=MediumSpec)
+    declare_wall_mesh: bool = False
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -438,6 +443,9 @@ def _write_into(
         ],
         medium=config.medium,  # the default selection and solver
     )
+    if config.declare_wall_mesh:  # the true wall's shape, as a mesh beside the project
+        mesh_name = write_synthetic_wall_mesh(folder, camera, views, imaging.wall_shape)
+        spec = spec.model_copy(update={"wall": WallSpec(mesh=mesh_name)})
 
     # The truth.
     rid_truth = describe_rid(rid)
