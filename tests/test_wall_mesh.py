@@ -11,11 +11,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from lightcal_app.solve_settings import project_for_solve, settings_of
 
 from lightcal.core.camera import Camera
 from lightcal.core.render import render_image, render_pixels, shade
@@ -24,7 +28,10 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall_mesh import WallMesh, mesh_footprints
 from lightcal.errors import InputError
+from lightcal.io.project import load_project
 from lightcal.io.wall_mesh_file import read_wall_mesh, write_wall_mesh
+from lightcal.pipeline.load import load_images
+from lightcal.pipeline.model import build_model
 from lightcal.synthetic.height_field import BowedWall
 from lightcal.synthetic.wall_meshes import height_field_mesh
 
@@ -95,7 +102,7 @@ def test_a_tilted_plane_mesh_gives_the_planar_values(sensor: str) -> None:
     assert np.all(fp.corners_world[fp.valid][..., 2] != 0.0)  # off the plane's fast paths
     tilted = shade(fp, view, RIG).values
     np.testing.assert_array_equal(np.ma.getmaskarray(tilted), np.ma.getmaskarray(plane))
-    np.testing.assert_allclose(tilted.compressed(), plane.compressed(), rtol=1e-9, atol=0)
+    np.testing.assert_allclose(tilted.compressed(), plane.compressed(), rtol=1e-12, atol=0)
 
 
 BOWED = height_field_mesh(BowedWall(0.05, (0.05, 0.0), 0.6), (-1.5, -1.5, 1.5, 1.5), spacing_m=0.05)
@@ -211,3 +218,83 @@ def test_a_mesh_round_trips(tmp_path: Path) -> None:
     back = read_wall_mesh(tmp_path / "m.ply")
     np.testing.assert_array_equal(back.vertices_world, BOWED.vertices_world)
     np.testing.assert_array_equal(back.faces, BOWED.faces)
+
+
+# ----------------------------------------------------------------- the project file
+
+
+def _project_with_wall(folder: Path, wall: dict, name: str) -> Path:
+    doc = json.loads((folder / "project.json").read_text())
+    doc["wall"] = wall
+    path = folder / name
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _plane_at(z: float, x0: float = 0.0) -> WallMesh:
+    """A 10 m square of the plane at height z around (x0, 0)."""
+    plane = height_field_mesh(None, (x0 - 5.0, -5.0, x0 + 5.0, 5.0), spacing_m=1.0)
+    return WallMesh(plane.vertices_world + np.array([0.0, 0.0, z]), plane.faces)
+
+
+def test_project_wall_mesh_errors(tiny_dataset: Path) -> None:
+    folder = tiny_dataset
+    made: list[Path] = []
+    try:
+        path = _project_with_wall(folder, {"mesh": "missing.ply"}, "mesh_missing.json")
+        made.append(path)
+        with pytest.raises(InputError) as err:
+            load_project(path)
+        assert str(err.value) == (
+            f"{path}: wall.mesh: wall mesh file not found: {folder / 'missing.ply'}"
+        )
+        write_wall_mesh(folder / "above.ply", _plane_at(3.0))
+        made.append(folder / "above.ply")
+        path = _project_with_wall(folder, {"mesh": "above.ply"}, "mesh_above.json")
+        made.append(path)
+        with pytest.raises(InputError) as err:
+            load_project(path)
+        assert re.fullmatch(
+            re.escape(f"{path}: lights[0].initial.position_m: the light is on or behind the ")
+            + r"wall in image 'view_00' \(world z = [0-9.]+ m\); expected it in front "
+            + re.escape("(z > 3 m, the wall mesh's lowest point)"),
+            str(err.value),
+        ), str(err.value)
+        path = _project_with_wall(
+            folder, {"mesh": "above.ply", "model": "plastic"}, "mesh_plastic.json"
+        )
+        made.append(path)
+        with pytest.raises(InputError) as err:
+            load_project(path)
+        assert str(err.value) == (
+            f"{path}: wall: mesh: only the lambertian model is modelled on a wall mesh, got "
+            "model 'plastic' (the other reflectance models take the wall's normal as +z)"
+        )
+        write_wall_mesh(folder / "plane.ply", _plane_at(0.0))
+        made.append(folder / "plane.ply")
+        path = _project_with_wall(folder, {"mesh": "plane.ply"}, "mesh_plane.json")
+        made.append(path)
+        project = load_project(path)
+        assert project.wall_mesh is not None
+        settings = settings_of(project)
+        with pytest.raises(InputError) as err:
+            project_for_solve(project, dataclasses.replace(settings, wall_model="plastic"))
+        assert str(err.value) == (
+            "wall.model: only the lambertian model is modelled on a wall mesh (plane.ply), "
+            "got 'plastic'"
+        )
+        write_wall_mesh(folder / "far.ply", _plane_at(0.0, x0=100.0))
+        made.append(folder / "far.ply")
+        path = _project_with_wall(folder, {"mesh": "far.ply"}, "mesh_far.json")
+        made.append(path)
+        project = load_project(path)
+        with pytest.raises(InputError) as err:
+            build_model(project, load_images(project))
+        assert str(err.value) == (
+            f"{path}: wall.mesh: no selected pixel of any image meets the wall mesh "
+            "'far.ply'; expected a mesh in the world frame of the images' poses, in metres, "
+            "under the views"
+        )
+    finally:
+        for p in made:
+            p.unlink(missing_ok=True)
