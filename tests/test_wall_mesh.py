@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from lightcal_app.solve_settings import project_for_solve, settings_of
 
+from lightcal.cli.main import main
 from lightcal.core.camera import Camera
 from lightcal.core.render import render_image, render_pixels, shade
 from lightcal.core.rid import CosPowerRID, IsotropicRID
@@ -64,6 +65,24 @@ def test_a_plane_mesh_gives_the_planar_values(sensor: str, binning: int) -> None
     mesh = render_pixels(CAMERA, VIEW, RIG, pix, mesh=PLANE, **kw)
     np.testing.assert_array_equal(np.ma.getmaskarray(mesh), np.ma.getmaskarray(plane))
     assert plane.count() > 250
+    np.testing.assert_allclose(mesh.compressed(), plane.compressed(), rtol=1e-12, atol=0)
+
+
+def test_triangles_reaching_behind_the_camera_are_clipped() -> None:
+    """Two triangles of 2 km: each reaches behind the camera (its projection unbounded),
+    and every pixel still finds the plane."""
+    huge = WallMesh(
+        np.array([[-1e3, -1e3, 0.0], [1e3, -1e3, 0.0], [1e3, 1e3, 0.0], [-1e3, 1e3, 0.0]]),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+    )
+    view = View.looking_at(np.array([0.3, 0.2, 1.4]), np.array([1.5, -0.2, 0.0]))
+    centers = huge.vertices_world - view.center_world
+    assert np.any((centers @ view.R_camera_world.T)[:, 2] < 0.0)  # behind the camera
+    pix = _pixels(300, CAMERA.width, CAMERA.height, seed=5)
+    plane = render_pixels(CAMERA, view, RIG, pix)
+    mesh = render_pixels(CAMERA, view, RIG, pix, mesh=huge)
+    assert plane.count() == len(pix)
+    np.testing.assert_array_equal(np.ma.getmaskarray(mesh), np.ma.getmaskarray(plane))
     np.testing.assert_allclose(mesh.compressed(), plane.compressed(), rtol=1e-12, atol=0)
 
 
@@ -221,6 +240,16 @@ def test_a_mesh_round_trips(tmp_path: Path) -> None:
 
 
 # ----------------------------------------------------------------- the project file
+
+
+def test_synth_declares_the_bowed_walls_mesh(tmp_path: Path) -> None:
+    folder = tmp_path / "bow"
+    argv = ["synth", str(folder), "--views", "3", "--width", "96", "--height", "72"]
+    assert main([*argv, "--bow-mm", "5", "--declare-wall-mesh", "--quiet"]) == 0
+    project = load_project(folder / "project.json")
+    assert project.spec.wall.mesh == "wall_mesh.ply"
+    assert project.wall_mesh is not None
+    assert project.wall_mesh.z_range_m == pytest.approx((0.0, 0.005), abs=2e-5)
 
 
 def _project_with_wall(folder: Path, wall: dict, name: str) -> Path:
