@@ -27,6 +27,7 @@ from lightcal.core.render import render_image, render_pixels, shade
 from lightcal.core.rid import CosPowerRID, IsotropicRID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, Rig, View
+from lightcal.core.wall import OrenNayarWall, PlasticWall
 from lightcal.core.wall_mesh import WallMesh, mesh_footprints
 from lightcal.errors import InputError
 from lightcal.io.project import load_project
@@ -124,6 +125,34 @@ def test_a_tilted_plane_mesh_gives_the_planar_values(sensor: str) -> None:
     np.testing.assert_allclose(tilted.compressed(), plane.compressed(), rtol=1e-12, atol=0)
 
 
+WALLS = {
+    "plastic": PlasticWall.from_albedo(0.2, 1.5, 0.8),
+    "oren_nayar": OrenNayarWall(math.radians(25.0)),
+}
+
+
+@pytest.mark.parametrize("name", list(WALLS))
+@pytest.mark.parametrize("tilted", [False, True])
+def test_reflectance_models_take_each_footprints_normal(name: str, tilted: bool) -> None:
+    """B on a mesh takes the footprints' own normals: the plane z = 0 as a mesh, or the
+    world turned (every normal off +z), gives the planar values and gradients."""
+    wall = WALLS[name]
+    mesh, view = PLANE, VIEW
+    if tilted:
+        Q = matrix_from_rotvec(np.array([math.radians(-15.0), math.radians(10.0), 0.2]))
+        mesh, view = _moved(Q, np.array([0.1, 0.2, 0.3]))
+    pix = _pixels(300, CAMERA.width, CAMERA.height, seed=6)
+    from lightcal.core.footprint import pixel_footprints
+
+    a = shade(pixel_footprints(CAMERA, VIEW, pix), VIEW, RIG, want_grad=True, wall=wall)
+    b = shade(mesh_footprints(CAMERA, view, pix, mesh), view, RIG, want_grad=True, wall=wall)
+    assert np.ptp(a.values.compressed()) > 0.0
+    np.testing.assert_allclose(b.values.compressed(), a.values.compressed(), rtol=1e-11)
+    for got, want in ((b.grad_position, a.grad_position), (b.grad_wall, a.grad_wall)):
+        assert got is not None and want is not None
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
 BOWED = height_field_mesh(BowedWall(0.05, (0.05, 0.0), 0.6), (-1.5, -1.5, 1.5, 1.5), spacing_m=0.05)
 
 
@@ -151,6 +180,35 @@ def test_gradients_on_a_bowed_mesh_agree_with_central_differences() -> None:
         )
         numeric = (up.values - down.values).filled(0.0) / (2 * h)
         np.testing.assert_allclose(s.grad_rotation[0, :, k], numeric, atol=1e-6 * scale)
+
+
+def test_wall_gradients_on_a_bowed_mesh_agree_with_central_differences() -> None:
+    wall = WALLS["plastic"]
+    pix = _pixels(150, CAMERA.width, CAMERA.height, seed=7)
+    fp = mesh_footprints(CAMERA, VIEW, pix, BOWED)
+    s = shade(fp, VIEW, RIG, want_grad=True, wall=wall)
+    assert s.grad_position is not None and s.grad_wall is not None
+    h = 1e-6
+    for k in range(3):
+        step = np.zeros(3)
+        step[k] = h
+        moved = [LIGHT.replace(t_camera_light=LIGHT.t_camera_light + e) for e in (step, -step)]
+        up, down = (shade(fp, VIEW, Rig.single(m), wall=wall).values for m in moved)
+        numeric = (up - down).filled(0.0) / (2 * h)
+        np.testing.assert_allclose(
+            s.grad_position[0, :, k], numeric, atol=1e-6 * np.abs(numeric).max()
+        )
+    p = wall.parameters()
+    for k in range(len(p)):
+        step = np.zeros(len(p))
+        step[k] = 1e-6 * max(1.0, abs(p[k]))
+        up, down = (
+            shade(fp, VIEW, RIG, wall=wall.with_parameters(p + e)).values for e in (step, -step)
+        )
+        numeric = (up - down).filled(0.0) / (2 * step[k])
+        np.testing.assert_allclose(
+            s.grad_wall[:, k], numeric, atol=1e-6 * np.abs(numeric).max() + 1e-300
+        )
 
 
 def test_the_sensor_divides_by_the_true_area_of_a_tilted_footprint() -> None:
@@ -289,29 +347,16 @@ def test_project_wall_mesh_errors(tiny_dataset: Path) -> None:
             + re.escape("(z > 3 m, the wall mesh's lowest point)"),
             str(err.value),
         ), str(err.value)
-        path = _project_with_wall(
-            folder, {"mesh": "above.ply", "model": "plastic"}, "mesh_plastic.json"
-        )
-        made.append(path)
-        with pytest.raises(InputError) as err:
-            load_project(path)
-        assert str(err.value) == (
-            f"{path}: wall: mesh: only the lambertian model is modelled on a wall mesh, got "
-            "model 'plastic' (the other reflectance models take the wall's normal as +z)"
-        )
         write_wall_mesh(folder / "plane.ply", _plane_at(0.0))
         made.append(folder / "plane.ply")
         path = _project_with_wall(folder, {"mesh": "plane.ply"}, "mesh_plane.json")
         made.append(path)
         project = load_project(path)
         assert project.wall_mesh is not None
-        settings = settings_of(project)
-        with pytest.raises(InputError) as err:
-            project_for_solve(project, dataclasses.replace(settings, wall_model="plastic"))
-        assert str(err.value) == (
-            "wall.model: only the lambertian model is modelled on a wall mesh (plane.ply), "
-            "got 'plastic'"
-        )
+        # The Solve tab's wall model keeps the mesh.
+        settings = dataclasses.replace(settings_of(project), wall_model="plastic")
+        edited = project_for_solve(project, settings)
+        assert edited.spec.wall.mesh == "plane.ply" and edited.wall_mesh is not None
         write_wall_mesh(folder / "far.ply", _plane_at(0.0, x0=100.0))
         made.append(folder / "far.ply")
         path = _project_with_wall(folder, {"mesh": "far.ply"}, "mesh_far.json")

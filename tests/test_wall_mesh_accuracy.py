@@ -7,6 +7,8 @@ mesh declared (`wall.mesh`) the light is within 2 mm and 0.1 degrees of the trut
 - on `lightcal synth --bow-mm 5 --declare-wall-mesh` data (the suite's 480 x 360
   camera, 12 views, realistic noise, poses to 0.5 mm / 0.05 deg): lightcal's own
   point-sampled height-field renderer made the images;
+- the same wall with glossy paint (rough plastic), `wall: {model: auto}`: the plastic
+  model is chosen and fitted with each footprint's own normal;
 - on Mitsuba 3's render of the `bowed` scenario (tests/mitsuba_datasets.py: the bulge a
   sphere cap within 1.3e-7 m of the paraboloid), an independent renderer; its mesh is
   written from the truth's bow by `lightcal.synthetic.wall_meshes` (skipped without
@@ -20,6 +22,7 @@ from pathlib import Path
 
 import pytest
 
+from lightcal.core.wall import PlasticWall
 from lightcal.io.project import load_project
 from lightcal.io.wall_mesh_file import write_wall_mesh
 from lightcal.pipeline import calibrate_project
@@ -61,6 +64,26 @@ def test_synth_bowed_wall_with_its_mesh(tmp_path: Path) -> None:
     assert position < 2e-3 and axis < 0.1, (position, axis)
     flat = _calibrate(ds.project_path, {}, "plane.json")  # what the mesh mends
     assert errors(flat, truth)[0] > 4e-3
+
+
+def test_synth_painted_bowed_wall_with_its_mesh_and_wall_auto(tmp_path: Path) -> None:
+    """Glossy paint on the bowed wall: `wall: {model: auto}` with the mesh finds the
+    plastic model with each footprint's own normal, and the light."""
+    config = SynthConfig(
+        camera=camera(),
+        seed=5,
+        wall=PlasticWall.from_albedo(0.25, 1.5, 0.8),
+        departures=Departures(bow_m=0.005),
+        declare_wall_mesh=True,
+    )
+    ds = write_dataset(tmp_path / "painted", config)
+    truth = read_truth(ds.truth_path)["lights"][0]
+    result = _calibrate(ds.project_path, {"mesh": WALL_MESH_NAME, "model": "auto"}, "auto.json")
+    assert result.converged and result.fit_adequate, result.fit["findings"]
+    assert result.wall["model"] == "plastic"
+    assert abs(result.wall["roughness"] - 0.25) < 0.01
+    position, _, axis, _ = errors(result, truth)
+    assert position < 2e-3 and axis < 0.1, (position, axis)
 
 
 def test_mitsuba_bowed_wall_with_its_mesh(tmp_path_factory: pytest.TempPathFactory) -> None:

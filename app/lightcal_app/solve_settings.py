@@ -149,14 +149,12 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
     spec = project.spec
     wall = spec.wall
     if settings.wall_model != wall.model:
-        if wall.mesh is not None:
-            raise InputError(
-                "wall.model",
-                f"only the lambertian model is modelled on a wall mesh ({wall.mesh}), got "
-                f"{settings.wall_model!r}",
-            )
         # Another model: its default parameters (a model's own do not carry over).
-        wall = WallSpec(model=settings.wall_model, flatness_mm=wall.flatness_mm)  # type: ignore[arg-type]
+        wall = WallSpec(
+            model=settings.wall_model,  # type: ignore[arg-type]
+            flatness_mm=wall.flatness_mm,
+            mesh=wall.mesh,
+        )
     edited = spec.model_copy(
         update={
             "wall": wall,

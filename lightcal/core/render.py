@@ -43,7 +43,7 @@ from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.core.wall_mesh import (
     WallMesh,
-    check_mesh_wall,
+    apply_wall_on_mesh,
     light_behind_mesh,
     mesh_footprints,
     wall_footprints,
@@ -145,8 +145,6 @@ def light_flux(
             raise ValueError(f"grad_out: expected a C-contiguous float64 ({n}, 6) array")
     L_world, R_world_light = light_in_view(light, view)
     on_mesh = footprints.normals_world is not None
-    if on_mesh:
-        check_mesh_wall(wall.is_lambertian)
     if not on_mesh and L_world[2] <= 0.0:
         if grad is not None:
             grad.fill(0.0)
@@ -212,6 +210,9 @@ def _apply_wall(
     d(flux B)/dL = B d flux/dL + flux dB/dL; d(flux B)/d delta = B d flux/d delta;
     d(flux B)/d p = flux dB/dp (written to wall_grad_out (N, P)).
     """
+    if footprints.normals_world is not None:  # each footprint's own normal
+        apply_wall_on_mesh(footprints, L_world, view.center_world, wall, flux, grad, wall_grad_out)
+        return
     d = wall.data()
     want_grad = grad is not None
     apply_wall(

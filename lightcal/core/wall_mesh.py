@@ -13,14 +13,15 @@ model's, normal-free:
   off the plane z = 0 never take the plane's fast paths);
 - the irradiance divides the flux by the quad's true area, 0.5 |(P3 - P1) x (P4 - P2)|
   (the vector area; for a planar quad its area exactly);
-- a Lambertian wall's radiance is rho / pi times the irradiance, whatever its normal.
+- a Lambertian wall's radiance is rho / pi times the irradiance, whatever its normal;
+  the other reflectance models' B takes each footprint's own normal
+  (`apply_wall_on_mesh`).
 
 What is approximated: a pixel whose four corner rays meet different triangles gets the
 quad through its four hits, not the mesh's crease inside it (second order in the
 footprint's size over the crease's radius); the mesh's own shadows on itself are not
 modelled. A light lights a pixel only when it lies in front of the footprint's plane
-(on the camera's side of it: `Footprints.normals_world`). Reflectance models other than
-Lambertian take the normal +z and are refused with a mesh (`check_mesh_wall`).
+(on the camera's side of it: `Footprints.normals_world`).
 """
 
 from __future__ import annotations
@@ -41,7 +42,9 @@ from lightcal.core.footprint import (
     pixel_footprints,
     quads_per_side,
 )
+from lightcal.core.kernels.wall import MU_FLOOR, brdf_many
 from lightcal.core.scene import View
+from lightcal.core.wall import WallReflectance
 
 #: Rays per bucket of the ray sort, on average (`mesh_kernels.bucket_rays`).
 RAYS_PER_BUCKET = 4
@@ -279,11 +282,54 @@ def light_behind_mesh(
         grad[dark] = 0.0
 
 
-def check_mesh_wall(wall_is_lambertian: bool) -> None:
-    """Refuse a reflectance model other than Lambertian on a mesh (its models take the
-    wall's normal as +z; the Lambertian one needs no normal)."""
-    if not wall_is_lambertian:
-        raise ValueError(
-            "wall: only the lambertian model is modelled on a wall mesh (the other "
-            "reflectance models take the wall's normal as +z)"
-        )
+def apply_wall_on_mesh(
+    footprints: Footprints,
+    L_world: np.ndarray,
+    camera_world: np.ndarray,
+    wall: WallReflectance,
+    flux: np.ndarray,
+    grad: np.ndarray | None,
+    wall_grad_out: np.ndarray | None,
+) -> None:
+    """`render`'s wall factor on a mesh: flux (N,) *= B at the footprint centres with each
+    footprint's own normal n (`Footprints.normals_world`), and the chain rule on grad
+    (N, 6) and wall_grad_out (N, P), as `kernels.wall.apply_wall` does with n = +z.
+
+    B is a function of mu_l = l . n, q = l . v and mu_v = v . n (`kernels.wall.brdf_many`),
+    so dB/dL = (I - l l^T) (dB/dmu_l n + dB/dq v) / |L - P|; B and its derivatives are 0
+    where the light or the camera is behind the footprint's plane.
+    """
+    assert footprints.normals_world is not None
+    n = footprints.normals_world
+    to_light = L_world - footprints.centers_world
+    to_camera = camera_world - footprints.centers_world
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r_l = np.linalg.norm(to_light, axis=1)
+        ul = to_light / r_l[:, None]
+        uv = to_camera / np.linalg.norm(to_camera, axis=1, keepdims=True)
+        mu_l = np.einsum("ij,ij->i", ul, n)
+        mu_v = np.einsum("ij,ij->i", uv, n)
+        q = np.einsum("ij,ij->i", ul, uv)
+        ok = (mu_l > 0.0) & (mu_v > 0.0)
+    d = wall.data()
+    b, b_mu, b_q, dp = brdf_many(
+        np.where(ok, np.maximum(mu_l, MU_FLOOR), MU_FLOOR),
+        np.where(ok, q, 0.0),
+        np.where(ok, np.maximum(mu_v, MU_FLOOR), MU_FLOOR),
+        d.kind,
+        d.params,
+        d.tables,
+    )
+    b = np.where(ok, b, 0.0)
+    f0 = np.where(ok, flux, 0.0)
+    flux[:] = f0 * b
+    if grad is None:
+        return
+    g = np.where(ok, b_mu, 0.0)[:, None] * n + np.where(ok, b_q, 0.0)[:, None] * uv
+    lg = np.einsum("ij,ij->i", ul, g)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(b != 0.0, f0 / r_l, 0.0)
+    grad[:, :3] = b[:, None] * grad[:, :3] + s[:, None] * (g - ul * lg[:, None])
+    grad[:, 3:] *= b[:, None]
+    if wall_grad_out is not None and wall_grad_out.shape[1] > 0:
+        wall_grad_out[:] = f0[:, None] * np.where(ok[:, None], dp[:, : wall_grad_out.shape[1]], 0.0)

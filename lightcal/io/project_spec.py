@@ -403,11 +403,6 @@ class WallSpec(_Model):
     def _auto_alone(self) -> WallSpec:
         if self.model in ("auto", "lambertian") and (self.parameters or self.estimate):
             raise ValueError(f"the {self.model} wall takes no parameters and estimates none")
-        if self.mesh is not None and self.model != "lambertian":
-            raise ValueError(
-                f"mesh: only the lambertian model is modelled on a wall mesh, got model "
-                f"{self.model!r} (the other reflectance models take the wall's normal as +z)"
-            )
         return self
 
 
