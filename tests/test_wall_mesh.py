@@ -22,6 +22,7 @@ import pytest
 from lightcal_app.solve_settings import project_for_solve, settings_of
 
 from lightcal.cli.main import main
+from lightcal.core.beam_start import sight_beam
 from lightcal.core.camera import Camera
 from lightcal.core.render import render_image, render_pixels, shade
 from lightcal.core.rid import CosPowerRID, IsotropicRID
@@ -249,6 +250,23 @@ def test_a_light_behind_the_footprints_plane_lights_nothing() -> None:
     assert values.grad_position is not None
     assert np.all(values.grad_position[0, on_slope] == 0.0)
     assert np.all(values.values[on_floor] > 0.0)
+
+
+def test_the_beams_sighting_on_a_mesh() -> None:
+    """The initial guess's spot (`beam_start.sight_beam`) back-projected onto the plane
+    as a mesh lands where it lands on the plane; onto a bulge, on the bulge."""
+    image = render_image(CAMERA, VIEW, RIG).filled(0.0)
+    usable = np.ones(image.shape, dtype=bool)
+    plane = sight_beam(image, usable, CAMERA, VIEW)
+    on_mesh = sight_beam(image, usable, CAMERA, VIEW, mesh=PLANE)
+    assert plane is not None and on_mesh is not None
+    np.testing.assert_allclose(on_mesh.point_camera, plane.point_camera, rtol=1e-12)
+    np.testing.assert_allclose(on_mesh.wall_normal_camera, plane.wall_normal_camera, atol=1e-12)
+    bulge = sight_beam(image, usable, CAMERA, VIEW, mesh=BOWED)
+    assert bulge is not None
+    point_world = VIEW.R_camera_world.T @ bulge.point_camera + VIEW.center_world
+    assert point_world[2] > 0.01  # on the 5 cm bulge
+    assert bulge.point_camera[2] < plane.point_camera[2]
 
 
 # ------------------------------------------------------------------------ bad inputs

@@ -6,7 +6,7 @@ metres, the cameras at z > 0 looking at it. Footprints on it (`mesh_footprints`)
 built as on the plane: each pixel corner's ray, undistorted and back-projected, meets
 the mesh exactly (the nearest triangle it hits, `lightcal.core.mesh_kernels`); the four
 hits of a pixel make its footprint quad, now a quad in 3-D. What follows is the planar
-model's, normal-free:
+model's:
 
 - the flux on a quad is the light's intensity integrated over its solid angle (two
   spherical triangles), exact for any quad in 3-D (`kernels.quad_flux.quad_flux`: quads
@@ -35,6 +35,7 @@ from lightcal.core import mesh_kernels as mk
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import (
     MAX_QUADS_PER_SIDE,
+    SENSOR_MODELS,
     Footprints,
     SensorModel,
     check_pixels,
@@ -156,6 +157,8 @@ def mesh_footprints(
     """
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
+    if sensor not in SENSOR_MODELS:
+        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     b = int(binning)
     p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
     vmap = check_vignetting(vignetting, camera) if sensor == "map" else None
@@ -190,7 +193,7 @@ def mesh_footprints(
     normal[flip] *= -1.0
     with np.errstate(invalid="ignore", divide="ignore"):
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        terms = _sensor_terms(sensor, camera, view, p, b, lattice, lattice_xy, normal, vmap)
+        terms = _sensor_terms(sensor, view, p, b, lattice, lattice_xy, normal, vmap)
     k = s * s
     if sensor == "paper":  # a group's weight: the mean of its members'
         weights = terms.reshape(n, s, step, s, step).mean(axis=(2, 4)).reshape(n, k)
@@ -233,7 +236,6 @@ def wall_footprints(
 
 def _sensor_terms(
     sensor: SensorModel,
-    camera: Camera,
     view: View,
     pixels: np.ndarray,
     b: int,
