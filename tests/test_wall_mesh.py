@@ -33,6 +33,7 @@ from lightcal.core.wall_mesh import WallMesh, mesh_footprints
 from lightcal.errors import InputError
 from lightcal.io.project import load_project
 from lightcal.io.wall_mesh_file import read_wall_mesh, write_wall_mesh
+from lightcal.pipeline import calibrate_project
 from lightcal.pipeline.load import load_images
 from lightcal.pipeline.model import build_model
 from lightcal.synthetic.height_field import BowedWall
@@ -387,6 +388,36 @@ def test_project_wall_mesh_errors(tiny_dataset: Path) -> None:
             "'far.ply'; expected a mesh in the world frame of the images' poses, in metres, "
             "under the views"
         )
+    finally:
+        for p in made:
+            p.unlink(missing_ok=True)
+
+
+def test_a_plane_mesh_calibrates_as_the_plane(tiny_dataset: Path) -> None:
+    """The whole calibration (selection, solve, fit test with its causes and angle bins,
+    uncertainty with the poses' and the flatness' terms) on the plane z = 0 given as a
+    mesh gives the plane's result."""
+    folder = tiny_dataset
+    made = [folder / "plane_cal.ply"]
+    try:
+        write_wall_mesh(made[0], _plane_at(0.0))
+        results = []
+        for wall, name in (({}, "plane_cal.json"), ({"mesh": "plane_cal.ply"}, "mesh_cal.json")):
+            wall = {**wall, "flatness_mm": 2.0, "model": "plastic"}
+            path = _project_with_wall(folder, wall, name)
+            made.append(path)
+            results.append(calibrate_project(load_project(path))[2])
+        plane, mesh = results
+        assert mesh.pixels_used == plane.pixels_used
+        np.testing.assert_allclose(mesh.x, plane.x, rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(mesh.covariance, plane.covariance, rtol=1e-6, atol=1e-14)
+        for a, b in zip(mesh.fit["causes"], plane.fit["causes"], strict=True):
+            assert a["cause"] == b["cause"]
+            assert a["relative_effect"] == pytest.approx(b["relative_effect"], rel=1e-6, abs=1e-12)
+        for angle in ("mirror", "incidence"):
+            a, b = mesh.fit[angle], plane.fit[angle]
+            np.testing.assert_allclose(a["bin_edges_deg"], b["bin_edges_deg"], atol=1e-9)
+            assert a["count"] == b["count"]
     finally:
         for p in made:
             p.unlink(missing_ok=True)
