@@ -421,3 +421,27 @@ def test_a_plane_mesh_calibrates_as_the_plane(tiny_dataset: Path) -> None:
     finally:
         for p in made:
             p.unlink(missing_ok=True)
+
+
+def test_plan_on_a_plane_mesh_plans_as_on_the_plane(tiny_dataset: Path) -> None:
+    """`lightcal plan` renders its candidate views on the mesh: on the plane as a mesh,
+    the plane's plan."""
+    from lightcal.api import plan
+
+    folder = tiny_dataset
+    made = [folder / "plan_plane.ply"]
+    try:
+        write_wall_mesh(made[0], _plane_at(0.0))
+        plans = {}
+        for name, wall in (("plane", {}), ("mesh", {"mesh": made[0].name})):
+            path = _project_with_wall(folder, wall, f"plan_{name}.json")
+            made.append(path)
+            plans[name] = plan(path, n=2, notify=None)
+        a, b = plans["plane"], plans["mesh"]
+        assert [v.candidate.instruction() for v in b.views] == [
+            v.candidate.instruction() for v in a.views
+        ]
+        np.testing.assert_allclose(b.views[0].after.log_det, a.views[0].after.log_det, rtol=1e-9)
+    finally:
+        for p in made:
+            p.unlink(missing_ok=True)
