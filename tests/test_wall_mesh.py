@@ -24,6 +24,7 @@ from lightcal_app.solve_settings import project_for_solve, settings_of
 from lightcal.cli.main import main
 from lightcal.core.beam_start import sight_beam
 from lightcal.core.camera import Camera
+from lightcal.core.medium import Medium
 from lightcal.core.render import render_image, render_pixels, shade
 from lightcal.core.rid import CosPowerRID, IsotropicRID
 from lightcal.core.rotations import matrix_from_rotvec
@@ -102,6 +103,21 @@ def test_a_plane_mesh_gives_the_planar_image_and_gradients() -> None:
     assert a.grad_position is not None and b.grad_position is not None
     scale = np.abs(a.grad_position).max()
     np.testing.assert_allclose(b.grad_position, a.grad_position, rtol=0, atol=1e-11 * scale)
+
+
+def test_water_on_a_plane_mesh_gives_the_planar_values() -> None:
+    """The medium's transmittance and backscatter need distances only: on the plane as a
+    mesh, the planar values, their gradients and the medium's."""
+    from lightcal.core.footprint import pixel_footprints
+
+    water = Medium(attenuation_per_m=0.3, backscatter_per_m=0.5, phase_g=0.8)
+    pix = _pixels(200, CAMERA.width, CAMERA.height, seed=8)
+    a = shade(pixel_footprints(CAMERA, VIEW, pix), VIEW, RIG, want_grad=True, medium=water)
+    b = shade(mesh_footprints(CAMERA, VIEW, pix, PLANE), VIEW, RIG, want_grad=True, medium=water)
+    np.testing.assert_allclose(b.values.compressed(), a.values.compressed(), rtol=1e-12)
+    for got, want in ((b.grad_position, a.grad_position), (b.grad_medium, a.grad_medium)):
+        assert got is not None and want is not None
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-11 * np.abs(want).max())
 
 
 def _moved(Q: np.ndarray, s: np.ndarray) -> tuple[WallMesh, View]:
