@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lightcal.core.albedo_map import AlbedoMap
+from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
@@ -38,6 +40,7 @@ from lightcal.io.figures import (
 from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
+from lightcal.pipeline.albedo_result import albedo_image, albedo_text
 from lightcal.pipeline.fall_off_result import ambient_text, fall_off_text
 from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
@@ -58,13 +61,18 @@ def render_views(
     medium: Medium = AIR,
     fall_off: np.ndarray | None = None,
     ambient: float = 0.0,
+    albedo: AlbedoMap | None = None,
 ) -> list[np.ma.MaskedArray]:
     """Render every project image with `rig` on `wall` through `medium`: (H, W) masked
     arrays. `ambient`, an estimated room light (value at exposure and gain 1), adds
     gain x exposure x it; `fall_off` (H, W), an estimated fall-off V, multiplies the
-    values above the offset."""
+    values above the offset, as does an estimated albedo map `albedo` at each pixel's
+    wall point."""
     out = []
     n = len(project.views)
+    room_factor = room_light_image(
+        loaded.camera, project.spec.sensor.model, vignetting_for(project, loaded.camera)
+    )
     for i, view in enumerate(project.views):
         if progress is not None:
             progress("rendering", i, n)
@@ -83,9 +91,14 @@ def render_views(
                 mesh=project.wall_mesh,
             )
         )
-        if ambient != 0.0 or fall_off is not None:
-            room = g * view.exposure * ambient
-            out[-1] = offset + (out[-1] - offset + room) * (1.0 if fall_off is None else fall_off)
+        if ambient != 0.0 or fall_off is not None or albedo is not None:
+            room: float | np.ndarray = g * view.exposure * ambient
+            if ambient != 0.0 and room_factor is not None:  # the lens's fall-off on it
+                room = room * room_factor
+            factor = np.ones(out[-1].shape) if fall_off is None else fall_off
+            if albedo is not None:
+                factor = factor * albedo_image(albedo, loaded.camera, view)
+            out[-1] = offset + (out[-1] - offset + room) * factor
     if progress is not None:
         progress("rendering", n, n)
     return out
@@ -135,6 +148,7 @@ def write_report(
             else model.layout.fall_off_unknown.image(x[model.layout.fall_off])
         ),
         ambient=model.layout.ambient(x),
+        albedo=model.albedo_map(x),
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 
@@ -193,6 +207,10 @@ def write_report(
                 p = staging / "fit_causes.png"
                 write_png(p, causes)
                 written.append(p)
+        if result.albedo_map is not None:
+            p = staging / "albedo_map.png"
+            write_png(p, albedo_figure(result.albedo_map, image_scale))
+            written.append(p)
         p = staging / SUMMARY
         written.append(p)
         summary = _summary_markdown(project, result, rms_rows)
@@ -301,6 +319,8 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         lines.append(f"- {markdown_prose(fall_off_text(result.fall_off))}")
     if result.ambient is not None:
         lines.append(f"- {markdown_prose(ambient_text(result.ambient, result.ambient_sigma))}")
+    if result.albedo_map is not None:
+        lines.append(f"- {markdown_prose(albedo_text(result.albedo_map))}")
     fit = result.fit
     if fit:
         if not fit["adequate"]:
@@ -326,4 +346,21 @@ def _fit_lines(result: CalibrationResult) -> list[str]:
         if fit.get("causes"):
             lines.append("![how far each candidate cause would move the pose](fit_causes.png)")
             lines.append("")
+    if result.albedo_map is not None:
+        lines.append("![the wall's estimated albedo over its mean](albedo_map.png)")
+        lines.append("")
     return lines
+
+
+def albedo_figure(summary: dict, scale: float) -> np.ndarray:
+    """The estimated albedo map (over its mean, minus 1) on the wall, world y up."""
+    values = np.array(
+        [[np.nan if v is None else v - 1.0 for v in row] for row in summary["values"]]
+    )[::-1]
+    mm = summary["spacing_m"] * 1000
+    return residual_figure(
+        np.ma.masked_invalid(values),
+        title=f"wall albedo / mean - 1 (nodes every {mm:.3g} mm, world y up)",
+        unit="",
+        scale=scale,
+    )

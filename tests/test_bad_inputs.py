@@ -315,7 +315,24 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
         "medium parameter unknown",
         _set("medium", {"estimate": ["scattering"]}),
-        "medium.estimate[0]: Input should be 'attenuation_per_m' or 'backscatter_per_m'",
+        "medium.estimate[0]: Input should be 'attenuation_per_m', 'backscatter_per_m' or 'phase_g'",
+    ),
+    (
+        "medium phase g estimated without backscatter",
+        _set("medium", {"attenuation_per_m": 0.2, "estimate": ["phase_g"]}),
+        "medium.estimate: phase_g shapes the backscatter; expected backscatter_per_m > 0 or "
+        "estimated beside it",
+    ),
+    (
+        "wall albedo map with a robust loss",
+        lambda p: (_set("solver.loss", "huber")(p), _set("wall", {"albedo_map": {}})(p)),
+        "wall.albedo_map: expected solver.loss linear, got 'huber' (the albedo map is solved "
+        "by linear least squares)",
+    ),
+    (
+        "wall albedo map spacing below 1 mm",
+        _set("wall", {"albedo_map": {"spacing_mm": 0.5}}),
+        "wall.albedo_map.spacing_mm: Input should be greater than or equal to 1",
     ),
     (
         "medium phase g beyond 0.99",

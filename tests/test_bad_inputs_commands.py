@@ -704,6 +704,15 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),
     ),
     (
+        "synth: --declare-albedo-map with a declared veil",
+        "synth {n} --declare-albedo-map --backscatter 0.5 --declare-medium given",
+        _error(
+            "synth",
+            "--declare-albedo-map: expected no declared --backscatter (the albedo map scales "
+            "the wall's light, not the water's veil); drop --declare-medium or --backscatter",
+        ),
+    ),
+    (
         "synth: --dark-frames without room light",
         "synth {n} --dark-frames",
         _error(

@@ -244,7 +244,7 @@ def test_backscatter_needs_the_radiance_sensor_model() -> None:
 
 @pytest.mark.parametrize("medium", [MURKY, Medium(0.0, 5.0, -0.3)])
 def test_backscatter_gradients_match_differences(medium: Medium) -> None:
-    """Position, rotation (camera frame), c and beta derivatives of values with
+    """Position, rotation (camera frame), c, beta and g derivatives of values with
     backscatter, two lights, against central differences."""
     from lightcal.core.rotations import matrix_from_rotvec
 
@@ -273,10 +273,11 @@ def test_backscatter_gradients_match_differences(medium: Medium) -> None:
             fd = (values(hi) - values(lo)) / (2 * h)
             np.testing.assert_allclose(sh.grad_rotation[j, :, k], fd, rtol=1e-5, atol=1e-7)
     p = medium.parameters()
-    for k in range(2):
+    assert sh.grad_medium.shape[1] == 3
+    for k in range(3):
         hi_p, lo_p = p.copy(), p.copy()
         hi_p[k] += h
-        lo_p[k] = max(p[k] - h, 0.0)
+        lo_p[k] = p[k] - h if k == 2 else max(p[k] - h, 0.0)
         fd = (
             values(list(rig.lights), medium.with_parameters(hi_p))
             - values(list(rig.lights), medium.with_parameters(lo_p))

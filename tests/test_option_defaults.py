@@ -9,7 +9,7 @@ import inspect
 
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
-from lightcal.io.project import SelectionSpec, SensorSpec, SolverSpec
+from lightcal.io.project import SelectionSpec, SensorSpec, SolverSpec, WallSpec
 from lightcal.pipeline.solve import solve
 
 
@@ -37,13 +37,16 @@ def test_solver_and_sensor_spec_defaults_are_the_solver_options():
     )
     names = {name for name, _, _ in shared}
     # compress and reweight are not in the project file: always their option defaults;
-    # fall_off is built from sensor.estimate_fall_off and the camera (default null: None).
+    # fall_off is built from sensor.estimate_fall_off and the camera (default null: None),
+    # albedo_map from wall.albedo_map (default null: None).
     assert names == {f.name for f in dataclasses.fields(SolverOptions)} - {
         "compress",
         "reweight",
         "fall_off",
+        "albedo_map",
     }
     assert SensorSpec().estimate_fall_off is None and SolverOptions().fall_off is None
+    assert WallSpec().albedo_map is None and SolverOptions().albedo_map is None
     for name, spec_default, option_default in shared:
         assert spec_default == option_default, name
 

@@ -45,3 +45,25 @@ def test_an_isotropic_light_has_no_axis_line() -> None:
         "  scale    9902.51 ± 4",
     ]
     assert len(light_lines(_light("general"))) == 4
+
+
+def test_the_medium_in_words_with_its_phase_estimated_or_given() -> None:
+    from lightcal.pipeline.result_text import medium_text
+
+    air = {"attenuation_per_m": 0.0, "backscatter_per_m": 0.0, "phase_g": 0.9, "estimated": []}
+    assert medium_text(air) is None
+    water = {
+        "attenuation_per_m": 0.301,
+        "backscatter_per_m": 0.5,
+        "phase_g": 0.82,
+        "estimated": ["attenuation_per_m", "backscatter_per_m", "phase_g"],
+        "sigma": {"attenuation_per_m": 0.004, "backscatter_per_m": 0.01, "phase_g": 0.03},
+    }
+    assert medium_text(water) == (
+        "medium: attenuation 0.301 ± 0.004 /m (estimated), backscatter 0.5 ± 0.01 /m "
+        "(estimated, g 0.82 ± 0.03 estimated)"
+    )
+    given = {**water, "estimated": [], "sigma": {}}
+    assert medium_text(given) == (
+        "medium: attenuation 0.301 /m (given), backscatter 0.5 /m (given, g 0.82)"
+    )

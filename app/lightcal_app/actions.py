@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,12 @@ from lightcal_app.requests import (
     Solve,
 )
 from lightcal_app.solve_service import Notify
-from lightcal_app.solve_settings import SolveSettings, check_settings, project_for_solve
+from lightcal_app.solve_settings import (
+    SolveSettings,
+    check_settings,
+    medium_with,
+    project_for_solve,
+)
 from lightcal_app.state import (
     ALL_DIRT,
     MAX_ITERATION_S,
@@ -61,8 +67,8 @@ class Actions:
 
     def _base_pose(self, j: int) -> LightGuess:
         st = self.state
-        d = st.display
-        if d is not None and d.source == "estimate" and d.current(st) and j < len(d.rig.lights):
+        d = st.shown_estimate()
+        if d is not None and j < len(d.rig.lights):
             light = d.rig.lights[j]
             return LightGuess(light.t_camera_light.copy(), light.R_camera_light.copy())
         return st.guess[j]
@@ -169,12 +175,25 @@ class Actions:
         with st.lock:
             if st.project is not project:
                 return  # another project arrived meanwhile
+            # The fall-off changes which pixels are usable: the selection is redone (the
+            # water's values alone leave it as it is).
+            selection = replace(settings, medium=None) != replace(st.solve_settings, medium=None)
             st.solve_settings = settings
             st.solve_project = solve_project
             st.resume_x = None
             st.resume_end = None
-            # The fall-off changes which pixels are usable: the selection is redone.
-            st.setup_changed(selection=True)
+            st.setup_changed(selection=selection)
+
+    def set_medium(self, **values: object) -> None:
+        """The water's values typed in the page (`attenuation_per_m`, `backscatter_per_m`,
+        `phase_g`); the others stay as shown now (the estimate after a solve that fitted
+        them). The overlays render through it and the solve starts over from it. Refused
+        (InputError naming the key) when out of the core's range, or backscatter with a
+        camera fall-off other than radiance."""
+        st = self.state
+        with st.lock:
+            settings, shown = st.solve_settings, st.shown_medium()
+        self.set_solve_settings(replace(settings, medium=medium_with(shown, values)))
 
     def clear_selection_override(self, image: str) -> None:
         """Image `image` uses the global selection settings again."""

@@ -19,7 +19,7 @@ from lightcal.io.project import Project
 from lightcal.io.project_identity import project_identity
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
-from lightcal.pipeline.result_text import axis_text, position_text
+from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
 from lightcal_app.state import PreviousResult
 from lightcal_app.text import md, md_prose
@@ -104,7 +104,8 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
 
 
 def _wall_and_fit(result: CalibrationResult) -> list[str]:
-    """The wall model with its parameters, and the fit test's verdict."""
+    """The wall model with its parameters, the water (as `lightcal calibrate` prints it;
+    nothing in air) and the fit test's verdict."""
     wall = result.wall
     sig = wall.get("sigma", {})
     lines = [f"#### Wall: {wall.get('model', 'lambertian')}"]
@@ -114,6 +115,9 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
         for k, v in params:
             s = f"{sig[k]:.2g}" if k in sig else "fixed"
             lines.append(f"| {k} | {v:.4g} | {s} |")
+    water = medium_text(result.medium)
+    if water is not None:
+        lines += ["", f"Water: {md_prose(water.removeprefix('medium: '))}", ""]
     fit = result.fit
     if fit:
         if not fit["adequate"]:

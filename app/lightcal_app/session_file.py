@@ -18,11 +18,12 @@ import os
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from lightcal.core.medium import Medium
 from lightcal.core.selection import Strategy
 from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError, LightcalError
@@ -36,7 +37,12 @@ from lightcal_app.limits import (
     MAX_SEED,
     POSITION_LIMIT_M,
 )
-from lightcal_app.solve_settings import SolveSettings, check_settings, project_for_solve
+from lightcal_app.solve_settings import (
+    MEDIUM_BOUNDS,
+    SolveSettings,
+    check_settings,
+    project_for_solve,
+)
 from lightcal_app.state import (
     AppState,
     LightGuess,
@@ -108,6 +114,20 @@ class SolveModel(_Model):
     time_s: float = Field(default=0.0, ge=0.0, le=1e7)
 
 
+def _medium_value(name: str) -> Any:
+    """A required field in the range the core takes for `medium.<name>`."""
+    lo, hi = MEDIUM_BOUNDS[name]
+    return Field(ge=lo, le=hi)
+
+
+class MediumModel(_Model):
+    """The water's values (`Medium`), in the core's ranges."""
+
+    attenuation_per_m: float = _medium_value("attenuation_per_m")
+    backscatter_per_m: float = _medium_value("backscatter_per_m")
+    phase_g: float = _medium_value("phase_g")
+
+
 class SolveSettingsModel(_Model):
     """What the solve fits (`lightcal_app.solve_settings.SolveSettings`)."""
 
@@ -122,6 +142,8 @@ class SolveSettingsModel(_Model):
     medium_estimate: list[Annotated[str, Field(max_length=40)]] = Field(
         default_factory=list, max_length=2
     )
+    # None (and files before this field): the project's values.
+    medium: MediumModel | None = None
 
 
 class SessionFile(_Model):
@@ -340,6 +362,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             saved.estimate_ambient,
             saved.estimate_fall_off,
             tuple(saved.medium_estimate),
+            None if saved.medium is None else Medium(**saved.medium.model_dump()),
         )
         try:
             check_settings(state.project, settings)

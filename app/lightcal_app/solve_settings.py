@@ -5,8 +5,9 @@ edit by hand before `lightcal calibrate`.
 exclusion (`selection.exclude_mirror_deg`), the offset (`sensor.estimate_offset`: a
 black level left in the images), the room light (`sensor.estimate_ambient`), the
 camera's fall-off (`sensor.model`) and the radial one estimated with the light
-(`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`) and
-what is estimated of the water (`medium.estimate`, from the project's values).
+(`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`), the
+water's values (`medium.attenuation_per_m`, `backscatter_per_m`, `phase_g`: the Light
+tab's Water folder) and what is estimated of them (`medium.estimate`).
 `project_for_solve` makes the project the solve uses: the loaded project with those
 keys set, built by `lightcal.io.project.project_from_spec` exactly as a project file
 with them would be, so the page solves what `lightcal calibrate` solves on the edited
@@ -16,10 +17,12 @@ file.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Literal, get_args
 
 from lightcal.core.fall_off import FALL_OFF_MAX_ORDER
+from lightcal.core.medium import MAX_PHASE_G, Medium
 from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
 from lightcal.io.project import Project, project_from_spec
@@ -43,6 +46,11 @@ MEDIUM_ESTIMATES: dict[str, tuple[str, ...]] = {
 """The Solve tab's words for `medium.estimate`."""
 MEDIUM_WORDS: dict[tuple[str, ...], str] = {v: k for k, v in MEDIUM_ESTIMATES.items()}
 """`medium.estimate` -> the Solve tab's words for it."""
+MEDIUM_BOUNDS: dict[str, tuple[float, float]] = {
+    **dict(zip(Medium.parameter_names, Medium.parameter_bounds, strict=True)),
+    "phase_g": (-MAX_PHASE_G, MAX_PHASE_G),
+}
+"""The water's values the page takes (`medium.<name>`): (lowest, highest), the core's."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +66,8 @@ class SolveSettings:
         estimate_ambient: `sensor.estimate_ambient`.
         estimate_fall_off: the order of `sensor.estimate_fall_off`; 0: off (null).
         medium_estimate: `medium.estimate` (a value of `MEDIUM_ESTIMATES`).
+        medium: the water's values (`medium.attenuation_per_m`, `backscatter_per_m`,
+            `phase_g`): given, or the start of those estimated; None: the project's.
     """
 
     wall_model: str
@@ -68,6 +78,7 @@ class SolveSettings:
     estimate_ambient: bool = False
     estimate_fall_off: int = 0
     medium_estimate: tuple[str, ...] = ()
+    medium: Medium | None = None
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -84,7 +95,29 @@ def settings_of(project: Project) -> SolveSettings:
             0 if spec.sensor.estimate_fall_off is None else spec.sensor.estimate_fall_off.order
         ),
         medium_estimate=tuple(spec.medium.estimate),
+        medium=project.medium.initial,
     )
+
+
+def medium_with(base: Medium, values: Mapping[str, object]) -> Medium:
+    """`base` with some of its values replaced by ones typed in a page (`medium.<name>`
+    -> value); InputError naming the key when a value is not a number in the core's
+    range (`MEDIUM_BOUNDS`)."""
+    for name, value in values.items():
+        if name not in MEDIUM_BOUNDS:
+            raise InputError("medium", f"expected one of {', '.join(MEDIUM_BOUNDS)}, got {name!r}")
+        lo, hi = MEDIUM_BOUNDS[name]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            got = repr(value)
+        elif math.isfinite(value) and lo <= value <= hi:
+            continue
+        else:
+            got = f"{value:g}"
+        unit = "" if name == "phase_g" else " (1/m)"
+        raise InputError(
+            f"medium.{name}", f"expected a number from {lo:g} to {hi:g}{unit}, got {got}"
+        )
+    return replace(base, **{name: float(v) for name, v in values.items()})  # type: ignore[arg-type]
 
 
 def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
@@ -119,6 +152,18 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
             "medium.estimate",
             f"expected one of {', '.join(map(repr, MEDIUM_ESTIMATES))}, got "
             f"{settings.medium_estimate!r}",
+        )
+    medium = project.medium.initial if settings.medium is None else settings.medium
+    if not isinstance(medium, Medium):
+        raise InputError("medium", f"expected the water's values, got {medium!r}")
+    if settings.fall_off != "radiance" and (
+        medium.scatters or "backscatter_per_m" in settings.medium_estimate
+    ):
+        # The core's renderer refuses it: its backscatter is a radiance.
+        raise InputError(
+            "medium.backscatter_per_m",
+            "the backscatter is modelled with the camera fall-off radiance (sensor.model) "
+            f"only, not {settings.fall_off!r}: set backscatter to 0 or the fall-off to radiance",
         )
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
@@ -177,7 +222,16 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
                 ls.model_copy(update={"estimate_rid": value})
                 for ls, value in zip(spec.lights, settings.estimate_rid, strict=True)
             ],
-            "medium": spec.medium.model_copy(update={"estimate": list(settings.medium_estimate)}),
+            "medium": spec.medium.model_copy(
+                update={
+                    "estimate": list(settings.medium_estimate),
+                    **(
+                        {}
+                        if settings.medium is None
+                        else {nm: getattr(settings.medium, nm) for nm in MEDIUM_BOUNDS}
+                    ),
+                }
+            ),
         }
     )
     return project_from_spec(edited, project.path)

@@ -318,6 +318,18 @@ class AppState:
         it = self.history[-1].iteration if self.history else -1
         return (self.setup_rev, self.session_gen, it, self.solver_state)
 
+    def shown_estimate(self) -> Display | None:
+        """The display of the solve's estimate of the guess and selection held now, if
+        there is one (call under the lock): what the Light tab's fields show."""
+        d = self.display
+        return d if d is not None and d.source == "estimate" and d.current(self) else None
+
+    def shown_medium(self) -> Medium:
+        """The water's values the page shows (call under the lock): the solve's estimate
+        of the setup held now, else the values the solve starts from."""
+        estimate = self.shown_estimate()
+        return estimate.medium if estimate is not None else self.solve_project.medium.initial
+
     def image_index(self, name: str) -> int:
         """Index of an image by name (ValueError naming it when unknown)."""
         try:

@@ -312,11 +312,16 @@ def init_project(
         assume_linear,
         None if response_file is None else ResponseCurve.load(response_file),
     )
+    # Room light is estimated by default: it grows with the exposure like the beam, and
+    # left out it moves the light by centimetres (docs/model.md, "The sensor's estimated
+    # terms"); in a dark room it costs about 1.1x in the sigma. Set it false there, or
+    # declare light-off photos (images[].dark), which subtract it.
     sensor = SensorSpec(
         black_level=black_level,
         white_level=white_level,
         assume_linear=assume_linear,
         response=None if response_file is None else _relative(response_file, folder),
+        estimate_ambient=True,
     )
     print_polygons = np.concatenate([b.outline_world() for b in boards])
 

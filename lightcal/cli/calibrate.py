@@ -138,6 +138,10 @@ def run(args: argparse.Namespace) -> int:
         from lightcal.pipeline.fall_off_result import ambient_text
 
         output.print(ambient_text(result.ambient, result.ambient_sigma), highlight=False)
+    if result.albedo_map is not None:
+        from lightcal.pipeline.albedo_result import albedo_text
+
+        output.print(albedo_text(result.albedo_map), highlight=False, soft_wrap=True)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"

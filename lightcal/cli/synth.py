@@ -317,6 +317,7 @@ def run(args: argparse.Namespace) -> int:
             medium=medium,
             dark_frames=args.dark_frames,
             declare_wall_mesh=args.declare_wall_mesh,
+            albedo_map=args.declare_albedo_map,
         )
     )
 

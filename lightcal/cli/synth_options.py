@@ -193,6 +193,13 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         "truth.json still records them (none)",
     )
     g.add_argument(
+        "--declare-albedo-map",
+        action="store_true",
+        help="the project estimates the wall's albedo map (wall.albedo_map) on a dense "
+        "selection (strategy all, binned to about 9600 pixels an image): for "
+        "--albedo-texture; not with a declared --backscatter",
+    )
+    g.add_argument(
         "--dark-frames",
         action="store_true",
         help="with --ambient: also write a light-off photo of each view (the room light "
@@ -255,6 +262,12 @@ def declared_medium(args: argparse.Namespace) -> MediumSpec:
     """The project's `medium` of `--declare-medium` (air without it)."""
     from lightcal.io.medium_spec import MediumSpec
 
+    if args.declare_albedo_map and args.declare_medium and args.backscatter > 0.0:
+        raise InputError(
+            "--declare-albedo-map",
+            "expected no declared --backscatter (the albedo map scales the wall's light, "
+            "not the water's veil); drop --declare-medium or --backscatter",
+        )
     if args.declare_medium is None:
         return MediumSpec()
     g = args.phase_g

@@ -12,17 +12,17 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
+from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
-from lightcal.core.medium import Medium, MediumUnknown
-from lightcal.core.pose import axis_from_angles, axis_jacobian
+from lightcal.core.medium import MediumUnknown
+from lightcal.core.pose import pose_column_map
 from lightcal.core.problem import (
     LOG_CLIP,
     ImageData,
@@ -34,10 +34,9 @@ from lightcal.core.problem import (
 )
 from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import light_flux, shade
-from lightcal.core.rotations import left_jacobian_so3
-from lightcal.core.scene import Rig
+from lightcal.core.rid_columns import rid_columns
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
-from lightcal.core.wall import WallReflectance
+from lightcal.core.system_buffers import StateAtX, SystemBuffers
 
 ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
 """visit(i, A (N_i, n + 1), fluxes (L, N_i)): see `CalibrationModel.evaluate_visiting`."""
@@ -97,16 +96,24 @@ class CalibrationModel:
         # iteration's report needs (trf may have tried a point after the one it reports).
         self._recent: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=2)
         self.sigmas: list[np.ndarray] = [im.sigma for im in images]
-        self._buffers = _Buffers()
+        self._buffers = SystemBuffers()
         self._evaluating = threading.Lock()
         self.weights_at: np.ndarray | None = None
         self.nfev = 0
+        self.albedo = None
+        if options.albedo_map is not None:
+            centers = [im.footprints.centers_world[:, :2] for im in images]
+            self.albedo = AlbedoProjection.over(centers, options.albedo_map)
+        self._albedo_at: tuple[np.ndarray, AlbedoMap, np.ndarray] | None = None
 
     # -- evaluation -------------------------------------------------------------------
 
     @property
     def compressed(self) -> bool:
-        """trf works on the QR-compressed problem (`reduced`): linear loss only."""
+        """trf works on the QR-compressed problem (`reduced`): linear loss only; always
+        with an albedo map (its prior rows are in the compressed problem only)."""
+        if self.albedo is not None:
+            return True
         if self.options.loss != "linear" or self.options.compress is False:
             return False
         return self.options.compress is True or self.m >= COMPRESS_MIN_PIXELS
@@ -202,7 +209,7 @@ class CalibrationModel:
     def release_buffers(self) -> None:
         """Free the image systems' work arrays (the next evaluation makes them again)."""
         with self._evaluating:
-            self._buffers = _Buffers()
+            self._buffers = SystemBuffers()
 
     def _evaluate(self, x: np.ndarray, *, full_jacobian: bool) -> None:
         """Residuals, the QR-compressed problem and optionally the full Jacobian at x."""
@@ -221,7 +228,7 @@ class CalibrationModel:
         tops = []
         rms = np.full(len(self.images), np.nan)
         lay = self.layout
-        at_x = _StateAtX(
+        at_x = StateAtX(
             lay.rig(x),
             lay.gain_factors(x),
             lay.offset(x),
@@ -229,10 +236,8 @@ class CalibrationModel:
             lay.wall_of(x),
             lay.medium_of(x),
         )
-        for i in range(len(self.images)):
+        for i, A, (squares, finite), fluxes in self._image_systems(x, at_x, visit is not None):
             rows = slice(self.bounds[i], self.bounds[i + 1])
-            fluxes: list[np.ndarray] | None = None if visit is None else []
-            A, (squares, finite) = self._image_system(x, i, at_x, fluxes)
             r[rows] = A[:, n]
             if J is not None:
                 J[rows] = A[:, :n]
@@ -242,6 +247,9 @@ class CalibrationModel:
             if self.compressed and A.shape[0]:
                 rms[i] = math.sqrt(squares / A.shape[0])
                 tops.append(economic_r(A) if finite else None)
+        if self._albedo_at is not None and np.array_equal(self._albedo_at[0], x):
+            prior = self._albedo_at[2]
+            tops.append(economic_r(prior) if np.all(np.isfinite(prior)) else None)
         if self.compressed:
             self._cache_R = stack_r_factors(tops, n + 1)
             self._recent.append((x.copy(), self._cache_R, rms))
@@ -251,25 +259,53 @@ class CalibrationModel:
             self._cache_J_x = x.copy()
             self._cache_J = J
 
+    def _image_systems(
+        self, x: np.ndarray, at_x: StateAtX, want_fluxes: bool
+    ) -> Iterator[tuple[int, np.ndarray, tuple[float, bool], list[np.ndarray] | None]]:
+        """Per image (i, [J_i r_i], (sum of squares in value units, all finite), fluxes
+        or None) of `_image_system`, or with an albedo map of its variable projection
+        (`lightcal.core.albedo_map`: all systems kept, N x (n + 1) doubles)."""
+        if self.albedo is None:
+            for i in range(len(self.images)):
+                fluxes: list[np.ndarray] | None = [] if want_fluxes else None
+                A, stats = self._image_system(x, i, at_x, fluxes)
+                yield i, A, stats, fluxes
+            return
+        n = self.layout.n
+        systems: list[np.ndarray] = []
+        scaled: list[np.ndarray] = []
+        all_fluxes: list[list[np.ndarray] | None] = []
+        for i, im in enumerate(self.images):
+            fluxes = [] if want_fluxes else None
+            A, _ = self._image_system(x, i, at_x, fluxes)
+            systems.append(np.array(A, order="F"))
+            scaled.append((im.observed - at_x.offset) / self.sigmas[i] - A[:, n])
+            all_fluxes.append(fluxes)
+        offset_column = -1 if self.layout.offset_index is None else self.layout.offset_index
+        albedo, factors, prior = self.albedo.project(systems, scaled, offset_column)
+        self._albedo_at = (x.copy(), albedo, prior)
+        for i, A in enumerate(systems):
+            fluxes = all_fluxes[i]
+            if fluxes is not None:
+                fluxes[:] = [flux * factors[i] for flux in fluxes]
+            d = A[:, n] * self.sigmas[i]
+            yield i, A, (float(d @ d), bool(np.all(np.isfinite(A)))), fluxes
+
+    def albedo_map(self, x: np.ndarray) -> AlbedoMap | None:
+        """The albedo map at x (None without one), the projection's minimiser."""
+        if self.albedo is None:
+            return None
+        if self._albedo_at is None or not np.array_equal(self._albedo_at[0], x):
+            self._evaluate(x, full_jacobian=False)
+        assert self._albedo_at is not None
+        return self._albedo_at[1]
+
     def _pose_maps(self, x: np.ndarray) -> list[np.ndarray]:
         """Per light: (6, k) map from (d/dt, d/d delta) (camera frame) to its k pose columns."""
-        maps = []
-        for block in self.layout.blocks:
-            p = x[block.pose]
-            kind = block.param.kind
-            k = block.pose.stop - block.pose.start
-            M = np.zeros((6, k))
-            M[:3, :3] = np.eye(3)
-            if kind == "symmetric":
-                axis = axis_from_angles(p[3], p[4])
-                M[3:, 3:] = np.cross(axis[:, None], axis_jacobian(p[3], p[4]), axis=0)
-            elif kind == "general":
-                M[3:, 3:] = left_jacobian_so3(p[3:6])
-            maps.append(M)
-        return maps
+        return [pose_column_map(b.param.kind, x[b.pose]) for b in self.layout.blocks]
 
     def _image_system(
-        self, x: np.ndarray, i: int, at_x: _StateAtX, fluxes: list[np.ndarray] | None = None
+        self, x: np.ndarray, i: int, at_x: StateAtX, fluxes: list[np.ndarray] | None = None
     ) -> tuple[np.ndarray, tuple[float, bool]]:
         """[J_i r_i] (N_i, n + 1), Fortran order: image i's Jacobian and residuals, and
         (sum of the squared residuals in value units, whether all are finite).
@@ -334,7 +370,7 @@ class CalibrationModel:
                 light.scale,
             )
             if block.rid.stop > block.rid.start:
-                A[:, block.rid] = self._rid_jacobian(x, i, j, block)
+                A[:, block.rid] = rid_columns(lay, im, x, j, g, self.options.rid_subsamples)
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
             if medium_grad is not None:
@@ -364,32 +400,6 @@ class CalibrationModel:
             written.add(block.log_scale)
         return [c for c in range(lay.n + 1) if c not in written]
 
-    def _rid_jacobian(self, x: np.ndarray, i: int, j: int, block) -> np.ndarray:
-        """d m_render / d (RID params of light j) on image i by central differences, V = 1."""
-        im = self.images[i]
-        lay = self.layout
-        gain = lay.gain_factors(x)[i]
-        out = np.empty((len(im.observed), block.rid.stop - block.rid.start))
-        lights = list(lay.rig(x).lights)
-        for c, k in enumerate(range(block.rid.start, block.rid.stop)):
-            h = 1e-6 * max(1.0, abs(x[k]))
-            vals = []
-            for sgn in (1.0, -1.0):
-                xs = x.copy()
-                xs[k] += sgn * h
-                lights[j] = lay.light_of(block, xs)
-                sh = shade(
-                    im.footprints,
-                    im.view,
-                    Rig(tuple(lights)),
-                    rid_subsamples=self.options.rid_subsamples,
-                    wall=lay.wall_of(x),
-                    medium=lay.medium_of(x),
-                )
-                vals.append(gain * sh.values.filled(np.nan))
-            out[:, c] = (vals[0] - vals[1]) / (2 * h)
-        return out
-
     @property
     def reweights(self) -> bool:
         """Whether `run_least_squares` re-weights from the rendered values and solves again."""
@@ -398,12 +408,13 @@ class CalibrationModel:
     def set_weights_at(self, x: np.ndarray | None) -> None:
         """Pixel sigmas from the data (None) or from the values rendered at x: an image
         with a noise model (gain, read_variance) gets sigma = sqrt(gain * max(v - offset,
-        0) + read_variance) of its rendered values v (room light and fall-off included);
+        0) + read_variance) of its rendered values v (room light, fall-off, albedo in);
         images without one keep their sigmas."""
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
             rig, gains, wall = lay.rig(x), lay.gain_factors(x), lay.wall_of(x)
+            albedo_map = self.albedo_map(x)
             for i, im in enumerate(self.images):
                 if im.noise is None:
                     continue
@@ -416,6 +427,8 @@ class CalibrationModel:
                     medium=lay.medium_of(x),
                 )
                 signal = lay.image_values(sh.values, im, x, gains[i])
+                if self.albedo is not None and albedo_map is not None:
+                    signal = signal * self.albedo.factor(i, albedo_map)
                 sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
@@ -464,36 +477,3 @@ class CalibrationModel:
         """Box bounds that keep every light in front of the wall in every view
         (`lightcal.core.light_bounds`)."""
         return parameter_bounds(self.layout, self.images, self.options.position_bound_m)
-
-
-class _Buffers:
-    """Work arrays reused across images and evaluations: fresh multi-MB arrays cost a
-    page fault per 4 kB on first touch (~10 ms per 375,000-pixel image system)."""
-
-    def __init__(self) -> None:
-        self._system = np.empty(0)
-        self._grad = np.empty(0)
-
-    def system(self, rows: int, cols: int, zeroed: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """A (rows, cols) Fortran-order array, its columns `zeroed` set to 0 (the others
-        hold what the last caller left), and a (rows, 6) C-order one."""
-        if self._system.size < rows * cols:
-            self._system = np.empty(rows * cols)
-        if self._grad.size < rows * 6:
-            self._grad = np.empty(rows * 6)
-        A = self._system[: rows * cols].reshape((rows, cols), order="F")
-        A[:, zeroed] = 0.0
-        return A, self._grad[: rows * 6].reshape(rows, 6)
-
-
-@dataclass(frozen=True)
-class _StateAtX:
-    """What every image's system needs at x: the lights, gains, offset, pose maps, wall,
-    medium."""
-
-    rig: Rig
-    gains: np.ndarray
-    offset: float
-    pose_maps: list[np.ndarray]
-    wall: WallReflectance
-    medium: Medium

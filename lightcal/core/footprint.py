@@ -148,6 +148,7 @@ class Footprints:
             footprint's unit normal (its vector area) turned towards the camera (NaN for
             invalid pixels): a light lights the pixel only on that side. None on the
             plane z = 0 (normal +z).
+        sensor: the sensor model the weights carry.
     """
 
     pixels: np.ndarray
@@ -157,6 +158,7 @@ class Footprints:
     area_m2: np.ndarray
     grid: GridCorners | None = None
     normals_world: np.ndarray | None = None
+    sensor: SensorModel = "radiance"
 
     def __post_init__(self) -> None:
         if (self.stored_corners is None) == (self.grid is None):
@@ -192,7 +194,18 @@ class Footprints:
             self.area_m2[rows],
             self.grid,
             None if self.normals_world is None else self.normals_world[rows],
+            self.sensor,
         )
+
+    @property
+    def room_light_factor(self) -> np.ndarray | None:
+        """(N,) what the sensor model makes of a uniform unit radiance on the wall (room
+        light): its fall-off at each pixel, cos^4 or the map's mean V (a quad's weight
+        times the footprint's area: V / A x A); None for `radiance` (1) and `paper`,
+        whose values are not radiances (the room light is then taken as uniform)."""
+        if self.sensor not in ("cos4", "map"):
+            return None
+        return np.where(self.valid, self.weights[:, 0] * self.area_m2, 0.0)
 
     @functools.cached_property
     def centers_world(self) -> np.ndarray:
@@ -329,11 +342,11 @@ def pixel_footprints(
         with numba.parallel_chunksize(1):
             fk.pixel_footprints_parallel(*args, chunk_pixels, *outputs)
     if grid is None:
-        return Footprints(p, corners, weights, valid, area)
+        return Footprints(p, corners, weights, valid, area, sensor=sensor)
     if step > 1:
         grid_xy, grid_ok = _strided_grid(grid_xy, grid_ok, step)
     source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, s)
-    return Footprints(p, None, weights, valid, area, source)
+    return Footprints(p, None, weights, valid, area, source, sensor=sensor)
 
 
 def quads_per_side(binning: int, max_quads_per_side: int | None = MAX_QUADS_PER_SIDE) -> int:
@@ -404,3 +417,20 @@ def check_vignetting(vignetting: np.ndarray | None, camera: Camera) -> np.ndarra
     if not np.all(np.isfinite(v)) or np.any(v <= 0.0):
         raise ValueError("vignetting: expected finite values > 0")
     return np.ascontiguousarray(v)
+
+
+def room_light_image(
+    camera: Camera, sensor: SensorModel, vignetting: np.ndarray | None = None
+) -> np.ndarray | None:
+    """(H, W) `Footprints.room_light_factor` of every full-resolution pixel: cos^4 of the
+    angle of the ray through the mean of its undistorted corners (`cos4`), the map
+    (`map`); None for `radiance` and `paper` (uniform). NaN where a corner fails."""
+    if sensor == "map":
+        return check_vignetting(vignetting, camera)
+    if sensor != "cos4":
+        return None
+    grid_xy, grid_ok = GRID_CACHE.get(camera)
+    ok = grid_ok[:-1, :-1] & grid_ok[:-1, 1:] & grid_ok[1:, 1:] & grid_ok[1:, :-1]
+    mean = (grid_xy[:-1, :-1] + grid_xy[:-1, 1:] + grid_xy[1:, 1:] + grid_xy[1:, :-1]) / 4.0
+    cos2 = 1.0 / (1.0 + np.sum(mean * mean, axis=-1))
+    return np.where(ok, cos2 * cos2, np.nan)

@@ -70,15 +70,19 @@ class Medium:
     phase_g: float = 0.9
 
     #: The estimable parameters' names, in order, and their box bounds (the solver's).
-    parameter_names: ClassVar[tuple[str, ...]] = ("attenuation_per_m", "backscatter_per_m")
+    parameter_names: ClassVar[tuple[str, ...]] = (
+        "attenuation_per_m",
+        "backscatter_per_m",
+        "phase_g",
+    )
     parameter_bounds: ClassVar[tuple[tuple[float, float], ...]] = (
         (0.0, MAX_ATTENUATION_PER_M),
         (0.0, MAX_BACKSCATTER_PER_M),
+        (-MAX_PHASE_G, MAX_PHASE_G),
     )
 
     def __post_init__(self) -> None:
-        limits = (*self.parameter_bounds, (-MAX_PHASE_G, MAX_PHASE_G))
-        for name, (lo, hi) in zip((*self.parameter_names, "phase_g"), limits, strict=True):
+        for name, (lo, hi) in zip(self.parameter_names, self.parameter_bounds, strict=True):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and lo <= v <= hi):
                 unit = "" if name == "phase_g" else " per metre"
@@ -98,13 +102,13 @@ class Medium:
         return self.backscatter_per_m > 0.0
 
     def parameters(self) -> np.ndarray:
-        """(2,) the estimable parameters' values, in `parameter_names` order."""
-        return np.array([self.attenuation_per_m, self.backscatter_per_m])
+        """(3,) the estimable parameters' values, in `parameter_names` order."""
+        return np.array([self.attenuation_per_m, self.backscatter_per_m, self.phase_g])
 
     def with_parameters(self, values: np.ndarray) -> Medium:
-        """The medium with other values (2,) of its estimable parameters (g kept)."""
-        c, beta = (float(v) for v in np.asarray(values, dtype=np.float64).reshape(-1))
-        return Medium(c, beta, self.phase_g)
+        """The medium with other values (3,) of its estimable parameters."""
+        c, beta, g = (float(v) for v in np.asarray(values, dtype=np.float64).reshape(-1))
+        return Medium(c, beta, g)
 
     def transmittance(
         self, points_world: np.ndarray, light_world: np.ndarray, camera_world: np.ndarray
@@ -188,8 +192,9 @@ def apply_medium(
         exposure: the view's exposure (the backscatter's factor).
         extra_grads: (N, P) other derivatives of the wall term (the wall's parameters),
             multiplied by T in place.
-        d_medium_out: with grad, (N, 1) receiving d/dc, or (N, 2) d/dc and d/dbeta (the
-            backscatter is then computed even at beta = 0).
+        d_medium_out: with grad, (N, 1) receiving d/dc, (N, 2) d/dc and d/dbeta, or
+            (N, 3) d/dc, d/dbeta and d/dg (the backscatter is then computed even at
+            beta = 0).
     """
     n = flux.shape[0]
     want = grad is not None and d_medium_out is not None
@@ -215,7 +220,7 @@ def apply_medium(
     if not (medium.scatters or (want and d_medium_out is not None and d_medium_out.shape[1] > 1)):
         return
     s = np.empty(n)
-    ds = np.empty((n, 7)) if grad is not None else None
+    ds = np.empty((n, 8)) if grad is not None else None
     nodes, weights = scatter_nodes()
     bk.scatter_points(
         centers_world,
@@ -238,6 +243,8 @@ def apply_medium(
             d_medium_out[:, 0] += k * ds[:, 6]
             if d_medium_out.shape[1] > 1:
                 d_medium_out[:, 1] = exposure * s
+            if d_medium_out.shape[1] > 2:
+                d_medium_out[:, 2] = k * ds[:, 7]
 
 
 def backscatter(

@@ -106,13 +106,14 @@ CAUSES: dict[str, Cause] = {
             "medium",
             "the residuals fall off with the light's path length: the light is absorbed on "
             "its way (water, haze)",
-            "photograph in air, or model the medium",
+            "photograph in air, or declare the water (medium: its attenuation estimated)",
         ),
         Cause(
             "wall",
             "the residuals follow the position on the wall, the same in every view: uneven "
             "albedo, a wall that is not flat, or light from the surroundings",
-            "use a flat, evenly white wall away from other surfaces, or mask the uneven parts",
+            "use a flat, evenly white wall away from other surfaces, mask the uneven parts, "
+            "or estimate the wall's albedo map (wall.albedo_map, with a dense selection)",
         ),
         Cause(
             "images",

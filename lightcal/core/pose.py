@@ -356,3 +356,17 @@ def describe_pose(R_camera_light: ArrayLike, t_camera_light: ArrayLike) -> dict[
         "pitch_deg": math.degrees(pitch),
         "axis_angle_from_optical_axis_deg": math.degrees(off_axis),
     }
+
+
+def pose_column_map(kind: PoseKind, p: np.ndarray) -> np.ndarray:
+    """(6, k) the map from a light's (d/dt, d/d delta) (camera frame: translation, left
+    rotation perturbation) to the derivatives of its k pose parameters `p` (k,) of `kind`."""
+    k = len(p)
+    M = np.zeros((6, k))
+    M[:3, :3] = np.eye(3)
+    if kind == "symmetric":
+        axis = axis_from_angles(p[3], p[4])
+        M[3:, 3:] = np.cross(axis[:, None], axis_jacobian(p[3], p[4]), axis=0)
+    elif kind == "general":
+        M[3:, 3:] = left_jacobian_so3(p[3:6])
+    return M

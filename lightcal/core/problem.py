@@ -386,11 +386,12 @@ class ParameterLayout:
     def sensor_values(
         self, values: np.ndarray, footprints: Footprints, x: np.ndarray, exposure_gain: float
     ) -> np.ndarray:
-        """(N,) what the sensor terms make of the lights' values above the offset
-        `values` (N,) at x: (values + g e a) V of `footprints`' pixels, `exposure_gain`
-        the image's g e."""
+        """(N,) the sensor terms on the lights' values above the offset `values` (N,) at
+        x: (values + g e a V_s) V (V_s `Footprints.room_light_factor`), g e `exposure_gain`."""
         if self.ambient_index is not None:
-            values = values + exposure_gain * self.ambient(x)
+            room = footprints.room_light_factor
+            level = exposure_gain * self.ambient(x)
+            values = values + (level if room is None else level * room)
         v = self.fall_off_factor(footprints.pixels, x)
         return values if v is None else values * v
 
@@ -412,14 +413,16 @@ class ParameterLayout:
         fluxes: list[np.ndarray] | None,
     ) -> None:
         """The room light and the fall-off at x on one image's system, in place: total
-        (N,) (sum over lights of scale * flux) gains e a and its column of A (N, n + 1)
-        d m / d a = g e; then A's columns, total and each light's flux (N,) in `fluxes`
-        (when given) are multiplied by V (`lightcal.core.fall_off.apply_fall_off`).
-        Nothing when neither is estimated."""
+        (N,) (sum over lights of scale * flux) gains e a V_s and its column of A (N, n + 1)
+        d m / d a = g e V_s (V_s the sensor model's fall-off); then A's columns, total and
+        each light's flux (N,) in `fluxes` (when given) are multiplied by V
+        (`lightcal.core.fall_off.apply_fall_off`). Nothing when neither is estimated."""
         if self.ambient_index is not None:
             exposure = float(image.view.exposure)
-            total += exposure * self.ambient(x)
-            A[:, self.ambient_index] = gain * exposure
+            room = image.footprints.room_light_factor  # the sensor's fall-off, or None: 1
+            d_ambient = exposure if room is None else exposure * room
+            total += d_ambient * self.ambient(x)
+            A[:, self.ambient_index] = gain * d_ambient
         f = self.fall_off_unknown
         if f is None:
             return

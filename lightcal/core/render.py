@@ -126,8 +126,8 @@ def light_flux(
             (P the model's parameter count); ignored for a Lambertian wall.
         medium: the medium between the rig and the wall.
         medium_grad_out: with want_grad, (N, 1) receiving d flux / d c (the medium's
-            attenuation coefficient) or (N, 2) d flux / d (c, beta) (its backscatter);
-            computed in air too.
+            attenuation coefficient), (N, 2) d flux / d (c, beta) (its backscatter) or
+            (N, 3) d flux / d (c, beta, g) (its phase function); computed in air too.
 
     Returns:
         flux: (N,) exposure * sum_k weight_k Phi_k / I0; 0 where the footprint is invalid
@@ -268,10 +268,11 @@ def shade(
     grot = np.zeros((n_l, n, 3)) if want_grad else None
     gwall = np.zeros((n, n_p)) if want_grad else None
     wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
-    # d/dbeta only where the medium scatters (at beta = 0 it costs the scattering integral).
+    # d/dbeta and d/dg only where the medium scatters (at beta = 0 they cost the
+    # scattering integral).
     gmedium = None
     if want_grad and not medium.is_clear:
-        gmedium = np.zeros((n, 2 if medium.scatters else 1))
+        gmedium = np.zeros((n, 3 if medium.scatters else 1))
     medium_grad = np.zeros_like(gmedium) if gmedium is not None else None
     R = view.R_camera_world
     for i, light in enumerate(rig.lights):

@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from lightcal.core.albedo_map import AlbedoMapOptions
 from lightcal.core.fall_off import FallOffUnknown
 from lightcal.core.problem import Loss
 
@@ -71,6 +72,9 @@ class SolverOptions:
             offset already is the same column (`ambient_estimated`).
         fall_off: a radial fall-off to estimate with the lights (`lightcal.core.fall_off`;
             the project's `sensor.estimate_fall_off`), or None: V = 1.
+        albedo_map: the wall's albedo map to estimate with the lights
+            (`lightcal.core.albedo_map`; the project's `wall.albedo_map`), or None: an
+            even wall. It needs the linear loss.
     """
 
     loss: Loss = "linear"
@@ -86,6 +90,7 @@ class SolverOptions:
     reweight: bool = True
     fall_off: FallOffUnknown | None = None
     estimate_ambient: bool = False
+    albedo_map: AlbedoMapOptions | None = None
 
     def __post_init__(self) -> None:
         if self.loss not in ("linear", "huber", "soft_l1", "cauchy"):
@@ -101,6 +106,11 @@ class SolverOptions:
             raise ValueError(f"compress: expected true, false or null, got {self.compress!r}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations: expected >= 1, got {self.max_iterations}")
+        if self.albedo_map is not None and self.loss != "linear":
+            raise ValueError(
+                f"albedo map: expected the linear loss, got {self.loss!r} (the map is "
+                "projected out by linear least squares)"
+            )
 
 
 @dataclass(frozen=True)

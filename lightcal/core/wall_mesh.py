@@ -210,7 +210,9 @@ def mesh_footprints(
     weights = np.where(valid[:, None], weights, 0.0)
     area = np.where(valid, area, np.nan)
     normal[~valid] = np.nan
-    return Footprints(p, corners, np.ascontiguousarray(weights), valid, area, normals_world=normal)
+    return Footprints(
+        p, corners, np.ascontiguousarray(weights), valid, area, normals_world=normal, sensor=sensor
+    )
 
 
 def wall_footprints(

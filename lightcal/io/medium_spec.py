@@ -24,7 +24,7 @@ from lightcal.errors import InputError
 
 __all__ = ["MediumParameterName", "MediumSpec", "build_medium"]
 
-MediumParameterName = Literal["attenuation_per_m", "backscatter_per_m"]
+MediumParameterName = Literal["attenuation_per_m", "backscatter_per_m", "phase_g"]
 
 
 class MediumSpec(BaseModel):
@@ -35,8 +35,8 @@ class MediumSpec(BaseModel):
     light and from the camera to the wall point. `backscatter_per_m`: beta, the light the
     beam scatters back along each pixel's ray, relative to the wall's diffuse reflectance
     (sigma_s pi / albedo), 1/m; `phase_g` the Henyey-Greenstein asymmetry of that
-    scattering (given). `estimate`: the parameters to estimate with the light(s),
-    starting from the given values.
+    scattering. `estimate`: the parameters to estimate with the light(s), starting from
+    the given values (`phase_g` only with backscatter, which it shapes).
     """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
@@ -59,7 +59,8 @@ class MediumSpec(BaseModel):
         default=0.9,
         ge=-MAX_PHASE_G,
         le=MAX_PHASE_G,
-        description="Henyey-Greenstein asymmetry g of the scattering (ocean water ~0.9)",
+        description="Henyey-Greenstein asymmetry g of the scattering (ocean water ~0.9); "
+        "the start when estimated",
     )
     estimate: list[MediumParameterName] = Field(
         default_factory=list, description="the medium's parameters to estimate"
@@ -82,6 +83,12 @@ def build_medium(spec: MediumSpec, sensor_model: str, source: str | Path) -> Med
             source,
             "medium.backscatter_per_m: the backscatter is modelled for sensor.model "
             f"radiance; got {sensor_model!r}",
+        )
+    if "phase_g" in spec.estimate and not scatters:
+        raise InputError(
+            source,
+            "medium.estimate: phase_g shapes the backscatter; expected backscatter_per_m > 0 "
+            "or estimated beside it",
         )
     medium = Medium(spec.attenuation_per_m, spec.backscatter_per_m, spec.phase_g)
     return MediumUnknown(medium, tuple(spec.estimate))

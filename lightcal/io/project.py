@@ -31,6 +31,7 @@ from lightcal.core.solver import SolverOptions
 from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.core.wall_mesh import WallMesh
 from lightcal.errors import InputError
+from lightcal.io.albedo_map_spec import albedo_map_options
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.dark_frames import dark_paths
 from lightcal.io.document import read_document
@@ -357,6 +358,9 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         order = spec.sensor.estimate_fall_off.order
         fall_off = FallOffUnknown(order, camera.width, camera.height, binning)
         solver = dataclasses.replace(solver, fall_off=fall_off)
+    if spec.wall.albedo_map is not None:
+        albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
+        solver = dataclasses.replace(solver, albedo_map=albedo)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
         if spec.sensor.vignetting

@@ -29,6 +29,7 @@ from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.spec_errors import format_loc, on_literal_branch
 
@@ -381,6 +382,8 @@ class WallSpec(_Model):
     shape as a triangle mesh file (world frame, metres; relative to the project file),
     when it is not the plane z = 0 (docs/model.md, "Non-planar targets"); with a mesh,
     `flatness_mm` is the mesh's own tolerance.
+    reveal; it enters the uncertainty (docs/model.md, "Uncertainty"). `albedo_map`: an
+    uneven albedo shared by the views, estimated with the light (`AlbedoMapSpec`).
     """
 
     model: WallModelName = "lambertian"
@@ -397,6 +400,10 @@ class WallSpec(_Model):
         default=None,
         description="the wall's shape: a triangle mesh file (any format trimesh reads), "
         "world frame, metres, relative to the project file; none: the plane z = 0",
+    )
+    albedo_map: AlbedoMapSpec | None = Field(
+        default=None,
+        description="estimate the wall's albedo map with the light (null: an even wall)",
     )
 
     @model_validator(mode="after")

@@ -36,6 +36,9 @@ Field names (also in the JSON Schema, `lightcal schema result`):
 - ``fall_off``: the camera's fall-off when the project estimates it
   (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
   ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
+- ``albedo_map``: the wall's albedo map when the project estimates it
+  (``wall.albedo_map``): ``origin_xy_m``, ``spacing_m``, ``shape`` and ``values`` (the
+  albedo over its mean at each node, null where unseen), ``range``, ``rms``; null otherwise.
 - ``uncertainty``: the terms the covariance includes (pixel noise, camera poses, camera
   intrinsics, and the systematic terms when the fit is not explained by the noise), in
   words with their sizes; ``uncertainty_breakdown`` the same per term and light as
@@ -258,6 +261,11 @@ class ResultFile(_Model):
         description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
         " coefficients, their sigma, V at the corners; null when not estimated",
     )
+    albedo_map: dict[str, Any] | None = Field(
+        default=None,
+        description="the wall's albedo map estimated with the lights (wall.albedo_map): its "
+        "grid and the albedo over its mean at each node; null when not estimated",
+    )
 
     @field_validator("version")
     @classmethod
@@ -328,6 +336,7 @@ def result_to_file(
         f_scale_used=result.f_scale_used,
         start=result.start,
         fall_off=_nan_to_none(result.fall_off),
+        albedo_map=result.albedo_map,
         ambient=result.ambient,
         ambient_sigma=_nan_to_none(result.ambient_sigma),
     )

@@ -77,13 +77,17 @@ def _renderer(
     rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
     medium = lay.medium_of(x)
     rid_subsamples = model.options.rid_subsamples
+    albedo = model.albedo_map(x)
 
     def render(i: int, view: View, fp: Footprints) -> np.ndarray:
         sh = shade(
             fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
         )
         lights = float(gains[i]) * sh.values.filled(np.nan)
-        return offset + lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
+        values = lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
+        if albedo is not None:  # the wall's, where these footprints fall on it
+            values = values * albedo.factor(fp.centers_world[:, :2])
+        return offset + values
 
     return render
 

@@ -188,7 +188,9 @@ class InformationState:
         """N (+) 0 + J_v^T J_v for the candidate `image` (rows scaled, see the class)."""
         N = self.N if N is None else N
         lay = self.model.layout
-        options = camera_pixel_options(self.model.options)  # a planned view's pixels
+        # A planned view's pixels, on a wall taken as even: an albedo map is known only
+        # where the photos saw the wall, and N has its uncertainty marginalised already.
+        options = replace(camera_pixel_options(self.model.options), albedo_map=None)
         single = CalibrationModel(
             [image], self.model.unknowns, options, lay.wall_unknown, lay.medium_unknown
         )

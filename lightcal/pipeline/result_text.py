@@ -66,6 +66,11 @@ def medium_text(medium: dict) -> str | None:
         sigma = f" ± {sigma_text(math.nan if s is None else s)}" if name in estimated else ""
         how = "estimated" if name in estimated else "given"
         if name == "backscatter_per_m":
-            how += f", g {float(medium.get('phase_g', 0.9)):.3g}"
+            g = float(medium.get("phase_g", 0.9))
+            s_g = medium.get("sigma", {}).get("phase_g")
+            if "phase_g" in estimated:
+                how += f", g {g:.3g} ± {sigma_text(math.nan if s_g is None else s_g)} estimated"
+            else:
+                how += f", g {g:.3g}"
         parts.append(f"{label} {v:.4g}{sigma} /m ({how})")
     return "medium: " + ", ".join(parts) if parts else None

@@ -16,6 +16,7 @@ from lightcal.core.misfit_verdict import significant_digits
 from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
+from lightcal.pipeline.albedo_result import albedo_map_summary
 from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
 from lightcal.pipeline.fall_off_result import fall_off_problems, fall_off_summary, fall_off_warnings
 from lightcal.pipeline.fit_check import check_fit
@@ -179,6 +180,7 @@ class CalibrationResult:
     # The room light's level at exposure and gain 1 and its sigma; None: not estimated.
     ambient: float | None = None
     ambient_sigma: float | None = None
+    albedo_map: dict | None = None  # the estimated albedo map (`albedo_map_summary`)
 
     @property
     def fit_adequate(self) -> bool:
@@ -331,6 +333,7 @@ def summarise(
             if lay.ambient_index is None
             else math.sqrt(max(cov[lay.ambient_index, lay.ambient_index], 0.0))
         ),
+        albedo_map=albedo_map_summary(model, x),
     )
 
 

@@ -72,7 +72,6 @@ from lightcal.io.project import (
     NoiseSpec,
     ProjectFile,
     SensorSpec,
-    WallSpec,
     build_rid,
     load_project,
     save_project,
@@ -88,6 +87,7 @@ from lightcal.synthetic.dataset_files import (
     ImageFormat,
     check_target,
     declared_pose_covariance,
+    declared_wall,
     encode_image,
     initial_spec,
     make_staging,
@@ -163,6 +163,7 @@ class SynthConfig:
         medium: What the project declares of the medium (air unless `--declare-medium`).
         declare_wall_mesh: write the true wall's mesh (`wall_meshes`) and declare it as
             the project's `wall.mesh` (`--declare-wall-mesh`).
+        albedo_map: declare `wall.albedo_map` and a dense selection (`declared_wall`).
     """
 
     camera: Camera
@@ -180,6 +181,7 @@ class SynthConfig:
     dark_frames: bool = False
     medium: MediumSpec = field(default_factory=MediumSpec)
     declare_wall_mesh: bool = False
+    albedo_map: bool = False
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -441,11 +443,13 @@ def _write_into(
             )
             for j, light in enumerate(rig.lights)
         ],
-        medium=config.medium,  # the default selection and solver
+        medium=config.medium,  # the default solver
+        **declared_wall(config.camera, albedo_map=config.albedo_map),
     )
     if config.declare_wall_mesh:  # the true wall's shape, as a mesh beside the project
         mesh_name = write_synthetic_wall_mesh(folder, camera, views, imaging.wall_shape)
-        spec = spec.model_copy(update={"wall": WallSpec(mesh=mesh_name)})
+        wall = spec.wall.model_copy(update={"mesh": mesh_name})
+        spec = spec.model_copy(update={"wall": wall})
 
     # The truth.
     rid_truth = describe_rid(rid)

@@ -28,9 +28,10 @@ from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.errors import InputError
+from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
-from lightcal.io.project import InitialSpec, PoseSpec, RIDSpec
+from lightcal.io.project import InitialSpec, PoseSpec, RIDSpec, SelectionSpec, WallSpec
 from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
 from lightcal.synthetic.scenes import (
     AZIMUTH_STEP_DEG,
@@ -365,3 +366,20 @@ def declared_pose_covariance(noise_m: float, noise_deg: float) -> NDArray[np.flo
     if noise_m == 0.0 and noise_deg == 0.0:
         return None
     return np.diag([math.radians(noise_deg) ** 2] * 3 + [noise_m**2] * 3)
+
+
+ALBEDO_MAP_PIXELS = 9600
+"""About this many super-pixels an image in a project that declares an albedo map."""
+
+
+def declared_wall(cam: Camera, *, albedo_map: bool) -> dict[str, Any]:
+    """The project's `wall` and `selection` for camera `cam` (ProjectFile fields; {}: the
+    defaults): with `albedo_map`, the map declared and a dense selection binned to about
+    `ALBEDO_MAP_PIXELS` super-pixels an image."""
+    if not albedo_map:
+        return {}
+    binning = max(1, math.floor(math.sqrt(cam.width * cam.height / ALBEDO_MAP_PIXELS)))
+    return {
+        "wall": WallSpec(albedo_map=AlbedoMapSpec()),
+        "selection": SelectionSpec(strategy="all", binning=binning),
+    }

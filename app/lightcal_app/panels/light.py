@@ -1,4 +1,5 @@
-"""The Light tab: the gizmo's image, and per light its position and axis as numbers."""
+"""The Light tab: the gizmo's image, per light its position and axis as numbers, and the
+water between the rig and the wall (`lightcal_app.panels.water`)."""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from lightcal_app.limits import (
     SPIN_LIMIT_DEG,
 )
 from lightcal_app.panels.base import Programmatic, TabPanel, rounded
+from lightcal_app.panels.water import WaterPanel
 from lightcal_app.state import Frame, LightGuess
 from lightcal_app.text import md
 
@@ -75,6 +77,7 @@ class LightPanel(TabPanel):
                 "brightness (one light; what initial: auto does)",
             )
             self.light_md = gui.add_markdown("")
+            self.water = WaterPanel(server, ctl, flag)
         self.light_widgets: list[dict[str, Any]] = []
         self._folders: list[Any] = []
         self._build_light_widgets(st.project)
@@ -157,7 +160,9 @@ class LightPanel(TabPanel):
             self._build_light_widgets(project)
 
     def update(self, frame: Frame) -> None:
-        """The lights shown (estimate or guess) into the widgets and the text."""
+        """The lights shown (estimate or guess) into the widgets and the text, and the
+        water's values."""
+        self.water.update(frame)
         if not frame.dirty & {"widgets", "scene"}:
             return
         st = self.ctl.state

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -148,8 +149,8 @@ class SolvePanel(TabPanel):
                 tuple(MEDIUM_ESTIMATES),
                 initial_value=MEDIUM_WORDS.get(settings.medium_estimate, "none"),
                 hint="medium.estimate: the water's attenuation c and backscatter beta fitted "
-                "with the light, from the project's medium values (none: as given; backscatter "
-                "with the radiance fall-off only)",
+                "with the light, starting from the Light tab's Water values (none: as given; "
+                "backscatter with the radiance fall-off only)",
             )
             self.rid_estimates = [
                 self.gui.add_dropdown(
@@ -177,7 +178,10 @@ class SolvePanel(TabPanel):
             h.on_update(changed)
 
     def _settings(self) -> SolveSettings:
-        return SolveSettings(
+        with self.ctl.state.lock:
+            settings = self.ctl.state.solve_settings  # the water's values: the Light tab's
+        return replace(
+            settings,
             wall_model=str(self.wall_model.value),
             exclude_mirror_deg=float(self.mirror.value),
             estimate_offset=bool(self.offset.value),

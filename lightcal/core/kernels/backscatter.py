@@ -55,7 +55,7 @@ def ray_integral(
 ) -> float:
     """S of the ray from `camera` (3,) to the wall point (px, py, pz) (module docstring).
 
-    With want_grad, grad (7,) receives dS / d (L_world (3), delta_world (3), c), delta a
+    With want_grad, grad (8,) receives dS / d (L_world (3), delta_world (3), c, g), delta a
     left rotation perturbation of R_world_light. 0 (and zero gradients) for a point that
     is not finite.
     """
@@ -119,6 +119,8 @@ def ray_integral(
             grad[4] += q * (gz * wx - gx * wz)
             grad[5] += q * (gx * wy - gy * wx)
             grad[6] -= wt * (r + t) * h
+            # dp/dg = p (-2 g / (1 - g^2) - 3 (g + w . o) / d).
+            grad[7] += wt * h * (-2.0 * g / (1.0 - g * g) - 3.0 * (g + wo) / d)
     return total
 
 
@@ -139,7 +141,7 @@ def _points_range(
     out: np.ndarray,
     out_grad: np.ndarray,
 ) -> None:
-    g7 = np.zeros(7)
+    g8 = np.zeros(8)
     for i in range(i0, i1):
         out[i] = ray_integral(
             points[i, 0],
@@ -154,10 +156,10 @@ def _points_range(
             s_nodes,
             s_weights,
             want_grad,
-            g7,
+            g8,
         )
         if want_grad:
-            out_grad[i, :] = g7
+            out_grad[i, :] = g8
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
@@ -209,7 +211,7 @@ def scatter_points(
     out: np.ndarray,
     out_grad: np.ndarray | None,
 ) -> None:
-    """S (N,) of the rays to wall points (N, 3) (`ray_integral`); out_grad (N, 7) its
+    """S (N,) of the rays to wall points (N, 3) (`ray_integral`); out_grad (N, 8) its
     gradients, or None."""
     args = (
         np.ascontiguousarray(points_world, dtype=np.float64),
@@ -223,7 +225,7 @@ def scatter_points(
         s_weights,
         out_grad is not None,
         out,
-        out_grad if out_grad is not None else np.zeros((1, 7)),
+        out_grad if out_grad is not None else np.zeros((1, 8)),
     )
     n = len(points_world)
     if n < SERIAL_POINTS:
@@ -279,7 +281,7 @@ def add_scatter_image(
         rows_y = np.empty((2, w + 1))
         sx = np.empty(wb)
         sy = np.empty(wb)
-        g7 = np.zeros(7)
+        g8 = np.zeros(8)
         corner_row(grid_xy, grid_ok, r * b, view, rows_x[0], rows_y[0])
         centre_sums_row(grid_xy, grid_ok, view, r, b, rows_x, rows_y, 0, sx, sy)
         for j in range(n):
@@ -298,7 +300,7 @@ def add_scatter_image(
                     s_nodes,
                     s_weights,
                     False,
-                    g7,
+                    g8,
                 )
             else:
                 at_nodes[i, j] = np.nan
@@ -309,7 +311,7 @@ def add_scatter_image(
         rows_y = np.empty((2, w + 1))
         sx = np.empty(wb)
         sy = np.empty(wb)
-        g7 = np.zeros(7)
+        g8 = np.zeros(8)
         r_begin = ch * hb // n_chunks
         top = 0
         corner_row(grid_xy, grid_ok, r_begin * b, view, rows_x[0], rows_y[0])
@@ -346,6 +348,6 @@ def add_scatter_image(
                         s_nodes,
                         s_weights,
                         False,
-                        g7,
+                        g8,
                     )
                 out[col] += factor * v
