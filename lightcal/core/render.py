@@ -268,8 +268,7 @@ def shade(
     grot = np.zeros((n_l, n, 3)) if want_grad else None
     gwall = np.zeros((n, n_p)) if want_grad else None
     wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
-    # d/dbeta and d/dg only where the medium scatters (at beta = 0 they cost the
-    # scattering integral).
+    # d/dbeta and d/dg only where it scatters (at beta = 0 they cost the integral).
     gmedium = None
     if want_grad and not medium.is_clear:
         gmedium = np.zeros((n, 3 if medium.scatters else 1))

@@ -1,11 +1,11 @@
 """The project file: one versioned JSON/YAML document describing a calibration.
 
-`ProjectFile` (pydantic) is the file on disk; `load_project` validates it, resolves
-relative paths against the file's folder, checks that every referenced file exists and
-that the geometry makes sense (cameras in front of the wall, initial lights in front of
-the wall in every view), and returns a `Project` of in-memory objects. Every problem is
-an `InputError` naming the file and the field (e.g. ``images[3].T_camera_world``).
-`lightcal schema` prints `ProjectFile.model_json_schema()`.
+`ProjectFile` (pydantic) is the file on disk; `load_project` validates it, resolves relative
+paths against the file's folder, checks that every referenced file exists and that the
+geometry makes sense (cameras in front of the wall, initial lights in front of the wall in
+every view), and returns a `Project` of in-memory objects. Every problem is an `InputError`
+naming the file and the field (e.g. ``images[3].T_camera_world``). `lightcal schema`
+prints `ProjectFile.model_json_schema()`.
 """
 
 from __future__ import annotations
@@ -353,14 +353,12 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
 
     selection = spec.selection.to_options()
     solver = spec.solver.to_options(spec.sensor)
-    if spec.sensor.estimate_fall_off is not None:
+    if (estimated := spec.sensor.estimate_fall_off) is not None:
         binning = sel.binning if sel.strategy == "all" else 1  # the selection's super-pixels
-        order = spec.sensor.estimate_fall_off.order
-        fall_off = FallOffUnknown(order, camera.width, camera.height, binning)
+        fall_off = FallOffUnknown(estimated.order, camera.width, camera.height, binning)
         solver = dataclasses.replace(solver, fall_off=fall_off)
-    if spec.wall.albedo_map is not None:
-        albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
-        solver = dataclasses.replace(solver, albedo_map=albedo)
+    albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
+    solver = dataclasses.replace(solver, albedo_map=albedo)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
         if spec.sensor.vignetting
