@@ -307,6 +307,13 @@ def plan(
     if result is None:  # the guess's misfit is no noise: the noise models' variance
         s2 = noise_variance(model, measurements_for(project, loaded, model).noise) or 1.0
     current, planned = plan_views(
-        model, x0, loaded.camera, n=n, grid=grid, noise_scale2=s2, progress=progress
+        model,
+        x0,
+        loaded.camera,
+        n=n,
+        grid=grid,
+        noise_scale2=s2,
+        progress=progress,
+        mesh=project.wall_mesh,
     )
     return Plan(current, planned, [u.initial.name for u in model.unknowns])

@@ -88,6 +88,7 @@ def render_views(
                 rid_subsamples=project.solver.rid_subsamples,
                 wall=wall,
                 medium=medium,
+                mesh=project.wall_mesh,
             )
         )
         if ambient != 0.0 or fall_off is not None or albedo is not None:

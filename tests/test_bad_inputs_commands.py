@@ -661,6 +661,15 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--bow-mm: expected a value within +-100 mm, got 1000"),
     ),
     (
+        "synth: --declare-wall-mesh without a bow",
+        "synth {n} --declare-wall-mesh",
+        _error(
+            "synth",
+            "--declare-wall-mesh: expected a bowed wall to declare (--bow-mm MM, MM != 0): "
+            "the plane z = 0 needs no mesh",
+        ),
+    ),
+    (
         "synth: --albedo-texture 1",
         "synth {n} --albedo-texture 1",
         _error("synth", "--albedo-texture: expected a value in [0, 1), got 1"),

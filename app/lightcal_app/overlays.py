@@ -158,6 +158,7 @@ class OverlayImages:
             rid_subsamples=self.project.solver.rid_subsamples,
             wall=display.wall,
             medium=display.medium,
+            mesh=self.project.wall_mesh,
         )
         if sensor == "paper":
             # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.

@@ -195,6 +195,7 @@ class PlanService:
             grid=grid,
             noise_scale2=s2,
             progress=progress,
+            mesh=project.wall_mesh,
         )
         log.info("planned %d views in %.2f s", len(planned), time.perf_counter() - t0)
         with st.lock:

@@ -180,10 +180,14 @@ class Scene3D:
         verts = np.array(
             [[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]]
         )
+        faces = np.array([[0, 1, 2], [0, 2, 3]])
+        mesh = project.wall_mesh
+        if mesh is not None:  # the wall's own shape (`wall.mesh`)
+            verts, faces = mesh.vertices_world, mesh.faces
         scene.add_mesh_simple(
             "/wall",
             verts.astype(np.float32),
-            np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+            faces.astype(np.uint32),
             color=WALL_RGB,
             side="double",
         )
@@ -198,7 +202,8 @@ class Scene3D:
             section_size=0.5,
             position=(float(center[0]), float(center[1]), 0.001),
         )
-        scene.add_label("/wall_label", "wall (z = 0)", position=(float(lo[0]), float(lo[1]), 0.0))
+        label = "wall (z = 0)" if mesh is None else "wall (mesh)"
+        scene.add_label("/wall_label", label, position=(float(lo[0]), float(lo[1]), 0.0))
         fov = cam.fov_y_rad
         scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
         self.frustum_scale = scale

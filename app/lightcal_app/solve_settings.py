@@ -253,7 +253,11 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
     wall = spec.wall
     if settings.wall_model != wall.model:
         # Another model: its default parameters (a model's own do not carry over).
-        wall = WallSpec(model=settings.wall_model, flatness_mm=wall.flatness_mm)  # type: ignore[arg-type]
+        wall = WallSpec(
+            model=settings.wall_model,  # type: ignore[arg-type]
+            flatness_mm=wall.flatness_mm,
+            mesh=wall.mesh,
+        )
     wall = wall.model_copy(update={"albedo_map": settings.albedo_map})
     edited = spec.model_copy(
         update={

@@ -105,7 +105,14 @@ def run(args: argparse.Namespace) -> int:
                     highlight=False,
                 )
         current, planned = plan_views(
-            model, x0, loaded.camera, n=args.n, grid=grid, noise_scale2=s2, progress=progress
+            model,
+            x0,
+            loaded.camera,
+            n=args.n,
+            grid=grid,
+            noise_scale2=s2,
+            progress=progress,
+            mesh=project.wall_mesh,
         )
     light_names = [u.initial.name for u in model.unknowns]
     plan = plan_to_dict(current, planned, light_names)

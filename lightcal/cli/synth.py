@@ -24,6 +24,8 @@ what the project declares in one everyday way, each recorded in truth.json under
   still declares.
 - `--bow-mm MM`: the wall is z = MM/1000 max(0, 1 - |(x, y) - (x0, y0)|^2 / R^2), R = 1 m
   around where the views look: MM > 0 bulges towards the cameras, MM < 0 is a bowl.
+  `--declare-wall-mesh` also writes that wall as a triangle mesh (`wall_mesh.ply`) and
+  declares it in the project (`wall.mesh`), which then models it.
 - `--albedo-texture AMPLITUDE`: the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth
   random field in [-1, 1] with 10-30 cm features, the same in every view.
 - `--attenuation C`: a medium (clear water): each value is multiplied by
@@ -314,6 +316,7 @@ def run(args: argparse.Namespace) -> int:
             departures=departures,
             medium=medium,
             dark_frames=args.dark_frames,
+            declare_wall_mesh=args.declare_wall_mesh,
             albedo_map=args.declare_albedo_map,
         )
     )

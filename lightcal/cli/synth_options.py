@@ -71,6 +71,7 @@ OPTIONS = {
     "phase_g": "--phase-g",
     "medium": "--declare-medium",
     "dark_frames": "--dark-frames",
+    "declare_wall_mesh": "--declare-wall-mesh",
 }
 
 
@@ -147,6 +148,12 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         "views look; MM > 0 bulges towards the cameras, < 0 a bowl; |MM| <= 100 (0)",
     )
     g.add_argument(
+        "--declare-wall-mesh",
+        action="store_true",
+        help="with --bow-mm: also write the bowed wall as a triangle mesh (wall_mesh.ply, "
+        "2 cm triangles) and declare it in the project (wall.mesh)",
+    )
+    g.add_argument(
         "--albedo-texture",
         type=float,
         default=0.0,
@@ -217,6 +224,12 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
     if not (math.isfinite(args.bow_mm) and abs(args.bow_mm) <= limit_mm):
         raise InputError(
             "--bow-mm", f"expected a value within +-{limit_mm:g} mm, got {args.bow_mm:g}"
+        )
+    if args.declare_wall_mesh and args.bow_mm == 0.0:
+        raise InputError(
+            "--declare-wall-mesh",
+            "expected a bowed wall to declare (--bow-mm MM, MM != 0): the plane z = 0 needs "
+            "no mesh",
         )
     if args.undeclared_vignetting is not None and sensor_model != "radiance":
         raise InputError(

@@ -10,8 +10,9 @@ points line up along the axis:
 1. per image: the wall's brightness, block-averaged to at most `WORK_SIDE` pixels and
    smoothed (a Gaussian of `BLUR_FRACTION` of the side, masked pixels left out); the
    connected region above `PEAK_LEVEL` of its maximum; its brightness-weighted centroid,
-   back-projected onto the wall (z = 0): the sighting `P_i` (camera frame, m), with the
-   peak's brightness per unit exposure `b_i` and the wall normal `n_i` (camera frame);
+   back-projected onto the wall (z = 0, or its mesh): the sighting `P_i` (camera frame,
+   m), with the peak's brightness per unit exposure `b_i` and the wall normal `n_i`
+   (camera frame);
 2. the axis: the line through the `P_i` (their principal direction), pointing into the
    scene;
 3. the light's place on that line. Along the axis the irradiance falls as
@@ -39,6 +40,7 @@ from scipy import ndimage
 from lightcal.core.camera import Camera
 from lightcal.core.scene import View
 from lightcal.core.selection import bin_values
+from lightcal.core.wall_mesh import WallMesh, mesh_footprints
 
 WORK_SIDE = 400
 """Images are block-averaged to at most this many pixels a side before smoothing."""
@@ -91,6 +93,7 @@ def sight_beam(
     view: View,
     *,
     image: int = 0,
+    mesh: WallMesh | None = None,
 ) -> Sighting | None:
     """The beam's spot in one image, or None when the image shows none (dark, or a spot
     whose ray misses the wall).
@@ -101,6 +104,8 @@ def sight_beam(
         camera: the intrinsics of `values` (binned if the image was).
         view: the image's camera pose and exposure.
         image: the image's index, kept in the sighting.
+        mesh: the wall's shape (`wall.mesh`): the spot's ray meets it there, the normal
+            is that of its nearest pixel's footprint; None: the plane z = 0.
     """
     h, w = values.shape
     b = max(1, int(np.ceil(max(h, w) / WORK_SIDE)))
@@ -133,6 +138,19 @@ def sight_beam(
         return None
     R, t = view.R_camera_world, view.t_camera_world
     centre_world = -R.T @ t
+    if mesh is not None:
+        points, hit = mesh.intersect(view, rays[:, :2], valid)
+        nearest = np.clip(np.round(pixel), 0, [camera.width - 1, camera.height - 1])
+        fp = mesh_footprints(camera, view, nearest[None, :].astype(np.int64), mesh)
+        if not (hit[0] and fp.valid[0]) or fp.normals_world is None:
+            return None  # the spot's ray misses the mesh
+        return Sighting(
+            image=image,
+            pixel=pixel,
+            point_camera=R @ (points[0] - centre_world),
+            brightness=peak / view.exposure,
+            wall_normal_camera=R @ fp.normals_world[0],
+        )
     direction_world = R.T @ rays[0]
     if abs(direction_world[2]) < 1e-12:
         return None

@@ -144,6 +144,10 @@ class Footprints:
         valid: (N,) pixels whose every corner ray hits the wall in front of the camera.
         area_m2: (N,) footprint area (the union's), m^2.
         grid: where the quads come from when they are not kept, else None.
+        normals_world: (N, 3) on a wall mesh (`lightcal.core.wall_mesh`), each
+            footprint's unit normal (its vector area) turned towards the camera (NaN for
+            invalid pixels): a light lights the pixel only on that side. None on the
+            plane z = 0 (normal +z).
         sensor: the sensor model the weights carry.
     """
 
@@ -153,6 +157,7 @@ class Footprints:
     valid: np.ndarray
     area_m2: np.ndarray
     grid: GridCorners | None = None
+    normals_world: np.ndarray | None = None
     sensor: SensorModel = "radiance"
 
     def __post_init__(self) -> None:
@@ -188,6 +193,7 @@ class Footprints:
             self.valid[rows],
             self.area_m2[rows],
             self.grid,
+            None if self.normals_world is None else self.normals_world[rows],
             self.sensor,
         )
 
@@ -340,7 +346,7 @@ def pixel_footprints(
     if step > 1:
         grid_xy, grid_ok = _strided_grid(grid_xy, grid_ok, step)
     source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, s)
-    return Footprints(p, None, weights, valid, area, source, sensor)
+    return Footprints(p, None, weights, valid, area, source, sensor=sensor)
 
 
 def quads_per_side(binning: int, max_quads_per_side: int | None = MAX_QUADS_PER_SIDE) -> int:

@@ -10,7 +10,8 @@ Two entry points over one model (docs/model.md, "Rendering one pixel"):
 
 Invalid pixels (a corner ray misses the wall) come back masked, never as zeros. A light
 on or behind the wall (z <= 0 in the world frame of a view) illuminates nothing there:
-its contribution is 0, as the physics says.
+its contribution is 0, as the physics says. On a wall mesh (`lightcal.core.wall_mesh`)
+that is decided per pixel: a light behind the footprint's plane lights nothing there.
 """
 
 from __future__ import annotations
@@ -29,8 +30,8 @@ from lightcal.core.footprint import (
     Footprints,
     SensorModel,
     check_vignetting,
-    pixel_footprints,
 )
+from lightcal.core.footprint import pixel_footprints as pixel_footprints  # re-exported
 from lightcal.core.kernels.backscatter import add_scatter_image
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.image import render_image_fused
@@ -40,6 +41,13 @@ from lightcal.core.medium import AIR, Medium, apply_medium, scatter_grid, scatte
 from lightcal.core.rid_stack import stack_rid_data
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
+from lightcal.core.wall_mesh import (
+    WallMesh,
+    apply_wall_on_mesh,
+    light_behind_mesh,
+    mesh_footprints,
+    wall_footprints,
+)
 
 
 def _check_subsamples(rid_subsamples: int) -> int:
@@ -136,7 +144,8 @@ def light_flux(
         if grad.shape != (n, 6) or grad.dtype != np.float64 or not grad.flags.c_contiguous:
             raise ValueError(f"grad_out: expected a C-contiguous float64 ({n}, 6) array")
     L_world, R_world_light = light_in_view(light, view)
-    if L_world[2] <= 0.0:
+    on_mesh = footprints.normals_world is not None
+    if not on_mesh and L_world[2] <= 0.0:
         if grad is not None:
             grad.fill(0.0)
         if wall_grad_out is not None:
@@ -165,6 +174,8 @@ def light_flux(
     flux *= view.exposure
     if grad is not None:
         grad *= view.exposure
+    if on_mesh:
+        light_behind_mesh(footprints, L_world, flux, grad)
     if not wall.is_lambertian:
         _apply_wall(footprints, view, L_world, wall, flux, grad, wall_grad_out)
     if not medium.is_clear or (grad is not None and medium_grad_out is not None):
@@ -199,6 +210,9 @@ def _apply_wall(
     d(flux B)/dL = B d flux/dL + flux dB/dL; d(flux B)/d delta = B d flux/d delta;
     d(flux B)/d p = flux dB/dp (written to wall_grad_out (N, P)).
     """
+    if footprints.normals_world is not None:  # each footprint's own normal
+        apply_wall_on_mesh(footprints, L_world, view.center_world, wall, flux, grad, wall_grad_out)
+        return
     d = wall.data()
     want_grad = grad is not None
     apply_wall(
@@ -254,8 +268,7 @@ def shade(
     grot = np.zeros((n_l, n, 3)) if want_grad else None
     gwall = np.zeros((n, n_p)) if want_grad else None
     wall_grad = np.zeros((n, n_p)) if want_grad and not wall.is_lambertian else None
-    # d/dbeta and d/dg only where the medium scatters (at beta = 0 they cost the
-    # scattering integral).
+    # d/dbeta and d/dg only where it scatters (at beta = 0 they cost the integral).
     gmedium = None
     if want_grad and not medium.is_clear:
         gmedium = np.zeros((n, 3 if medium.scatters else 1))
@@ -301,6 +314,7 @@ def render_pixels(
     rid_subsamples: int = 1,
     wall: WallReflectance = LAMBERTIAN,
     medium: Medium = AIR,
+    mesh: WallMesh | None = None,
 ) -> np.ma.MaskedArray:
     """Render (super-)pixels of one view.
 
@@ -316,13 +330,14 @@ def render_pixels(
         rid_subsamples: RID sub-sampling n per footprint (n x n).
         wall: the wall's reflectance model.
         medium: the medium between the rig and the wall.
+        mesh: the wall's shape as a mesh (`lightcal.core.wall_mesh`); None: z = 0.
 
     Returns:
         (N,) masked array of values, masked where the footprint is invalid.
     """
     _check_scatter_sensor(medium, sensor)
-    fp = pixel_footprints(
-        camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
+    fp = wall_footprints(
+        camera, view, pixels, mesh=mesh, sensor=sensor, vignetting=vignetting, binning=binning
     )
     return shade(
         fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium
@@ -341,16 +356,30 @@ def render_image(
     rid_subsamples: int = 1,
     wall: WallReflectance = LAMBERTIAN,
     medium: Medium = AIR,
+    mesh: WallMesh | None = None,
 ) -> np.ma.MaskedArray:
     """Render a whole image, optionally binned.
 
-    Args: as `render_pixels`, without `pixels`.
+    Args: as `render_pixels`, without `pixels`. On a `mesh` every pixel's footprint is
+        built on it (`mesh_footprints`, exact flux) and shaded as `render_pixels` does:
+        the fused whole-image kernel knows the plane z = 0 only.
 
     Returns:
         (H // b, W // b) masked array, masked where the footprint is invalid.
     """
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
+    if mesh is not None:
+        hb, wb = camera.height // binning, camera.width // binning
+        v, u = np.mgrid[0:hb, 0:wb]
+        fp = mesh_footprints(
+            camera, view, np.stack([u.ravel(), v.ravel()], axis=1), mesh, sensor=sensor,
+            vignetting=vignetting, binning=int(binning), max_quads_per_side=None,
+        )  # fmt: skip
+        _check_scatter_sensor(medium, sensor)
+        on_mesh = shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples,
+                        wall=wall, medium=medium).values  # fmt: skip
+        return on_mesh.reshape(hb, wb)
     if sensor not in SENSOR_MODELS:
         raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
     n_sub = _check_subsamples(rid_subsamples)

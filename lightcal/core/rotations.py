@@ -235,3 +235,16 @@ def left_jacobian_so3(rotvec: ArrayLike) -> NDArray[np.float64]:
     _, b, c = _so3_coefficients(theta)
     K = skew(w)
     return np.eye(3) + b * K + c * (K @ K)
+
+
+def in_normal_frames(
+    vectors: NDArray[np.float64], normals: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(N, 3) vectors (N, 3) turned by the minimal rotation taking each unit normal (N, 3)
+    to +z (a surface's local frame: z along its normal; dot products kept). Normals
+    pointing along -z are not turned (the rotation is not unique there)."""
+    w = np.cross(normals, np.array([0.0, 0.0, 1.0]))
+    c = normals[:, 2:3]
+    wv = np.cross(w, vectors)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(c > -1.0, vectors + wv + np.cross(w, wv) / (1.0 + c), vectors)

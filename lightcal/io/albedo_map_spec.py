@@ -43,13 +43,15 @@ class AlbedoMapSpec(BaseModel):
 
 
 def albedo_map_options(
-    a: AlbedoMapSpec, loss: str, medium: MediumSpec | None, source: Path
-) -> AlbedoMapOptions:
-    """The options of a project's `wall.albedo_map` `a` (its solver's `loss`, its
-    `medium`), refused
+    a: AlbedoMapSpec | None, loss: str, medium: MediumSpec | None, source: Path
+) -> AlbedoMapOptions | None:
+    """The options of a project's `wall.albedo_map` `a` (None: none), given its solver's
+    `loss` and its `medium`; refused
     with what it cannot go with: a robust loss (the map is projected out by linear least
     squares) and the water's backscatter (a veil in the water, which the wall's albedo
     does not scale)."""
+    if a is None:
+        return None
     if loss != "linear":
         raise InputError(
             source,

@@ -1,11 +1,11 @@
 """The project file: one versioned JSON/YAML document describing a calibration.
 
-`ProjectFile` (pydantic) is the file on disk; `load_project` validates it, resolves
-relative paths against the file's folder, checks that every referenced file exists and
-that the geometry makes sense (cameras in front of the wall, initial lights in front of
-the wall in every view), and returns a `Project` of in-memory objects. Every problem is
-an `InputError` naming the file and the field (e.g. ``images[3].T_camera_world``).
-`lightcal schema` prints `ProjectFile.model_json_schema()`.
+`ProjectFile` (pydantic) is the file on disk; `load_project` validates it, resolves relative
+paths against the file's folder, checks that every referenced file exists and that the
+geometry makes sense (cameras in front of the wall, initial lights in front of the wall in
+every view), and returns a `Project` of in-memory objects. Every problem is an `InputError`
+naming the file and the field (e.g. ``images[3].T_camera_world``). `lightcal schema`
+prints `ProjectFile.model_json_schema()`.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
 from lightcal.core.wall import WALL_MODELS, make_wall
+from lightcal.core.wall_mesh import WallMesh
 from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import albedo_map_options
 from lightcal.io.atomic import atomic_write_text
@@ -63,6 +64,7 @@ from lightcal.io.project_spec import (
     parse_project,
     project_schema,
 )
+from lightcal.io.wall_mesh_file import read_wall_mesh
 
 __all__ = [
     "INTRINSIC_COUNTS",
@@ -122,6 +124,7 @@ class Project:
         dark_paths: per image, its resolved light-off photo (`images[i].dark`) or None
             (`lightcal.io.dark_frames`); empty: none.
         medium: the medium between the rig and the wall and what to estimate of it.
+        wall_mesh: the wall's shape (`wall.mesh`), or None: the plane z = 0.
     """
 
     spec: ProjectFile
@@ -140,6 +143,7 @@ class Project:
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
     dark_paths: list[Path | None] = field(default_factory=list)
     medium: MediumUnknown = field(default_factory=MediumUnknown)
+    wall_mesh: WallMesh | None = None
 
     @property
     def folder(self) -> Path:
@@ -245,6 +249,13 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     `source`'s folder."""
     folder = source.parent
     camera = _build_camera(spec.camera, folder, source)
+    wall_mesh = None
+    if spec.wall.mesh is not None:
+        path = _resolve(folder, spec.wall.mesh, source, "wall.mesh", "wall mesh file")
+        wall_mesh = read_wall_mesh(path)
+    # A light behind the wall's lowest point is behind it (with a mesh: a bound).
+    floor_z = 0.0 if wall_mesh is None else wall_mesh.z_range_m[0]
+    where_floor = "" if wall_mesh is None else " m, the wall mesh's lowest point"
     sel = spec.selection
     if sel.strategy == "all" and sel.binning > min(camera.width, camera.height):
         raise InputError(
@@ -318,11 +329,12 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                 raise InputError(source, f"{field}.initial: {exc}") from exc
         for i, view in enumerate(views):
             z = float(light.position_world(view)[2])
-            if z <= 0.0:
+            if z <= floor_z:
                 raise InputError(
                     source,
                     f"{field}.initial.position_m: the light is on or behind the wall in image "
-                    f"{names[i]!r} (world z = {z:.3g} m); expected it in front (z > 0)",
+                    f"{names[i]!r} (world z = {z:.3g} m); expected it in front "
+                    f"(z > {floor_z:.3g}{where_floor})",
                 )
         pose_kind = None if ls.pose == "auto" else ls.pose
         lights.append(
@@ -341,14 +353,12 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
 
     selection = spec.selection.to_options()
     solver = spec.solver.to_options(spec.sensor)
-    if spec.sensor.estimate_fall_off is not None:
+    if (estimated := spec.sensor.estimate_fall_off) is not None:
         binning = sel.binning if sel.strategy == "all" else 1  # the selection's super-pixels
-        order = spec.sensor.estimate_fall_off.order
-        fall_off = FallOffUnknown(order, camera.width, camera.height, binning)
+        fall_off = FallOffUnknown(estimated.order, camera.width, camera.height, binning)
         solver = dataclasses.replace(solver, fall_off=fall_off)
-    if spec.wall.albedo_map is not None:
-        albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
-        solver = dataclasses.replace(solver, albedo_map=albedo)
+    albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
+    solver = dataclasses.replace(solver, albedo_map=albedo)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")
         if spec.sensor.vignetting
@@ -371,6 +381,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
         build_medium(spec.medium, spec.sensor.model, source),
+        wall_mesh,
     )
 
 

@@ -378,6 +378,10 @@ class WallSpec(_Model):
     Lambertian, test the fit, and where it fails also plastic and oren_nayar, keeping
     the model the Bayesian information criterion prefers. `flatness_mm`: how far the wall
     may depart from a plane (a dome or bowl of that depth), which the images cannot
+    reveal; it enters the uncertainty (docs/model.md, "Uncertainty"). `mesh`: the wall's
+    shape as a triangle mesh file (world frame, metres; relative to the project file),
+    when it is not the plane z = 0 (docs/model.md, "Non-planar targets"); with a mesh,
+    `flatness_mm` is the mesh's own tolerance.
     reveal; it enters the uncertainty (docs/model.md, "Uncertainty"). `albedo_map`: an
     uneven albedo shared by the views, estimated with the light (`AlbedoMapSpec`).
     """
@@ -391,6 +395,11 @@ class WallSpec(_Model):
         le=1000.0,
         allow_inf_nan=False,
         description="the wall's flatness tolerance, mm (0: flat); it widens the sigmas",
+    )
+    mesh: str | None = Field(
+        default=None,
+        description="the wall's shape: a triangle mesh file (any format trimesh reads), "
+        "world frame, metres, relative to the project file; none: the plane z = 0",
     )
     albedo_map: AlbedoMapSpec | None = Field(
         default=None,

@@ -25,7 +25,9 @@ def beam_sightings(project: Project, loaded: LoadedImages) -> list[Sighting]:
             values[image.saturated] = float(finite.max()) if finite.size else np.nan
         excluded = loaded.excluded[i]
         usable = np.ones(values.shape, bool) if excluded is None else ~np.asarray(excluded)
-        sighting = sight_beam(values, usable, loaded.camera, project.views[i], image=i)
+        sighting = sight_beam(
+            values, usable, loaded.camera, project.views[i], image=i, mesh=project.wall_mesh
+        )
         if sighting is not None:
             out.append(sighting)
     return out

@@ -15,6 +15,7 @@ import numpy as np
 
 from lightcal.core.misfit_causes import PixelFeatures
 from lightcal.core.misfit_kernels import add_weighted_gram, mirror_incidence, noise_residuals
+from lightcal.core.rotations import in_normal_frames
 from lightcal.core.scene import Light
 from lightcal.core.solver import CalibrationModel
 from lightcal.pipeline.measurements import Measurements
@@ -255,12 +256,18 @@ def _features(
     cos_light = np.einsum("ij,ij->i", -to_light, axes_world[brightest]) / d_light
     ray_camera = (centers - view.center_world[None, :]) @ view.R_camera_world.T
     field_tan2 = (ray_camera[:, 0] ** 2 + ray_camera[:, 1] ** 2) / ray_camera[:, 2] ** 2
+    to_light /= d_light[:, None]
+    to_camera /= d_camera[:, None]
+    normals = im.footprints.normals_world
+    if normals is not None:  # a wall mesh: the directions in each footprint's own frame
+        to_light = in_normal_frames(to_light, normals[rows])
+        to_camera = in_normal_frames(to_camera, normals[rows])
     return PixelFeatures(
         signal=lit.sum(axis=0),
         gain=np.full(rows.size, gain),
         wall_xy=centers[:, :2].copy(),
-        to_light=to_light / d_light[:, None],
-        to_camera=to_camera / d_camera[:, None],
+        to_light=to_light,
+        to_camera=to_camera,
         d_light=d_light,
         d_camera=d_camera,
         light_angle=np.arccos(np.clip(cos_light, -1.0, 1.0)),
@@ -280,11 +287,22 @@ def _angles(
     light that gives it the most of its value (lit (L, N_i))."""
     im = model.images[i]
     lights_world = np.array([light.position_world(im.view) for light in lights])
+    normals = im.footprints.normals_world
     for c in _chunks(len(im.footprints)):  # chunks bound the centres' temporaries
         centers = im.footprints.subset(c).centers_now()
-        mirror_incidence(
-            centers, lights_world, lit[:, c], im.view.center_world, mirror[c], incidence[c]
-        )
+        if normals is None:
+            mirror_incidence(
+                centers, lights_world, lit[:, c], im.view.center_world, mirror[c], incidence[c]
+            )
+            continue
+        # A wall mesh: from each footprint's own normal.
+        to_light = lights_world[np.argmax(lit[:, c], axis=0)] - centers
+        to_light /= np.linalg.norm(to_light, axis=1, keepdims=True)
+        to_camera = im.view.center_world - centers
+        half = to_light + to_camera / np.linalg.norm(to_camera, axis=1, keepdims=True)
+        for out, d in ((mirror, half), (incidence, to_light)):
+            sin = np.linalg.norm(np.cross(d, normals[c]), axis=1)
+            out[c] = np.degrees(np.arctan2(sin, np.einsum("ij,ij->i", d, normals[c])))
 
 
 #: Pixels per chunk of the checks' per-pixel work (its temporaries: a few MB each).

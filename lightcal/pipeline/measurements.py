@@ -18,10 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lightcal.core.footprint import Footprints, pixel_footprints
+from lightcal.core.footprint import Footprints
 from lightcal.core.misfit import image_noise
 from lightcal.core.scene import View
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, vignetting_for
 from lightcal.pipeline.select import candidates, selection_binning
@@ -114,10 +115,11 @@ def measurements_for(
             camera = project.camera.with_intrinsic_params(base + dK)
             if read_binning > 1:
                 camera = camera.binned(read_binning)
-        return pixel_footprints(
+        return wall_footprints(
             camera,
             view,
             model.images[i].footprints.pixels[rows],
+            mesh=project.wall_mesh,
             sensor=project.spec.sensor.model,
             vignetting=vignetting,
             binning=b,

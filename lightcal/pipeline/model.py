@@ -112,6 +112,13 @@ def build_model(
         d = image_data(project, loaded, i, pixels=None if pixels is None else pixels[i])
         if len(d.observed) > 0:
             data.append(d)
+    if not data and project.wall_mesh is not None:
+        raise InputError(
+            project.path,
+            f"wall.mesh: no selected pixel of any image meets the wall mesh "
+            f"{project.spec.wall.mesh!r}; expected a mesh in the world frame of the images' "
+            "poses, in metres, under the views",
+        )
     if not data:
         raise InputError(
             project.path,

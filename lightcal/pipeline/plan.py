@@ -50,6 +50,7 @@ from lightcal.core.light_axis import axis_jacobian
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
 from lightcal.core.solver import CalibrationModel, SolverOptions
 from lightcal.core.uncertainty import noise_inflation
+from lightcal.core.wall_mesh import WallMesh
 from lightcal.errors import InputError
 from lightcal.pipeline.plan_candidates import (
     AZIMUTHS_DEG,
@@ -288,6 +289,7 @@ def plan_views(
     grid: PlanGrid | None = None,
     noise_scale2: float | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    mesh: WallMesh | None = None,
 ) -> tuple[Sigmas, list[PlannedView]]:
     """The current sigmas and the `n` best next views of a calibration model at x.
 
@@ -300,6 +302,8 @@ def plan_views(
         noise_scale2: s^2 (default: from the residuals at x, `noise_inflation`).
         progress: progress("rendering candidates", done, total) as the candidate views
             are rendered (the long part).
+        mesh: the wall's shape (`wall.mesh`): the candidates' footprints on it (a
+            candidate whose image corners miss it is dropped); None: the plane z = 0.
     """
     grid = PlanGrid() if grid is None else grid
     if noise_scale2 is None:
@@ -307,7 +311,8 @@ def plan_views(
     rows = float(np.median(model.sizes))
     state = InformationState(model, x, noise_scale2, rows)
     exposure = float(np.median([im.view.exposure for im in model.images]))
-    pool = candidates(camera, grid, wall_centre([im.view for im in model.images]), exposure)
+    centre = wall_centre([im.view for im in model.images])
+    pool = candidates(camera, grid, centre, exposure, mesh=mesh)
     peak = typical_peak(model, state.x)
     at_camera_pixels = camera_pixel_model(model)
     images = []
@@ -316,7 +321,14 @@ def plan_views(
             progress("rendering candidates", k, len(pool))
         images.append(
             candidate_image(
-                at_camera_pixels, state.x, camera, c.view, grid, f"plan_{k:03d}", peak=peak
+                at_camera_pixels,
+                state.x,
+                camera,
+                c.view,
+                grid,
+                f"plan_{k:03d}",
+                peak=peak,
+                mesh=mesh,
             )
         )
     if progress is not None:

@@ -16,12 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.camera import Camera
-from lightcal.core.footprint import pixel_footprints
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
 from lightcal.core.render import shade
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import View
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.wall_mesh import WallMesh, wall_footprints
 
 #: Candidate grid defaults: distances (m), tilts (deg), azimuths (deg), rolls (deg).
 DISTANCES_M = (0.6, 0.9, 1.3, 1.8, 2.5)
@@ -117,9 +117,15 @@ def wall_centre(views: list[View]) -> np.ndarray:
 
 
 def candidates(
-    camera: Camera, grid: PlanGrid, target_world: np.ndarray, exposure: float
+    camera: Camera,
+    grid: PlanGrid,
+    target_world: np.ndarray,
+    exposure: float,
+    *,
+    mesh: WallMesh | None = None,
 ) -> list[Candidate]:
-    """The grid's poses whose image corners see the wall within its extent."""
+    """The grid's poses whose image corners see the wall within its extent (on `mesh`,
+    the wall's shape, when given: a corner that misses it drops the pose)."""
     corners = np.array(
         [
             [0, 0],
@@ -135,7 +141,7 @@ def candidates(
             for az in grid.azimuths_deg if t > 0 else grid.azimuths_deg[:1]:
                 for roll in grid.rolls_deg:
                     c = candidate_view(d, t, az, roll, target_world, exposure)
-                    fp = pixel_footprints(camera, c.view, corners)
+                    fp = wall_footprints(camera, c.view, corners, mesh=mesh)
                     if not np.all(fp.valid):
                         continue
                     pts = fp.corners_world.reshape(-1, 3)
@@ -153,6 +159,7 @@ def candidate_image(
     name: str = "candidate",
     *,
     peak: float | None = None,
+    mesh: WallMesh | None = None,
 ) -> ImageData | None:
     """A synthetic selection of `view`'s pixels rendered at the estimate x: about
     `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
@@ -164,7 +171,7 @@ def candidate_image(
     vs = np.linspace(0, camera.height - 1, max(2, side * camera.height // camera.width)).round()
     pix = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2).astype(np.int64)
     pix = np.unique(pix, axis=0)
-    fp = pixel_footprints(camera, view, pix)
+    fp = wall_footprints(camera, view, pix, mesh=mesh)
     lay = model.layout
     rig, wall = lay.rig(x), lay.wall_of(x)
     values = shade(
@@ -197,4 +204,5 @@ def candidate_image(
     else:
         sigma = np.full(len(keep), float(np.median(np.concatenate(model.sigmas))))
     offset = lay.offset(x)
-    return ImageData(name, view, pixel_footprints(camera, view, pix[keep]), signal + offset, sigma)
+    fp = wall_footprints(camera, view, pix[keep], mesh=mesh)
+    return ImageData(name, view, fp, signal + offset, sigma)

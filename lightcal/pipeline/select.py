@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 
-from lightcal.core.footprint import pixel_footprints
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
 from lightcal.core.selection import (
     Region,
@@ -16,6 +15,7 @@ from lightcal.core.selection import (
     candidate_mask,
     select_pixels,
 )
+from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
 from lightcal.pipeline.load import LoadedImages, vignetting_for
@@ -99,10 +99,11 @@ def image_data(
     if extra.size:
         pixels = np.unique(np.concatenate([np.asarray(pixels, np.int64), extra]), axis=0)
     vignetting = vignetting_for(project, loaded.camera)
-    fp = pixel_footprints(
+    fp = wall_footprints(
         loaded.camera,
         view,
         pixels,
+        mesh=project.wall_mesh,
         sensor=project.spec.sensor.model,
         vignetting=vignetting,
         binning=b,

@@ -121,6 +121,7 @@ from lightcal.synthetic.scenes import (
     signal_scale,
     white_level,
 )
+from lightcal.synthetic.wall_meshes import write_synthetic_wall_mesh
 
 __all__ = [
     "TRUTH_FORMAT",
@@ -160,8 +161,9 @@ class SynthConfig:
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
         medium: What the project declares of the medium (air unless `--declare-medium`).
-        albedo_map: The project declares `wall.albedo_map` (its defaults) and the dense
-            selection it needs (`dataset_files.declared_wall`; `--declare-albedo-map`).
+        declare_wall_mesh: write the true wall's mesh (`wall_meshes`) and declare it as
+            the project's `wall.mesh` (`--declare-wall-mesh`).
+        albedo_map: declare `wall.albedo_map` and a dense selection (`declared_wall`).
     """
 
     camera: Camera
@@ -178,6 +180,7 @@ class SynthConfig:
     departures: Departures = field(default_factory=Departures)
     dark_frames: bool = False
     medium: MediumSpec = field(default_factory=MediumSpec)
+    declare_wall_mesh: bool = False
     albedo_map: bool = False
 
     def __post_init__(self) -> None:
@@ -443,6 +446,10 @@ def _write_into(
         medium=config.medium,  # the default solver
         **declared_wall(config.camera, albedo_map=config.albedo_map),
     )
+    if config.declare_wall_mesh:  # the true wall's shape, as a mesh beside the project
+        mesh_name = write_synthetic_wall_mesh(folder, camera, views, imaging.wall_shape)
+        wall = spec.wall.model_copy(update={"mesh": mesh_name})
+        spec = spec.model_copy(update={"wall": wall})
 
     # The truth.
     rid_truth = describe_rid(rid)

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import SensorModel
 from lightcal.core.render import corner_grid
+from lightcal.core.rotations import in_normal_frames
 from lightcal.core.scene import Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 
@@ -165,16 +166,6 @@ def surface_points(
     )
 
 
-def _to_surface_frame(
-    vectors: NDArray[np.float64], normals: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """(N, 3) vectors rotated by the minimal rotation taking each unit normal (N, 3) to +z."""
-    w = np.cross(normals, np.array([0.0, 0.0, 1.0]))
-    c = normals[:, 2:3]
-    wv = np.cross(w, vectors)
-    return vectors + wv + np.cross(w, wv) / (1.0 + c)
-
-
 def _unit_solid_angle(
     a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64]
 ) -> NDArray[np.float64]:
@@ -272,7 +263,7 @@ def shade_height_field(
             f = light.rid(theta, phi)
             out = np.where(cos_incidence > 0.0, f * cos_incidence / distance**2, 0.0)
             if not wall.is_lambertian:
-                b, _ = wall.factor(_to_surface_frame(l_dir, n), _to_surface_frame(v, n))
+                b, _ = wall.factor(in_normal_frames(l_dir, n), in_normal_frames(v, n))
                 out = out * b
             out = light.scale * scale_sensor * out
         values[j, valid] = out

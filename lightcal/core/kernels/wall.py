@@ -287,6 +287,7 @@ def _oren_nayar_scalars(params: np.ndarray) -> tuple[float, float, float, float]
 
 #: Smallest cosine a branch-free loop feeds a model (misses are masked to B = 0 after).
 _MU_FLOOR = 1e-12
+MU_FLOOR = _MU_FLOOR  # (the mesh's wall factor, `lightcal.core.wall_mesh`)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
