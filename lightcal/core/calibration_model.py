@@ -13,12 +13,13 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.blas_threads import single_threaded_blas
+from lightcal.core.bounce import BounceTerm
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
 from lightcal.core.medium import Medium, MediumUnknown
@@ -37,6 +38,8 @@ from lightcal.core.render import light_flux, shade
 from lightcal.core.rotations import left_jacobian_so3
 from lightcal.core.scene import Rig
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
+from lightcal.core.surroundings import Surroundings
+from lightcal.core.system_buffers import SystemBuffers as _Buffers
 from lightcal.core.wall import WallReflectance
 
 ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
@@ -56,6 +59,7 @@ class CalibrationModel:
         options: solver options.
         wall: the wall's reflectance and what to estimate of it (default: Lambertian).
         medium: the medium between rig and wall, what to estimate of it (default: air).
+        surroundings: surfaces whose bounce light the lights' flux gains (default: none).
     """
 
     def __init__(
@@ -65,6 +69,7 @@ class CalibrationModel:
         options: SolverOptions,
         wall: WallUnknown | None = None,
         medium: MediumUnknown | None = None,
+        surroundings: Surroundings | None = None,
     ) -> None:
         if not images:
             raise ValueError("calibration: expected at least one image with selected pixels")
@@ -101,6 +106,8 @@ class CalibrationModel:
         self._evaluating = threading.Lock()
         self.weights_at: np.ndarray | None = None
         self.nfev = 0
+        self.surroundings = surroundings
+        self.bounce = BounceTerm.of(surroundings, [im.footprints for im in images])
 
     # -- evaluation -------------------------------------------------------------------
 
@@ -319,6 +326,8 @@ class CalibrationModel:
                 medium_grad_out=medium_grad,
             )
             assert grad_world is not None
+            if self.bounce is not None:
+                self.bounce.add(i, view, light, flux, grad_world)
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale
@@ -415,6 +424,8 @@ class CalibrationModel:
                     wall=wall,
                     medium=lay.medium_of(x),
                 )
+                if self.bounce is not None:
+                    sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
                 signal = lay.image_values(sh.values, im, x, gains[i])
                 sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
@@ -464,26 +475,6 @@ class CalibrationModel:
         """Box bounds that keep every light in front of the wall in every view
         (`lightcal.core.light_bounds`)."""
         return parameter_bounds(self.layout, self.images, self.options.position_bound_m)
-
-
-class _Buffers:
-    """Work arrays reused across images and evaluations: fresh multi-MB arrays cost a
-    page fault per 4 kB on first touch (~10 ms per 375,000-pixel image system)."""
-
-    def __init__(self) -> None:
-        self._system = np.empty(0)
-        self._grad = np.empty(0)
-
-    def system(self, rows: int, cols: int, zeroed: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """A (rows, cols) Fortran-order array, its columns `zeroed` set to 0 (the others
-        hold what the last caller left), and a (rows, 6) C-order one."""
-        if self._system.size < rows * cols:
-            self._system = np.empty(rows * cols)
-        if self._grad.size < rows * 6:
-            self._grad = np.empty(rows * 6)
-        A = self._system[: rows * cols].reshape((rows, cols), order="F")
-        A[:, zeroed] = 0.0
-        return A, self._grad[: rows * 6].reshape(rows, 6)
 
 
 @dataclass(frozen=True)

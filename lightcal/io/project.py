@@ -28,6 +28,7 @@ from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
@@ -62,6 +63,7 @@ from lightcal.io.project_spec import (
     parse_project,
     project_schema,
 )
+from lightcal.io.surroundings_spec import build_surroundings
 
 __all__ = [
     "INTRINSIC_COUNTS",
@@ -121,6 +123,7 @@ class Project:
         dark_paths: per image, its resolved light-off photo (`images[i].dark`) or None
             (`lightcal.io.dark_frames`); empty: none.
         medium: the medium between the rig and the wall and what to estimate of it.
+        surroundings: surfaces near the wall whose bounce light the model adds, or None.
     """
 
     spec: ProjectFile
@@ -139,6 +142,7 @@ class Project:
     pose_intrinsics_jacobians: list[np.ndarray | None] = field(default_factory=list)
     dark_paths: list[Path | None] = field(default_factory=list)
     medium: MediumUnknown = field(default_factory=MediumUnknown)
+    surroundings: Surroundings | None = None
 
     @property
     def folder(self) -> Path:
@@ -350,6 +354,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         if spec.sensor.vignetting
         else None
     )
+    medium = build_medium(spec.medium, spec.sensor.model, source)
     return Project(
         spec,
         source,
@@ -366,7 +371,8 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
-        build_medium(spec.medium, spec.sensor.model, source),
+        medium,
+        build_surroundings(spec.surroundings, medium, source),
     )
 
 
