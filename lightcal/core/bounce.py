@@ -164,8 +164,17 @@ class BounceMap:
         cells = self.nodes[:, None, :] + 0.5 * h * np.array(
             [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]]
         )
-        geo_sw = np.abs(polygon_irradiance(geo_centres, geo_normals, cells))  # (count, J)
-        self.G_SW = geo_sw[self.geometric] * seen.T
+        # A copy sees the part of each wall cell on its side of its surface's plane.
+        geo_sw = np.zeros((2 * count, J))
+        for k, surface in enumerate(surfaces):
+            mine = np.nonzero(geo_owner == k)[0]
+            for side, rows in ((1.0, mine), (-1.0, mine + count)):
+                part = _clip(cells, side * surface.normal_world, surface.corner_world)
+                geo_sw[rows] = np.abs(
+                    polygon_irradiance(geo_centres[mine], geo_normals[mine], part)
+                )
+        free_sw = np.concatenate([free, free], axis=1).T  # (2 count, J)
+        self.G_SW = geo_sw * free_sw
         up = np.broadcast_to(_UP, self.nodes.shape)
         geo_ws = np.abs(polygon_irradiance(self.nodes, up, geo_quads))  # (J, count)
         self.G_WS = geo_ws[:, self.geometric] * seen
@@ -289,6 +298,27 @@ class BounceMap:
     def bounce(self, radiance: np.ndarray, pixels: PixelMap) -> np.ndarray:
         """(N, c) the bounce irradiance at a pixel map's points of radiance (K, c)."""
         return np.asarray(pixels.interpolate @ (self.G_WS @ radiance) + pixels.near @ radiance)
+
+
+def _clip(cells: np.ndarray, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """(J, 5, 3) the convex quads `cells` (J, 4, 3) cut to the half-space
+    (x - point) . normal >= 0 (Sutherland-Hodgman), padded by repeating their last vertex
+    (an edge of length 0 adds nothing to Lambert's formula); all at one vertex when
+    nothing is left."""
+    d = (cells - point) @ normal  # (J, 4)
+    out = np.concatenate([cells, cells[:, 3:]], axis=1)
+    out[d.max(axis=1) < 0.0] = cells[d.max(axis=1) < 0.0, :1]
+    for j in np.nonzero((d.min(axis=1) < 0.0) & (d.max(axis=1) >= 0.0))[0]:
+        kept: list[np.ndarray] = []
+        for i in range(4):
+            a, b = cells[j, i], cells[j, (i + 1) % 4]
+            da, db = d[j, i], d[j, (i + 1) % 4]
+            if da >= 0.0:
+                kept.append(a)
+            if (da >= 0.0) != (db >= 0.0):
+                kept.append(a + da / (da - db) * (b - a))
+        out[j] = np.array(kept + [kept[-1]] * (5 - len(kept)))
+    return out
 
 
 def _pair_irradiance(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
