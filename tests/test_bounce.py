@@ -239,3 +239,25 @@ def test_too_fine_a_mesh_is_refused() -> None:
         ValueError, match=r"^surroundings: 10000 patches of 0.1 m; expected at most 4000"
     ):
         BounceMap(Surroundings((big,), patch_m=0.1), (0.0, 1.0, 0.0, 1.0))
+
+
+def test_bounces_truncate_the_paths_and_converge_to_every_bounce() -> None:
+    """bounces = 1 keeps light -> surface -> wall alone (the wall's albedo plays no
+    part); more bounces grow towards the solution with every bounce (the LU solve)."""
+    light, view = _light_and_view()
+    L, R = light.position_world(view), light.rotation_world(view)
+    side = Surface(
+        np.array([0.6, -0.4, 0.0]), np.array([0.0, 1.4, 0.0]), np.array([0.0, 0.0, 0.5]), 0.7
+    )
+    points = np.array([[0.0, 0.0, 0.0], [0.5, -0.3, 0.0]])
+
+    def bounce(wall_albedo: float, bounces: int | None) -> np.ndarray:
+        s = Surroundings((_ceiling(), side), wall_albedo, 0.1, bounces)
+        bm = BounceMap(s, (-0.5, 0.5, -0.5, 0.5))
+        src = bm.source_columns(L, R, light.rid, want_grad=False)
+        return bm.bounce(bm.radiance(src), bm.pixel_map(points))[:, 0]
+
+    np.testing.assert_allclose(bounce(0.2, 1), bounce(0.9, 1), rtol=1e-12)
+    values = [bounce(0.8, n) for n in (1, 2, 3, 30)]
+    assert np.all(np.diff(values, axis=0) > 0.0)
+    np.testing.assert_allclose(values[-1], bounce(0.8, None), rtol=1e-9)

@@ -7,8 +7,8 @@ the wall, by radiosity on a mesh (docs/model.md, "Inter-reflection").
   apart, each the centre of a square cell (J in all).
 - Sources, per view and light, per unit intensity: e_S (K,) the beam's irradiance at the
   copies' centres, e_W (J,) at the nodes, 0 where a surface shadows them.
-- The copies' radiance solves L = (rho / pi) (e_S + G_SS L + (rho_w / pi) G_SW e_W): every
-  bounce between the surfaces and the wall, not only the first.
+- The copies' radiance solves L = (rho / pi) (e_S + G_SS L + (rho_w / pi) G_SW (e_W + G_WS
+  L)): every bounce between the surfaces and the wall, not only the first.
 - The wall's bounce irradiance is G_WS L at the nodes, interpolated bilinearly to each
   pixel's footprint centre; copies within NEAR patch sides of the centre are integrated
   exactly there instead (the field is not smooth where a surface meets the wall).
@@ -179,7 +179,13 @@ class BounceMap:
         geo_ws = np.abs(polygon_irradiance(self.nodes, up, geo_quads))  # (J, count)
         self.G_WS = geo_ws[:, self.geometric] * seen
         self._rho = geo_albedo[self.geometric] / math.pi
-        self._lu = lu_factor(np.eye(2 * count) - self._rho[:, None] * self.G_SS)
+        # The surfaces light each other directly and through the wall (the wall's
+        # radiance holds their light too: rho_w / pi (e_W + G_WS L)).
+        if surroundings.bounces is None:
+            through_wall = surroundings.wall_albedo / math.pi * (self.G_SW @ self.G_WS)
+            self._lu = lu_factor(
+                np.eye(2 * count) - self._rho[:, None] * (self.G_SS + through_wall)
+            )
         owners = np.concatenate([self.owner, no_owner])
         self._points = np.concatenate([self.centres, self.nodes])
         self._point_normals = np.concatenate([self.normals, up])
@@ -239,11 +245,26 @@ class BounceMap:
         return out
 
     def radiance(self, sources: np.ndarray) -> np.ndarray:
-        """(K, c) the copies' radiance per unit intensity of sources (K + J, c)."""
+        """(K, c) the copies' radiance per unit intensity of sources (K + J, c): every
+        bounce, or the light of paths with at most `surroundings.bounces` reflections
+        between the light and the pixel's wall point."""
         K = len(self.centres)
         b = self.surroundings.wall_albedo / math.pi
-        rhs = sources[:K] + b * (self.G_SW @ sources[K:])
-        return np.asarray(lu_solve(self._lu, self._rho[:, None] * rhs))
+        n = self.surroundings.bounces
+        if n is None:
+            rhs = sources[:K] + b * (self.G_SW @ sources[K:])
+            return np.asarray(lu_solve(self._lu, self._rho[:, None] * rhs))
+        rho = self._rho[:, None]
+        surfaces = rho * sources[:K]  # s_1: paths light -> surface
+        wall = b * sources[K:]  # w_1: light -> wall
+        total = surfaces.copy()
+        for _ in range(n - 1):  # s_(m+1) = rho (G_SS s_m + G_SW w_m), w_(m+1) = b G_WS s_m
+            surfaces, wall = (
+                rho * (self.G_SS @ surfaces + self.G_SW @ wall),
+                b * (self.G_WS @ surfaces),
+            )
+            total += surfaces
+        return np.asarray(total)
 
     # -- pixels -------------------------------------------------------------------------
 

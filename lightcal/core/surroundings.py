@@ -138,16 +138,23 @@ class Surroundings:
     Args:
         surfaces: the surfaces (1 to MAX_SURFACES).
         wall_albedo: rho_w, the wall's diffuse reflectance, in (0, 1).
-        patch_m: the mesh's largest patch side and the wall grid's spacing, m
+        patch_m: the mesh's largest patch side (the wall grid's spacing is half of it), m
             (`lightcal.core.bounce`).
+        bounces: None for every bounce (a room); n to keep only the light of paths with at
+            most n reflections between the light and the wall point a pixel sees (n = 1:
+            off a surface; 3: what a path tracer of `max_depth` 5 renders).
     """
 
     surfaces: tuple[Surface, ...]
     wall_albedo: float = 0.8
     patch_m: float = DEFAULT_PATCH_M
+    bounces: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "surfaces", tuple(self.surfaces))
+        n = self.bounces
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 50):
+            raise ValueError(f"surroundings: bounces: expected 1 to 50 or None (all), got {n!r}")
         if not 1 <= len(self.surfaces) <= MAX_SURFACES:
             raise ValueError(
                 f"surroundings: expected 1 to {MAX_SURFACES} surfaces, got {len(self.surfaces)}"
@@ -168,6 +175,7 @@ class Surroundings:
             "surfaces": [s.describe() for s in self.surfaces],
             "wall_albedo": self.wall_albedo,
             "patch_m": self.patch_m,
+            "bounces": self.bounces,
         }
 
 

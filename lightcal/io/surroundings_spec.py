@@ -3,6 +3,7 @@
     surroundings:
       wall_albedo: 0.8              # the wall's diffuse reflectance (for the bounce only)
       patch_m: 0.1                  # the mesh's patch side, m
+      bounces: 3                    # keep paths of up to 3 reflections (default: all)
       surfaces:
         - name: ceiling
           corner_m: [-2.2, -0.21, 0.0]   # world frame, m: the wall is z = 0
@@ -34,7 +35,7 @@ from lightcal.core.surroundings import (
 )
 from lightcal.errors import InputError
 
-__all__ = ["SurfaceSpec", "SurroundingsSpec", "build_surroundings"]
+__all__ = ["SurfaceSpec", "SurroundingsSpec", "build_surroundings", "surroundings_spec"]
 
 _Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
@@ -67,7 +68,14 @@ class SurroundingsSpec(_Model):
         default=DEFAULT_PATCH_M,
         ge=PATCH_RANGE_M[0],
         le=PATCH_RANGE_M[1],
-        description="the side of the mesh's patches and wall cells, m",
+        description="the side of the mesh's patches (the wall's cells: half), m",
+    )
+    bounces: int | None = Field(
+        default=None,
+        ge=1,
+        le=50,
+        description="reflections between the light and the wall point a pixel sees to keep "
+        "(default: all, as in a room; 3 for a path tracer's max_depth 5)",
     )
 
 
@@ -97,4 +105,24 @@ def build_surroundings(
             surfaces.append(Surface(corner, u, v, s.albedo, name))
         except ValueError as exc:
             raise InputError(source, str(exc)) from exc
-    return Surroundings(tuple(surfaces), spec.wall_albedo, spec.patch_m)
+    return Surroundings(tuple(surfaces), spec.wall_albedo, spec.patch_m, spec.bounces)
+
+
+def surroundings_spec(surroundings: Surroundings) -> SurroundingsSpec:
+    """The section that declares `surroundings` (`lightcal synth --declare-surroundings`)."""
+    surfaces = [
+        SurfaceSpec(
+            name=s.name,
+            corner_m=s.corner_world.tolist(),
+            edge_u_m=s.edge_u_world.tolist(),
+            edge_v_m=s.edge_v_world.tolist(),
+            albedo=s.albedo,
+        )
+        for s in surroundings.surfaces
+    ]
+    return SurroundingsSpec(
+        surfaces=surfaces,
+        wall_albedo=surroundings.wall_albedo,
+        patch_m=surroundings.patch_m,
+        bounces=surroundings.bounces,
+    )
