@@ -76,6 +76,7 @@ from lightcal.io.project import (
     load_project,
     save_project,
 )
+from lightcal.io.surroundings_spec import SurroundingsSpec, surroundings_spec
 from lightcal.synthetic.dataset_files import (
     CAMERA_NAME,
     DARK_SUFFIX,
@@ -101,7 +102,7 @@ from lightcal.synthetic.dataset_files import (
 )
 from lightcal.synthetic.departure_truth import departures_truth
 from lightcal.synthetic.departures import Departures
-from lightcal.synthetic.imaging import AmbientLevels, make_imaging
+from lightcal.synthetic.imaging import AmbientLevels, Imaging, make_imaging
 from lightcal.synthetic.rid_rim import rimmed_rid
 from lightcal.synthetic.scenes import (
     RigConfig,
@@ -159,6 +160,7 @@ class SynthConfig:
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
         medium: What the project declares of the medium (air unless `--declare-medium`).
+        declare_surroundings: The project declares the `corner` departure's surfaces.
     """
 
     camera: Camera
@@ -175,6 +177,7 @@ class SynthConfig:
     departures: Departures = field(default_factory=Departures)
     dark_frames: bool = False
     medium: MediumSpec = field(default_factory=MediumSpec)
+    declare_surroundings: bool = False
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -437,6 +440,7 @@ def _write_into(
             for j, light in enumerate(rig.lights)
         ],
         medium=config.medium,  # the default selection and solver
+        surroundings=_declared(config, imaging),
     )
 
     # The truth.
@@ -486,3 +490,10 @@ def _write_into(
         initial_lights=initial,
         vignetting=vignetting,
     )
+
+
+def _declared(config: SynthConfig, imaging: Imaging) -> SurroundingsSpec | None:
+    """The project's `surroundings`: the corner's, with `declare_surroundings`."""
+    if not config.declare_surroundings or imaging.corner is None:
+        return None
+    return surroundings_spec(imaging.corner.surroundings)
