@@ -76,7 +76,6 @@ from lightcal.io.project import (
     load_project,
     save_project,
 )
-from lightcal.io.surroundings_spec import SurroundingsSpec, surroundings_spec
 from lightcal.synthetic.dataset_files import (
     CAMERA_NAME,
     DARK_SUFFIX,
@@ -102,7 +101,7 @@ from lightcal.synthetic.dataset_files import (
 )
 from lightcal.synthetic.departure_truth import departures_truth
 from lightcal.synthetic.departures import Departures
-from lightcal.synthetic.imaging import AmbientLevels, Imaging, make_imaging
+from lightcal.synthetic.imaging import AmbientLevels, make_imaging
 from lightcal.synthetic.rid_rim import rimmed_rid
 from lightcal.synthetic.scenes import (
     RigConfig,
@@ -440,7 +439,7 @@ def _write_into(
             for j, light in enumerate(rig.lights)
         ],
         medium=config.medium,  # the default selection and solver
-        surroundings=_declared(config, imaging),
+        surroundings=imaging.declared(config.declare_surroundings),
     )
 
     # The truth.
@@ -490,10 +489,3 @@ def _write_into(
         initial_lights=initial,
         vignetting=vignetting,
     )
-
-
-def _declared(config: SynthConfig, imaging: Imaging) -> SurroundingsSpec | None:
-    """The project's `surroundings`: the corner's, with `declare_surroundings`."""
-    if not config.declare_surroundings or imaging.corner is None:
-        return None
-    return surroundings_spec(imaging.corner.surroundings)

@@ -37,6 +37,7 @@ from lightcal.core.scene import Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
+from lightcal.io.surroundings_spec import SurroundingsSpec, surroundings_spec
 from lightcal.synthetic.bounce_reference import CornerBounce, corner_surroundings
 from lightcal.synthetic.departures import BOW_RADIUS_M, Departures
 from lightcal.synthetic.height_field import (
@@ -129,6 +130,12 @@ class Imaging:
         if self.backscatter_per_m > 0.0:
             total = total + self._backscatter(view, points)
         return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
+
+    def declared(self, declare: bool) -> SurroundingsSpec | None:
+        """The project's `surroundings` section: the corner's surfaces when `declare`."""
+        if not declare or self.corner is None:
+            return None
+        return surroundings_spec(self.corner.surroundings)
 
     def _backscatter(self, view: View, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """(H, W) every light's backscatter along the rays to `points` (H, W, 3)."""
