@@ -35,6 +35,17 @@ def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
     return edit
 
 
+def _surface(**changes: Any) -> dict[str, Any]:
+    """A ceiling for `surroundings` with some fields changed."""
+    return {
+        "corner_m": [-1.0, -0.5, 0.0],
+        "edge_u_m": [2.0, 0.0, 0.0],
+        "edge_v_m": [0.0, 0.0, 0.5],
+        "albedo": 0.8,
+        **changes,
+    }
+
+
 # (case, project edit, the message after "<project>: ")
 PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
@@ -354,6 +365,51 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "medium key unknown",
         _set("medium", {"attenuation": 0.2}),
         "medium.attenuation: Extra inputs are not permitted",
+    ),
+    (
+        "surroundings: a surface behind the wall",
+        _set("surroundings", {"surfaces": [_surface(corner_m=[0, -0.5, -0.2])]}),
+        "surroundings.surfaces[0]: reaches behind the wall (z = -0.2 m); expected z >= 0 "
+        "everywhere (the wall is the plane z = 0, the cameras are at z > 0)",
+    ),
+    (
+        "surroundings: a surface in the wall's plane",
+        _set("surroundings", {"surfaces": [_surface(edge_v_m=[0, 1, 0])]}),
+        "surroundings.surfaces[0]: lies in the wall's plane z = 0 (it would overlap the "
+        "wall); expected a surface in front of it",
+    ),
+    (
+        "surroundings: a surface of zero size",
+        _set("surroundings", {"surfaces": [_surface(name="shelf", edge_u_m=[0, 0, 0])]}),
+        "surroundings.surfaces[0] (shelf): expected edges of 1 mm to 100 m, got 0 and 0.5 m",
+    ),
+    (
+        "surroundings: parallel edges",
+        _set("surroundings", {"surfaces": [_surface(edge_v_m=[2, 0, 0])]}),
+        "surroundings.surfaces[0]: expected two edges that are not parallel",
+    ),
+    (
+        "surroundings: NaN",
+        _set("surroundings", {"surfaces": [_surface(corner_m=[0, math.nan, 0])]}),
+        "surroundings.surfaces[0].corner_m[1]: Input should be a finite number",
+    ),
+    (
+        "surroundings: albedo 1",
+        _set("surroundings", {"surfaces": [_surface(albedo=1.0)]}),
+        "surroundings.surfaces[0].albedo: Input should be less than 1",
+    ),
+    (
+        "surroundings: no surface",
+        _set("surroundings", {"surfaces": []}),
+        "surroundings.surfaces: List should have at least 1 item after validation, not 0",
+    ),
+    (
+        "surroundings in water",
+        lambda p: (
+            _set("medium", {"attenuation_per_m": 0.2})(p),
+            _set("surroundings", {"surfaces": [_surface()]})(p),
+        ),
+        "surroundings: the bounce light is modelled in air; expected no medium",
     ),
     (
         "camera file missing",

@@ -699,6 +699,34 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--backscatter: applies to the radiance sensor model only, got 'cos4'"),
     ),
     (
+        "synth: --corner nan",
+        "synth {n} --corner nan 0.5 0.8",
+        _error("synth", "--corner: expected a distance D of 0.05 to 5 m, got nan"),
+    ),
+    (
+        "synth: --corner of depth 0",
+        "synth {n} --corner 0.7 0 0.8",
+        _error("synth", "--corner: expected a depth of 0.01 to 5 m, got 0"),
+    ),
+    (
+        "synth: --corner of albedo 1",
+        "synth {n} --corner 0.7 0.5 1",
+        _error("synth", "--corner: expected an albedo in (0, 1), got 1"),
+    ),
+    (
+        "synth: --corner with another sensor model",
+        "synth {n} --corner 0.7 0.5 0.8 --sensor cos4",
+        _error("synth", "--corner: applies to the radiance sensor model only, got 'cos4'"),
+    ),
+    (
+        "synth: --declare-surroundings without --corner",
+        "synth {n} --declare-surroundings",
+        _error(
+            "synth",
+            "--declare-surroundings: expected --corner D DEPTH ALBEDO (the surfaces to declare)",
+        ),
+    ),
+    (
         "synth: --phase-g 1.5",
         "synth {n} --phase-g 1.5",
         _error("synth", "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),

@@ -514,6 +514,7 @@ def test_every_departure_together_is_recorded_and_the_dataset_loads(tmp_path: Pa
         albedo_texture_amplitude=0.1,
         attenuation_per_m=0.1,
         backscatter_per_m=0.2,
+        corner=(0.7, 0.5, 0.8),
     )
     assert departures.names == DEPARTURE_NAMES
     cfg = config(sensor=SensorConfig(), departures=departures)
@@ -528,6 +529,9 @@ def test_every_departure_together_is_recorded_and_the_dataset_loads(tmp_path: Pa
     assert found["ambient"]["fraction"] == 0.05
     assert found["attenuation"]["coefficient_per_m"] == 0.1
     assert found["backscatter"]["beta_per_m"] == 0.2 and found["backscatter"]["phase_g"] == 0.9
+    assert (
+        found["corner"]["depth_m"] == 0.5 and len(found["corner"]["surroundings"]["surfaces"]) == 2
+    )
     json.dumps(truth)
     assert len(load_project(dataset.project_path).views) == 4
 
@@ -574,7 +578,7 @@ def test_cli_departure_options_reach_truth_json(tmp_path: Path, no_warmup: None)
         "synth", str(out), *SMALL, "--ambient", "0.1", "--undeclared-vignetting", "-0.3", "0.05",
         "--rid-rim", "0.25", "--gamma", "2.2", "--pose-error-mm", "2", "--pose-error-deg", "0.3",
         "--bow-mm", "15", "--albedo-texture", "0.2", "--attenuation", "0.05",
-        "--backscatter", "0.3", "--phase-g", "0.6",
+        "--backscatter", "0.3", "--phase-g", "0.6", "--corner", "0.6", "0.4", "0.7",
     ]  # fmt: skip
     assert main(argv) == 0
     found = read_departures(json.loads((out / "truth.json").read_text()))
@@ -594,7 +598,9 @@ def test_cli_departure_options_reach_truth_json(tmp_path: Path, no_warmup: None)
         "phase_g": 0.6,
         "formula": found["backscatter"]["formula"],
     }
+    assert (found["corner"]["distance_m"], found["corner"]["albedo"]) == (0.6, 0.7)
     project = load_project(out / "project.json")
+    assert project.surroundings is None  # without --declare-surroundings
     assert (
         project.spec.sensor.model == "radiance" and project.spec.lights[0].rid.type == "cos_power"
     )

@@ -190,7 +190,8 @@ class SolveService:
             return None
         options = solver_options(project, loaded)  # the fall-off on the images' grid
         lights = self._lights(project, guess, datas)
-        model = CalibrationModel(datas, lights, options, project.wall, project.medium)
+        p = project
+        model = CalibrationModel(datas, lights, options, p.wall, p.medium, p.surroundings)
         return model, index
 
     def ensure_session(self, client: Any = None) -> bool:

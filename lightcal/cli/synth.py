@@ -30,6 +30,10 @@ what the project declares in one everyday way, each recorded in truth.json under
   random field in [-1, 1] with 10-30 cm features, the same in every view.
 - `--attenuation C`: a medium (clear water): each value is multiplied by
   exp(-C (d_light + d_camera)), C in 1/m.
+- `--corner D DEPTH ALBEDO`: a ceiling and a side wall meet the wall D m from where the
+  views look; their bounce light, computed by brute force
+  (`lightcal.synthetic.bounce_reference`), is added. `--declare-surroundings` makes the
+  project declare them (`surroundings:`, docs/model.md "Inter-reflection").
 
 `--declare-medium given|estimated` makes the project declare that water (`medium:` with
 the true C, or estimated from 0): data whose project models the medium
@@ -315,6 +319,7 @@ def run(args: argparse.Namespace) -> int:
             wall=_wall(args),
             departures=departures,
             medium=medium,
+            declare_surroundings=args.declare_surroundings,
             dark_frames=args.dark_frames,
             declare_wall_mesh=args.declare_wall_mesh,
             albedo_map=args.declare_albedo_map,

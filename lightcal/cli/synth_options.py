@@ -72,6 +72,8 @@ OPTIONS = {
     "medium": "--declare-medium",
     "dark_frames": "--dark-frames",
     "declare_wall_mesh": "--declare-wall-mesh",
+    "corner": "--corner",
+    "declare_surroundings": "--declare-surroundings",
 }
 
 
@@ -200,6 +202,23 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         "--albedo-texture; not with a declared --backscatter",
     )
     g.add_argument(
+        "--corner",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("D", "DEPTH", "ALBEDO"),
+        help="inter-reflection: a ceiling and a side wall DEPTH m deep meet the wall at right "
+        "angles D m from where the views look, Lambertian of ALBEDO like the wall; their "
+        "bounce light (brute force, 4 bounces) is added, pixels that see them or wall they "
+        "shadow are black; --sensor radiance only (none)",
+    )
+    g.add_argument(
+        "--declare-surroundings",
+        action="store_true",
+        help="the project declares the surfaces of --corner (`surroundings:`, their true "
+        "geometry and albedo)",
+    )
+    g.add_argument(
         "--dark-frames",
         action="store_true",
         help="with --ambient: also write a light-off photo of each view (the room light "
@@ -241,6 +260,11 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             "--rid-rim", "expected a light with a half-intensity angle, got --light isotropic"
         )
     vignetting = args.undeclared_vignetting
+    if args.declare_surroundings and args.corner is None:
+        raise InputError(
+            "--declare-surroundings", "expected --corner D DEPTH ALBEDO (the surfaces to declare)"
+        )
+    corner = None if args.corner is None else (args.corner[0], args.corner[1], args.corner[2])
     return build(
         lambda: Departures(
             ambient_fraction=args.ambient,
@@ -254,6 +278,7 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             attenuation_per_m=args.attenuation,
             backscatter_per_m=args.backscatter,
             phase_g=args.phase_g,
+            corner=corner,
         )
     )
 

@@ -13,12 +13,14 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
 from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection
 from lightcal.core.blas_threads import single_threaded_blas
+from lightcal.core.bounce import BounceTerm
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
 from lightcal.core.medium import MediumUnknown
@@ -36,6 +38,7 @@ from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import light_flux, shade
 from lightcal.core.rid_columns import rid_columns
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.system_buffers import StateAtX, SystemBuffers
 
 ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
@@ -55,6 +58,7 @@ class CalibrationModel:
         options: solver options.
         wall: the wall's reflectance and what to estimate of it (default: Lambertian).
         medium: the medium between rig and wall, what to estimate of it (default: air).
+        surroundings: surfaces whose bounce light the lights' flux gains (default: none).
     """
 
     def __init__(
@@ -64,6 +68,7 @@ class CalibrationModel:
         options: SolverOptions,
         wall: WallUnknown | None = None,
         medium: MediumUnknown | None = None,
+        surroundings: Surroundings | None = None,
     ) -> None:
         if not images:
             raise ValueError("calibration: expected at least one image with selected pixels")
@@ -105,6 +110,8 @@ class CalibrationModel:
             centers = [im.footprints.centers_world[:, :2] for im in images]
             self.albedo = AlbedoProjection.over(centers, options.albedo_map)
         self._albedo_at: tuple[np.ndarray, AlbedoMap, np.ndarray] | None = None
+        self.surroundings = surroundings
+        self.bounce = BounceTerm.of(surroundings, [im.footprints for im in images])
 
     # -- evaluation -------------------------------------------------------------------
 
@@ -355,6 +362,8 @@ class CalibrationModel:
                 medium_grad_out=medium_grad,
             )
             assert grad_world is not None
+            if self.bounce is not None:
+                self.bounce.add(i, view, light, flux, grad_world)
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale
@@ -426,6 +435,8 @@ class CalibrationModel:
                     wall=wall,
                     medium=lay.medium_of(x),
                 )
+                if self.bounce is not None:
+                    sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
                 signal = lay.image_values(sh.values, im, x, gains[i])
                 if self.albedo is not None and albedo_map is not None:
                     signal = signal * self.albedo.factor(i, albedo_map)

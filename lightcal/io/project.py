@@ -15,7 +15,6 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import yaml
@@ -28,6 +27,7 @@ from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, View
 from lightcal.core.selection import SelectionOptions
 from lightcal.core.solver import SolverOptions
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall import WALL_MODELS, make_wall
 from lightcal.core.wall_mesh import WallMesh
 from lightcal.errors import InputError
@@ -35,6 +35,7 @@ from lightcal.io.albedo_map_spec import albedo_map_options
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.dark_frames import dark_paths
 from lightcal.io.document import read_document
+from lightcal.io.exposure_factors import exposure_factors
 from lightcal.io.medium_spec import build_medium
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
@@ -64,6 +65,7 @@ from lightcal.io.project_spec import (
     parse_project,
     project_schema,
 )
+from lightcal.io.surroundings_spec import build_surroundings
 from lightcal.io.wall_mesh_file import read_wall_mesh
 
 __all__ = [
@@ -125,6 +127,7 @@ class Project:
             (`lightcal.io.dark_frames`); empty: none.
         medium: the medium between the rig and the wall and what to estimate of it.
         wall_mesh: the wall's shape (`wall.mesh`), or None: the plane z = 0.
+        surroundings: surfaces near the wall whose bounce light the model adds, or None.
     """
 
     spec: ProjectFile
@@ -144,6 +147,7 @@ class Project:
     dark_paths: list[Path | None] = field(default_factory=list)
     medium: MediumUnknown = field(default_factory=MediumUnknown)
     wall_mesh: WallMesh | None = None
+    surroundings: Surroundings | None = None
 
     @property
     def folder(self) -> Path:
@@ -285,7 +289,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                 f"images[{i}].path: the same file as images[{first}] ({path.name}): a copy "
                 "adds no information and would count its noise twice; expected each photo once",
             )
-    exposures = _exposure_factors(spec, image_paths, source)
+    exposures = exposure_factors(spec, image_paths, source)
     for i, im in enumerate(spec.images):
         if not (math.isfinite(exposures[i]) and exposures[i] > 0.0):
             raise InputError(
@@ -364,6 +368,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         if spec.sensor.vignetting
         else None
     )
+    medium = build_medium(spec.medium, spec.sensor.model, source)
     return Project(
         spec,
         source,
@@ -380,8 +385,9 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
-        build_medium(spec.medium, spec.sensor.model, source),
+        medium,
         wall_mesh,
+        build_surroundings(spec.surroundings, medium, source),
     )
 
 
@@ -436,57 +442,6 @@ def build_wall(spec: WallSpec, source: Path) -> WallUnknown:
 
 #: Wall parameters whose file name differs from the model's (degrees in files).
 _FILE_PARAMETER = {"sigma": "sigma_deg"}
-
-
-def _settings_value(e: Any) -> float:
-    """t x ISO / N^2 with `ExposureSpec`'s defaults for settings unknown in every image."""
-    iso = e.iso if e.iso is not None else 100.0
-    f_number = e.f_number if e.f_number is not None else 1.0
-    return float(e.exposure_time_s * iso / f_number**2)
-
-
-def _exposure_factors(spec: ProjectFile, image_paths: list[Path], source: Path) -> list[float]:
-    """Relative exposure g_i of every image.
-
-    An explicit factor is used as given. Settings (an `ExposureSpec`, or the file's EXIF
-    when `exposure` is null) become t x ISO / N^2 relative to the first image that has
-    settings. When some images have settings, every image without an explicit factor
-    must have them too (else its exposure would be a guess); when none has, g_i = 1.
-    """
-    from lightcal.io.exif import Exposure, read_exposure
-
-    settings: list[Exposure | None] = []
-    for i, im in enumerate(spec.images):
-        if isinstance(im.exposure, ExposureSpec):
-            e = im.exposure
-            settings.append(Exposure(e.exposure_time_s, e.iso, e.f_number))
-        elif im.exposure is None:
-            exif = read_exposure(image_paths[i])
-            settings.append(exif if exif is not None and exif.exposure_time_s else None)
-        else:
-            settings.append(None)
-    known = [e for e in settings if e is not None]
-    factors = []
-    for i, im in enumerate(spec.images):
-        if isinstance(im.exposure, float | int) and not isinstance(im.exposure, bool):
-            factors.append(float(im.exposure))
-        elif settings[i] is not None:
-            try:
-                # Validates that the same settings are known in both (else a guess).
-                settings[i].relative_factor(known[0])  # type: ignore[union-attr]
-            except ValueError as exc:
-                raise InputError(source, f"images[{i}].exposure: {exc}") from exc
-            factors.append(_settings_value(settings[i]) / _settings_value(known[0]))
-        elif known:
-            raise InputError(
-                source,
-                f"images[{i}].exposure: not given and {image_paths[i].name} has no EXIF "
-                "exposure time, while other images' exposures come from settings; "
-                "give the exposure of every image",
-            )
-        else:
-            factors.append(1.0)
-    return factors
 
 
 def save_project(spec: ProjectFile, path: str | Path) -> None:

@@ -32,6 +32,7 @@ from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.spec_errors import format_loc, on_literal_branch
+from lightcal.io.surroundings_spec import SurroundingsSpec
 
 PROJECT_VERSION: Literal[1] = 1
 
@@ -462,6 +463,7 @@ class ProjectFile(_Model):
     solver: SolverSpec = Field(default_factory=SolverSpec)
     wall: WallSpec = Field(default_factory=WallSpec)
     medium: MediumSpec = Field(default_factory=MediumSpec)
+    surroundings: SurroundingsSpec | None = None
 
 
 def parse_project(data: Any, source: str | Path) -> ProjectFile:

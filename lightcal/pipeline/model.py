@@ -127,7 +127,9 @@ def build_model(
         )
     unknowns = list(lights) if lights is not None else starting_lights(project, data)
     options = solver_options(project, loaded)
-    model = CalibrationModel(data, unknowns, options, project.wall, project.medium)
+    model = CalibrationModel(
+        data, unknowns, options, project.wall, project.medium, project.surroundings
+    )
     if model.m <= model.layout.n:
         raise InputError(
             project.path,

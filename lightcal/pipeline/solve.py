@@ -125,7 +125,12 @@ def coarse_start(
     images = [im.subset(np.arange(0, len(im.observed), k)) for im in model.images]
     lay = model.layout
     coarse = CalibrationModel(
-        images, model.unknowns, model.options, lay.wall_unknown, lay.medium_unknown
+        images,
+        model.unknowns,
+        model.options,
+        lay.wall_unknown,
+        lay.medium_unknown,
+        model.surroundings,
     )
     if coarse.layout.names != model.layout.names or coarse.m <= coarse.layout.n:
         return None

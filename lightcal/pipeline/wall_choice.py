@@ -71,6 +71,7 @@ def restarted(model: CalibrationModel, x: np.ndarray, **changes: object) -> Cali
         "options": model.options,
         "wall": model.layout.wall_unknown,
         "medium": model.layout.medium_unknown,
+        "surroundings": model.surroundings,
     }
     fields.update(changes)
     return CalibrationModel(**fields)  # type: ignore[arg-type]

@@ -15,28 +15,26 @@ Layout of a dataset folder:
 
 The project (`lightcal.io.project`) names the camera file, every image with its *measured*
 pose (the truth plus pose noise) and exposure time, the sensor's levels and noise model,
-the lights' RIDs with a deliberately wrong initial guess, and the default selection and
-solver. The truth holds the true poses, the true lights (`describe_pose`, scale in DN, RID),
-the sensor, the seed, the configuration and the lightcal version.
+the lights' RIDs with a deliberately wrong initial guess, the default selection and solver.
+The truth holds the true poses and lights (`describe_pose`, scale in DN, RID), the sensor,
+the seed, the configuration and the lightcal version.
 
 The pixel value model: an image's expected value above the black level is the renderer's
-value (`lightcal.core.render.render_image`) of the true rig, whose light scales are in DN
-at the exposure of the first image (the project's exposures are relative to it); the
-sensor (`lightcal.synthetic.scenes.apply_sensor`) adds noise, the black level, rounds and clips.
+value (`render_image`) of the true rig, its light scales in DN at the first image's
+exposure (the project's are relative to it); the sensor (`scenes.apply_sensor`) adds
+noise, the black level, rounds and clips.
 Everything the truth renders with (camera, RIDs, fall-off map, exposures) is read back from
 the files just written, so it is exactly what `load_project` gives a calibration.
 
 Departures (`SynthConfig.departures`, `lightcal.synthetic.departures`): data that departs
 from what its project declares in one everyday way (room light, undeclared vignetting, a
 rimmed light profile, a tone curve, poses worse than declared, a bowed wall, an albedo
-texture, an absorbing medium). The images are then made by `lightcal.synthetic.imaging`,
-the light scale is still chosen from the true rig on the model's flat wall, and truth.json
-records each departure's parameters under "departures" (absent without departures:
-`lightcal.synthetic.departures.read_departures`).
+texture, an absorbing medium, a corner). `lightcal.synthetic.imaging` makes the images
+(the light scale from the true rig on the flat wall); truth.json records each departure.
 
 The dataset is built in a hidden folder beside `out_dir` and renamed into place when
-complete. With `force`, an existing folder's dataset files are replaced one by one
-(each atomically), `project.json` last: other files in the folder are left alone.
+complete. With `force`, an existing folder's dataset files are replaced one by one (each
+atomically), `project.json` last; other files in the folder are left alone.
 Randomness: `np.random.default_rng(seed)` spawns one stream per purpose (views, exposures,
 rig, pose noise, initial guess, sensor noise, then the albedo texture and the extra pose
 error of the departures), so the same configuration and seed give byte-identical datasets,
@@ -161,9 +159,9 @@ class SynthConfig:
             light-off photo of each view (`images/view_NN_dark`: the room light alone
             through the same sensor, its own noise) and declare it as the image's `dark`.
         medium: What the project declares of the medium (air unless `--declare-medium`).
-        declare_wall_mesh: write the true wall's mesh (`wall_meshes`) and declare it as
-            the project's `wall.mesh` (`--declare-wall-mesh`).
-        albedo_map: declare `wall.albedo_map` and a dense selection (`declared_wall`).
+        declare_wall_mesh, albedo_map, declare_surroundings: the project declares the true
+            wall's mesh (`wall.mesh`), an albedo map with a dense selection
+            (`declared_wall`), the `corner` departure's surfaces (`surroundings`).
     """
 
     camera: Camera
@@ -182,6 +180,7 @@ class SynthConfig:
     medium: MediumSpec = field(default_factory=MediumSpec)
     declare_wall_mesh: bool = False
     albedo_map: bool = False
+    declare_surroundings: bool = False
 
     def __post_init__(self) -> None:
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
@@ -445,6 +444,7 @@ def _write_into(
         ],
         medium=config.medium,  # the default solver
         **declared_wall(config.camera, albedo_map=config.albedo_map),
+        surroundings=imaging.declared(config.declare_surroundings),
     )
     if config.declare_wall_mesh:  # the true wall's shape, as a mesh beside the project
         mesh_name = write_synthetic_wall_mesh(folder, camera, views, imaging.wall_shape)

@@ -18,6 +18,7 @@ angles in degrees):
   formula;
 - `attenuation`: coefficient_per_m, formula.
 - `backscatter`: beta_per_m, phase_g, formula.
+- `corner`: distance_m, depth_m, albedo, surroundings (the surfaces), rendered_as.
 
 The true lights (the rimmed profile included) are in truth.json's "lights" as always.
 """
@@ -142,5 +143,15 @@ def departures_truth(
             "phase_g": departures.phase_g,
             "formula": "each light adds scale * exposure * beta * S, S the single-scattering "
             "integral along the pixel's ray (lightcal.core.medium.backscatter)",
+        }
+    if "corner" in names and imaging.corner is not None:
+        distance, depth, albedo = departures.corner or (0.0, 0.0, 0.0)
+        out["corner"] = {
+            "distance_m": distance,
+            "depth_m": depth,
+            "albedo": albedo,
+            "surroundings": imaging.corner.surroundings.describe(),
+            "rendered_as": "brute-force radiosity, 4 bounces (lightcal.synthetic.bounce_"
+            "reference); pixels that see a surface or wall it shadows are black",
         }
     return out

@@ -17,6 +17,7 @@ calibration's diagnostics can be tested on data whose fault is known:
 | `albedo_texture` | `albedo_texture_amplitude` | the wall's albedo varies smoothly |
 | `attenuation` | `attenuation_per_m` | a clear but absorbing medium (water) |
 | `backscatter` | `backscatter_per_m`, `phase_g` | the water scatters the beam back to the camera |
+| `corner` | `corner` | a ceiling and a side wall light the wall back (inter-reflection) |
 
 The exact definitions are in `Departures`; `lightcal.synthetic.imaging` applies them and
 `describe` writes the parameters that truth.json records under "departures" (name ->
@@ -51,6 +52,7 @@ DEPARTURE_NAMES = (
     "albedo_texture",
     "attenuation",
     "backscatter",
+    "corner",
 )
 """The departures' names in truth.json, in the order they are listed there."""
 
@@ -127,6 +129,11 @@ class Departures:
         attenuation_per_m: C >= 0, 1/m. A medium (clear water): each light's contribution
             to a pixel is multiplied by exp(-C (d_light + d_camera)), the distances from
             the light and from the camera centre to the pixel's point on the wall.
+        corner: (D, depth, albedo) or None. A ceiling and a side wall, `depth` m deep, meet
+            the wall at right angles D m from where the views look, Lambertian of
+            `albedo` like the wall: their bounce light is added to every pixel, and the
+            pixels that see them or wall they shadow are black
+            (`lightcal.synthetic.bounce_reference`: brute force, not the model's code).
         backscatter_per_m: beta >= 0, 1/m, and phase_g: g in [-0.99, 0.99]. The medium
             scatters each light's beam back along the pixels' rays: each pixel gains
             beta S, S the single-scattering integral with the Henyey-Greenstein phase g
@@ -145,6 +152,7 @@ class Departures:
     attenuation_per_m: float = 0.0
     backscatter_per_m: float = 0.0
     phase_g: float = 0.9
+    corner: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("ambient_fraction", "rid_rim_amplitude", "attenuation_per_m"):
@@ -185,6 +193,11 @@ class Departures:
             0.0 <= self.albedo_texture_amplitude < 1.0,
             "a value in [0, 1)",
         )
+        if self.corner is not None:
+            d, depth, albedo = (float(v) for v in self.corner)
+            _check("corner", d, 0.05 <= d <= 5.0, "a distance D of 0.05 to 5 m")
+            _check("corner", depth, 0.01 <= depth <= 5.0, "a depth of 0.01 to 5 m")
+            _check("corner", albedo, 0.0 < albedo < 1.0, "an albedo in (0, 1)")
         coeffs = self.undeclared_vignetting
         if coeffs is not None and (
             len(coeffs) != 2 or not all(math.isfinite(float(c)) for c in coeffs)
@@ -206,15 +219,17 @@ class Departures:
             "albedo_texture": self.albedo_texture_amplitude > 0.0,
             "attenuation": self.attenuation_per_m > 0.0,
             "backscatter": self.backscatter_per_m > 0.0,
+            "corner": self.corner is not None,
         }
         return tuple(name for name in DEPARTURE_NAMES if on[name])
 
     @property
     def changes_beam(self) -> bool:
         """Whether the beam's image needs more than the flat renderer (`render_image`):
-        a bowed wall, an albedo texture, attenuation or backscatter."""
+        a bowed wall, an albedo texture, attenuation, backscatter or a corner."""
         return (
-            self.bow_m != 0.0
+            self.corner is not None
+            or self.bow_m != 0.0
             or self.albedo_texture_amplitude > 0.0
             or self.attenuation_per_m > 0.0
             or self.backscatter_per_m > 0.0

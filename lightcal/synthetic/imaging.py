@@ -10,7 +10,9 @@ existed. With them, in this order:
    multiplied by exp(-C d_light) and the pixel by exp(-C d_camera) (`attenuation`), and
    by the albedo 1 + A t(x, y) (`albedo_texture`), all at the pixel centre's point on the
    wall (its footprint centre to second order in the footprint's size); then each light's
-   backscatter along the ray to that point is added (`backscatter`).
+   backscatter along the ray to that point is added (`backscatter`); then the bounce of
+   a ceiling and a side wall (`corner`, `lightcal.synthetic.bounce_reference`), the
+   pixels that see them or wall they shadow masked.
 2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
    times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
    is added to every pixel, also those that do not see the wall; then everything is
@@ -35,6 +37,8 @@ from lightcal.core.scene import Rig, View
 from lightcal.core.vignetting import RadialVignetting
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
+from lightcal.io.surroundings_spec import SurroundingsSpec, surroundings_spec
+from lightcal.synthetic.bounce_reference import CornerBounce, corner_surroundings
 from lightcal.synthetic.departures import BOW_RADIUS_M, Departures
 from lightcal.synthetic.height_field import (
     BowedWall,
@@ -63,6 +67,7 @@ class Imaging:
         backscatter_per_m, phase_g: beta of the medium's backscatter, 1/m (0: none), and
             the Henyey-Greenstein g of its scattering.
         undeclared_vignetting: (H, W) the undeclared fall-off V, or None.
+        corner: The ceiling and side wall's brute-force bounce, or None.
     """
 
     camera: Camera
@@ -76,6 +81,7 @@ class Imaging:
     backscatter_per_m: float = 0.0
     phase_g: float = 0.9
     undeclared_vignetting: NDArray[np.float64] | None = None
+    corner: CornerBounce | None = None
 
     def _render(self, view: View, rig: Rig) -> np.ma.MaskedArray:
         return render_image(
@@ -84,7 +90,7 @@ class Imaging:
 
     def beam(self, view: View) -> np.ma.MaskedArray:
         """(H, W) the lights' signal, masked where the pixel does not see the wall."""
-        plain = self.wall_shape is None and self.texture is None
+        plain = self.wall_shape is None and self.texture is None and self.corner is None
         if plain and self.attenuation_per_m == 0.0 and self.backscatter_per_m == 0.0:
             return self._render(view, self.rig)
         if self.wall_shape is not None:
@@ -116,11 +122,20 @@ class Imaging:
             total *= np.exp(-c * np.linalg.norm(points - view.center_world, axis=-1))
         else:
             total = per_light.sum(axis=0)
+        if self.corner is not None:
+            total = total + self.corner.image_bounce(self.rig, view, points, valid)
+            valid &= ~self.corner.hidden(self.rig, view, points)
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
         if self.backscatter_per_m > 0.0:
             total = total + self._backscatter(view, points)
         return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
+
+    def declared(self, declare: bool) -> SurroundingsSpec | None:
+        """The project's `surroundings` section: the corner's surfaces when `declare`."""
+        if not declare or self.corner is None:
+            return None
+        return surroundings_spec(self.corner.surroundings)
 
     def _backscatter(self, view: View, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """(H, W) every light's backscatter along the rays to `points` (H, W, 3)."""
@@ -247,6 +262,15 @@ def make_imaging(
     Raises:
         InputError: the undeclared fall-off reaches 0 or below inside the image.
     """
+    if departures.corner is not None and sensor != "radiance":
+        raise InputError("corner", f"applies to the radiance sensor model only, got {sensor!r}")
+    corner = None
+    if departures.corner is not None:
+        distance, depth, albedo = departures.corner
+        target = view_target_center(views)
+        corner = CornerBounce(
+            corner_surroundings(target, distance, depth, albedo), _wall_extent(camera, views)
+        )
     if departures.backscatter_per_m > 0.0 and sensor != "radiance":
         raise InputError(
             "backscatter_per_m", f"applies to the radiance sensor model only, got {sensor!r}"
@@ -281,4 +305,16 @@ def make_imaging(
         backscatter_per_m=departures.backscatter_per_m,
         phase_g=departures.phase_g,
         undeclared_vignetting=undeclared,
+        corner=corner,
     )
+
+
+def _wall_extent(camera: Camera, views: list[View]) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) the wall the views' pixels see and 0.5 m more, m."""
+    pts = []
+    for view in views:
+        points, valid = surface_points(camera, view, BowedWall(0.0))
+        pts.append(points[valid])
+    p = np.concatenate(pts)
+    lo, hi = p.min(axis=0) - 0.5, p.max(axis=0) + 0.5
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
