@@ -20,13 +20,7 @@ from typing import Any
 
 import pytest
 
-try:
-    import mitsuba  # noqa: F401
-except ImportError as exc:  # pragma: no cover - depends on the installation
-    pytest.skip(
-        f"Mitsuba 3 is not installed ({exc}): pip install .[reference] for these tests",
-        allow_module_level=True,
-    )
+pytest.importorskip("mitsuba", reason="Mitsuba 3 is not installed: pip install .[reference]")
 
 from lightcal.io.project import load_project
 from lightcal.pipeline import calibrate_project

@@ -117,39 +117,26 @@ def test_unknown_medium_parameter_is_an_error() -> None:
         MediumUnknown(Medium(0.1), ("attenuation_per_m", "attenuation_per_m"))
 
 
-def test_noise_free_backscatter_recovered() -> None:
-    """Murky water (c = 0.3 /m, beta = 3 /m, g = 0.5), both estimated from air: the pose
-    to 1e-6 m and 1e-4 deg, c and beta to 1e-5 relative."""
-    truth_medium = Medium(0.3, 3.0, 0.5)
-    images, truth = _problem(truth_medium)
-    model = CalibrationModel(
-        images,
-        [LightUnknown(start_near(truth))],
-        SolverOptions(),
-        medium=MediumUnknown(Medium(0.0, 0.0, 0.5), ("attenuation_per_m", "backscatter_per_m")),
-    )
-    out = run_least_squares(model)
-    assert out.success, out.message
-    dp, da = pose_errors(model.layout.rig(out.x).lights[0], truth)
-    assert dp < 1e-6
-    assert da < 1e-4
-    np.testing.assert_allclose(
-        model.layout.medium_of(out.x).parameters(), truth_medium.parameters(), rtol=1e-5
-    )
-
-
-def test_noise_free_phase_g_recovered() -> None:
-    """The veil's shape tells g: murky water (c = 0.3 /m, beta = 3 /m, g = 0.5) with c, beta
-    and g estimated from c = 0.2, beta = 2, g = 0.6: the pose to 1e-6 m and 1e-4 deg, the
-    medium to 1e-5 relative. Slowly: 106 iterations (211 from g = 0.8), beta and g trade
-    along a curved valley."""
+@pytest.mark.parametrize(
+    ("start", "estimate"),
+    [
+        # c and beta from air.
+        (Medium(0.0, 0.0, 0.5), ("attenuation_per_m", "backscatter_per_m")),
+        # g too, from c = 0.2, beta = 2, g = 0.6: the veil's shape tells g. Slowly: 106
+        # iterations (211 from g = 0.8), beta and g trading along a curved valley.
+        (Medium(0.2, 2.0, 0.6), Medium.parameter_names),
+    ],
+)
+def test_noise_free_backscatter_recovered(start: Medium, estimate: tuple[str, ...]) -> None:
+    """Murky water (c = 0.3 /m, beta = 3 /m, g = 0.5) estimated: the pose to 1e-6 m and
+    1e-4 deg, the medium's estimated parameters to 1e-5 relative."""
     truth_medium = Medium(0.3, 3.0, 0.5)
     images, truth = _problem(truth_medium)
     model = CalibrationModel(
         images,
         [LightUnknown(start_near(truth))],
         SolverOptions(max_iterations=300),
-        medium=MediumUnknown(Medium(0.2, 2.0, 0.6), Medium.parameter_names),
+        medium=MediumUnknown(start, estimate),
     )
     out = run_least_squares(model)
     assert out.success, out.message
