@@ -19,6 +19,7 @@ import numpy as np
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.camera import Camera
+from lightcal.core.footprint import room_light_image
 from lightcal.core.problem import with_view
 from lightcal.core.quantiles import percentile
 from lightcal.core.render import render_image
@@ -163,8 +164,10 @@ class OverlayImages:
         if sensor == "paper":
             # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
             out = out / float(self.geo.render_binning**2)
-        if display.ambient:  # the estimated room light, as the model adds it
-            out = out + view.exposure * display.ambient
+        if display.ambient:  # the estimated room light, as the model adds it: through
+            room = room_light_image(self.geo.render_camera, sensor, self._vignetting)
+            level = view.exposure * display.ambient  # the sensor's fall-off (cos4, map)
+            out = out + (level if room is None else level * room)
         if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel
             out = out * self._estimated_fall_off(display.fall_off_coeffs, out.shape)
         if display.albedo is not None:  # and the wall's albedo where each one looks
