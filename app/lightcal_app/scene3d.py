@@ -40,6 +40,8 @@ REF_CAMERA_RGB = (230, 120, 0)
 FOCUS_CAMERA_RGB = (210, 30, 110)
 FRUSTUM_PX, FOCUS_FRUSTUM_PX = 1.5, 4.0
 WALL_RGB = (228, 226, 220)
+#: The surroundings' surfaces (`surroundings:`), drawn translucent.
+SURROUNDINGS_RGB = (214, 190, 150)
 MAX_RAYS_PER_IMAGE = 300
 CONE_MAX_ANGLE_RAD = math.radians(85.0)
 
@@ -204,6 +206,7 @@ class Scene3D:
         )
         label = "wall (z = 0)" if mesh is None else "wall (mesh)"
         scene.add_label("/wall_label", label, position=(float(lo[0]), float(lo[1]), 0.0))
+        self._build_surroundings(project)
         fov = cam.fov_y_rad
         scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
         self.frustum_scale = scale
@@ -248,6 +251,29 @@ class Scene3D:
         self.server.initial_camera.position = mid + np.array([0.0, 0.6 * dist, 1.4 * dist])
         self.server.initial_camera.look_at = (float(center[0]), float(center[1]), 0.0)
         self.server.initial_camera.up = (0.0, -1.0, 0.0)
+
+    def _build_surroundings(self, project: Project) -> None:
+        """The surfaces whose bounce light the model adds (`surroundings:`), each a
+        translucent rectangle named as in the project."""
+        if project.surroundings is None:
+            return
+        faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+        for k, surface in enumerate(project.surroundings.surfaces):
+            corners = surface.corners_world
+            self.scene.add_mesh_simple(
+                f"/surroundings/{k}",
+                corners.astype(np.float32),
+                faces,
+                color=SURROUNDINGS_RGB,
+                opacity=0.5,
+                side="double",
+            )
+            name = surface.name
+            self.scene.add_label(
+                f"/surroundings/{k}_label",
+                f"{name} (albedo {surface.albedo:.2g})",
+                position=corners.mean(axis=0),
+            )
 
     def _build_lights(self, guess: list[LightGuess]) -> None:
         scene = self.scene

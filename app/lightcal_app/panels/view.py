@@ -20,7 +20,7 @@ DRAWING = "drawing the pictures"
 LEGEND_BEFORE = "**Residual colours** (shown when an image shows *residual*):"
 
 SCENE_LEGEND = """**In the scene**
-- *light grey*: the **wall** (its plane, z = 0 of the world); each image on its
+- *light grey*: the **wall** (its plane, z = 0 of the world, or its mesh); each image on its
   **camera's frustum** (*dark* frame; *orange* frame: the camera that carries the light
   gizmo; thick *crimson* frame: the highlighted image, the other pictures faded)
 - *orange*: the **light** (bulb) at its pose in each camera, with its **cones** (the
@@ -30,6 +30,8 @@ SCENE_LEGEND = """**In the scene**
 - *green* bulb: the **true light** (demo data only): where the solve should end
 - *blue* / *red* on the wall: the wall's estimated **albedo map** (darker / brighter than
   its mean; when the solve estimates it)
+- *translucent tan*: the **surroundings** the project declares (a ceiling, side wall:
+  their bounce light is in the model), each labelled with its albedo
 
 **On the images**
 - *green*: **selected pixels** (dots; a dense selection as its outline)
