@@ -314,6 +314,7 @@ def _summary(name: str):
         fall_off=None,
         ambient=None,
         ambient_sigma=None,
+        albedo_map=None,
     )
     project = NS(path=Path(name.replace("/", "_") or "p"))
     return _summary_markdown(project, result, [(name, 0.1)])  # type: ignore[arg-type]
