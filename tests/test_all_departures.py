@@ -5,11 +5,11 @@ water (`medium`, attenuation estimated), on `lightcal synth` data (12 views of 4
 realistic noise). The corner's bounce light is refused in water and tested on its own
 (tests/test_bounce_mitsuba.py), as is the backscatter beside an albedo map.
 
-Measured (seed 4): with camera poses to 0.2 mm / 0.02 deg, 1.85 mm and 0.038 deg (sigma
-0.80 mm, 0.044 deg); with synth's default 0.5 mm / 0.05 deg, 3.5 mm and 0.078 deg (sigma
-1.9 mm, 0.11 deg; seeds 5 and 6: 2.1 and 3.1 mm): each estimated term widens the sigma
-the poses' errors reach the light through, and the sigma says so. With perfect poses,
-0.77 mm (sigma 0.25 mm): what is left of the departures once modelled.
+Measured (seed 4): with camera poses to 0.2 mm / 0.02 deg, 1.39 mm and 0.033 deg (sigma
+0.81 mm, 0.044 deg); with synth's default 0.5 mm / 0.05 deg, 3.0 mm and 0.073 deg (sigma
+1.9 mm, 0.11 deg): each estimated term widens the sigma the poses' errors reach the light
+through, and the sigma says so. With perfect poses, 0.30 mm (sigma 0.25 mm): what is left
+of the departures once modelled (0.77 mm while synth's room light ignored the texture).
 """
 
 from __future__ import annotations

@@ -373,7 +373,7 @@ def _write_into(
         name = f"view_{i:0{digits}d}"
         beam = imaging.beam(view)
         signal, sensor_input = imaging.expose(
-            beam, 0.0 if ambient is None else ambient.levels_dn[i]
+            beam, 0.0 if ambient is None else ambient.levels_dn[i], view
         )
         dn, saturated = apply_sensor(sensor_input, sensor, rng_sensor, gamma=departures.gamma)
         path = folder / IMAGES_DIR / f"{name}{suffix}"
@@ -381,7 +381,7 @@ def _write_into(
         image_paths.append(path)
         dark: dict[str, str] = {}
         if config.dark_frames and ambient is not None:  # the room light alone
-            _, dark_input = imaging.expose(beam * 0.0, ambient.levels_dn[i])
+            _, dark_input = imaging.expose(beam * 0.0, ambient.levels_dn[i], view)
             dark_dn, _ = apply_sensor(dark_input, sensor, rng_dark, gamma=departures.gamma)
             dark["dark"] = f"{IMAGES_DIR}/{name}{DARK_SUFFIX}{suffix}"
             atomic_write_bytes(folder / dark["dark"], encode_image(dark_dn, config.image_format))

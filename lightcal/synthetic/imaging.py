@@ -15,7 +15,8 @@ existed. With them, in this order:
    pixels that see them or wall they shadow masked.
 2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
    times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
-   is added to every pixel, also those that do not see the wall; then everything is
+   and, where a pixel sees the wall, its albedo texture (the wall reflects the room light
+   too) is added to every pixel, also those that do not see the wall; then everything is
    multiplied by the undeclared fall-off V (`undeclared_vignetting`).
 
 The sensor (`lightcal.synthetic.sensor.apply_sensor`) then adds noise, the black level,
@@ -154,13 +155,15 @@ class Imaging:
         return ambient_levels(fraction, peaks, [view.exposure for view in views])
 
     def expose(
-        self, beam: np.ma.MaskedArray, ambient_dn: float
+        self, beam: np.ma.MaskedArray, ambient_dn: float, view: View | None = None
     ) -> tuple[np.ma.MaskedArray, np.ma.MaskedArray | NDArray[np.float64]]:
         """Add the room light and the undeclared fall-off to a view's beam (H, W).
 
         Args:
             beam: The view's `beam`.
             ambient_dn: The view's ambient level (exposure included), DN.
+            view: The view; with an albedo texture the room light the wall reflects is
+                textured like the beam (where a pixel sees the wall; elsewhere, uniform).
 
         Returns:
             signal: (H, W) the expected signal, masked where the beam is.
@@ -175,6 +178,10 @@ class Imaging:
             falloff: NDArray[np.float64] | float = 1.0
             if self.sensor in ("map", "cos4"):
                 falloff, _ = point_sensor_weights(self.camera, self.sensor, self.vignetting)
+            if self.texture is not None and view is not None:
+                wall = self.wall_shape if self.wall_shape is not None else BowedWall(0.0)
+                points, seen = surface_points(self.camera, view, wall)
+                falloff = falloff * np.where(seen, self.texture.factor(points[..., :2]), 1.0)
             total = total + ambient_dn * falloff
         if self.undeclared_vignetting is not None:
             total = total * self.undeclared_vignetting
