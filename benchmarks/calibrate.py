@@ -296,28 +296,11 @@ def _render_lit(camera: Any, view: Any, light: Any, pixels: np.ndarray) -> np.nd
     return np.asarray(shade(fp, view, Rig.single(light)).values.filled(np.nan))
 
 
-def _random_start(
-    light: Any, views: list[Any], rng: np.random.Generator, max_m: float, max_deg: float
-) -> tuple[Any, float, float]:
-    """A start within the error limits, in front of the wall in every view."""
-    from lightcal.core.rotations import matrix_from_rotvec
-
-    while True:
-        d = rng.normal(size=3)
-        shift = d / np.linalg.norm(d) * rng.uniform(0.0, max_m)
-        w = rng.normal(size=3)
-        w -= (w @ light.axis_camera) * light.axis_camera  # turn the axis, not the roll
-        angle = math.radians(rng.uniform(0.0, max_deg))
-        R = matrix_from_rotvec(w / np.linalg.norm(w) * angle) @ light.R_camera_light
-        start = light.replace(t_camera_light=light.t_camera_light + shift, R_camera_light=R)
-        if all(start.position_world(v)[2] > 0.0 for v in views):
-            return start, float(np.linalg.norm(shift)), math.degrees(angle)
-
-
 def measure_basin(n_starts: int, max_m: float, max_deg: float) -> dict[str, Any]:
     from lightcal.core.problem import LightUnknown
     from lightcal.core.solver import run_least_squares
     from lightcal.pipeline import fit_scales
+    from tests.real_world_basin import start_within
 
     camera = make_camera(320, 240)
     light = make_light()
@@ -330,7 +313,7 @@ def measure_basin(n_starts: int, max_m: float, max_deg: float) -> dict[str, Any]
     failures: list[dict[str, float | str]] = []
     times, iterations = [], []
     for _ in range(n_starts):
-        start, d_m, d_deg = _random_start(light, views, rng, max_m, max_deg)
+        start, d_m, d_deg = start_within(light, views, rng, max_m, max_deg)
         (scale,) = fit_scales(images, [LightUnknown(start)], 0.0)
         model = model_of(images, start.replace(scale=scale))
         t0 = time.perf_counter()
@@ -375,6 +358,7 @@ def measure_basin_narrow(n_starts: int, max_m: float, max_deg: float) -> dict[st
     from lightcal.core.solver import run_least_squares
     from lightcal.pipeline import fit_scales
     from lightcal.pipeline.solve import solve
+    from tests.real_world_basin import start_within
 
     camera = make_camera(320, 240)
     light = make_light().replace(rid=CosPowerRID.from_half_angle(math.radians(14.0)))
@@ -386,7 +370,7 @@ def measure_basin_narrow(n_starts: int, max_m: float, max_deg: float) -> dict[st
     single = multi = 0
     times: list[float] = []
     for k in range(n_starts):
-        start, _, _ = _random_start(light, views, rng, max_m, max_deg)
+        start, _, _ = start_within(light, views, rng, max_m, max_deg)
         (scale,) = fit_scales(images, [LightUnknown(start)], 0.0)
         model = model_of(images, start.replace(scale=scale))
         reached = []
@@ -423,7 +407,6 @@ def measure_basin_real_world(n_starts: int, max_m: float, max_deg: float) -> dic
     multistart 0) and with multistart 4; the rates of both, on the same starts."""
     import tempfile
 
-    sys.path.insert(0, str(REPO))
     from tests.real_world_basin import prepare, random_start, reach
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -25,7 +25,7 @@ import numpy as np
 from lightcal.capture.project_init import init_project
 from lightcal.core.calibration_model import CalibrationModel
 from lightcal.core.rotations import matrix_from_rotvec
-from lightcal.core.scene import Light
+from lightcal.core.scene import Light, View
 from lightcal.core.solver import run_least_squares
 from lightcal.io.project import Project, load_project
 from lightcal.io.response_bracket import fit_bracket_curve, read_bracket_image
@@ -87,7 +87,14 @@ def prepare(folder: Path, config: RealWorldConfig | None = None) -> Basin:
 
 def random_start(basin: Basin, rng: np.random.Generator, max_m: float, max_deg: float) -> Light:
     """A start within the limits (module docstring), in front of the wall in every view."""
-    light = basin.truth
+    return start_within(basin.truth, basin.project.views, rng, max_m, max_deg)[0]
+
+
+def start_within(
+    light: Light, views: list[View], rng: np.random.Generator, max_m: float, max_deg: float
+) -> tuple[Light, float, float]:
+    """`light` moved by up to `max_m` and its axis turned by up to `max_deg` (not its
+    roll), in front of the wall in every view: (the start, its shift m, its turn deg)."""
     while True:
         d = rng.normal(size=3)
         shift = d / np.linalg.norm(d) * rng.uniform(0.0, max_m)
@@ -96,8 +103,8 @@ def random_start(basin: Basin, rng: np.random.Generator, max_m: float, max_deg: 
         angle = math.radians(rng.uniform(0.0, max_deg))
         R = matrix_from_rotvec(w / np.linalg.norm(w) * angle) @ light.R_camera_light
         start = light.replace(t_camera_light=light.t_camera_light + shift, R_camera_light=R)
-        if all(start.position_world(v)[2] > 0.0 for v in basin.project.views):
-            return start
+        if all(start.position_world(v)[2] > 0.0 for v in views):
+            return start, float(np.linalg.norm(shift)), math.degrees(angle)
 
 
 def reach(basin: Basin, start: Light, *, multistart: int, seed: int) -> tuple[bool, float, float]:
