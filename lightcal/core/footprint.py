@@ -295,16 +295,11 @@ def pixel_footprints(
     Returns:
         The footprints: K = s^2 quads per pixel, s = `quads_per_side(b, ...)`.
     """
-    if not (isinstance(binning, int | np.integer) and binning >= 1):
-        raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
-    if sensor not in SENSOR_MODELS:
-        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
-    b = int(binning)
-    # int32: 8 bytes a pixel less than check_pixels' int64 (images are < 2^31 pixels wide).
-    p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
-    vmap = check_vignetting(vignetting, camera) if sensor == "map" else _NO_MAP
+    b, p, vmap, s = checked_selection(
+        camera, pixels, sensor, vignetting, binning, max_quads_per_side
+    )
+    vmap = _NO_MAP if vmap is None else vmap
     n = p.shape[0]
-    s = quads_per_side(b, max_quads_per_side)
     step = b // s
     k = s * s
     grid = _corner_grid_for(camera, n, b)
@@ -347,6 +342,27 @@ def pixel_footprints(
         grid_xy, grid_ok = _strided_grid(grid_xy, grid_ok, step)
     source = GridCorners(grid_xy, grid_ok, R_camera_world, center_world, s)
     return Footprints(p, None, weights, valid, area, source, sensor=sensor)
+
+
+def checked_selection(
+    camera: Camera,
+    pixels: np.ndarray,
+    sensor: SensorModel,
+    vignetting: np.ndarray | None,
+    binning: int,
+    max_quads_per_side: int | None,
+) -> tuple[int, np.ndarray, np.ndarray | None, int]:
+    """`pixel_footprints`' arguments checked: (b, the pixels (N, 2) int32, the map for
+    `map` or None, s = `quads_per_side`); ValueError naming the argument otherwise."""
+    if not (isinstance(binning, int | np.integer) and binning >= 1):
+        raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
+    if sensor not in SENSOR_MODELS:
+        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
+    b = int(binning)
+    # int32: 8 bytes a pixel less than check_pixels' int64 (images are < 2^31 pixels wide).
+    p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
+    vmap = check_vignetting(vignetting, camera) if sensor == "map" else None
+    return b, p, vmap, quads_per_side(b, max_quads_per_side)
 
 
 def quads_per_side(binning: int, max_quads_per_side: int | None = MAX_QUADS_PER_SIDE) -> int:

@@ -35,13 +35,10 @@ from lightcal.core import mesh_kernels as mk
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import (
     MAX_QUADS_PER_SIDE,
-    SENSOR_MODELS,
     Footprints,
     SensorModel,
-    check_pixels,
-    check_vignetting,
+    checked_selection,
     pixel_footprints,
-    quads_per_side,
 )
 from lightcal.core.kernels.wall import MU_FLOOR, brdf_many
 from lightcal.core.scene import View
@@ -155,14 +152,9 @@ def mesh_footprints(
     the groups' outer corners, as on the plane. The `paper` weight cos(theta_v) / d^2
     takes theta_v from the quad's own normal.
     """
-    if not (isinstance(binning, int | np.integer) and binning >= 1):
-        raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
-    if sensor not in SENSOR_MODELS:
-        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
-    b = int(binning)
-    p = check_pixels(pixels, camera.width // b, camera.height // b).astype(np.int32)
-    vmap = check_vignetting(vignetting, camera) if sensor == "map" else None
-    s = quads_per_side(b, max_quads_per_side)
+    b, p, vmap, s = checked_selection(
+        camera, pixels, sensor, vignetting, binning, max_quads_per_side
+    )
     step = b // s
     n = p.shape[0]
     # The (b+1)^2 lattice of each super-pixel's corners, as full-resolution corner
