@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcal.core.albedo_map import AlbedoMap
+from lightcal.core.albedo_map import AlbedoMap, with_albedo
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
-from lightcal.core.scene import Rig
+from lightcal.core.scene import Rig, View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.atomic import atomic_folder, atomic_write_text, signals_held
@@ -67,7 +67,7 @@ def render_views(
     arrays. `ambient`, an estimated room light (value at exposure and gain 1), adds
     gain x exposure x it; `fall_off` (H, W), an estimated fall-off V, multiplies the
     values above the offset, as does an estimated albedo map `albedo` at each pixel's
-    wall point."""
+    wall point (the wall's light: not the water's veil)."""
     out = []
     n = len(project.views)
     room_factor = room_light_image(
@@ -77,28 +77,30 @@ def render_views(
         if progress is not None:
             progress("rendering", i, n)
         g = 1.0 if gains is None else gains[i]
-        out.append(
-            render_image(
+
+        def through(medium: Medium, g: float = g, view: View = view) -> np.ma.MaskedArray:
+            values = render_image(
                 loaded.camera,
                 with_view(view, exposure=view.exposure * g),
                 rig,
                 sensor=project.spec.sensor.model,
                 vignetting=vignetting_for(project, loaded.camera),
-                offset=offset,
+                offset=0.0,
                 rid_subsamples=project.solver.rid_subsamples,
                 wall=wall,
                 medium=medium,
                 mesh=project.wall_mesh,
             )
-        )
-        if ambient != 0.0 or fall_off is not None or albedo is not None:
-            room: float | np.ndarray = g * view.exposure * ambient
-            if ambient != 0.0 and room_factor is not None:  # the lens's fall-off on it
-                room = room * room_factor
-            factor = np.ones(out[-1].shape) if fall_off is None else fall_off
-            if albedo is not None:
-                factor = factor * albedo_image(albedo, loaded.camera, view)
-            out[-1] = offset + (out[-1] - offset + room) * factor
+            if ambient != 0.0:  # through the lens's fall-off
+                room = g * view.exposure * ambient
+                values = values + (room if room_factor is None else room * room_factor)
+            return values if fall_off is None else values * fall_off
+
+        if albedo is None:
+            out.append(offset + through(medium))
+        else:
+            factor = albedo_image(albedo, loaded.camera, view)
+            out.append(offset + with_albedo(through, medium, factor))
     if progress is not None:
         progress("rendering", n, n)
     return out

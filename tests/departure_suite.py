@@ -121,10 +121,15 @@ def first_cause(result: CalibrationResult) -> str | None:
 
 def run_case(case: Case, folder: Path, *, seed: int = 5) -> Outcome:
     """Write and calibrate one case; what lightcal says about it."""
-    project = write_case(case, folder, seed=seed)
+    result, found = calibrated(write_case(case, folder, seed=seed))
+    return Outcome(case, result, exit_code(result), first_cause(result), *found)
+
+
+def calibrated(project: Path) -> tuple[CalibrationResult, tuple[float, float, float, float]]:
+    """Calibrate a project file beside its truth.json: the result and its `errors`."""
     _, _, result = calibrate_project(load_project(project))
     truth = read_truth(project.parent / "truth.json")["lights"][0]
-    return Outcome(case, result, exit_code(result), first_cause(result), *errors(result, truth))
+    return result, errors(result, truth)
 
 
 def exit_code(result: CalibrationResult) -> int:

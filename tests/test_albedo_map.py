@@ -51,11 +51,18 @@ def _problem(seed: int, n: int = 4, offset_column: int = 2):
     return AlbedoProjection(grid, bases, options), systems, scaled, offset_column
 
 
-def test_the_projection_is_the_joint_least_squares_minimised_over_the_albedo() -> None:
+@pytest.mark.parametrize("veiled", [False, True], ids=["wall", "wall and veil"])
+def test_the_projection_is_the_joint_least_squares_minimised_over_the_albedo(
+    veiled: bool,
+) -> None:
+    """Also with a veil (the water's backscatter) in the systems, which a does not scale:
+    the joint model is then a (wall) + veil, its Jacobian a (J - J_veil) + J_veil."""
     projection, systems, scaled, off = _problem(1)
     n = systems[0].shape[1] - 1
     originals = [A.copy() for A in systems]
-    albedo, factors, prior = projection.project(systems, scaled, off)
+    rng = np.random.default_rng(7)
+    veils = [rng.normal(size=A.shape) if veiled else np.zeros(A.shape) for A in systems]
+    albedo, factors, prior = projection.project(systems, scaled, off, veils if veiled else None)
     # delta* minimises sum |r0 - u B delta|^2 + |Gamma delta|^2 (a dense solve).
     Bu = sp.vstack([sp.diags(u) @ B for u, B in zip(scaled, projection.bases, strict=True)])
     design = np.vstack([Bu.toarray(), -projection.gamma.toarray()])
@@ -67,14 +74,14 @@ def test_the_projection_is_the_joint_least_squares_minimised_over_the_albedo() -
     # The residual column holds r0 - u B delta*, the prior's Gamma delta*: the joint minimum.
     cost = sum(float(A[:, n] @ A[:, n]) for A in systems) + float(prior[:, n] @ prior[:, n])
     assert cost == pytest.approx(float(np.sum((target - design @ delta) ** 2)), rel=1e-10)
-    # Every column but the offset's is scaled by a = 1 + B delta*.
+    # Every column but the offset's is scaled by a = 1 + B delta*, but for the veil's part.
     for B, a in zip(projection.bases, factors, strict=True):
         np.testing.assert_allclose(a, 1.0 + B @ delta, atol=1e-12)
     # The projected Gauss-Newton matrix is the joint one's Schur complement over delta.
     J1 = np.vstack(
         [
-            A[:, :n] * np.where(np.arange(n) == off, 1.0, a[:, None])
-            for A, a in zip(originals, factors, strict=True)
+            np.where(np.arange(n) == off, A[:, :n], a[:, None] * (A - V)[:, :n] + V[:, :n])
+            for A, V, a in zip(originals, veils, factors, strict=True)
         ]
     )
     M = design.T @ design

@@ -48,10 +48,6 @@ LOSS_REFUSED = (
     "wall.albedo_map: the albedo map needs the linear loss; the project's solver.loss is "
     "'huber' (set it to linear in the project file)"
 )
-VEIL_REFUSED = (
-    "wall.albedo_map: the albedo map scales the wall's light, not the water's backscatter "
-    "veil: set the backscatter to 0 (and not estimated), or turn the albedo map off"
-)
 
 
 def _quiet(*args: object, **kwargs: object) -> None:
@@ -224,19 +220,18 @@ def test_a_robust_loss_is_refused_by_its_key(textured: tuple[Path, Path]) -> Non
     [(Medium(0.1, 0.2), ()), (Medium(0.1, 0.0), MEDIUM_ESTIMATES["attenuation, backscatter"])],
     ids=["given", "estimated"],
 )
-def test_backscatter_beside_the_map_is_refused_by_its_key(
+def test_backscatter_goes_with_the_map(
     textured: tuple[Path, Path], medium: Medium, estimate: tuple[str, ...]
 ) -> None:
+    """The map scales the wall's light and leaves the water's veil as it is
+    (`lightcal.core.albedo_systems`): the page takes both, as the project file does."""
     project = load_project(textured[1])
     settings = dataclasses.replace(
         settings_of(project), albedo_map=MAP, medium=medium, medium_estimate=estimate
     )
-    with pytest.raises(InputError) as refused:
-        check_settings(project, settings)
-    assert str(refused.value) == VEIL_REFUSED
-    # Without backscatter the water goes with the map (attenuation only).
-    fine = dataclasses.replace(settings, medium=Medium(0.1, 0.0), medium_estimate=())
-    assert project_for_solve(project, check_settings(project, fine)).solver.albedo_map
+    edited = project_for_solve(project, check_settings(project, settings))
+    assert edited.solver.albedo_map is not None
+    assert edited.medium.initial == medium and edited.medium.estimate == estimate
 
 
 def test_values_out_of_the_files_range_are_refused_by_their_key() -> None:
@@ -309,13 +304,13 @@ def test_the_solve_tabs_control_sets_the_map_and_says_what_it_needs(app: Lightca
     assert panel.albedo_note.content.startswith(
         "⚠ The albedo map needs a dense selection: the Pixels tab selects random pixels"
     )
-    # Backscatter typed in the Light tab's Water folder: refused, the map stays.
-    settings = st.solve_settings
+    # Backscatter typed in the Light tab's Water folder: taken beside the map.
     app.panels.light.water.fields["backscatter_per_m"].value = 0.5
     assert app.wait_idle(120.0)
-    refusals = [body for title, body in st.messages if title == "⚠ Value refused"]
-    assert refusals == [VEIL_REFUSED]
-    assert st.solve_settings is settings
+    assert [body for title, body in st.messages if title == "⚠ Value refused"] == []
+    assert st.solve_settings.albedo_map == AlbedoMapSpec(spacing_mm=40.0)
+    assert st.solve_settings.medium is not None
+    assert st.solve_settings.medium.backscatter_per_m == 0.5
 
 
 def test_the_setting_and_the_solved_map_come_back_from_the_autosave(

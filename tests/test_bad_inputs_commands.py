@@ -732,13 +732,9 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),
     ),
     (
-        "synth: --declare-albedo-map with a declared veil",
-        "synth {n} --declare-albedo-map --backscatter 0.5 --declare-medium given",
-        _error(
-            "synth",
-            "--declare-albedo-map: expected no declared --backscatter (the albedo map scales "
-            "the wall's light, not the water's veil); drop --declare-medium or --backscatter",
-        ),
+        "synth: --declare-albedo-map given a value",
+        "synth {n} --declare-albedo-map=yes",
+        _usage("synth", "argument --declare-albedo-map: ignored explicit argument 'yes'"),
     ),
     (
         "synth: --dark-frames without room light",

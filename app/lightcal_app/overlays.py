@@ -18,8 +18,10 @@ import cv2
 import numpy as np
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
+from lightcal.core.albedo_map import with_albedo
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import room_light_image
+from lightcal.core.medium import Medium
 from lightcal.core.problem import with_view
 from lightcal.core.quantiles import percentile
 from lightcal.core.render import render_image
@@ -149,30 +151,36 @@ class OverlayImages:
         view = self.project.views[index]
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model
-        out = render_image(
-            self.geo.render_camera,
-            view,
-            display.rig,
-            sensor=sensor,
-            vignetting=self._vignetting,
-            offset=0.0,
-            rid_subsamples=self.project.solver.rid_subsamples,
-            wall=display.wall,
-            medium=display.medium,
-            mesh=self.project.wall_mesh,
-        )
-        if sensor == "paper":
-            # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
-            out = out / float(self.geo.render_binning**2)
-        if display.ambient:  # the estimated room light, as the model adds it: through
-            room = room_light_image(self.geo.render_camera, sensor, self._vignetting)
-            level = view.exposure * display.ambient  # the sensor's fall-off (cos4, map)
-            out = out + (level if room is None else level * room)
-        if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel
-            out = out * self._estimated_fall_off(display.fall_off_coeffs, out.shape)
-        if display.albedo is not None:  # and the wall's albedo where each one looks
-            out = out * albedo_image(display.albedo, self.geo.render_camera, view)
-        return out + display.offset
+
+        def through(medium: Medium) -> np.ma.MaskedArray:
+            out = render_image(
+                self.geo.render_camera,
+                view,
+                display.rig,
+                sensor=sensor,
+                vignetting=self._vignetting,
+                offset=0.0,
+                rid_subsamples=self.project.solver.rid_subsamples,
+                wall=display.wall,
+                medium=medium,
+                mesh=self.project.wall_mesh,
+            )
+            if sensor == "paper":
+                # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
+                out = out / float(self.geo.render_binning**2)
+            if display.ambient:  # the estimated room light, as the model adds it: through
+                room = room_light_image(self.geo.render_camera, sensor, self._vignetting)
+                level = view.exposure * display.ambient  # the sensor's fall-off (cos4, map)
+                out = out + (level if room is None else level * room)
+            if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel
+                out = out * self._estimated_fall_off(display.fall_off_coeffs, out.shape)
+            return out
+
+        if display.albedo is None:
+            return through(display.medium) + display.offset
+        # and the wall's albedo where each one looks (not the water's veil)
+        albedo = albedo_image(display.albedo, self.geo.render_camera, view)
+        return with_albedo(through, display.medium, albedo) + display.offset
 
     def _estimated_fall_off(self, coeffs: tuple[float, ...], shape: tuple[int, ...]) -> np.ndarray:
         """(h, w) V of `coeffs` on the rendered (binned) grid (`FallOffUnknown`)."""

@@ -185,7 +185,7 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
             "g shapes the backscatter: expected a backscatter above 0 (Light tab, Water) "
             "or estimated with g",
         )
-    check_albedo_map(project, settings, medium)
+    check_albedo_map(project, settings)
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
             "lights.estimate_rid",
@@ -218,11 +218,10 @@ def albedo_map_spec(spacing_mm: float, variation: float, smoothness: float) -> A
         raise InputError(f"wall.albedo_map.{key}", words) from exc
 
 
-def check_albedo_map(project: Project, settings: SolveSettings, medium: Medium) -> None:
+def check_albedo_map(project: Project, settings: SolveSettings) -> None:
     """InputError (key `wall.albedo_map`) when the settings' albedo map is not one the
-    project takes: not an `AlbedoMapSpec`, or with what the core refuses beside it (a
-    robust loss: the map is solved by linear least squares; backscatter: the map scales
-    the wall's light, not the water's veil)."""
+    project takes: not an `AlbedoMapSpec`, or with a robust loss (the map is solved by
+    linear least squares)."""
     albedo = settings.albedo_map
     if albedo is None:
         return
@@ -234,12 +233,6 @@ def check_albedo_map(project: Project, settings: SolveSettings, medium: Medium) 
             "wall.albedo_map",
             f"the albedo map needs the linear loss; the project's solver.loss is {loss!r} "
             "(set it to linear in the project file)",
-        )
-    if medium.scatters or "backscatter_per_m" in settings.medium_estimate:
-        raise InputError(
-            "wall.albedo_map",
-            "the albedo map scales the wall's light, not the water's backscatter veil: "
-            "set the backscatter to 0 (and not estimated), or turn the albedo map off",
         )
 
 

@@ -199,7 +199,7 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="the project estimates the wall's albedo map (wall.albedo_map) on a dense "
         "selection (strategy all, binned to about 9600 pixels an image): for "
-        "--albedo-texture; not with a declared --backscatter",
+        "--albedo-texture",
     )
     g.add_argument(
         "--corner",
@@ -287,12 +287,6 @@ def declared_medium(args: argparse.Namespace) -> MediumSpec:
     """The project's `medium` of `--declare-medium` (air without it)."""
     from lightcal.io.medium_spec import MediumSpec
 
-    if args.declare_albedo_map and args.declare_medium and args.backscatter > 0.0:
-        raise InputError(
-            "--declare-albedo-map",
-            "expected no declared --backscatter (the albedo map scales the wall's light, "
-            "not the water's veil); drop --declare-medium or --backscatter",
-        )
     if args.declare_medium is None:
         return MediumSpec()
     g = args.phase_g

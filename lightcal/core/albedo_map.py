@@ -31,11 +31,15 @@ marginalised, not fixed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import TypeVar, cast
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from lightcal.core.medium import Medium
 
 __all__ = [
     "ALBEDO_MAX_NODES",
@@ -43,7 +47,10 @@ __all__ = [
     "AlbedoMap",
     "AlbedoMapOptions",
     "AlbedoProjection",
+    "with_albedo",
 ]
+
+Values = TypeVar("Values", bound=np.ndarray)
 
 ALBEDO_MAX_NODES = 250_000
 """At most this many grid nodes (a 5 x 5 m wall at 1 cm): the sparse LU's fill beyond."""
@@ -219,14 +226,21 @@ class AlbedoProjection:
         return 1.0 + self.bases[image] @ albedo.delta
 
     def project(
-        self, systems: list[np.ndarray], scaled_values: list[np.ndarray], offset_column: int
+        self,
+        systems: list[np.ndarray],
+        scaled_values: list[np.ndarray],
+        offset_column: int,
+        veils: list[np.ndarray | None] | None = None,
     ) -> tuple[AlbedoMap, list[np.ndarray], np.ndarray]:
         """Project the albedo out of the images' systems, in place.
 
         Args:
             systems: per image [J_i r_i] (N_i, n + 1) at delta = 0 (J = d r / d x).
-            scaled_values: per image u_i (N_i,), its values above the offset over sigma.
+            scaled_values: per image u_i (N_i,), its values above the offset over sigma
+                that the wall reflects (the water's veil not in them).
             offset_column: the offset's column (its derivative is not scaled by a), or -1.
+            veils: per image None or the part of [J_i r_i] (N_i, n + 1) that is the
+                water's veil, which the albedo does not scale (default: none).
 
         Returns:
             (the map at delta*, per image a_i (N_i,), the prior block (rows, n + 1)).
@@ -245,9 +259,13 @@ class AlbedoProjection:
         scaled = [c for c in range(n) if c != offset_column]
         factors = []
         cross = np.zeros((self.grid.size, n))
-        for B, Bu, A in zip(self.bases, weighted, systems, strict=True):
+        for B, Bu, A, veil in zip(
+            self.bases, weighted, systems, veils or [None] * len(systems), strict=True
+        ):
             a = 1.0 + B @ delta
             A[:, scaled] *= a[:, None]
+            if veil is not None:  # a (J - J_veil) + J_veil
+                A[:, scaled] -= (a - 1.0)[:, None] * veil[:, scaled]
             A[:, n] -= Bu @ delta
             cross += Bu.T @ A[:, :n]
             factors.append(a)
@@ -256,3 +274,15 @@ class AlbedoProjection:
             A[:, :n] -= Bu @ along
         prior = np.asfortranarray(np.column_stack([self.gamma @ along, self.gamma @ delta]))
         return AlbedoMap(self.grid, delta, weight), factors, prior
+
+
+def with_albedo(render: Callable[[Medium], Values], medium: Medium, albedo: np.ndarray) -> Values:
+    """render(medium), values above the offset (any shape; a masked array stays one),
+    with the wall's light times `albedo` (its shape): the water's veil, which the wall
+    does not reflect, is rendered apart (render(medium without it): twice the work) and
+    left as it is."""
+    values = render(medium)
+    if not medium.scatters:
+        return cast(Values, values * albedo)
+    wall_values = render(replace(medium, backscatter_per_m=0.0))
+    return cast(Values, values + (albedo - 1.0) * wall_values)

@@ -18,12 +18,13 @@ from dataclasses import replace
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
-from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection
+from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection, with_albedo
+from lightcal.core.albedo_systems import projected_systems
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.bounce import BounceTerm
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
-from lightcal.core.medium import MediumUnknown
+from lightcal.core.medium import Medium, MediumUnknown
 from lightcal.core.pose import pose_column_map
 from lightcal.core.problem import (
     LOG_CLIP,
@@ -37,6 +38,7 @@ from lightcal.core.problem import (
 from lightcal.core.qr_factors import economic_r, stack_r_factors
 from lightcal.core.render import light_flux, shade
 from lightcal.core.rid_columns import rid_columns
+from lightcal.core.scene import Rig
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
 from lightcal.core.surroundings import Surroundings
 from lightcal.core.system_buffers import StateAtX, SystemBuffers
@@ -278,25 +280,19 @@ class CalibrationModel:
                 A, stats = self._image_system(x, i, at_x, fluxes)
                 yield i, A, stats, fluxes
             return
-        n = self.layout.n
-        systems: list[np.ndarray] = []
-        scaled: list[np.ndarray] = []
-        all_fluxes: list[list[np.ndarray] | None] = []
-        for i, im in enumerate(self.images):
-            fluxes = [] if want_fluxes else None
-            A, _ = self._image_system(x, i, at_x, fluxes)
-            systems.append(np.array(A, order="F"))
-            scaled.append((im.observed - at_x.offset) / self.sigmas[i] - A[:, n])
-            all_fluxes.append(fluxes)
-        offset_column = -1 if self.layout.offset_index is None else self.layout.offset_index
-        albedo, factors, prior = self.albedo.project(systems, scaled, offset_column)
+        systems, all_fluxes, albedo, prior = projected_systems(
+            self.albedo,
+            self.layout,
+            [(im.observed, sigma) for im, sigma in zip(self.images, self.sigmas, strict=True)],
+            at_x,
+            lambda i, at, fluxes: self._image_system(x, i, at, fluxes)[0],
+            want_fluxes,
+        )
         self._albedo_at = (x.copy(), albedo, prior)
+        n = self.layout.n
         for i, A in enumerate(systems):
-            fluxes = all_fluxes[i]
-            if fluxes is not None:
-                fluxes[:] = [flux * factors[i] for flux in fluxes]
             d = A[:, n] * self.sigmas[i]
-            yield i, A, (float(d @ d), bool(np.all(np.isfinite(A)))), fluxes
+            yield i, A, (float(d @ d), bool(np.all(np.isfinite(A)))), all_fluxes[i]
 
     def albedo_map(self, x: np.ndarray) -> AlbedoMap | None:
         """The albedo map at x (None without one), the projection's minimiser."""
@@ -422,30 +418,41 @@ class CalibrationModel:
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
-            rig, gains, wall = lay.rig(x), lay.gain_factors(x), lay.wall_of(x)
+            rig, gains = lay.rig(x), lay.gain_factors(x)
             albedo_map = self.albedo_map(x)
             for i, im in enumerate(self.images):
                 if im.noise is None:
                     continue
-                sh = shade(
-                    im.footprints,
-                    im.view,
-                    rig,
-                    rid_subsamples=self.options.rid_subsamples,
-                    wall=wall,
-                    medium=lay.medium_of(x),
-                )
-                if self.bounce is not None:
-                    sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
-                signal = lay.image_values(sh.values, im, x, gains[i])
-                if self.albedo is not None and albedo_map is not None:
-                    signal = signal * self.albedo.factor(i, albedo_map)
+                signal = self._signal(x, i, rig, gains[i], albedo_map)
                 sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)
         self._cache_x = self._cache_J_x = None
         self._recent.clear()
+
+    def _signal(
+        self, x: np.ndarray, i: int, rig: Rig, gain: float, albedo_map: AlbedoMap | None
+    ) -> np.ndarray:
+        """(N_i,) image i's rendered values above the offset at x (its rig and gain)."""
+        im, lay = self.images[i], self.layout
+
+        def render(medium: Medium) -> np.ndarray:
+            sh = shade(
+                im.footprints,
+                im.view,
+                rig,
+                rid_subsamples=self.options.rid_subsamples,
+                wall=lay.wall_of(x),
+                medium=medium,
+            )
+            if self.bounce is not None:
+                sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
+            return lay.image_values(sh.values, im, x, gain)
+
+        if self.albedo is None or albedo_map is None:
+            return render(lay.medium_of(x))
+        return with_albedo(render, lay.medium_of(x), self.albedo.factor(i, albedo_map))
 
     def per_image_rms(self, x: np.ndarray) -> np.ndarray:
         """(n_images,) RMS of m_obs - m_render per image (pixel value units)."""

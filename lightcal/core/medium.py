@@ -339,3 +339,7 @@ class MediumUnknown:
     def indices(self) -> list[int]:
         """Positions of the estimated parameters in the medium's parameter vector."""
         return [Medium.parameter_names.index(nm) for nm in self.estimate]
+
+    def position(self, name: str) -> int | None:
+        """Where parameter `name` is among the estimated ones (None: not estimated)."""
+        return self.estimate.index(name) if name in self.estimate else None

@@ -8,7 +8,6 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from lightcal.core.albedo_map import AlbedoMapOptions
 from lightcal.errors import InputError
-from lightcal.io.medium_spec import MediumSpec
 
 
 class AlbedoMapSpec(BaseModel):
@@ -42,14 +41,10 @@ class AlbedoMapSpec(BaseModel):
     )
 
 
-def albedo_map_options(
-    a: AlbedoMapSpec | None, loss: str, medium: MediumSpec | None, source: Path
-) -> AlbedoMapOptions | None:
+def albedo_map_options(a: AlbedoMapSpec | None, loss: str, source: Path) -> AlbedoMapOptions | None:
     """The options of a project's `wall.albedo_map` `a` (None: none), given its solver's
-    `loss` and its `medium`; refused
-    with what it cannot go with: a robust loss (the map is projected out by linear least
-    squares) and the water's backscatter (a veil in the water, which the wall's albedo
-    does not scale)."""
+    `loss`; refused with a robust loss (the map is projected out by linear least
+    squares)."""
     if a is None:
         return None
     if loss != "linear":
@@ -57,12 +52,5 @@ def albedo_map_options(
             source,
             f"wall.albedo_map: expected solver.loss linear, got {loss!r} (the "
             "albedo map is solved by linear least squares)",
-        )
-    m = medium
-    if m is not None and (m.backscatter_per_m > 0.0 or "backscatter_per_m" in m.estimate):
-        raise InputError(
-            source,
-            "wall.albedo_map: expected no backscatter in medium (the albedo map scales "
-            "the wall's light, not the water's veil); remove one of them",
         )
     return AlbedoMapOptions(a.spacing_mm / 1000.0, a.variation, a.smoothness)

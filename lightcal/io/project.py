@@ -361,7 +361,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         binning = sel.binning if sel.strategy == "all" else 1  # the selection's super-pixels
         fall_off = FallOffUnknown(estimated.order, camera.width, camera.height, binning)
         solver = dataclasses.replace(solver, fall_off=fall_off)
-    albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, spec.medium, source)
+    albedo = albedo_map_options(spec.wall.albedo_map, spec.solver.loss, source)
     solver = dataclasses.replace(solver, albedo_map=albedo)
     vignetting_path = (
         _resolve(folder, spec.sensor.vignetting, source, "sensor.vignetting", "vignetting file")

@@ -16,11 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lightcal.core.albedo_map import with_albedo
 from lightcal.core.alternatives import (
     excess_covariance,
     jackknife_covariance,
 )
 from lightcal.core.footprint import Footprints
+from lightcal.core.medium import Medium
 from lightcal.core.misfit import FitDiagnosis, diagnose
 from lightcal.core.misfit_verdict import significant_digits
 from lightcal.core.render import shade
@@ -80,14 +82,17 @@ def _renderer(
     albedo = model.albedo_map(x)
 
     def render(i: int, view: View, fp: Footprints) -> np.ndarray:
-        sh = shade(
-            fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
-        )
-        lights = float(gains[i]) * sh.values.filled(np.nan)
-        values = lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
-        if albedo is not None:  # the wall's, where these footprints fall on it
-            values = values * albedo.factor(fp.centers_world[:, :2])
-        return offset + values
+        def through(medium: Medium) -> np.ndarray:
+            sh = shade(
+                fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
+            )
+            lights = float(gains[i]) * sh.values.filled(np.nan)
+            return lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
+
+        if albedo is None:
+            return offset + through(medium)
+        # the wall's albedo where these footprints fall on it
+        return offset + with_albedo(through, medium, albedo.factor(fp.centers_world[:, :2]))
 
     return render
 
