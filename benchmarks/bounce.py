@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from lightcal.core.bounce import BounceTerm
+from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.render import light_flux

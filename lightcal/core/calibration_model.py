@@ -20,10 +20,10 @@ import numpy as np
 from lightcal.core import solver_kernels as sk
 from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection
 from lightcal.core.blas_threads import single_threaded_blas
-from lightcal.core.bounce import BounceTerm
+from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
-from lightcal.core.medium import MediumUnknown
+from lightcal.core.medium import Medium, MediumUnknown
 from lightcal.core.pose import pose_column_map
 from lightcal.core.problem import (
     LOG_CLIP,
@@ -43,6 +43,9 @@ from lightcal.core.system_buffers import StateAtX, SystemBuffers
 
 ImageVisitor = Callable[[int, np.ndarray, np.ndarray], None]
 """visit(i, A (N_i, n + 1), fluxes (L, N_i)): see `CalibrationModel.evaluate_visiting`."""
+
+#: The attenuation c's index among the medium's parameters (`Medium.parameter_names`).
+_ATTENUATION = Medium.parameter_names.index("attenuation_per_m")
 
 # Pixels from which the QR-compressed problem pays (SolverOptions.compress None); measured:
 # 12 x 100 px solve 27 ms compressed vs 21.5 ms full; 12 x 375,000 px 5 s vs 18 s.
@@ -347,6 +350,10 @@ class CalibrationModel:
             wall_grad = np.empty((N, len(wall.parameter_names)))
         medium_idx = lay.medium_unknown.indices
         medium_grad = np.empty((N, max(medium_idx) + 1)) if medium_idx else None
+        # The bounce's d/dc joins the medium's column of c when c is estimated.
+        c_grad = None
+        if medium_grad is not None and _ATTENUATION in medium_idx:
+            c_grad = medium_grad[:, _ATTENUATION]
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -363,7 +370,7 @@ class CalibrationModel:
             )
             assert grad_world is not None
             if self.bounce is not None:
-                self.bounce.add(i, view, light, flux, grad_world)
+                self.bounce.add(i, view, light, flux, grad_world, at_x.medium, c_grad)
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale
@@ -436,7 +443,8 @@ class CalibrationModel:
                     medium=lay.medium_of(x),
                 )
                 if self.bounce is not None:
-                    sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
+                    bounce = self.bounce.values(i, im.view, rig, lay.medium_of(x))
+                    sh = replace(sh, values=sh.values + bounce)
                 signal = lay.image_values(sh.values, im, x, gains[i])
                 if self.albedo is not None and albedo_map is not None:
                     signal = signal * self.albedo.factor(i, albedo_map)
