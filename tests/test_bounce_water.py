@@ -151,7 +151,8 @@ def _brute_force(term: BounceTerm, light, view, points: np.ndarray, c: float) ->
 def test_the_term_in_water_matches_a_brute_force_quadrature() -> None:
     """bounces: 2 (the transfers G_SS, G_SW, G_WS and the near copies in play), c = 0.5
     /m: the model's bounce at pixels 5-35 cm from a corner against the brute force, in
-    water and in air, and the ratio water / air (the attenuation alone) tighter."""
+    water and in air (measured: within 2.5 %, the two discretisations), and the ratio
+    water / air, the attenuation alone (measured: 7.9e-4; the bounce cut to 42 %)."""
     light, view = _light_and_view()
     pixels = np.array([[u, v] for u in range(102, 140, 6) for v in range(66, 104, 6)], np.int32)
     fp = pixel_footprints(_camera(), view, pixels)
@@ -163,12 +164,10 @@ def test_the_term_in_water_matches_a_brute_force_quadrature() -> None:
         flux = term.flux(0, view, light, want_grad=False, medium=Medium(c))[:, 0]
         got[c] = flux / (view.exposure * term.coverage[0]) * np.exp(c * to_camera)
         want[c] = _brute_force(term, light, view, points, c)
-    print({c: np.abs(got[c] / want[c] - 1).max() for c in got})
     ratio = (got[0.5] / got[0.0]) / (want[0.5] / want[0.0])
-    print(np.abs(ratio - 1).max(), (got[0.5] / got[0.0]).min())
     for c in got:
         np.testing.assert_allclose(got[c], want[c], rtol=0.03)
-    np.testing.assert_allclose(ratio, 1.0, atol=3e-3)
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.0, atol=2e-3)
 
 
 @pytest.mark.parametrize("bounces", [None, 3])

@@ -22,9 +22,10 @@ differences of the sources, whose shadows are held: 12 evaluations of K + J poin
 
 In a medium of attenuation c every segment is attenuated: the sources by exp(-c r) from
 the light, each transfer by exp(-c r) over its pair's distance (`in_medium`,
-`lightcal.core.bounce_transfers`), the near copies by exp(-c r) to their centre
-(`NearPairs`); the world-fixed part then depends on c and is kept for the last c asked.
-The term per image and light, with the camera's segment, is `lightcal.core.bounce_term`.
+`lightcal.core.bounce_transfers`), the near copies by exp(-c r_eff), r_eff their
+irradiance-weighted distance (`NearPairs.distance_m`); the world-fixed part then
+depends on c and is kept for the last c asked. The term per image and light, with the
+camera's segment, is `lightcal.core.bounce_term`.
 """
 
 from __future__ import annotations
@@ -322,8 +323,8 @@ class BounceMap:
         want_grad, their derivatives with respect to (L_world (3), delta_world (3)),
         delta_world a left rotation perturbation of R_world_light (central differences,
         the shadows held)."""
-        mu = attenuation_per_m
-        e, visible = self.sources(light_world, R_world_light, rid, attenuation_per_m=mu)
+        attenuation = attenuation_per_m
+        e, visible = self.sources(light_world, R_world_light, rid, attenuation_per_m=attenuation)
         if not want_grad:
             return e[:, None]
         out = np.empty((e.size, 7))
@@ -331,12 +332,12 @@ class BounceMap:
         for c in range(3):
             step = np.zeros(3)
             step[c] = _STEP
-            plus = self.sources(light_world + step, R_world_light, rid, visible, mu)[0]
-            minus = self.sources(light_world - step, R_world_light, rid, visible, mu)[0]
+            plus = self.sources(light_world + step, R_world_light, rid, visible, attenuation)[0]
+            minus = self.sources(light_world - step, R_world_light, rid, visible, attenuation)[0]
             out[:, 1 + c] = (plus - minus) / (2.0 * _STEP)
             turn = matrix_from_rotvec(step)
-            plus = self.sources(light_world, turn @ R_world_light, rid, visible, mu)[0]
-            minus = self.sources(light_world, turn.T @ R_world_light, rid, visible, mu)[0]
+            plus = self.sources(light_world, turn @ R_world_light, rid, visible, attenuation)[0]
+            minus = self.sources(light_world, turn.T @ R_world_light, rid, visible, attenuation)[0]
             out[:, 4 + c] = (plus - minus) / (2.0 * _STEP)
         return out
 
