@@ -22,12 +22,14 @@ from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares
 from lightcal.core.surroundings import Surface, Surroundings, segments_blocked
-from lightcal.io.project import load_project
+from lightcal.io.project import parse_project, project_from_spec
 from tests.calib_scenes import observe, pose_errors, small_camera, start_near, symmetric_light
 from tests.calib_scenes import views as calib_views
 from tests.test_bounce import _camera, _ceiling, _light_and_view
 
 WATER = Medium(0.5)
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
 
 
 def _side() -> Surface:
@@ -152,7 +154,7 @@ def test_the_term_in_water_matches_a_brute_force_quadrature() -> None:
     """bounces: 2 (the transfers G_SS, G_SW, G_WS and the near copies in play), c = 0.5
     /m: the model's bounce at pixels 5-35 cm from a corner against the brute force, in
     water and in air (measured: within 2.5 %, the two discretisations), and the ratio
-    water / air, the attenuation alone (measured: 7.9e-4; the bounce cut to 42 %)."""
+    water / air, the attenuation alone (measured: 8.7e-4; the bounce cut to 42 %)."""
     light, view = _light_and_view()
     pixels = np.array([[u, v] for u in range(102, 140, 6) for v in range(66, 104, 6)], np.int32)
     fp = pixel_footprints(_camera(), view, pixels)
@@ -279,30 +281,19 @@ def test_a_calibration_in_water_recovers_the_light_and_c_with_surroundings() -> 
     assert model.layout.medium_of(out.x).attenuation_per_m == pytest.approx(0.3, abs=1e-6)
 
 
-def test_a_project_may_declare_surroundings_in_a_medium(tiny_dataset: Path) -> None:
-    """`surroundings:` beside `medium:` (attenuation estimated, backscatter given) loads."""
-    doc = json.loads((tiny_dataset / "project.json").read_text())
+def test_a_project_may_declare_surroundings_in_a_medium() -> None:
+    """`surroundings:` beside `medium:` (attenuation estimated, backscatter given) loads:
+    the sample project with both sections added."""
+    source = SAMPLE / "project.json"
+    doc = json.loads(source.read_text())
     doc["medium"] = {
         "attenuation_per_m": 0.2,
         "backscatter_per_m": 0.5,
         "estimate": ["attenuation_per_m"],
     }
-    doc["surroundings"] = {
-        "surfaces": [
-            {
-                "corner_m": [-1, -0.5, 0],
-                "edge_u_m": [2, 0, 0],
-                "edge_v_m": [0, 0, 0.5],
-                "albedo": 0.8,
-            }
-        ]
-    }
-    path = tiny_dataset / "water_surroundings.json"
-    path.write_text(json.dumps(doc))
-    try:
-        project = load_project(path)
-    finally:
-        path.unlink()
+    ceiling = {"corner_m": [-1, -0.5, 0], "edge_u_m": [2, 0, 0], "edge_v_m": [0, 0, 0.5]}
+    doc["surroundings"] = {"surfaces": [{**ceiling, "albedo": 0.8}]}
+    project = project_from_spec(parse_project(doc, source), source)
     assert project.surroundings is not None
     assert project.medium.initial.attenuation_per_m == 0.2
     assert project.medium.estimate == ("attenuation_per_m",)

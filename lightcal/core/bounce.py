@@ -22,10 +22,10 @@ differences of the sources, whose shadows are held: 12 evaluations of K + J poin
 
 In a medium of attenuation c every segment is attenuated: the sources by exp(-c r) from
 the light, each transfer by exp(-c r) over its pair's distance (`in_medium`,
-`lightcal.core.bounce_transfers`), the near copies by exp(-c r_eff), r_eff their
-irradiance-weighted distance (`NearPairs.distance_m`); the world-fixed part then
-depends on c and is kept for the last c asked. The term per image and light, with the
-camera's segment, is `lightcal.core.bounce_term`.
+`medium_distances`, `lightcal.core.bounce_transfers`), the near copies and the close
+copy-node pairs over their irradiance-weighted distance (`weighted_distance`); the
+world-fixed part then depends on c and is kept for the last c asked. The term per image
+and light, with the camera's segment, is `lightcal.core.bounce_term`.
 """
 
 from __future__ import annotations
@@ -55,8 +55,10 @@ __all__ = ["NEAR", "BounceMap", "NearPairs", "PixelMap"]
 #: exactly at it.
 NEAR = 3.0
 
-#: In a medium, a near copy's attenuation is weighted over NEAR_SPLIT x NEAR_SPLIT parts.
-NEAR_SPLIT = 8
+#: In a medium, the attenuation of a copy's light at a wall point closer than CLOSE patch
+#: sides is weighted over SPLIT x SPLIT parts of the copy (`weighted_distance`).
+CLOSE = 3.0
+SPLIT = 8
 
 #: The most patches (one side) and wall nodes of a mesh: the maps hold J x 2K numbers.
 MAX_PATCHES = 4000
@@ -84,6 +86,29 @@ def _patches(surface: Surface, patch_m: float) -> tuple[np.ndarray, np.ndarray]:
     return quads, base + 0.5 * (du + dv)
 
 
+def weighted_distance(points_world: np.ndarray, quads_world: np.ndarray) -> np.ndarray:
+    """(P,) the mean distance from wall points (P, 3) over quads (P, 4, 3), weighted by the
+    irradiance each part of the quad sends to the point (the quad cut into SPLIT x SPLIT
+    parts, Lambert's formula for each), m: exp(-c distance) is the quad's attenuated
+    irradiance at the point to first order in c (docs/model.md, "Inter-reflection"). The
+    centres' distance where the quad sends nothing."""
+    q = quads_world
+    o, du, dv = q[:, 0], q[:, 1] - q[:, 0], q[:, 3] - q[:, 0]
+    n = SPLIT
+    weight = np.zeros(len(q))
+    moment = np.zeros(len(q))
+    for i in range(n):
+        for j in range(n):
+            a = o + (i / n) * du + (j / n) * dv
+            part = np.stack([a, a + du / n, a + (du + dv) / n, a + dv / n], axis=1)
+            e = np.abs(_pair_irradiance(points_world, part))
+            weight += e
+            moment += e * np.linalg.norm(points_world - (a + 0.5 * (du + dv) / n), axis=1)
+    centre_m = np.linalg.norm(points_world - q.mean(axis=1), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(weight > 0.0, moment / weight, centre_m)
+
+
 @dataclass(frozen=True, eq=False)
 class NearPairs:
     """The P (point, copy) pairs of a `PixelMap` whose copy is integrated exactly.
@@ -106,27 +131,9 @@ class NearPairs:
 
     @functools.cached_property
     def distance_m(self) -> np.ndarray:
-        """(P,) the distance over which a medium attenuates each pair's light, m: the
-        mean of |P - Q| over the copy weighted by the irradiance its points Q send (the
-        copy cut into NEAR_SPLIT x NEAR_SPLIT parts, Lambert's formula for each), so
-        that exp(-c distance) is the attenuated irradiance's to first order in c
-        (docs/model.md, "Inter-reflection"). Made on first use in a medium."""
-        q = self.quads_world
-        o, du, dv = q[:, 0], q[:, 1] - q[:, 0], q[:, 3] - q[:, 0]
-        n = NEAR_SPLIT
-        weight = np.zeros(len(q))
-        moment = np.zeros(len(q))
-        for i in range(n):
-            for j in range(n):
-                a = o + (i / n) * du + (j / n) * dv
-                part = np.stack([a, a + du / n, a + (du + dv) / n, a + dv / n], axis=1)
-                e = np.abs(_pair_irradiance(self.points_world, part))
-                centre = a + 0.5 * (du + dv) / n
-                weight += e
-                moment += e * np.linalg.norm(self.points_world - centre, axis=1)
-        centre_m = np.linalg.norm(self.points_world - q.mean(axis=1), axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(weight > 0.0, moment / weight, centre_m)
+        """(P,) the distance over which a medium attenuates each pair's light, m
+        (`weighted_distance`; made on first use in a medium)."""
+        return weighted_distance(self.points_world, self.quads_world)
 
     def near(self, G_WS: np.ndarray, shape: tuple[int, int], c: float = 0.0) -> sparse.csr_matrix:
         """(N, K) sparse: per unit radiance of the copies, their exact irradiance at the
@@ -356,13 +363,27 @@ class BounceMap:
         with self._medium_lock:
             kept = self._in_medium
             if kept is None or kept[0] != c or (want_slopes and kept[2] is None):
-                R_SS, R_SW = pair_distances(self.centres, self.nodes)
+                R_SS, R_SW = self.medium_distances
                 at_c = kept[1] if kept is not None and kept[0] == c else None
                 if at_c is None:
                     at_c = self.transfers if c == 0.0 else attenuated(self.transfers, R_SS, R_SW, c)
                 kept = (c, at_c, slopes(at_c, R_SS, R_SW) if want_slopes else None)
                 self._in_medium = kept
             return kept[1], kept[2]
+
+    @functools.cached_property
+    def medium_distances(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K, K) and (K, J) the distances over which a medium attenuates the transfers
+        G_SS and G_SW (G_WS: its transpose), m: between the points the kernels use (copy
+        centres, wall nodes), or for a copy and a node closer than CLOSE patch sides the
+        mean over the copy weighted by the irradiance it sends to the node
+        (`weighted_distance`). Made on first use in a medium."""
+        R_SS, R_SW = pair_distances(self.centres, self.nodes)
+        count = len(self.centres) // 2  # the second half: the same patches turned over
+        geo = R_SW[:count]
+        ci, ji = np.nonzero(geo < CLOSE * self.surroundings.patch_m)
+        geo[ci, ji] = weighted_distance(self.nodes[ji], self.quads[ci])
+        return R_SS, np.ascontiguousarray(geo[self.geometric])
 
     # -- pixels -------------------------------------------------------------------------
 
