@@ -18,6 +18,7 @@ from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import LightUnknown, MediumUnknown
+from lightcal.core.render import shade
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares
@@ -297,3 +298,33 @@ def test_a_project_may_declare_surroundings_in_a_medium() -> None:
     assert project.surroundings is not None
     assert project.medium.initial.attenuation_per_m == 0.2
     assert project.medium.estimate == ("attenuation_per_m",)
+
+
+def test_the_weights_from_the_render_hold_the_bounce_in_water() -> None:
+    """`set_weights_at` (a noise model given) takes sigma from the rendered values, the
+    bounce in water among them: at the truth, sqrt(gain (direct + bounce) + read)."""
+    room, truth, noise = _room(), symmetric_light(), (0.5, 4.0)
+    medium = Medium(0.3)
+    images = observe(
+        small_camera(),
+        calib_views(2, seed=5),
+        Rig.single(truth),
+        rng=np.random.default_rng(5),
+        medium=medium,
+        noise=noise,
+        noise_model=True,
+    )
+    model = CalibrationModel(
+        images,
+        [LightUnknown(truth)],
+        SolverOptions(),
+        medium=MediumUnknown(medium),
+        surroundings=room,
+    )
+    model.set_weights_at(model.layout.x0)
+    term = BounceTerm(room, [im.footprints for im in images])
+    for i, im in enumerate(images):
+        direct = shade(im.footprints, im.view, Rig.single(truth), medium=medium).values
+        signal = direct.filled(np.nan) + term.values(i, im.view, Rig.single(truth), medium)
+        want = np.sqrt(noise[0] * signal + noise[1])
+        np.testing.assert_allclose(model.sigmas[i], want, rtol=1e-12)
