@@ -8,7 +8,10 @@ Run `python benchmarks/bounce.py` (about a minute on 2 cores). The scene is the 
   as `CalibrationModel` makes them once per calibration;
 - evaluation: every view's bounce with its 6 pose derivatives (what one solver iteration
   adds) and without them;
-- direct: `light_flux` with gradients on the same pixels, for scale.
+- direct: `light_flux` with gradients on the same pixels, for scale;
+- water (`--water`, 1000 pixels a view): an evaluation with the pose derivatives in air,
+  in water of a given c (the first also makes the transfers at c), and with d/dc at a new
+  c each time (an estimated c: the transfers and their slopes made each time).
 
 No figure is asserted: the machine may be shared; the load average is printed.
 """
@@ -16,13 +19,16 @@ No figure is asserted: the machine may be shared; the load average is printed.
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 import numpy as np
 
-from lightcal.core.bounce import BounceTerm
+from lightcal.core.blas_threads import single_threaded_blas
+from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import pixel_footprints
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.render import light_flux
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.rotations import matrix_from_rotvec
@@ -80,5 +86,31 @@ def main() -> None:
             print(f"{patch:8.2f} {n:8d} {build:8.2f} {grad:12.3f} {plain:8.3f} {direct:14.3f}")
 
 
+def water() -> None:
+    """The cost of the medium: seconds per evaluation of the 12 views (module docstring)."""
+    camera, views, light, surroundings = _scene()
+    rng = np.random.default_rng(1)
+    fps = []
+    for view in views:
+        pix = np.column_stack(
+            [rng.integers(0, camera.width, 1000), rng.integers(0, camera.height, 1000)]
+        ).astype(np.int32)
+        fp = pixel_footprints(camera, view, pix)
+        fps.append(fp.subset(fp.valid))
+    term = BounceTerm(surroundings, fps)
+
+    def evaluation(medium: Medium, want_dc: bool = False) -> str:
+        t0 = time.perf_counter()
+        with single_threaded_blas():  # as `CalibrationModel` evaluates
+            for i, view in enumerate(views):
+                term.flux(i, view, light, want_grad=True, medium=medium, want_dc=want_dc)
+        return f"{time.perf_counter() - t0:.3f}"
+
+    print(f"load average {os.getloadavg()[0]:.2f}; patch_m 0.1, 1000 pixels a view")
+    print("air:", *(evaluation(AIR) for _ in range(3)))
+    print("c = 0.3 given:", *(evaluation(Medium(0.3)) for _ in range(3)))
+    print("c estimated:", *(evaluation(Medium(c), True) for c in (0.31, 0.32, 0.33)))
+
+
 if __name__ == "__main__":
-    main()
+    water() if "--water" in sys.argv[1:] else main()

@@ -404,14 +404,6 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "surroundings.surfaces: List should have at least 1 item after validation, not 0",
     ),
     (
-        "surroundings in water",
-        lambda p: (
-            _set("medium", {"attenuation_per_m": 0.2})(p),
-            _set("surroundings", {"surfaces": [_surface()]})(p),
-        ),
-        "surroundings: the bounce light is modelled in air; expected no medium",
-    ),
-    (
         "camera file missing",
         _set("camera.path", "nope.yaml"),
         "camera.path: camera file not found: {folder}/nope.yaml",

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from lightcal.core.bounce import BounceMap, BounceTerm
+from lightcal.core.bounce import BounceMap
+from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.scene import Light, View

@@ -105,7 +105,7 @@ def test_the_bounce_matches_mitsubas_at_the_true_pose(tmp_path_factory) -> None:
     the term's at the true light: within 3 % per view and 1 % overall."""
     import numpy as np
 
-    from lightcal.core.bounce import BounceTerm
+    from lightcal.core.bounce_term import BounceTerm
     from lightcal.core.render import shade
     from lightcal.core.scene import Rig
     from lightcal.pipeline.load import load_images

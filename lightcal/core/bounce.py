@@ -19,28 +19,46 @@ is free of other surfaces. All of it but the sources is fixed in the world, so t
 from sources to bounce is linear and built once per calibration; the derivatives with
 respect to the light's pose are that map applied to the sources' derivatives (central
 differences of the sources, whose shadows are held: 12 evaluations of K + J points).
+
+In a medium of attenuation c every segment is attenuated: the sources by exp(-c r) from
+the light, each transfer by exp(-c r) over its pair's distance (`in_medium`,
+`medium_distances`, `lightcal.core.bounce_transfers`), the near copies and the close
+copy-node pairs over their irradiance-weighted distance (`weighted_distance`); the
+world-fixed part then depends on c and is kept for the last c asked. The term per image
+and light, with the camera's segment, is `lightcal.core.bounce_term`.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
-from scipy.linalg import lu_factor, lu_solve
 
-from lightcal.core.footprint import Footprints
+from lightcal.core.bounce_transfers import (
+    Transfers,
+    TransferSlopes,
+    attenuated,
+    pair_distances,
+    slopes,
+)
 from lightcal.core.rid import RID
 from lightcal.core.rotations import matrix_from_rotvec
-from lightcal.core.scene import Light, Rig, View
 from lightcal.core.surroundings import Surface, Surroundings, polygon_irradiance, segments_blocked
 
-__all__ = ["NEAR", "BounceMap", "BounceTerm", "PixelMap"]
+__all__ = ["NEAR", "BounceMap", "NearPairs", "PixelMap"]
 
 #: Copies whose centre lies within NEAR patch sides of a pixel's centre are integrated
 #: exactly at it.
 NEAR = 3.0
+
+#: In a medium, the attenuation of a copy's light at a wall point closer than CLOSE patch
+#: sides is weighted over SPLIT x SPLIT parts of the copy (`weighted_distance`).
+CLOSE = 3.0
+SPLIT = 8
 
 #: The most patches (one side) and wall nodes of a mesh: the maps hold J x 2K numbers.
 MAX_PATCHES = 4000
@@ -55,10 +73,6 @@ _UP = np.array([0.0, 0.0, 1.0])
 #: (docs/model.md), the wall's cells set the accuracy more than the surfaces' patches.
 GRID_FRACTION = 0.5
 
-#: The wall grid reaches MARGIN_M beyond the pixels: wall the beam lights outside the
-#: images also lights the surfaces, m.
-MARGIN_M = 0.5
-
 
 def _patches(surface: Surface, patch_m: float) -> tuple[np.ndarray, np.ndarray]:
     """(n, 4, 3) the surface's patches (its vertex order) and (n, 3) their centres."""
@@ -72,6 +86,74 @@ def _patches(surface: Surface, patch_m: float) -> tuple[np.ndarray, np.ndarray]:
     return quads, base + 0.5 * (du + dv)
 
 
+def weighted_distance(points_world: np.ndarray, quads_world: np.ndarray) -> np.ndarray:
+    """(P,) the mean distance from wall points (P, 3) over quads (P, 4, 3), weighted by the
+    irradiance each part of the quad sends to the point (the quad cut into SPLIT x SPLIT
+    parts, Lambert's formula for each), m: exp(-c distance) is the quad's attenuated
+    irradiance at the point to first order in c (docs/model.md, "Inter-reflection"). The
+    centres' distance where the quad sends nothing."""
+    q = quads_world
+    o, du, dv = q[:, 0], q[:, 1] - q[:, 0], q[:, 3] - q[:, 0]
+    n = SPLIT
+    weight = np.zeros(len(q))
+    moment = np.zeros(len(q))
+    for i in range(n):
+        for j in range(n):
+            a = o + (i / n) * du + (j / n) * dv
+            part = np.stack([a, a + du / n, a + (du + dv) / n, a + dv / n], axis=1)
+            e = np.abs(_pair_irradiance(points_world, part))
+            weight += e
+            moment += e * np.linalg.norm(points_world - (a + 0.5 * (du + dv) / n), axis=1)
+    centre_m = np.linalg.norm(points_world - q.mean(axis=1), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(weight > 0.0, moment / weight, centre_m)
+
+
+@dataclass(frozen=True, eq=False)
+class NearPairs:
+    """The P (point, copy) pairs of a `PixelMap` whose copy is integrated exactly.
+
+    Attributes:
+        point, copy: (P,) their indices.
+        exact: (P,) the copy's exact irradiance at the point per unit radiance (0 from
+            its back), in air.
+        points_world: (P, 3) the points; quads_world: (P, 4, 3) the copies, m.
+        nodes: (P, 4) the point's interpolating nodes; weights: (P, 4) their weights.
+    """
+
+    point: np.ndarray
+    copy: np.ndarray
+    exact: np.ndarray
+    points_world: np.ndarray
+    quads_world: np.ndarray
+    nodes: np.ndarray
+    weights: np.ndarray
+
+    @functools.cached_property
+    def distance_m(self) -> np.ndarray:
+        """(P,) the distance over which a medium attenuates each pair's light, m
+        (`weighted_distance`; made on first use in a medium)."""
+        return weighted_distance(self.points_world, self.quads_world)
+
+    def near(self, G_WS: np.ndarray, shape: tuple[int, int], c: float = 0.0) -> sparse.csr_matrix:
+        """(N, K) sparse: per unit radiance of the copies, their exact irradiance at the
+        points (times exp(-c r), r `distance_m`) less what the interpolation of G_WS
+        (J, K) gives of them."""
+        exact = self.exact if c == 0.0 else self.exact * np.exp(-c * self.distance_m)
+        return self._sparse(exact, G_WS, shape)
+
+    def near_slope(self, D_WS: np.ndarray, shape: tuple[int, int], c: float) -> sparse.csr_matrix:
+        """(N, K) sparse: the derivative of `near` with respect to c, D_WS = d G_WS / dc."""
+        exact = -self.distance_m * self.exact * np.exp(-c * self.distance_m)
+        return self._sparse(exact, D_WS, shape)
+
+    def _sparse(
+        self, exact: np.ndarray, G_WS: np.ndarray, shape: tuple[int, int]
+    ) -> sparse.csr_matrix:
+        interpolated = np.einsum("nc,nc->n", self.weights, G_WS[self.nodes, self.copy[:, None]])
+        return sparse.csr_matrix((exact - interpolated, (self.point, self.copy)), shape=shape)
+
+
 @dataclass(frozen=True, eq=False)
 class PixelMap:
     """How the bounce at N wall points follows from the copies' radiance.
@@ -79,11 +161,13 @@ class PixelMap:
     Attributes:
         interpolate: (N, J) sparse, the bilinear weights of the grid's nodes.
         near: (N, K) sparse, per unit radiance of the copies near each point, their exact
-            irradiance there less what the interpolation gives of them.
+            irradiance there less what the interpolation gives of them (in air).
+        pairs: the near pairs (to make `near` in a medium).
     """
 
     interpolate: sparse.csr_matrix
     near: sparse.csr_matrix
+    pairs: NearPairs
 
 
 class BounceMap:
@@ -178,14 +262,17 @@ class BounceMap:
         up = np.broadcast_to(_UP, self.nodes.shape)
         geo_ws = np.abs(polygon_irradiance(self.nodes, up, geo_quads))  # (J, count)
         self.G_WS = geo_ws[:, self.geometric] * seen
-        self._rho = geo_albedo[self.geometric] / math.pi
-        # The surfaces light each other directly and through the wall (the wall's
-        # radiance holds their light too: rho_w / pi (e_W + G_WS L)).
-        if surroundings.bounces is None:
-            through_wall = surroundings.wall_albedo / math.pi * (self.G_SW @ self.G_WS)
-            self._lu = lu_factor(
-                np.eye(2 * count) - self._rho[:, None] * (self.G_SS + through_wall)
-            )
+        self.transfers = Transfers.build(
+            self.G_SS,
+            self.G_SW,
+            self.G_WS,
+            geo_albedo[self.geometric] / math.pi,
+            surroundings.wall_albedo,
+            surroundings.bounces,
+        )
+        # The transfers in a medium: (c, at c, their slopes or None), the last c asked.
+        self._in_medium: tuple[float, Transfers, TransferSlopes | None] | None = None
+        self._medium_lock = threading.Lock()
         owners = np.concatenate([self.owner, no_owner])
         self._points = np.concatenate([self.centres, self.nodes])
         self._point_normals = np.concatenate([self.normals, up])
@@ -199,10 +286,12 @@ class BounceMap:
         R_world_light: np.ndarray,
         rid: RID,
         visible: np.ndarray | None = None,
+        attenuation_per_m: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(K + J,) the beam's irradiance per unit intensity at the copies' centres and at
-        the wall's nodes, and (K + J,) where the light reaches them (its side, no surface
-        in between; `visible`, when given, is taken instead)."""
+        the wall's nodes, times exp(-c r) in a medium of attenuation c (1/m; r the
+        distance from the light, m), and (K + J,) where the light reaches them (its side,
+        no surface in between; `visible`, when given, is taken instead)."""
         d = light_world[None, :] - self._points
         r = np.sqrt(np.einsum("ni,ni->n", d, d))
         cos = np.einsum("ni,ni->n", d, self._point_normals) / r
@@ -219,15 +308,30 @@ class BounceMap:
         theta = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
         phi = np.arctan2(u[:, 1], u[:, 0])
         f = rid.value_and_derivatives(theta, phi)[0]
+        if attenuation_per_m > 0.0:
+            f = f * np.exp(-attenuation_per_m * r)
         return np.where(visible, f * np.maximum(cos, 0.0) / (r * r), 0.0), visible
 
+    def source_distances(self, light_world: np.ndarray) -> np.ndarray:
+        """(K + J,) the distances from the light (3,) to the copies' centres and the
+        wall's nodes, m: d e / dc = -r e for the sources e in a medium."""
+        return np.asarray(np.linalg.norm(self._points - light_world[None, :], axis=1))
+
     def source_columns(
-        self, light_world: np.ndarray, R_world_light: np.ndarray, rid: RID, *, want_grad: bool
+        self,
+        light_world: np.ndarray,
+        R_world_light: np.ndarray,
+        rid: RID,
+        *,
+        want_grad: bool,
+        attenuation_per_m: float = 0.0,
     ) -> np.ndarray:
-        """(K + J, 1 or 7) the sources and, with want_grad, their derivatives with respect
-        to (L_world (3), delta_world (3)), delta_world a left rotation perturbation of
-        R_world_light (central differences, the shadows held)."""
-        e, visible = self.sources(light_world, R_world_light, rid)
+        """(K + J, 1 or 7) the sources (in a medium of attenuation c, 1/m) and, with
+        want_grad, their derivatives with respect to (L_world (3), delta_world (3)),
+        delta_world a left rotation perturbation of R_world_light (central differences,
+        the shadows held)."""
+        attenuation = attenuation_per_m
+        e, visible = self.sources(light_world, R_world_light, rid, attenuation_per_m=attenuation)
         if not want_grad:
             return e[:, None]
         out = np.empty((e.size, 7))
@@ -235,36 +339,51 @@ class BounceMap:
         for c in range(3):
             step = np.zeros(3)
             step[c] = _STEP
-            plus = self.sources(light_world + step, R_world_light, rid, visible)[0]
-            minus = self.sources(light_world - step, R_world_light, rid, visible)[0]
+            plus = self.sources(light_world + step, R_world_light, rid, visible, attenuation)[0]
+            minus = self.sources(light_world - step, R_world_light, rid, visible, attenuation)[0]
             out[:, 1 + c] = (plus - minus) / (2.0 * _STEP)
             turn = matrix_from_rotvec(step)
-            plus = self.sources(light_world, turn @ R_world_light, rid, visible)[0]
-            minus = self.sources(light_world, turn.T @ R_world_light, rid, visible)[0]
+            plus = self.sources(light_world, turn @ R_world_light, rid, visible, attenuation)[0]
+            minus = self.sources(light_world, turn.T @ R_world_light, rid, visible, attenuation)[0]
             out[:, 4 + c] = (plus - minus) / (2.0 * _STEP)
         return out
 
     def radiance(self, sources: np.ndarray) -> np.ndarray:
-        """(K, c) the copies' radiance per unit intensity of sources (K + J, c): every
-        bounce, or the light of paths with at most `surroundings.bounces` reflections
-        between the light and the pixel's wall point."""
-        K = len(self.centres)
-        b = self.surroundings.wall_albedo / math.pi
-        n = self.surroundings.bounces
-        if n is None:
-            rhs = sources[:K] + b * (self.G_SW @ sources[K:])
-            return np.asarray(lu_solve(self._lu, self._rho[:, None] * rhs))
-        rho = self._rho[:, None]
-        surfaces = rho * sources[:K]  # s_1: paths light -> surface
-        wall = b * sources[K:]  # w_1: light -> wall
-        total = surfaces.copy()
-        for _ in range(n - 1):  # s_(m+1) = rho (G_SS s_m + G_SW w_m), w_(m+1) = b G_WS s_m
-            surfaces, wall = (
-                rho * (self.G_SS @ surfaces + self.G_SW @ wall),
-                b * (self.G_WS @ surfaces),
-            )
-            total += surfaces
-        return np.asarray(total)
+        """(K, c) the copies' radiance in air per unit intensity of sources (K + J, c)
+        (`Transfers.radiance`)."""
+        return self.transfers.radiance(sources)
+
+    def in_medium(
+        self, attenuation_per_m: float, *, want_slopes: bool
+    ) -> tuple[Transfers, TransferSlopes | None]:
+        """The transfers in a medium of attenuation c (1/m) and, with want_slopes, their
+        derivatives with respect to c; kept for the last c asked (a new c costs the
+        (K, J) x (J, K) product and the K x K factorisation of `Transfers.build`)."""
+        c = float(attenuation_per_m)
+        with self._medium_lock:
+            kept = self._in_medium
+            if kept is None or kept[0] != c or (want_slopes and kept[2] is None):
+                R_SS, R_SW = self.medium_distances
+                at_c = kept[1] if kept is not None and kept[0] == c else None
+                if at_c is None:
+                    at_c = self.transfers if c == 0.0 else attenuated(self.transfers, R_SS, R_SW, c)
+                kept = (c, at_c, slopes(at_c, R_SS, R_SW) if want_slopes else None)
+                self._in_medium = kept
+            return kept[1], kept[2]
+
+    @functools.cached_property
+    def medium_distances(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K, K) and (K, J) the distances over which a medium attenuates the transfers
+        G_SS and G_SW (G_WS: its transpose), m: between the points the kernels use (copy
+        centres, wall nodes), or for a copy and a node closer than CLOSE patch sides the
+        mean over the copy weighted by the irradiance it sends to the node
+        (`weighted_distance`). Made on first use in a medium."""
+        R_SS, R_SW = pair_distances(self.centres, self.nodes)
+        count = len(self.centres) // 2  # the second half: the same patches turned over
+        geo = R_SW[:count]
+        ci, ji = np.nonzero(geo < CLOSE * self.surroundings.patch_m)
+        geo[ci, ji] = weighted_distance(self.nodes[ji], self.quads[ci])
+        return R_SS, np.ascontiguousarray(geo[self.geometric])
 
     # -- pixels -------------------------------------------------------------------------
 
@@ -284,7 +403,7 @@ class BounceMap:
         interpolate = sparse.csr_matrix(
             (w.ravel(), idx.ravel(), np.arange(0, 4 * n + 1, 4)), shape=(n, len(self.nodes))
         )
-        rows, cols, vals = [], [], []
+        parts: list[tuple[np.ndarray, ...]] = []
         reach = NEAR * h
         for k in range(len(self.surroundings.surfaces)):
             mine = np.nonzero(self.owner == k)[0]
@@ -301,20 +420,16 @@ class BounceMap:
                 P = points_world[p_idx]
                 exact = np.abs(_pair_irradiance(P, self.quads[c_idx]))
                 side = np.einsum("ni,ni->n", P - self.centres[c_idx], self.normals[c_idx]) > 0.0
-                interpolated = np.einsum(
-                    "nc,nc->n", w[p_idx], self.G_WS[idx[p_idx], c_idx[:, None]]
-                )
-                rows.append(p_idx)
-                cols.append(c_idx)
-                vals.append(exact * side - interpolated)
-        shape = (n, len(self.centres))
-        if rows:
-            near = sparse.csr_matrix(
-                (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=shape
-            )
+                quads = self.quads[c_idx]
+                parts.append((p_idx, c_idx, exact * side, P, quads, idx[p_idx], w[p_idx]))
+        if parts:
+            pairs = NearPairs(*(np.concatenate(a) for a in zip(*parts, strict=True)))
         else:
-            near = sparse.csr_matrix(shape)
-        return PixelMap(interpolate, near)
+            none = np.zeros(0, dtype=np.int64)
+            empty = np.zeros((0, 3))
+            pairs = NearPairs(none, none, np.zeros(0), empty, self.quads[:0], idx[:0], w[:0])
+        near = pairs.near(self.G_WS, (n, len(self.centres)))
+        return PixelMap(interpolate, near, pairs)
 
     def bounce(self, radiance: np.ndarray, pixels: PixelMap) -> np.ndarray:
         """(N, c) the bounce irradiance at a pixel map's points of radiance (K, c)."""
@@ -353,92 +468,3 @@ def _pair_irradiance(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         proj = np.where(cn > 1e-300, c[..., 2] / cn, 0.0)
     return np.asarray(0.5 * np.einsum("nv,nv->n", gamma, proj))
-
-
-#: The last maps built: (surroundings, region, map); a calibration's stages (a first solve
-#: on a subset of its pixels, the mirror exclusion, `wall: auto`) share one.
-_MAPS: list[tuple[Surroundings, tuple[float, float, float, float], BounceMap]] = []
-
-
-def _shared_map(
-    surroundings: Surroundings, region_xy: tuple[float, float, float, float]
-) -> BounceMap:
-    """A recent `BounceMap` of the same surroundings whose region holds `region_xy`, or
-    a new one (kept with the last three)."""
-    x0, x1, y0, y1 = region_xy
-    for s, (a0, a1, b0, b1), found in _MAPS:
-        if s is surroundings and a0 <= x0 and x1 <= a1 and b0 <= y0 and y1 <= b1:
-            return found
-    made = BounceMap(surroundings, region_xy)
-    _MAPS.append((surroundings, region_xy, made))
-    del _MAPS[:-4]
-    return made
-
-
-def _coverage(footprints: Footprints) -> np.ndarray:
-    """(N,) sum over each footprint's quads of sensor weight x area: the value of a
-    uniform irradiance of 1 (1 for the `radiance` sensor model)."""
-    q = footprints.corners_world
-    d = np.cross(q[:, :, 2] - q[:, :, 0], q[:, :, 3] - q[:, :, 1])
-    area = 0.5 * np.linalg.norm(d, axis=-1)
-    return np.nan_to_num(np.einsum("nk,nk->n", footprints.weights, area))
-
-
-class BounceTerm:
-    """The bounce term of a calibration's images: each light's bounce flux per unit
-    scale into their pixels, with its derivatives.
-
-    Args:
-        surroundings: the surfaces.
-        footprints: each image's selected pixels.
-    """
-
-    def __init__(self, surroundings: Surroundings, footprints: list[Footprints]) -> None:
-        centres = [fp.corners_world.mean(axis=(1, 2)) for fp in footprints]
-        known = np.concatenate([c[np.all(np.isfinite(c), axis=1)] for c in centres])
-        if known.size == 0:
-            known = np.zeros((1, 3))
-        lo, hi = known.min(axis=0), known.max(axis=0)
-        m = MARGIN_M
-        self.map = _shared_map(surroundings, (lo[0] - m, hi[0] + m, lo[1] - m, hi[1] + m))
-        self.coverage = [_coverage(fp) for fp in footprints]
-        self.pixels = [self.map.pixel_map(np.where(np.isfinite(c), c, lo)) for c in centres]
-
-    @classmethod
-    def of(
-        cls, surroundings: Surroundings | None, footprints: list[Footprints]
-    ) -> BounceTerm | None:
-        """The bounce term of `surroundings` (None: none) for images' footprints."""
-        return None if surroundings is None else cls(surroundings, footprints)
-
-    def add(
-        self, i: int, view: View, light: Light, flux: np.ndarray, grad: np.ndarray | None
-    ) -> None:
-        """Add image i's bounce to a light's flux (N_i,) and its gradients (N_i, 6) (as
-        `render.light_flux` gives them, per unit scale), in place."""
-        b = self.flux(i, view, light, want_grad=grad is not None)
-        flux += b[:, 0]
-        if grad is not None:
-            grad += b[:, 1:]
-
-    def values(self, i: int, view: View, rig: Rig) -> np.ndarray:
-        """(N_i,) image i's bounce value: the sum over the rig's lights of scale x flux."""
-        return np.asarray(
-            sum(
-                light.scale * self.flux(i, view, light, want_grad=False)[:, 0]
-                for light in rig.lights
-            )
-        )
-
-    def flux(self, i: int, view: View, light: Light, *, want_grad: bool) -> np.ndarray:
-        """(N_i, 1 or 7) image i's bounce flux per unit scale (exposure included) and,
-        with want_grad, d / d (L_world (3), delta_world (3)) as `render.light_flux`."""
-        L_world = light.position_world(view)
-        n = len(self.coverage[i])
-        if L_world[2] <= 0.0:  # a light on or behind the wall lights nothing
-            return np.zeros((n, 7 if want_grad else 1))
-        src = self.map.source_columns(
-            L_world, light.rotation_world(view), light.rid, want_grad=want_grad
-        )
-        b = self.map.bounce(self.map.radiance(src), self.pixels[i])
-        return b * (view.exposure * self.coverage[i])[:, None]

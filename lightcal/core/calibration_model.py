@@ -21,7 +21,7 @@ from lightcal.core import solver_kernels as sk
 from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection, with_albedo
 from lightcal.core.albedo_systems import projected_systems
 from lightcal.core.blas_threads import single_threaded_blas
-from lightcal.core.bounce import BounceTerm
+from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
 from lightcal.core.medium import Medium, MediumUnknown
@@ -343,6 +343,9 @@ class CalibrationModel:
             wall_grad = np.empty((N, len(wall.parameter_names)))
         medium_idx = lay.medium_unknown.indices
         medium_grad = np.empty((N, max(medium_idx) + 1)) if medium_idx else None
+        c_grad = None  # the bounce's d/dc joins the medium's column of c when c is estimated
+        if medium_grad is not None and "attenuation_per_m" in lay.medium_unknown.estimate:
+            c_grad = medium_grad[:, 0]  # d flux / dc (`Medium.parameter_names`)
         for j, block in enumerate(lay.blocks):
             light = rig.lights[j]
             flux, grad_world = light_flux(
@@ -359,7 +362,7 @@ class CalibrationModel:
             )
             assert grad_world is not None
             if self.bounce is not None:
-                self.bounce.add(i, view, light, flux, grad_world)
+                self.bounce.add(i, view, light, flux, grad_world, at_x.medium, c_grad)
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale
@@ -447,7 +450,7 @@ class CalibrationModel:
                 medium=medium,
             )
             if self.bounce is not None:
-                sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig))
+                sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig, medium))
             return lay.image_values(sh.values, im, x, gain)
 
         if self.albedo is None or albedo_map is None:

@@ -387,7 +387,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         dark_paths(spec, folder, source, image_paths),
         medium,
         wall_mesh,
-        build_surroundings(spec.surroundings, medium, source),
+        build_surroundings(spec.surroundings, source),
     )
 
 

@@ -25,7 +25,6 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from lightcal.core.problem import MediumUnknown
 from lightcal.core.surroundings import (
     DEFAULT_PATCH_M,
     MAX_SURFACES,
@@ -79,21 +78,16 @@ class SurroundingsSpec(_Model):
     )
 
 
-def build_surroundings(
-    spec: SurroundingsSpec | None, medium: MediumUnknown, source: str | Path
-) -> Surroundings | None:
-    """The core's `Surroundings` of the section (None without it).
+def build_surroundings(spec: SurroundingsSpec | None, source: str | Path) -> Surroundings | None:
+    """The core's `Surroundings` of the section (None without it). A `medium:` beside it
+    attenuates the bounce light as it does the direct light (docs/model.md,
+    "Inter-reflection").
 
     Raises:
-        InputError: a surface the core refuses (named `surroundings.surfaces[i]`), or
-            surroundings in a medium (the bounce is modelled in air).
+        InputError: a surface the core refuses (named `surroundings.surfaces[i]`).
     """
     if spec is None:
         return None
-    if not medium.initial.is_clear or medium.estimate:
-        raise InputError(
-            source, "surroundings: the bounce light is modelled in air; expected no medium"
-        )
     surfaces = []
     for k, s in enumerate(spec.surfaces):
         where = f"surroundings.surfaces[{k}]"
