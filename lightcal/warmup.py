@@ -34,9 +34,10 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from lightcal.warmup_families import DENSE, FAMILIES, Family
 
 MARKER_NAME = "lightcal-warmup.json"
 """The marker file, beside numba's cache of the kernels package."""
@@ -44,61 +45,7 @@ MARKER_NAME = "lightcal-warmup.json"
 WarmupProgress = Callable[[str, int, int], None]
 """progress(family, done, total): called before each family and once at the end."""
 
-
-@dataclass(frozen=True)
-class Family:
-    """One group of kernels and the synthetic calibration that compiles it."""
-
-    label: str
-    size: tuple[int, int] = (64, 48)
-    light_model: str = "cos_power"
-    n_lights: int = 1
-    wall: dict[str, Any] | None = None
-    medium: dict[str, Any] | None = None
-    selection: dict[str, Any] | None = None
-    report: bool = False
-    parallel: bool = False  # every flux call on the thread pool, however small
-    noise_model: bool = True  # False: the noise estimated from the images (the sample's)
-
-
-# Beyond the kinds of light and wall, numba compiles a kernel once per combination of
-# argument types (read-only arrays count), and the large problems run parallel twins of
-# the small ones' kernels: sparse and dense selections, small and large images, both.
-_WATER = ["attenuation_per_m", "backscatter_per_m"]
-_DENSE = (200, 150)  # 30,000 pixels: above every kernel's parallel threshold (20,000)
-FAMILIES: tuple[Family, ...] = (
-    Family("sparse pixels, cos^m, solver"),
-    Family(
-        "all pixels, parallel kernels, report",
-        size=_DENSE,
-        selection={"strategy": "all", "binning": 1},
-        report=True,
-        noise_model=False,
-    ),
-    # The parallel flux kernel on stored quads: what the intrinsics' uncertainty renders
-    # (perturbed cameras) on a large project; here every flux call goes parallel.
-    Family(
-        "binned pixels", size=_DENSE, selection={"strategy": "all", "binning": 2}, parallel=True
-    ),
-    Family("measured tables (IES, LDT, CSV)", light_model="ies"),
-    Family("2-D tables, two lights", light_model="table2d", n_lights=2),
-    Family("Gaussian lights", light_model="gaussian"),
-    Family("isotropic lights", light_model="isotropic"),
-    Family(
-        "wall models: plastic",
-        size=_DENSE,
-        wall={"model": "plastic", "estimate": ["roughness", "specular_weight"]},
-        selection={"strategy": "all", "binning": 1},
-    ),
-    Family("wall models: Oren-Nayar", wall={"model": "oren_nayar", "estimate": ["sigma_deg"]}),
-    Family(
-        "water (the medium: per pixel, serial and parallel, and whole images)",
-        size=_DENSE,
-        medium={"attenuation_per_m": 0.2, "backscatter_per_m": 0.3, "estimate": _WATER},
-        selection={"strategy": "all", "binning": 1},
-        report=True,
-    ),
-)
+__all__ = ["FAMILIES", "Family", "WarmupProgress", "kernels_ready", "warm_up"]
 
 
 def _dispatchers() -> dict[str, Any]:
@@ -207,6 +154,7 @@ def _write_dataset(folder: Path, family: Family) -> Path:
         scene=SceneConfig(n_views=4),
         rig=RigConfig(n_lights=family.n_lights, model=family.light_model),  # type: ignore[arg-type]
         seed=1,
+        **(family.synth or {}),
     )
     dataset = write_dataset(folder, config)
     project = json.loads(dataset.project_path.read_text(encoding="utf-8"))
@@ -275,7 +223,7 @@ def _compile_flux_kernels() -> int:
     from lightcal.core.rid import CosPowerRID
     from lightcal.core.scene import Light, Rig, View
 
-    w, h = _DENSE
+    w, h = DENSE
     camera = Camera.from_params(
         fx=0.95 * w, fy=0.95 * w, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h,
         dist=(-0.1, 0.02, 0, 0, 0),

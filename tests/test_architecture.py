@@ -94,6 +94,8 @@ def layer_of(module: str) -> str | None:
         return parts[1]
     if parts[1] in ("resources", "warmup", "api"):
         return parts[1]
+    if parts[1] == "warmup_families":
+        return "warmup"
     return None
 
 

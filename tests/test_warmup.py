@@ -333,3 +333,16 @@ def test_the_kernel_counter_counts_what_the_workers_cached_since_it_started(
     assert counter.text() == "1 kernel compiled so far"
     cached.update(id(k) for k in kernels[1:5])
     assert counter.text() == "5 kernels compiled so far"
+
+
+def test_a_family_calibrates_on_a_wall_given_as_a_mesh(tmp_path: Path) -> None:
+    """The ray-mesh intersection kernels are compiled by `lightcal warmup` too: one family
+    declares its wall as a mesh file, and its calibration runs through them."""
+    from lightcal.core import mesh_kernels
+
+    (family,) = [f for f in warmup.FAMILIES if (f.synth or {}).get("declare_wall_mesh")]
+    project = warmup._write_dataset(tmp_path / "data", family)
+    mesh = json.loads(project.read_text())["wall"]["mesh"]
+    assert (project.parent / mesh).is_file()
+    warmup._calibrate(project, None)
+    assert mesh_kernels.intersect_rays.signatures and mesh_kernels.bucket_rays.signatures
