@@ -120,12 +120,16 @@ class Imaging:
             for light, values in zip(self.rig.lights, per_light, strict=True):
                 d_light = np.linalg.norm(points - light.position_world(view), axis=-1)
                 total += values * np.exp(-c * d_light)
-            total *= np.exp(-c * np.linalg.norm(points - view.center_world, axis=-1))
         else:
             total = per_light.sum(axis=0)
         if self.corner is not None:
+            # the bounce arrives at the wall attenuated (`CornerBounce`); the camera's
+            # segment below attenuates it as the beam
             total = total + self.corner.image_bounce(self.rig, view, points, valid)
             valid &= ~self.corner.hidden(self.rig, view, points)
+        if self.attenuation_per_m > 0.0:
+            d_camera = np.linalg.norm(points - view.center_world, axis=-1)
+            total *= np.exp(-self.attenuation_per_m * d_camera)
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
         if self.backscatter_per_m > 0.0:
@@ -276,7 +280,9 @@ def make_imaging(
         distance, depth, albedo = departures.corner
         target = view_target_center(views)
         corner = CornerBounce(
-            corner_surroundings(target, distance, depth, albedo), _wall_extent(camera, views)
+            corner_surroundings(target, distance, depth, albedo),
+            _wall_extent(camera, views),
+            attenuation_per_m=departures.attenuation_per_m,
         )
     if departures.backscatter_per_m > 0.0 and sensor != "radiance":
         raise InputError(
