@@ -7,12 +7,13 @@ existed. With them, in this order:
 1. **The beam** (`Imaging.beam`). A bowed wall is rendered by the point-sampled
    height-field renderer (`lightcal.synthetic.height_field`), a flat one by
    `render_image` (one light at a time with attenuation). Each light's contribution is
-   multiplied by exp(-C d_light) and the pixel by exp(-C d_camera) (`attenuation`), and
-   by the albedo 1 + A t(x, y) (`albedo_texture`), all at the pixel centre's point on the
-   wall (its footprint centre to second order in the footprint's size); then each light's
-   backscatter along the ray to that point is added (`backscatter`); then the bounce of
-   a ceiling and a side wall (`corner`, `lightcal.synthetic.bounce_reference`), the
-   pixels that see them or wall they shadow masked.
+   multiplied by exp(-C d_light) (`attenuation`); the bounce of a ceiling and a side wall
+   is added (`corner`, `lightcal.synthetic.bounce_reference`, attenuated along its own
+   paths in water), the pixels that see them or wall they shadow masked; the pixel is
+   multiplied by exp(-C d_camera) (`attenuation`) and by the albedo 1 + A t(x, y)
+   (`albedo_texture`), all at the pixel centre's point on the wall (its footprint centre
+   to second order in the footprint's size); then each light's backscatter along the ray
+   to that point is added (`backscatter`).
 2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
    times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
    and, where a pixel sees the wall, its albedo texture (the wall reflects the room light
