@@ -2,15 +2,19 @@
 and a side wall whose bounce light is rendered by brute force
 (`lightcal.synthetic.bounce_reference`), the project declaring them or not.
 
-Measured (12 views of 320 x 240, 1000 pixels a view, `--corner 0.7 0.5 0.8`): 70 mm and
-3.9 deg off undeclared, 4.6 mm and 0.31 deg declared; the brute force's bounce is 1-7 %
-above Mitsuba's (and the model's) per view, which the declared fit inherits.
+Measured (8 views of 240 x 160, 1000 pixels a view, `--corner 0.7 0.5 0.8`, the realistic
+sensor): 1.2 mm and 0.049 deg off declared (the first reference, 1-7 % above Mitsuba's
+bounce, gave 4.6 mm and 0.31 deg on 12 views of 320 x 240). The fit test still finds
+0.73 % of the signal beyond the noise (exit 3): the model's bounce (`lightcal.core.bounce`)
+is 0.97-1.02 of the reference per view, and 5-7 % low within 10 cm of the corner in one
+view, where the reference is within 0.2 % of Mitsuba's (`tests/test_bounce_reference.py`).
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -18,7 +22,7 @@ from lightcal.cli.main import main
 from lightcal.io.project import load_project
 from lightcal.pipeline import calibrate_project
 from lightcal.synthetic.dataset import read_truth
-from tests.departure_suite import errors
+from tests.departure_suite import errors, exit_code
 
 
 @pytest.fixture(scope="module")
@@ -29,14 +33,25 @@ def corner_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+_RESULTS: dict[tuple[Path, bool], Any] = {}
+
+
+def _result(folder: Path, *, declared: bool) -> Any:
+    """The calibration of the dataset (1000 pixels a view), with or without its
+    `surroundings`, once per session."""
+    if (folder, declared) not in _RESULTS:
+        doc = json.loads((folder / "project.json").read_text())
+        doc.setdefault("selection", {})["n_per_image"] = 1000
+        if not declared:
+            doc.pop("surroundings")
+        path = folder / f"{'declared' if declared else 'plain'}.json"
+        path.write_text(json.dumps(doc))
+        _RESULTS[folder, declared] = calibrate_project(load_project(path))[2]
+    return _RESULTS[folder, declared]
+
+
 def _calibrated(folder: Path, *, declared: bool) -> tuple[float, float]:
-    doc = json.loads((folder / "project.json").read_text())
-    doc.setdefault("selection", {})["n_per_image"] = 1000
-    if not declared:
-        doc.pop("surroundings")
-    path = folder / f"{'declared' if declared else 'plain'}.json"
-    path.write_text(json.dumps(doc))
-    _, _, result = calibrate_project(load_project(path))
+    result = _result(folder, declared=declared)
     position, _, axis, _ = errors(result, read_truth(folder / "truth.json")["lights"][0])
     return position, axis
 
@@ -55,3 +70,30 @@ def test_declaring_the_corner_removes_most_of_its_error(corner_dataset: Path) ->
     declared = _calibrated(corner_dataset, declared=True)
     assert plain[0] > 0.03 and plain[1] > 1.0, plain
     assert declared[0] < 0.25 * plain[0] and declared[1] < 0.25 * plain[1], (plain, declared)
+
+
+def test_declared_the_light_lands_within_2_mm_and_0_1_deg(corner_dataset: Path) -> None:
+    position, axis = _calibrated(corner_dataset, declared=True)
+    assert position < 2e-3 and axis < 0.1, (position, axis)
+
+
+@pytest.mark.xfail(
+    reason="the model's bounce (lightcal.core.bounce) is 2-7 % off the reference near the "
+    "corner in some views: the fit test finds 0.73 % of the signal beyond the noise",
+    strict=False,
+)
+def test_declared_the_fit_test_finds_nothing(corner_dataset: Path) -> None:
+    result = _result(corner_dataset, declared=True)
+    assert exit_code(result) == 0 and not result.fit["findings"], result.fit["findings"]
+
+
+def test_the_corner_in_water_is_rendered_and_recorded(tmp_path: Path) -> None:
+    """`--corner` with `--attenuation`: the bounce is attenuated on every segment
+    (`lightcal.synthetic.bounce_reference`) and by the camera's segment; the truth records
+    both departures."""
+    out = tmp_path / "water"
+    argv = ["synth", str(out), "--corner", "0.7", "0.5", "0.8", "--attenuation", "0.2"]
+    assert main([*argv, "--views", "2", "--width", "96", "--height", "64", "--quiet"]) == 0
+    departures = read_truth(out / "truth.json")["departures"]
+    assert departures["attenuation"]["coefficient_per_m"] == 0.2
+    assert "attenuated" in departures["corner"]["rendered_as"]

@@ -209,7 +209,7 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         metavar=("D", "DEPTH", "ALBEDO"),
         help="inter-reflection: a ceiling and a side wall DEPTH m deep meet the wall at right "
         "angles D m from where the views look, Lambertian of ALBEDO like the wall; their "
-        "bounce light (brute force, 4 bounces) is added, pixels that see them or wall they "
+        "bounce light (brute force, every bounce) is added, pixels that see them or wall they "
         "shadow are black; --sensor radiance only (none)",
     )
     g.add_argument(

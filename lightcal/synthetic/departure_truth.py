@@ -151,7 +151,8 @@ def departures_truth(
             "depth_m": depth,
             "albedo": albedo,
             "surroundings": imaging.corner.surroundings.describe(),
-            "rendered_as": "brute-force radiosity, 4 bounces (lightcal.synthetic.bounce_"
-            "reference); pixels that see a surface or wall it shadows are black",
+            "rendered_as": "brute-force radiosity, every bounce, attenuated by the medium "
+            "(lightcal.synthetic.bounce_reference); pixels that see a surface or wall it "
+            "shadows are black",
         }
     return out

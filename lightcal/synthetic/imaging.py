@@ -7,12 +7,13 @@ existed. With them, in this order:
 1. **The beam** (`Imaging.beam`). A bowed wall is rendered by the point-sampled
    height-field renderer (`lightcal.synthetic.height_field`), a flat one by
    `render_image` (one light at a time with attenuation). Each light's contribution is
-   multiplied by exp(-C d_light) and the pixel by exp(-C d_camera) (`attenuation`), and
-   by the albedo 1 + A t(x, y) (`albedo_texture`), all at the pixel centre's point on the
-   wall (its footprint centre to second order in the footprint's size); then each light's
-   backscatter along the ray to that point is added (`backscatter`); then the bounce of
-   a ceiling and a side wall (`corner`, `lightcal.synthetic.bounce_reference`), the
-   pixels that see them or wall they shadow masked.
+   multiplied by exp(-C d_light) (`attenuation`); the bounce of a ceiling and a side wall
+   is added (`corner`, `lightcal.synthetic.bounce_reference`, attenuated along its own
+   paths in water), the pixels that see them or wall they shadow masked; the pixel is
+   multiplied by exp(-C d_camera) (`attenuation`) and by the albedo 1 + A t(x, y)
+   (`albedo_texture`), all at the pixel centre's point on the wall (its footprint centre
+   to second order in the footprint's size); then each light's backscatter along the ray
+   to that point is added (`backscatter`).
 2. **The sensor side** (`Imaging.expose`). The ambient level of the view (`ambient_levels`)
    times the sensor fall-off of the declared model (`map`: the map, `cos4`: cos^4, else 1)
    and, where a pixel sees the wall, its albedo texture (the wall reflects the room light
@@ -120,12 +121,16 @@ class Imaging:
             for light, values in zip(self.rig.lights, per_light, strict=True):
                 d_light = np.linalg.norm(points - light.position_world(view), axis=-1)
                 total += values * np.exp(-c * d_light)
-            total *= np.exp(-c * np.linalg.norm(points - view.center_world, axis=-1))
         else:
             total = per_light.sum(axis=0)
         if self.corner is not None:
+            # the bounce arrives at the wall attenuated (`CornerBounce`); the camera's
+            # segment below attenuates it as the beam
             total = total + self.corner.image_bounce(self.rig, view, points, valid)
             valid &= ~self.corner.hidden(self.rig, view, points)
+        if self.attenuation_per_m > 0.0:
+            d_camera = np.linalg.norm(points - view.center_world, axis=-1)
+            total *= np.exp(-self.attenuation_per_m * d_camera)
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
         if self.backscatter_per_m > 0.0:
@@ -276,7 +281,9 @@ def make_imaging(
         distance, depth, albedo = departures.corner
         target = view_target_center(views)
         corner = CornerBounce(
-            corner_surroundings(target, distance, depth, albedo), _wall_extent(camera, views)
+            corner_surroundings(target, distance, depth, albedo),
+            _wall_extent(camera, views),
+            attenuation_per_m=departures.attenuation_per_m,
         )
     if departures.backscatter_per_m > 0.0 and sensor != "radiance":
         raise InputError(
