@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcal.core.albedo_map import AlbedoMap, with_albedo
+from lightcal.core.bounce_image import bounce_image
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
@@ -91,6 +92,16 @@ def render_views(
                 medium=medium,
                 mesh=project.wall_mesh,
             )
+            if project.surroundings is not None:  # their bounce light, as the model adds it
+                values = values + bounce_image(
+                    loaded.camera,
+                    with_view(view, exposure=view.exposure * g),
+                    rig,
+                    project.surroundings,
+                    medium=medium,
+                    sensor=project.spec.sensor.model,
+                    vignetting=vignetting_for(project, loaded.camera),
+                )
             if ambient != 0.0:  # through the lens's fall-off
                 room = g * view.exposure * ambient
                 values = values + (room if room_factor is None else room * room_factor)

@@ -19,6 +19,7 @@ import numpy as np
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.albedo_map import with_albedo
+from lightcal.core.bounce_image import bounce_image
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import Medium
@@ -165,6 +166,16 @@ class OverlayImages:
                 medium=medium,
                 mesh=self.project.wall_mesh,
             )
+            if self.project.surroundings is not None:  # their bounce light, as the model's
+                out = out + bounce_image(
+                    self.geo.render_camera,
+                    view,
+                    display.rig,
+                    self.project.surroundings,
+                    medium=medium,
+                    sensor=sensor,
+                    vignetting=self._vignetting,
+                )
             if sensor == "paper":
                 # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
                 out = out / float(self.geo.render_binning**2)
