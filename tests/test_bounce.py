@@ -6,6 +6,7 @@ central differences, and the refusals of bad surfaces."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from lightcal.core.bounce import BounceMap
 from lightcal.core.bounce_term import BounceTerm
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import CosPowerRID
+from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light, View
 from lightcal.core.surroundings import Surface, Surroundings, polygon_irradiance
 
@@ -139,8 +141,6 @@ def test_the_wall_albedo_adds_the_light_the_wall_sends_back() -> None:
 
 
 def test_the_pose_derivatives_match_central_differences() -> None:
-    from lightcal.core.rotations import matrix_from_rotvec
-
     light, view = _light_and_view()
     camera = _camera()
     pixels = np.array([[u, v] for u in range(20, 160, 35) for v in range(10, 120, 30)], np.int32)
@@ -154,8 +154,19 @@ def test_the_pose_derivatives_match_central_differences() -> None:
     )
     term = BounceTerm(Surroundings((_ceiling(), side), 0.8, 0.1), [fp])
     got = term.flux(0, view, light, want_grad=True)
+    fd = pose_differences(
+        lambda moved: term.flux(0, view, moved, want_grad=False)[:, 0], light, view
+    )
+    np.testing.assert_allclose(got[:, 1:7], fd, rtol=1e-4, atol=1e-6 * np.abs(got[:, 0]).max())
+
+
+def pose_differences(
+    flux: Callable[[Light], np.ndarray], light: Light, view: View, h: float = 1e-5
+) -> np.ndarray:
+    """(N, 6) central differences of flux(light) (N,) with respect to the light's world
+    position and a left rotation of its world orientation (`render.light_flux`'s order)."""
     R_cw = view.R_camera_world
-    h = 1e-5
+    columns = []
     for c in range(6):
         vals = []
         for sgn in (1.0, -1.0):
@@ -164,14 +175,11 @@ def test_the_pose_derivatives_match_central_differences() -> None:
             if c < 3:  # world position: t_camera_light moves by R step
                 moved = light.replace(t_camera_light=light.t_camera_light + R_cw @ step)
             else:  # world rotation: R_camera_light -> R exp(delta_world) R^T ...
-                moved = light.replace(
-                    R_camera_light=R_cw @ matrix_from_rotvec(step) @ R_cw.T @ light.R_camera_light
-                )
-            vals.append(term.flux(0, view, moved, want_grad=False)[:, 0])
-        fd = (vals[0] - vals[1]) / (2 * h)
-        np.testing.assert_allclose(
-            got[:, 1 + c], fd, rtol=1e-4, atol=1e-6 * np.abs(got[:, 0]).max()
-        )
+                turn = R_cw @ matrix_from_rotvec(step) @ R_cw.T
+                moved = light.replace(R_camera_light=turn @ light.R_camera_light)
+            vals.append(flux(moved))
+        columns.append((vals[0] - vals[1]) / (2 * h))
+    return np.stack(columns, axis=1)
 
 
 def _camera():

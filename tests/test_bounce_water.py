@@ -19,14 +19,13 @@ from lightcal.core.footprint import pixel_footprints
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import LightUnknown, MediumUnknown
 from lightcal.core.render import shade
-from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares
 from lightcal.core.surroundings import Surface, Surroundings, segments_blocked
 from lightcal.io.project import parse_project, project_from_spec
 from tests.calib_scenes import observe, pose_errors, small_camera, start_near, symmetric_light
 from tests.calib_scenes import views as calib_views
-from tests.test_bounce import _camera, _ceiling, _light_and_view
+from tests.test_bounce import _camera, _ceiling, _light_and_view, pose_differences
 
 WATER = Medium(0.5)
 
@@ -194,23 +193,10 @@ def test_pose_derivatives_in_water_match_central_differences(bounces: int | None
     light, view = _light_and_view()
     term = _term(bounces)
     got = term.flux(0, view, light, want_grad=True, medium=WATER)
-    R_cw = view.R_camera_world
-    h = 1e-5
-    for k in range(6):
-        vals = []
-        for sgn in (1.0, -1.0):
-            step = np.zeros(3)
-            step[k % 3] = sgn * h
-            if k < 3:
-                moved = light.replace(t_camera_light=light.t_camera_light + R_cw @ step)
-            else:
-                turn = R_cw @ matrix_from_rotvec(step) @ R_cw.T
-                moved = light.replace(R_camera_light=turn @ light.R_camera_light)
-            vals.append(term.flux(0, view, moved, want_grad=False, medium=WATER)[:, 0])
-        fd = (vals[0] - vals[1]) / (2 * h)
-        np.testing.assert_allclose(
-            got[:, 1 + k], fd, rtol=1e-4, atol=1e-6 * np.abs(got[:, 0]).max()
-        )
+    fd = pose_differences(
+        lambda moved: term.flux(0, view, moved, want_grad=False, medium=WATER)[:, 0], light, view
+    )
+    np.testing.assert_allclose(got[:, 1:7], fd, rtol=1e-4, atol=1e-6 * np.abs(got[:, 0]).max())
 
 
 def _calibration_data(c: float, surroundings: Surroundings):
