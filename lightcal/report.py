@@ -71,37 +71,44 @@ def render_views(
     wall point (the wall's light: not the water's veil)."""
     out = []
     n = len(project.views)
-    room_factor = room_light_image(
-        loaded.camera, project.spec.sensor.model, vignetting_for(project, loaded.camera)
-    )
+    vignetting = vignetting_for(project, loaded.camera)
+    room_factor = room_light_image(loaded.camera, project.spec.sensor.model, vignetting)
     for i, view in enumerate(project.views):
         if progress is not None:
             progress("rendering", i, n)
         g = 1.0 if gains is None else gains[i]
-
-        def through(medium: Medium, g: float = g, view: View = view) -> np.ma.MaskedArray:
-            values = render_image(
+        seen = with_view(view, exposure=view.exposure * g)
+        bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
+        if project.surroundings is not None:  # (the wall's: the same without the veil)
+            bounce = bounce_image(
                 loaded.camera,
-                with_view(view, exposure=view.exposure * g),
+                seen,
+                rig,
+                project.surroundings,
+                medium=medium,
+                sensor=project.spec.sensor.model,
+                vignetting=vignetting,
+            )
+
+        def through(
+            medium: Medium,
+            seen: View = seen,
+            bounce: float | np.ndarray = bounce,
+            g: float = g,
+            view: View = view,
+        ) -> np.ma.MaskedArray:
+            values = bounce + render_image(
+                loaded.camera,
+                seen,
                 rig,
                 sensor=project.spec.sensor.model,
-                vignetting=vignetting_for(project, loaded.camera),
+                vignetting=vignetting,
                 offset=0.0,
                 rid_subsamples=project.solver.rid_subsamples,
                 wall=wall,
                 medium=medium,
                 mesh=project.wall_mesh,
             )
-            if project.surroundings is not None:  # their bounce light, as the model adds it
-                values = values + bounce_image(
-                    loaded.camera,
-                    with_view(view, exposure=view.exposure * g),
-                    rig,
-                    project.surroundings,
-                    medium=medium,
-                    sensor=project.spec.sensor.model,
-                    vignetting=vignetting_for(project, loaded.camera),
-                )
             if ambient != 0.0:  # through the lens's fall-off
                 room = g * view.exposure * ambient
                 values = values + (room if room_factor is None else room * room_factor)

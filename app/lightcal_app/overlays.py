@@ -152,9 +152,20 @@ class OverlayImages:
         view = self.project.views[index]
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model
+        bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
+        if self.project.surroundings is not None:  # (the wall's: the same without the veil)
+            bounce = bounce_image(
+                self.geo.render_camera,
+                view,
+                display.rig,
+                self.project.surroundings,
+                medium=display.medium,
+                sensor=sensor,
+                vignetting=self._vignetting,
+            )
 
         def through(medium: Medium) -> np.ma.MaskedArray:
-            out = render_image(
+            out = bounce + render_image(
                 self.geo.render_camera,
                 view,
                 display.rig,
@@ -166,16 +177,6 @@ class OverlayImages:
                 medium=medium,
                 mesh=self.project.wall_mesh,
             )
-            if self.project.surroundings is not None:  # their bounce light, as the model's
-                out = out + bounce_image(
-                    self.geo.render_camera,
-                    view,
-                    display.rig,
-                    self.project.surroundings,
-                    medium=medium,
-                    sensor=sensor,
-                    vignetting=self._vignetting,
-                )
             if sensor == "paper":
                 # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
                 out = out / float(self.geo.render_binning**2)
