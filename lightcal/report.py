@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcal.core.albedo_map import AlbedoMap, with_albedo
-from lightcal.core.bounce_image import bounce_image
+from lightcal.core.bounce_image import BounceImages
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.problem import with_view
@@ -73,22 +73,23 @@ def render_views(
     n = len(project.views)
     vignetting = vignetting_for(project, loaded.camera)
     room_factor = room_light_image(loaded.camera, project.spec.sensor.model, vignetting)
+    bounces = None
+    if project.surroundings is not None:  # one bounce map for every view
+        bounces = BounceImages(
+            loaded.camera,
+            project.views,
+            project.surroundings,
+            sensor=project.spec.sensor.model,
+            vignetting=vignetting,
+        )
     for i, view in enumerate(project.views):
         if progress is not None:
             progress("rendering", i, n)
         g = 1.0 if gains is None else gains[i]
         seen = with_view(view, exposure=view.exposure * g)
         bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
-        if project.surroundings is not None:  # (the wall's: the same without the veil)
-            bounce = bounce_image(
-                loaded.camera,
-                seen,
-                rig,
-                project.surroundings,
-                medium=medium,
-                sensor=project.spec.sensor.model,
-                vignetting=vignetting,
-            )
+        if bounces is not None:  # (the wall's: the same without the veil)
+            bounce = bounces.image(i, seen, rig, medium)
 
         def through(
             medium: Medium,

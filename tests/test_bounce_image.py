@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lightcal.cli.main import main
-from lightcal.core.bounce_image import bounce_image
+from lightcal.core.bounce_image import MAX_PIXELS, BounceImages
 from lightcal.core.medium import Medium
 from lightcal.io.project import load_project
 from lightcal.pipeline.load import load_images
@@ -58,9 +58,11 @@ def test_the_lattice_interpolates_the_exact_term(corner) -> None:
     rig = model.layout.rig(model.layout.x0)
     assert project.surroundings is not None
     for medium in (Medium(), Medium(0.3, 0.0)):
-        exact = bounce_image(project.camera, view, rig, project.surroundings, medium=medium)
-        coarse = bounce_image(
-            project.camera, view, rig, project.surroundings, medium=medium, max_pixels=2400
+        exact, coarse = (
+            BounceImages(project.camera, [view], project.surroundings, max_pixels=most).image(
+                0, view, rig, medium
+            )
+            for most in (MAX_PIXELS, 2400)
         )
         seen = exact > 0.0
         relative = np.abs(coarse - exact)[seen] / exact[seen]

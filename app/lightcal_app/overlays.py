@@ -19,7 +19,7 @@ import numpy as np
 
 from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.albedo_map import with_albedo
-from lightcal.core.bounce_image import bounce_image
+from lightcal.core.bounce_image import BounceImages
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import Medium
@@ -119,6 +119,8 @@ class OverlayImages:
             small = cv2.resize(bad, (self.geo.width, self.geo.height), interpolation=cv2.INTER_AREA)
             self.mask_display.append(small > 0.0)
         self._vignetting = self._binned_vignetting()
+        # Per sensor model, the surroundings' bounce light in the views (built when first drawn).
+        self._bounce: dict[str, BounceImages] = {}
         shape = (self.geo.height, self.geo.width, 3)
         self._mask_colour = np.empty(shape, np.uint8)
         self._mask_colour[:] = MASK_RGB.astype(np.uint8)
@@ -153,16 +155,17 @@ class OverlayImages:
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model
         bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
-        if self.project.surroundings is not None:  # (the wall's: the same without the veil)
-            bounce = bounce_image(
-                self.geo.render_camera,
-                view,
-                display.rig,
-                self.project.surroundings,
-                medium=display.medium,
-                sensor=sensor,
-                vignetting=self._vignetting,
-            )
+        surroundings = self.project.surroundings
+        if surroundings is not None:  # (the wall's: the same without the veil)
+            if sensor not in self._bounce:
+                self._bounce[sensor] = BounceImages(
+                    self.geo.render_camera,
+                    self.project.views,
+                    surroundings,
+                    sensor=sensor,
+                    vignetting=self._vignetting,
+                )
+            bounce = self._bounce[sensor].image(index, view, display.rig, display.medium)
 
         def through(medium: Medium) -> np.ma.MaskedArray:
             out = bounce + render_image(
