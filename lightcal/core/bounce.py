@@ -10,8 +10,9 @@ the wall, by radiosity on a mesh (docs/model.md, "Inter-reflection").
 - The copies' radiance solves L = (rho / pi) (e_S + G_SS L + (rho_w / pi) G_SW (e_W + G_WS
   L)): every bounce between the surfaces and the wall, not only the first.
 - The wall's bounce irradiance is G_WS L at the nodes, interpolated bilinearly to each
-  pixel's footprint centre; copies within NEAR patch sides of the centre are integrated
-  exactly there instead (the field is not smooth where a surface meets the wall).
+  pixel's footprint centre one surface's side at a time; copies within NEAR grid spacings
+  of the centre are integrated exactly there instead (the field is not smooth where a
+  surface meets the wall; `lightcal.core.bounce_pixels`).
 
 G_ab[i, l] is the irradiance at point i of a per unit radiance of polygon l of b,
 Lambert's formula (`polygon_irradiance`), times whether the segment between their centres
@@ -33,11 +34,10 @@ from __future__ import annotations
 import functools
 import math
 import threading
-from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 
+from lightcal.core.bounce_pixels import PixelMap, pixel_map, weighted_distance
 from lightcal.core.bounce_transfers import (
     Transfers,
     TransferSlopes,
@@ -49,16 +49,11 @@ from lightcal.core.rid import RID
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.surroundings import Surface, Surroundings, polygon_irradiance, segments_blocked
 
-__all__ = ["NEAR", "BounceMap", "NearPairs", "PixelMap"]
-
-#: Copies whose centre lies within NEAR patch sides of a pixel's centre are integrated
-#: exactly at it.
-NEAR = 3.0
+__all__ = ["BounceMap"]
 
 #: In a medium, the attenuation of a copy's light at a wall point closer than CLOSE patch
-#: sides is weighted over SPLIT x SPLIT parts of the copy (`weighted_distance`).
+#: sides is weighted over its parts (`bounce_pixels.weighted_distance`).
 CLOSE = 3.0
-SPLIT = 8
 
 #: The most patches (one side) and wall nodes of a mesh: the maps hold J x 2K numbers.
 MAX_PATCHES = 4000
@@ -84,90 +79,6 @@ def _patches(surface: Surface, patch_m: float) -> tuple[np.ndarray, np.ndarray]:
     base = surface.corner_world + s0[:, None] * u + t0[:, None] * v
     quads = np.stack([base, base + du, base + du + dv, base + dv], axis=1)
     return quads, base + 0.5 * (du + dv)
-
-
-def weighted_distance(points_world: np.ndarray, quads_world: np.ndarray) -> np.ndarray:
-    """(P,) the mean distance from wall points (P, 3) over quads (P, 4, 3), weighted by the
-    irradiance each part of the quad sends to the point (the quad cut into SPLIT x SPLIT
-    parts, Lambert's formula for each), m: exp(-c distance) is the quad's attenuated
-    irradiance at the point to first order in c (docs/model.md, "Inter-reflection"). The
-    centres' distance where the quad sends nothing."""
-    q = quads_world
-    o, du, dv = q[:, 0], q[:, 1] - q[:, 0], q[:, 3] - q[:, 0]
-    n = SPLIT
-    weight = np.zeros(len(q))
-    moment = np.zeros(len(q))
-    for i in range(n):
-        for j in range(n):
-            a = o + (i / n) * du + (j / n) * dv
-            part = np.stack([a, a + du / n, a + (du + dv) / n, a + dv / n], axis=1)
-            e = np.abs(_pair_irradiance(points_world, part))
-            weight += e
-            moment += e * np.linalg.norm(points_world - (a + 0.5 * (du + dv) / n), axis=1)
-    centre_m = np.linalg.norm(points_world - q.mean(axis=1), axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(weight > 0.0, moment / weight, centre_m)
-
-
-@dataclass(frozen=True, eq=False)
-class NearPairs:
-    """The P (point, copy) pairs of a `PixelMap` whose copy is integrated exactly.
-
-    Attributes:
-        point, copy: (P,) their indices.
-        exact: (P,) the copy's exact irradiance at the point per unit radiance (0 from
-            its back), in air.
-        points_world: (P, 3) the points; quads_world: (P, 4, 3) the copies, m.
-        nodes: (P, 4) the point's interpolating nodes; weights: (P, 4) their weights.
-    """
-
-    point: np.ndarray
-    copy: np.ndarray
-    exact: np.ndarray
-    points_world: np.ndarray
-    quads_world: np.ndarray
-    nodes: np.ndarray
-    weights: np.ndarray
-
-    @functools.cached_property
-    def distance_m(self) -> np.ndarray:
-        """(P,) the distance over which a medium attenuates each pair's light, m
-        (`weighted_distance`; made on first use in a medium)."""
-        return weighted_distance(self.points_world, self.quads_world)
-
-    def near(self, G_WS: np.ndarray, shape: tuple[int, int], c: float = 0.0) -> sparse.csr_matrix:
-        """(N, K) sparse: per unit radiance of the copies, their exact irradiance at the
-        points (times exp(-c r), r `distance_m`) less what the interpolation of G_WS
-        (J, K) gives of them."""
-        exact = self.exact if c == 0.0 else self.exact * np.exp(-c * self.distance_m)
-        return self._sparse(exact, G_WS, shape)
-
-    def near_slope(self, D_WS: np.ndarray, shape: tuple[int, int], c: float) -> sparse.csr_matrix:
-        """(N, K) sparse: the derivative of `near` with respect to c, D_WS = d G_WS / dc."""
-        exact = -self.distance_m * self.exact * np.exp(-c * self.distance_m)
-        return self._sparse(exact, D_WS, shape)
-
-    def _sparse(
-        self, exact: np.ndarray, G_WS: np.ndarray, shape: tuple[int, int]
-    ) -> sparse.csr_matrix:
-        interpolated = np.einsum("nc,nc->n", self.weights, G_WS[self.nodes, self.copy[:, None]])
-        return sparse.csr_matrix((exact - interpolated, (self.point, self.copy)), shape=shape)
-
-
-@dataclass(frozen=True, eq=False)
-class PixelMap:
-    """How the bounce at N wall points follows from the copies' radiance.
-
-    Attributes:
-        interpolate: (N, J) sparse, the bilinear weights of the grid's nodes.
-        near: (N, K) sparse, per unit radiance of the copies near each point, their exact
-            irradiance there less what the interpolation gives of them (in air).
-        pairs: the near pairs (to make `near` in a medium).
-    """
-
-    interpolate: sparse.csr_matrix
-    near: sparse.csr_matrix
-    pairs: NearPairs
 
 
 class BounceMap:
@@ -197,8 +108,8 @@ class BounceMap:
             )
         x0, x1, y0, y1 = region_xy
         h = GRID_FRACTION * surroundings.patch_m
-        self.x = np.arange(x0 - h, x1 + 2.0 * h, h)
-        self.y = np.arange(y0 - h, y1 + 2.0 * h, h)
+        self.x = _axis(x0, x1, h, _foot_at(surfaces, 0))
+        self.y = _axis(y0, y1, h, _foot_at(surfaces, 1))
         J = self.x.size * self.y.size
         if J > MAX_NODES:
             raise ValueError(
@@ -215,6 +126,13 @@ class BounceMap:
         # Copies: every patch with its normal, then every patch turned over.
         self.geometric = np.concatenate([np.arange(count), np.arange(count)])
         self.sign = np.repeat([1.0, -1.0], count)
+        # The copies' groups, one surface's side each: (start, stop, surface, side).
+        offsets = np.cumsum([0] + [len(c) for _, c in parts])
+        self.groups = tuple(
+            (int(half + offsets[k]), int(half + offsets[k + 1]), k, sign)
+            for half, sign in ((0, 1.0), (count, -1.0))
+            for k in range(len(surfaces))
+        )
         self.quads = np.concatenate([geo_quads, geo_quads[:, ::-1]])
         self.centres = np.concatenate([geo_centres, geo_centres])
         self.normals = np.ascontiguousarray(np.concatenate([geo_normals, -geo_normals]))
@@ -388,52 +306,33 @@ class BounceMap:
     # -- pixels -------------------------------------------------------------------------
 
     def pixel_map(self, points_world: np.ndarray) -> PixelMap:
-        """The `PixelMap` of wall points (N, 3) (finite, inside the region)."""
-        h = self.h
-        n = len(points_world)
-        fx = (points_world[:, 0] - self.x[0]) / h
-        fy = (points_world[:, 1] - self.y[0]) / h
-        i = np.clip(np.floor(fx).astype(np.int64), 0, self.x.size - 2)
-        j = np.clip(np.floor(fy).astype(np.int64), 0, self.y.size - 2)
-        a = np.clip(fx - i, 0.0, 1.0)
-        b = np.clip(fy - j, 0.0, 1.0)
-        ny = self.y.size
-        idx = np.stack([i * ny + j, (i + 1) * ny + j, i * ny + j + 1, (i + 1) * ny + j + 1], 1)
-        w = np.stack([(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b], axis=1)
-        interpolate = sparse.csr_matrix(
-            (w.ravel(), idx.ravel(), np.arange(0, 4 * n + 1, 4)), shape=(n, len(self.nodes))
-        )
-        parts: list[tuple[np.ndarray, ...]] = []
-        reach = NEAR * h
-        for k in range(len(self.surroundings.surfaces)):
-            mine = np.nonzero(self.owner == k)[0]
-            lo = self.centres[mine].min(axis=0) - reach
-            hi = self.centres[mine].max(axis=0) + reach
-            close = np.nonzero(np.all((points_world >= lo) & (points_world <= hi), axis=1))[0]
-            for start in range(0, close.size, 256):
-                pts = close[start : start + 256]
-                gap = points_world[pts, None, :] - self.centres[None, mine, :]
-                pi, ki = np.nonzero(np.einsum("pki,pki->pk", gap, gap) <= reach * reach)
-                if pi.size == 0:
-                    continue
-                p_idx, c_idx = pts[pi], mine[ki]
-                P = points_world[p_idx]
-                exact = np.abs(_pair_irradiance(P, self.quads[c_idx]))
-                side = np.einsum("ni,ni->n", P - self.centres[c_idx], self.normals[c_idx]) > 0.0
-                quads = self.quads[c_idx]
-                parts.append((p_idx, c_idx, exact * side, P, quads, idx[p_idx], w[p_idx]))
-        if parts:
-            pairs = NearPairs(*(np.concatenate(a) for a in zip(*parts, strict=True)))
-        else:
-            none = np.zeros(0, dtype=np.int64)
-            empty = np.zeros((0, 3))
-            pairs = NearPairs(none, none, np.zeros(0), empty, self.quads[:0], idx[:0], w[:0])
-        near = pairs.near(self.G_WS, (n, len(self.centres)))
-        return PixelMap(interpolate, near, pairs)
+        """The `PixelMap` of wall points (N, 3) (finite, inside the region;
+        `lightcal.core.bounce_pixels`)."""
+        return pixel_map(self, points_world)
 
     def bounce(self, radiance: np.ndarray, pixels: PixelMap) -> np.ndarray:
         """(N, c) the bounce irradiance at a pixel map's points of radiance (K, c)."""
-        return np.asarray(pixels.interpolate @ (self.G_WS @ radiance) + pixels.near @ radiance)
+        return np.asarray(pixels.gather(self.G_WS, radiance) + pixels.near @ radiance)
+
+
+def _foot_at(surfaces: tuple[Surface, ...], axis: int) -> float | None:
+    """The wall coordinate `axis` (0: x, 1: y) of the first surface's foot that runs along
+    the other axis (a side wall's x, a ceiling's y), m; None if no foot does."""
+    for s in surfaces:
+        foot = s.corners_world[np.abs(s.corners_world[:, 2]) <= 1e-9]
+        if len(foot) >= 2 and abs(foot[1, axis] - foot[0, axis]) <= 1e-9:
+            return float(foot[0, axis])
+    return None
+
+
+def _axis(lo: float, hi: float, h: float, foot: float | None) -> np.ndarray:
+    """The grid's node coordinates along one axis: every h from below lo - h to beyond
+    hi + h, half a spacing off a foot (its cells' edges on it: no wall cell straddles the
+    foot, so each side's light comes from nodes on that side)."""
+    if foot is None:
+        return np.arange(lo - h, hi + 2.0 * h, h)
+    start = foot + 0.5 * h + h * math.floor((lo - h - foot - 0.5 * h) / h)
+    return np.arange(start, hi + 2.0 * h, h)
 
 
 def _clip(cells: np.ndarray, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -455,16 +354,3 @@ def _clip(cells: np.ndarray, normal: np.ndarray, point: np.ndarray) -> np.ndarra
                 kept.append(a + da / (da - db) * (b - a))
         out[j] = np.array(kept + [kept[-1]] * (5 - len(kept)))
     return out
-
-
-def _pair_irradiance(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
-    """(n,) Lambert's formula (`polygon_irradiance`) for wall points (n, 3) (normal +z),
-    each with its own polygon (n, V, 3)."""
-    R = polygons - points[:, None, :]
-    R1 = np.roll(R, -1, axis=1)
-    c = np.cross(R, R1)
-    cn = np.sqrt(np.einsum("nvi,nvi->nv", c, c))
-    gamma = np.arctan2(cn, np.einsum("nvi,nvi->nv", R, R1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        proj = np.where(cn > 1e-300, c[..., 2] / cn, 0.0)
-    return np.asarray(0.5 * np.einsum("nv,nv->n", gamma, proj))

@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from lightcal.core.bounce import BounceMap, PixelMap
+from lightcal.core.bounce import BounceMap
+from lightcal.core.bounce_pixels import PixelMap
 from lightcal.core.bounce_transfers import radiance_slope
 from lightcal.core.footprint import Footprints
 from lightcal.core.medium import AIR, Medium
@@ -173,10 +174,10 @@ class BounceTerm:
             radiance_dc = radiance_slope(t, d, src[:, 0], src_dc, radiance[:, 0])
             radiance = np.column_stack([radiance, radiance_dc])
         pixels = self.pixels[i]
-        b = np.asarray(pixels.interpolate @ (t.G_WS @ radiance) + near @ radiance)
+        b = np.asarray(pixels.gather(t.G_WS, radiance) + near @ radiance)
         if want_dc:
             assert d is not None and near_dc is not None
-            b[:, -1] += pixels.interpolate @ (d.D_WS @ radiance[:, 0]) + near_dc @ radiance[:, 0]
+            b[:, -1] += pixels.gather(d.D_WS, radiance[:, :1])[:, 0] + near_dc @ radiance[:, 0]
         to_camera_m = np.linalg.norm(self.centers_world[i] - view.center_world, axis=1)
         b *= np.exp(-c * to_camera_m)[:, None]
         if want_dc:

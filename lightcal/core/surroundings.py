@@ -21,6 +21,7 @@ __all__ = [
     "Surface",
     "Surroundings",
     "polygon_irradiance",
+    "screened_footprints",
     "segments_blocked",
 ]
 
@@ -232,3 +233,25 @@ def segments_blocked(
         hit = a[ia] + t[:, None] * (b[ib] - a[ia]) - s.corner_world
         out[ia, ib] |= s.contains(hit)
     return out
+
+
+def screened_footprints(
+    surroundings: Surroundings, center_world: np.ndarray, corners_world: np.ndarray
+) -> np.ndarray:
+    """(N,) the pixels a surface hides in part from the camera: a corner of their
+    footprint (corners (N, K, 4, 3), world frame, m; NaN off the wall) behind a surface as
+    the camera centre (3,) sees it. The model renders the wall, not the surfaces, so such a
+    pixel (one that straddles a surface's foot, say) is not modelled (docs/model.md,
+    "Inter-reflection")."""
+    n = corners_world.shape[0]
+    points = corners_world.reshape(-1, 3)
+    finite = np.all(np.isfinite(points), axis=1)
+    hidden = np.zeros(len(points), dtype=bool)
+    hidden[finite] = segments_blocked(
+        surroundings.surfaces,
+        np.asarray(center_world, dtype=np.float64)[None, :],
+        np.array([-1]),
+        points[finite],
+        np.full(int(finite.sum()), -1),
+    )[0]
+    return np.asarray(hidden.reshape(n, -1).any(axis=1))

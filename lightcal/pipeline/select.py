@@ -15,6 +15,7 @@ from lightcal.core.selection import (
     candidate_mask,
     select_pixels,
 )
+from lightcal.core.surroundings import screened_footprints
 from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.linear_image import LinearImage
 from lightcal.io.project import Project
@@ -108,7 +109,12 @@ def image_data(
         vignetting=vignetting,
         binning=b,
     )
-    keep = np.nonzero(fp.valid)[0]
+    usable = fp.valid
+    if project.surroundings is not None:  # the surfaces as the camera sees them: unmodelled
+        usable = usable & ~screened_footprints(
+            project.surroundings, view.center_world, fp.corners_world
+        )
+    keep = np.nonzero(usable)[0]
     if sel.strategy == "random" and keep.size > sel.n_per_image:
         # A random N of the valid ones (not the first N: pixels are sorted by row),
         # plus the extra pixels.
