@@ -81,6 +81,11 @@ _TEXTURE_CUTOFF_LEVEL = 1e-3
 _TEXTURE_MAX_CUTOFF_DEG = 80.0
 """Widest texture cone: the texture is a tangent-plane projection (tan of the angle)."""
 
+NEAR_CLIP_M = 1e-5
+"""The sensor's near clip in water: Mitsuba starts a camera ray there, so the default
+1 cm would leave the ray's first centimetre out of the medium (3e-3 of the value at
+c = 0.3 /m)."""
+
 SAMPLES_PER_PIXEL = 16
 """The exported sensor's `multijitter` samples per pixel (a delta light: only the pixel's
 area is sampled)."""
@@ -254,8 +259,9 @@ def _medium_lines(medium: ExportMedium, wall_albedo: float | None, ident: str) -
         "phase of g (phase_g). The result's backscatter beta = sigma_s pi / rho is relative "
         f"to the wall's albedo rho: {how} lightcal's model is single scattering: "
         "mi.load_file(path, max_depth=2) renders it (direct light and one scattering); the "
-        "default max_depth -1 follows every order. Not modelled: refraction at the camera's "
-        "and the light's ports."
+        "default max_depth -1 follows every order. The sensor's near_clip is 1e-5 m: a camera "
+        "ray starts there, in the water. Not modelled: refraction at the camera's and the "
+        "light's ports."
     )
     comment = textwrap.wrap(xml_comment(text, max_chars=4000), 84)
     return [
@@ -302,6 +308,11 @@ def mitsuba_files(
     ident = medium_id(result)
     water = [] if medium is None else _medium_lines(medium, wall_albedo, ident)
     inside = [] if medium is None else [f'        <ref name="medium" id="{ident}"/>']
+    sensor_inside = (
+        []
+        if medium is None
+        else [f'        <float name="near_clip" value="{NEAR_CLIP_M!r}"/>', *inside]
+    )
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: calibrated lights, camera frame.",
@@ -315,7 +326,7 @@ def mitsuba_files(
         "     without one the cone's falloff approximates a 90 degree half angle. -->",
         '<scene version="3.0.0">',
         *water,
-        *_sensor_lines(camera, inside),
+        *_sensor_lines(camera, sensor_inside),
     ]
     for index, light in enumerate(result.lights):
         rid = light_rid(light, source)
