@@ -313,7 +313,7 @@ def test_blender_makes_the_medium_the_worlds_volume(tmp_path, monkeypatch):
     exec(compile(path.read_text(), str(path), "exec"), {"__name__": "__main__"})
     assert [obj.name for obj in created] == ["spot", "lopsided"]
     world = bpy.context.scene.world
-    assert world is not None and world.use_nodes and world.node_tree is tree
+    assert world is not None and world.node_tree is tree
     output, absorption, scatter, both = tree.nodes
     assert absorption.bl_idname == "ShaderNodeVolumeAbsorption"
     assert scatter.bl_idname == "ShaderNodeVolumeScatter" and scatter.phase == "HENYEY_GREENSTEIN"

@@ -35,6 +35,14 @@ renders it with a wall in `bpy` and compares with lightcal's `render_image` of t
   shift_x = ((width - 1) / 2 - cx) / width, shift_y = (cy - (height - 1) / 2) fx / (fy
   width) (OpenCV's pixel centres at integers, Blender's at half-integers; both shifts in
   units of the width). No skew and no lens distortion: compare with undistorted images.
+- **The medium** (a result calibrated in water, `lightcal.io.export_medium`): `set_water`,
+  appended to the snippet, makes it the volume of the scene's world (a new, black world
+  if there is none), where Cycles puts the camera, the lights and every ray: a Volume
+  Absorption (black) of density c - sigma_s plus a Volume Scatter (white) of density
+  sigma_s = beta rho / pi with Henyey-Greenstein anisotropy g, so that the extinction is
+  c (densities per Blender unit: one unit a metre, as for the poses). Cycles renders it as
+  lightcal does with its Volume bounces 0 (single scattering), the veil included
+  (`tests/test_export_blender_render.py`). A result in air appends nothing.
 
 What is left, and what a user's scene must keep: Cycles' spline over the last vertical
 interval takes a zero beyond the table, so between 89.75 and 90 degrees it differs from
@@ -207,11 +215,15 @@ WATER = {water}
 def set_water(scene, numbers=WATER):
     \"\"\"The calibration's medium as the world's volume (see the docstring at the top).\"\"\"
     world = scene.world
-    if world is None:
+    made = world is None
+    if made:  # a black world, as none is: the water only
         world = bpy.data.worlds.new("lightcal water")
         scene.world = world
-    world.use_nodes = True
+    if world.node_tree is None:  # Blender < 5 (World.use_nodes goes in Blender 6)
+        world.use_nodes = True
     tree = world.node_tree
+    if made:
+        tree.nodes.clear()
     output = next((node for node in tree.nodes if node.type == "OUTPUT_WORLD"), None)
     if output is None:
         output = tree.nodes.new("ShaderNodeOutputWorld")
@@ -259,15 +271,17 @@ def _water_note(medium: ExportMedium, numbers: dict[str, float], wall_albedo: fl
         how = "no scattering (backscatter_per_m 0): a purely absorbing medium."
     return (
         f"\n\nThe calibration's medium: {medium.text()}.\n"
-        "set_water makes it the world's volume, which Cycles puts the camera, the lights and\n"
-        "every ray in: a Volume Absorption of density c - sigma_s (black) plus a Volume\n"
-        "Scatter of density sigma_s (white, Henyey-Greenstein anisotropy g), so that the\n"
-        "extinction is c; densities per Blender unit, one unit a metre (unit scale 1, as the\n"
-        "lights' positions are). The backscatter beta = sigma_s pi / rho is relative to the\n"
+        "set_water makes it the volume of the scene's world (a new, black world if the scene\n"
+        "has none), which Cycles puts the camera, the lights and every ray in: a Volume\n"
+        "Absorption of density c - sigma_s (black) plus a Volume Scatter of density sigma_s\n"
+        "(white, Henyey-Greenstein anisotropy g), so that the extinction is c; densities\n"
+        "per Blender unit, one unit a metre (unit scale 1, as the lights' positions are).\n"
+        "The backscatter beta = sigma_s pi / rho is relative to the\n"
         f"wall's albedo rho: {how}\n"
-        "lightcal's model is single scattering (Cycles' Volume bounces 0: direct light on\n"
-        "the volume). Cycles' world volume is homogeneous, as lightcal's medium; EEVEE\n"
-        "renders no world volume. Not modelled: refraction at the ports."
+        "lightcal's model is single scattering: Cycles' Volume bounces 0 (its default), the\n"
+        "volume's direct light only. A Cycles render of it matches lightcal's in water, veil\n"
+        "included (tests/test_export_blender_render.py); EEVEE renders no world volume.\n"
+        "Not modelled: refraction at the camera's and the light's ports."
     )
 
 
