@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import collections
 import hashlib
+import json
 import math
 import sys
 import types
@@ -24,13 +25,14 @@ import pytest
 
 from lightcal.cli.main import main
 from lightcal.core.camera import Camera
-from lightcal.core.medium import AIR
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.pose import describe_pose, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.errors import InputError
 from lightcal.io import export_lights
 from lightcal.io.export import FORMATS, export_result
 from lightcal.io.export_medium import export_medium
+from lightcal.io.project import load_project
 from lightcal.io.result_file import (
     ImageResult,
     LightResultModel,
@@ -38,7 +40,7 @@ from lightcal.io.result_file import (
     ResultFile,
     write_result,
 )
-from tests.export_render import placeholder_sigma
+from tests.export_render import placeholder_sigma, result_of_project
 from tests.test_export import _fake_blender
 
 OUT_NAMES = {
@@ -220,7 +222,8 @@ def _mitsuba_numbers(path: Path) -> dict[str, float]:
         for child in parent
         if child.tag == "ref" and child.get("id") == ident and child.get("name") == "medium"
     ]
-    assert refs == ["sensor", "emitter", "emitter"]  # the camera and every light sit in it
+    emitters = len(list(root.iter("emitter")))
+    assert refs == ["sensor"] + ["emitter"] * emitters  # the camera and every light sit in it
     (integrator,) = root.iter("integrator")
     assert integrator.get("type") == "volpath"
     numbers = {e.get("name", ""): float(e.get("value", "")) for e in medium.iter("float")}
@@ -359,3 +362,29 @@ def test_cli_takes_the_wall_albedo(tmp_path, capsys):
     assert main([*args, "--wall-albedo", "0.5"]) == 0
     assert "albedo rho = 0.5 (--wall-albedo)" in capsys.readouterr().err
     assert abs(_mitsuba_numbers(out)["albedo"] - BETA * 0.5 / math.pi / C) <= 1e-9
+
+
+def test_the_projects_surroundings_give_the_wall_albedo(tmp_path, capsys):
+    """`--project` with `surroundings.wall_albedo` 0.7: sigma_s = beta 0.7 / pi; an
+    explicit --wall-albedo wins."""
+    data = tmp_path / "data"
+    args = ["synth", str(data), "--views", "1", "--width", "96", "--height", "64"]
+    assert main([*args, "--no-noise", "--quiet"]) == 0
+    doc = json.loads((data / "project.json").read_text())
+    doc["surroundings"] = {
+        "wall_albedo": 0.7,
+        "surfaces": [
+            {"corner_m": [-2.0, 1.0, 0.0], "edge_u_m": [4.0, 0.0, 0.0], "edge_v_m": [0, 0, 0.5]}
+            | {"albedo": 0.5}
+        ],
+    }
+    (data / "project.json").write_text(json.dumps(doc))
+    project = load_project(data / "project.json")
+    result = result_of_project(project, [1.0], tmp_path / "r.json", Medium(C, BETA, G))
+    out = tmp_path / "w.xml"
+    args = ["export", str(result), "--format", "mitsuba", "--out", str(out), "--force"]
+    assert main([*args, "--project", str(data / "project.json")]) == 0
+    assert "rho = 0.7 (surroundings.wall_albedo)" in capsys.readouterr().err
+    assert abs(_mitsuba_numbers(out)["albedo"] - BETA * 0.7 / math.pi / C) <= 1e-9
+    assert main([*args, "--project", str(data / "project.json"), "--wall-albedo", "0.4"]) == 0
+    assert abs(_mitsuba_numbers(out)["albedo"] - BETA * 0.4 / math.pi / C) <= 1e-9

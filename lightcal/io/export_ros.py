@@ -16,6 +16,10 @@ mapping light-frame coordinates to the camera's (ROS: parent `camera_optical_fra
 child the light). Quaternions are in ROS's order **x y z w** (scalar last, as SciPy's
 `Rotation.as_quat`); lightcal's result files write them scalar first (`quaternion_wxyz`).
 URDF's `rpy` are fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
+
+A result calibrated in water says so in the launch file's comment (c, beta, g and their
+sigmas, `lightcal.io.export_medium`): tf has no place for a medium. In air the files are
+what they were.
 """
 
 from __future__ import annotations
