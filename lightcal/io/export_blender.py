@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -263,26 +264,26 @@ def blender_water_numbers(medium: ExportMedium, wall_albedo: float | None) -> di
 def _water_note(medium: ExportMedium, numbers: dict[str, float], wall_albedo: float | None) -> str:
     if medium.scatters:
         how = (
-            f"sigma_s = beta rho / pi = {numbers['scattering_per_m']!r} /m with the wall's\n"
-            f"albedo rho = {wall_albedo!r}: give the wall that albedo (a wall of albedo rho\n"
+            f"sigma_s = beta rho / pi = {numbers['scattering_per_m']!r} /m with the wall's "
+            f"albedo rho = {wall_albedo!r}: give the wall that albedo (a wall of albedo rho "
             "renders rho / pi times lightcal's value and the veil sigma_s / beta times it)."
         )
     else:
         how = "no scattering (backscatter_per_m 0): a purely absorbing medium."
-    return (
-        f"\n\nThe calibration's medium: {medium.text()}.\n"
-        "set_water makes it the volume of the scene's world (a new, black world if the scene\n"
-        "has none), which Cycles puts the camera, the lights and every ray in: a Volume\n"
-        "Absorption of density c - sigma_s (black) plus a Volume Scatter of density sigma_s\n"
-        "(white, Henyey-Greenstein anisotropy g), so that the extinction is c; densities\n"
-        "per Blender unit, one unit a metre (unit scale 1, as the lights' positions are).\n"
-        "The backscatter beta = sigma_s pi / rho is relative to the\n"
-        f"wall's albedo rho: {how}\n"
-        "lightcal's model is single scattering: Cycles' Volume bounces 0 (its default), the\n"
-        "volume's direct light only. A Cycles render of it matches lightcal's in water, veil\n"
-        "included (tests/test_export_blender_render.py); EEVEE renders no world volume.\n"
-        "Not modelled: refraction at the camera's and the light's ports."
+    text = (
+        f"The calibration's medium: {medium.text()}. set_water makes it the volume of the "
+        "scene's world (a new, black world if the scene has none), which Cycles puts the "
+        "camera, the lights and every ray in: a Volume Absorption of density c - sigma_s "
+        "(black) plus a Volume Scatter of density sigma_s (white, Henyey-Greenstein "
+        "anisotropy g), so that the extinction is c; densities per Blender unit, one unit a "
+        "metre (unit scale 1, as the lights' positions are). The backscatter beta = sigma_s "
+        f"pi / rho is relative to the wall's albedo rho: {how} lightcal's model is single "
+        "scattering: Cycles' Volume bounces 0 (its default), the volume's direct light only. "
+        "A Cycles render of it matches lightcal's in water, veil included "
+        "(tests/test_export_blender_render.py); EEVEE renders no world volume. Not "
+        "modelled: refraction at the camera's and the light's ports."
     )
+    return "\n\n" + "\n".join(textwrap.wrap(text, 88))
 
 
 def blender_snippet(
