@@ -388,3 +388,30 @@ def test_the_projects_surroundings_give_the_wall_albedo(tmp_path, capsys):
     assert abs(_mitsuba_numbers(out)["albedo"] - BETA * 0.7 / math.pi / C) <= 1e-9
     assert main([*args, "--project", str(data / "project.json"), "--wall-albedo", "0.4"]) == 0
     assert abs(_mitsuba_numbers(out)["albedo"] - BETA * 0.4 / math.pi / C) <= 1e-9
+
+
+@pytest.mark.parametrize(
+    "broken",
+    [
+        {"attenuation_per_m": "x"},
+        {"attenuation_per_m": math.nan},
+        {"attenuation_per_m": -0.1},
+        {"backscatter_per_m": math.inf},
+        {"estimated": 5},
+        {"estimated": None},
+        {"sigma": [1.0]},
+        {"sigma": {"attenuation_per_m": "a"}},
+    ],
+)
+def test_a_broken_medium_is_refused_before_anything_is_written(broken, tmp_path, capsys):
+    """Every format, ies included (which cannot hold the medium): one line, no file."""
+    doc = json.loads(in_water(WATER).model_dump_json())
+    doc["medium"].update(broken)
+    (tmp_path / "r.json").write_text(json.dumps(doc, allow_nan=True))
+    for fmt in ("opencv", "ies"):
+        out = tmp_path / OUT_NAMES[fmt]
+        args = ["export", str(tmp_path / "r.json"), "--format", fmt, "--out", str(out)]
+        assert main([*args, *(["--light", "spot"] if fmt == "ies" else [])]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("lightcal export: error: ")
+        assert "medium" in lines[0] and not out.exists()

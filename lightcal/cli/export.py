@@ -93,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_wall_albedo(args.wall_albedo)
     result = read_result(args.result)
+    medium = export_medium(result, args.result)  # a broken medium: refused before writing
     camera = None if project is None else project.camera
     wall_albedo = args.wall_albedo
     if wall_albedo is None and project is not None and project.surroundings is not None:
@@ -141,7 +142,6 @@ def run(args: argparse.Namespace) -> int:
             "a 180 degree spot cone (--project PROJECT takes the project's RID)",
             file=sys.stderr,
         )
-    medium = export_medium(result, args.result)
     if medium is not None and args.format in ("ies", "ldt"):
         print(
             f"note: the result's medium ({medium.text()}) has no place in an "

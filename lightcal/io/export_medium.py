@@ -134,11 +134,16 @@ def export_medium(result: ResultFile, source: str | Path) -> ExportMedium | None
             f"medium: expected attenuation_per_m and backscatter_per_m >= 0 and |phase_g| < 1, "
             f"got {c!r}, {beta!r}, {g!r}",
         )
-    estimated = tuple(str(n) for n in description.get("estimated", []) if n in NAMES)
+    listed, sigmas = description.get("estimated", []), description.get("sigma", {})
+    if not isinstance(listed, list) or not isinstance(sigmas, dict | None):
+        raise InputError(
+            source, "medium: expected estimated a list of names and sigma a mapping of them"
+        )
+    estimated = tuple(str(n) for n in listed if isinstance(n, str) and n in NAMES)
     if c == 0.0 and beta == 0.0 and not estimated:
         return None
     sigma: dict[str, float] = {}
-    for name, value in (description.get("sigma") or {}).items():
+    for name, value in (sigmas or {}).items():
         if name in NAMES:
             try:
                 sigma[name] = math.nan if value is None else float(value)
