@@ -104,7 +104,7 @@ class ExportMedium:
         parts = []
         for name in NAMES:
             how = f"± {self.sigma_of(name):.3g}" if name in self.estimated else "(given)"
-            parts.append(f"{name} {self.value(name)!r} {how}")
+            parts.append(f"{name} {self.value(name):.6g} {how}")
         return ", ".join(parts)
 
 
