@@ -274,8 +274,9 @@ def test_a_scattering_medium_without_the_wall_albedo_is_refused(fmt, tmp_path):
         export_result(in_water(WATER), fmt, tmp_path / OUT_NAMES[fmt], source="r", wall_albedo=0)
 
 
-def _world_stand_in(bpy: Any) -> Any:
-    """A scene without a world, and `bpy.data.worlds` making one with a World Output."""
+def _world_stand_in(bpy: Any, existing: bool) -> Any:
+    """A scene without a world and `bpy.data.worlds` making one (a Background node, which
+    the snippet must remove); or the scene's world with a Background and a World Output."""
     socket = types.SimpleNamespace
     links: list[tuple[Any, Any]] = []
 
@@ -297,27 +298,37 @@ def _world_stand_in(bpy: Any) -> Any:
 
     nodes = _Nodes()
     tree = socket(nodes=nodes, links=socket(new=lambda a, b: links.append((a, b))), made=links)
-    bpy.context.scene.world = None
+    new_node("ShaderNodeBackground")
 
     def new_world(name: str) -> Any:
-        return socket(name=name, use_nodes=False, node_tree=tree)
+        return socket(name=name, node_tree=tree)
 
     bpy.data.worlds = socket(new=new_world)
+    bpy.context.scene.world = None
+    if existing:
+        new_node("ShaderNodeOutputWorld")
+        bpy.context.scene.world = new_world("World")
     return tree
 
 
-def test_blender_makes_the_medium_the_worlds_volume(tmp_path, monkeypatch):
+@pytest.mark.parametrize("existing", [False, True])
+def test_blender_makes_the_medium_the_worlds_volume(tmp_path, monkeypatch, existing):
+    """The scene's world gets the volume, its surface kept; without one, a new black world."""
     path = tmp_path / "w.py"
     export_result(in_water(WATER), "blender", path, source="r.json", wall_albedo=RHO)
     bpy, mathutils, created = _fake_blender(None)
-    tree = _world_stand_in(bpy)
+    tree = _world_stand_in(bpy, existing)
     monkeypatch.setitem(sys.modules, "bpy", bpy)
     monkeypatch.setitem(sys.modules, "mathutils", mathutils)
     exec(compile(path.read_text(), str(path), "exec"), {"__name__": "__main__"})
     assert [obj.name for obj in created] == ["spot", "lopsided"]
     world = bpy.context.scene.world
     assert world is not None and world.node_tree is tree
-    output, absorption, scatter, both = tree.nodes
+    if existing:
+        background, output, absorption, scatter, both = tree.nodes
+        assert background.bl_idname == "ShaderNodeBackground"
+    else:
+        output, absorption, scatter, both = tree.nodes  # the Background removed: black
     assert absorption.bl_idname == "ShaderNodeVolumeAbsorption"
     assert scatter.bl_idname == "ShaderNodeVolumeScatter" and scatter.phase == "HENYEY_GREENSTEIN"
     sigma_s = BETA * RHO / math.pi
