@@ -223,6 +223,7 @@ def export(
     *,
     project: Project | str | Path | None = None,
     light: str | None = None,
+    wall_albedo: float | None = None,
     force: bool = False,
     notify: Notify | None = _stderr,
 ) -> list[Path]:
@@ -235,6 +236,9 @@ def export(
         project: The project: its camera (Mitsuba's sensor, Blender's camera) and the RIDs the
             calibration did not estimate (a Calibration brings its own).
         light: The light to write as ies/ldt when several have a RID.
+        wall_albedo: The wall's albedo rho, for Mitsuba's and Blender's scattering
+            coefficient beta rho / pi of a medium that scatters (default: the project's
+            `surroundings.wall_albedo`; `lightcal.io.export_medium`).
         force: Replace existing files.
     """
     from lightcal.io.export import export_result, with_given_rids
@@ -248,10 +252,19 @@ def export(
         camera = project.camera
         ensure_compiled(notify)  # analytic RIDs are sampled with the compiled evaluator
         file = with_given_rids(file, {u.initial.name: u.initial.rid for u in project.lights})
+        if wall_albedo is None and project.surroundings is not None:
+            wall_albedo = project.surroundings.wall_albedo
     elif fmt == "mitsuba":
         ensure_compiled(notify)  # the RID texture: the compiled table evaluator
     return export_result(
-        file, fmt, out, source=source, light_name=light, camera=camera, force=force
+        file,
+        fmt,
+        out,
+        source=source,
+        light_name=light,
+        camera=camera,
+        wall_albedo=wall_albedo,
+        force=force,
     )
 
 

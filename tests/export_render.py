@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcal.core.camera import Camera
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.pose import describe_pose
 from lightcal.core.render import render_image
 from lightcal.core.scene import Light, Rig
@@ -86,8 +87,11 @@ def project_lights(project: Project, scales: list[float]) -> list[Light]:
     ]
 
 
-def result_of_project(project: Project, scales: list[float], path: Path) -> Path:
-    """A result file holding the project's initial lights with `scales` (no RID estimated)."""
+def result_of_project(
+    project: Project, scales: list[float], path: Path, medium: Medium = AIR
+) -> Path:
+    """A result file holding the project's initial lights with `scales` (no RID estimated),
+    calibrated in `medium` (given)."""
     lights = project_lights(project, scales)
     result = ResultFile(
         lightcal_version="0.1.0",
@@ -107,6 +111,7 @@ def result_of_project(project: Project, scales: list[float], path: Path) -> Path
         time_s=0.0,
         warnings=[],
         parameters=Parameters(names=["x"], x=[0.0], covariance=[[1.0]]),
+        medium={**medium.describe(), "estimated": [], "sigma": {}},
     )
     write_result(result, path)
     return path
@@ -126,13 +131,18 @@ def undistorted(camera: Camera) -> Camera:
 def mitsuba_render(
     xml_path: Path, T_camera_world: np.ndarray, variant: str, spp: int = 16
 ) -> np.ndarray:
-    """(H, W) Mitsuba's render of the exported scene with a wall added (module docstring)."""
+    """(H, W) Mitsuba's render of the exported scene with a wall added (module docstring).
+
+    A scene in water keeps its own integrator (`volpath`), loaded with `max_depth` 2:
+    the wall's direct light and single scattering, lightcal's model."""
     import mitsuba as mi
 
     mi.set_variant(variant)
     tree = ET.parse(xml_path)
     scene = tree.getroot()
-    ET.SubElement(scene, "integrator", {"type": "direct"})
+    in_water = scene.find("integrator") is not None
+    if not in_water:
+        ET.SubElement(scene, "integrator", {"type": "direct"})
     wall = ET.SubElement(scene, "shape", {"type": "rectangle"})
     to_world = np.diag([-1.0, -1.0, 1.0, 1.0]) @ T_camera_world @ np.diag([20.0, 20.0, 1.0, 1.0])
     transform = ET.SubElement(wall, "transform", {"name": "to_world"})
@@ -146,7 +156,8 @@ def mitsuba_render(
             count.set("value", str(spp))
     with_wall = xml_path.with_name(xml_path.stem + "_with_wall.xml")
     tree.write(with_wall)
-    image = np.array(mi.render(mi.load_file(str(with_wall))), dtype=np.float64)
+    options = {"max_depth": 2} if in_water else {}
+    image = np.array(mi.render(mi.load_file(str(with_wall), **options)), dtype=np.float64)
     return image[:, :, 0] * math.pi / ALBEDO
 
 
@@ -156,15 +167,32 @@ def _centroid(image: np.ndarray) -> np.ndarray:
     return np.array([(cols * image).sum() / w, (rows * image).sum() / w])
 
 
-def compare_view(
-    project: Project, lights: list[Light], xml_path: Path, view_index: int, variant: str
-) -> ExportComparison:
+def both_renders(
+    project: Project,
+    lights: list[Light],
+    xml_path: Path,
+    view_index: int,
+    variant: str,
+    *,
+    medium: Medium = AIR,
+    spp: int = 16,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) lightcal's render of the view in `medium` and (H, W) Mitsuba's of the
+    exported scene with the wall, times pi / ALBEDO (NaN where lightcal's is invalid)."""
     view = project.views[view_index]
-    ours = render_image(undistorted(project.camera), view, Rig(tuple(lights))).filled(np.nan)
+    camera = undistorted(project.camera)
+    ours = render_image(camera, view, Rig(tuple(lights)), medium=medium).filled(np.nan)
     T = np.eye(4)
     T[:3, :3] = view.R_camera_world
     T[:3, 3] = view.t_camera_world
-    theirs = mitsuba_render(xml_path, T, variant) * view.exposure  # the scale is at exposure 1
+    theirs = mitsuba_render(xml_path, T, variant, spp) * view.exposure  # scale at exposure 1
+    return ours, theirs
+
+
+def compare_view(
+    project: Project, lights: list[Light], xml_path: Path, view_index: int, variant: str
+) -> ExportComparison:
+    ours, theirs = both_renders(project, lights, xml_path, view_index, variant)
     both = np.isfinite(ours) & np.isfinite(theirs)
     lit = both & (ours > LIT_LEVEL * np.nanmax(ours))
     rel = np.abs(theirs[lit] / ours[lit] - 1.0)

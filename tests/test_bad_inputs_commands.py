@@ -1129,6 +1129,21 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("export", "--light: applies to --format ies or ldt only, not opencv"),
     ),
     (
+        "export: --wall-albedo nan",
+        "export {r} --format mitsuba --out {n}.xml --wall-albedo nan",
+        _error("export", "--wall-albedo: expected the wall's albedo in (0, 1], got nan"),
+    ),
+    (
+        "export: --wall-albedo 0",
+        "export {r} --format blender --out {n}.py --wall-albedo 0",
+        _error("export", "--wall-albedo: expected the wall's albedo in (0, 1], got 0.0"),
+    ),
+    (
+        "export: --wall-albedo with --format opencv",
+        "export {r} --format opencv --out {n}.yaml --wall-albedo 0.5",
+        _error("export", "--wall-albedo: applies to --format mitsuba or blender only, not opencv"),
+    ),
+    (
         "export: --project a result",
         "export {r} --format ies --out {n}.ies --project {r}",
         _error("export", "{r}: a result file of lightcal calibrate, not a project file"),

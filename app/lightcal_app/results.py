@@ -179,7 +179,9 @@ def export_download(result: CalibrationResult, project: Project, fmt: str) -> tu
     rids = {u.initial.name: u.initial.rid for u in project.lights}
     result_file = with_given_rids(result_file, rids)
     main = Path(f"{stem}.{fmt}{EXPORT_SUFFIX[fmt]}")
-    files = export_files(result_file, fmt, main, source=f"{stem}.result.json")
+    # a medium that scatters: its scattering coefficient needs the wall's albedo
+    rho = None if project.surroundings is None else project.surroundings.wall_albedo
+    files = export_files(result_file, fmt, main, source=f"{stem}.result.json", wall_albedo=rho)
     if len(files) == 1:
         return main.name, files[main]
     buf = io.BytesIO()

@@ -46,6 +46,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="take the RID of lights the calibration did not estimate from this project, "
         "and give the Mitsuba sensor and the Blender camera its intrinsics",
     )
+    p.add_argument(
+        "--wall-albedo",
+        type=float,
+        default=None,
+        metavar="RHO",
+        help="the wall's diffuse reflectance, for mitsuba's and blender's scattering "
+        "coefficient sigma_s = beta RHO / pi of a result whose medium scatters (default: "
+        "the project's surroundings.wall_albedo)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing file")
     p.set_defaults(func=run)
 
@@ -76,8 +85,19 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.light is not None and args.format not in ("ies", "ldt"):
         raise InputError("--light", f"applies to --format ies or ldt only, not {args.format}")
+    if args.wall_albedo is not None and args.format not in ("mitsuba", "blender"):
+        raise InputError(
+            "--wall-albedo", f"applies to --format mitsuba or blender only, not {args.format}"
+        )
+    from lightcal.io.export_medium import check_wall_albedo, export_medium
+
+    check_wall_albedo(args.wall_albedo)
     result = read_result(args.result)
+    medium = export_medium(result, args.result)  # a broken medium: refused before writing
     camera = None if project is None else project.camera
+    wall_albedo = args.wall_albedo
+    if wall_albedo is None and project is not None and project.surroundings is not None:
+        wall_albedo = project.surroundings.wall_albedo
     if project is not None:
         from lightcal.cli.progress import ensure_kernels
         from lightcal.io.project_identity import check_result_of
@@ -94,7 +114,13 @@ def run(args: argparse.Namespace) -> int:
 
         ensure_kernels()  # the RID texture is evaluated with the compiled table evaluator
     files = export_files(
-        result, args.format, args.out, source=args.result, light_name=args.light, camera=camera
+        result,
+        args.format,
+        args.out,
+        source=args.result,
+        light_name=args.light,
+        camera=camera,
+        wall_albedo=wall_albedo,
     )
     for path in list(files)[1:]:
         check_output_file(path, option="--out", inputs=inputs, inputs_of="the export")
@@ -105,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
         source=args.result,
         light_name=args.light,
         camera=camera,
+        wall_albedo=wall_albedo,
         force=args.force,
     )
     print(f"{args.format} export written to {', '.join(str(p) for p in written)}")
@@ -113,6 +140,19 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"note: no estimated RID for {', '.join(coneless)} in the result: "
             "a 180 degree spot cone (--project PROJECT takes the project's RID)",
+            file=sys.stderr,
+        )
+    if medium is not None and args.format in ("ies", "ldt"):
+        print(
+            f"note: the result's medium ({medium.text()}) has no place in an "
+            f"{args.format.upper()} file: it holds the light's RID only",
+            file=sys.stderr,
+        )
+    elif medium is not None and medium.scatters and args.format in ("mitsuba", "blender"):
+        where = "--wall-albedo" if args.wall_albedo is not None else "surroundings.wall_albedo"
+        print(
+            f"note: the medium's scattering coefficient is beta rho / pi with the wall's "
+            f"albedo rho = {wall_albedo:g} ({where}): give the scene's wall that albedo",
             file=sys.stderr,
         )
     return 0

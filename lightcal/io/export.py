@@ -20,6 +20,13 @@ it, a Mitsuba spot gets the RID as a texture: a 16-bit PNG beside the XML
 (`<stem>_rid_<k>.png`, `spot_texture`), looked up by Mitsuba along each direction.
 Photometric files hold the relative RID as candela (1 cd on the axis, absolute
 photometry); azimuths follow docs/conventions.md (C = -phi).
+
+A result calibrated in water (its `medium`, `lightcal.io.export_medium`) gives Mitsuba a
+`homogeneous` medium the sensor and emitters sit in (and `volpath`), Blender the world's
+volume, the opencv file a `medium` map of c, beta, g and their sigmas and the ROS launch
+file a comment; ies/ldt cannot hold it (`lightcal export` says so on stderr). The
+renderers need the scattering coefficient sigma_s = beta rho / pi: `wall_albedo` rho.
+In air the files are what they were before media, byte for byte.
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ from lightcal.io.export_lights import (
     rid_origin,
     with_given_rids,
 )
+from lightcal.io.export_medium import check_wall_albedo
 from lightcal.io.export_mitsuba import mitsuba_files, rid_values, spot_texture
 from lightcal.io.export_opencv import opencv_yaml
 from lightcal.io.export_ros import ros_files
@@ -167,8 +175,12 @@ add_lights()
 '''
 
 
-def _blender_snippet(result: ResultFile, source: str | Path, camera: Camera | None) -> bytes:
-    return blender_snippet(result, source, _BLENDER_TEMPLATE, camera=camera)
+def _blender_snippet(
+    result: ResultFile, source: str | Path, camera: Camera | None, wall_albedo: float | None
+) -> bytes:
+    return blender_snippet(
+        result, source, _BLENDER_TEMPLATE, camera=camera, wall_albedo=wall_albedo
+    )
 
 
 # ------------------------------------------------------------------------ photometric
@@ -267,6 +279,7 @@ def export_files(
     source: str | Path,
     light_name: str | None = None,
     camera: Camera | None = None,
+    wall_albedo: float | None = None,
 ) -> dict[Path, bytes]:
     """The exported files' contents: `out` first, then any it refers to (Mitsuba textures).
 
@@ -278,11 +291,16 @@ def export_files(
         light_name: The light to export as ies/ldt (needed when several have a RID).
         camera: The project's camera (Mitsuba's sensor, Blender's camera: film size,
             field of view, principal point).
+        wall_albedo: rho, the wall's diffuse reflectance, in (0, 1]: Mitsuba's and
+            Blender's scattering coefficient sigma_s = beta rho / pi of a result whose
+            medium scatters (`lightcal.io.export_medium`).
 
     Raises:
-        InputError: an unknown format, or the result lacks what the format needs.
+        InputError: an unknown format, the result lacks what the format needs, or its
+            medium scatters and the format needs `wall_albedo`.
     """
     out = Path(out)
+    check_wall_albedo(wall_albedo)
     if result.undetermined:
         raise InputError(
             source,
@@ -292,11 +310,11 @@ def export_files(
     if fmt == "opencv":
         return {out: opencv_yaml(result, source)}
     if fmt == "blender":
-        return {out: _blender_snippet(result, source, camera)}
+        return {out: _blender_snippet(result, source, camera, wall_albedo)}
     if fmt == "mitsuba":
-        return mitsuba_files(result, source, out, camera=camera)
+        return mitsuba_files(result, source, out, camera=camera, wall_albedo=wall_albedo)
     if fmt == "ros":
-        return ros_files(result, out)
+        return ros_files(result, out, source)
     if fmt == "ies":
         return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
     if fmt == "ldt":
@@ -312,6 +330,7 @@ def export_result(
     source: str | Path,
     light_name: str | None = None,
     camera: Camera | None = None,
+    wall_albedo: float | None = None,
     force: bool = False,
 ) -> list[Path]:
     """Write `export_files` atomically, each; existing files only with `force`.
@@ -323,7 +342,15 @@ def export_result(
         InputError: `export_files`' errors; a file exists (without `force`; then nothing
             is written) or the folder does not.
     """
-    files = export_files(result, fmt, out, source=source, light_name=light_name, camera=camera)
+    files = export_files(
+        result,
+        fmt,
+        out,
+        source=source,
+        light_name=light_name,
+        camera=camera,
+        wall_albedo=wall_albedo,
+    )
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError(out, f"cannot write: folder {str(out.parent)!r} does not exist")

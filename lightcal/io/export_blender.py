@@ -35,6 +35,14 @@ renders it with a wall in `bpy` and compares with lightcal's `render_image` of t
   shift_x = ((width - 1) / 2 - cx) / width, shift_y = (cy - (height - 1) / 2) fx / (fy
   width) (OpenCV's pixel centres at integers, Blender's at half-integers; both shifts in
   units of the width). No skew and no lens distortion: compare with undistorted images.
+- **The medium** (a result calibrated in water, `lightcal.io.export_medium`): `set_water`,
+  appended to the snippet, makes it the volume of the scene's world (a new, black world
+  if there is none), where Cycles puts the camera, the lights and every ray: a Volume
+  Absorption (black) of density c - sigma_s plus a Volume Scatter (white) of density
+  sigma_s = beta rho / pi with Henyey-Greenstein anisotropy g, so that the extinction is
+  c (densities per Blender unit: one unit a metre, as for the poses). Cycles renders it as
+  lightcal does with its Volume bounces 0 (single scattering), the veil included
+  (`tests/test_export_blender_render.py`). A result in air appends nothing.
 
 What is left, and what a user's scene must keep: Cycles' spline over the last vertical
 interval takes a zero beyond the table, so between 89.75 and 90 degrees it differs from
@@ -51,6 +59,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +69,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.camera_frames import blender_from_opencv, blender_spot_cone
 from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import LightRID, light_rid, light_transform, rid_origin
+from lightcal.io.export_medium import ExportMedium, export_medium
 from lightcal.io.export_mitsuba import rid_values
 from lightcal.io.photometric_table import PhotometricTable
 from lightcal.io.result_file import LightResultModel, ResultFile
@@ -73,6 +83,7 @@ __all__ = [
     "SENSOR_WIDTH_MM",
     "blender_camera_numbers",
     "blender_snippet",
+    "blender_water_numbers",
     "cycles_ies_table",
     "cycles_ies_text",
 ]
@@ -196,10 +207,95 @@ def _camera_note(camera: Camera | None) -> str:
     )
 
 
+# The world's volume: appended to the snippet of a result in water (nothing in air).
+_WATER_CODE = """
+
+WATER = {water}
+
+
+def set_water(scene, numbers=WATER):
+    \"\"\"The calibration's medium as the world's volume (see the docstring at the top).\"\"\"
+    world = scene.world
+    made = world is None
+    if made:  # a black world, as none is: the water only
+        world = bpy.data.worlds.new("lightcal water")
+        scene.world = world
+    if world.node_tree is None:  # Blender < 5 (World.use_nodes goes in Blender 6)
+        world.use_nodes = True
+    tree = world.node_tree
+    if made:
+        tree.nodes.clear()
+    output = next((node for node in tree.nodes if node.type == "OUTPUT_WORLD"), None)
+    if output is None:
+        output = tree.nodes.new("ShaderNodeOutputWorld")
+    absorption = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    absorption.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    absorption.inputs["Density"].default_value = numbers["absorption_per_m"]
+    scatter = tree.nodes.new("ShaderNodeVolumeScatter")
+    if hasattr(scatter, "phase"):  # Blender 4.3 and later
+        scatter.phase = "HENYEY_GREENSTEIN"
+    scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scatter.inputs["Density"].default_value = numbers["scattering_per_m"]
+    scatter.inputs["Anisotropy"].default_value = numbers["phase_g"]
+    both = tree.nodes.new("ShaderNodeAddShader")
+    tree.links.new(absorption.outputs["Volume"], both.inputs[0])
+    tree.links.new(scatter.outputs["Volume"], both.inputs[1])
+    tree.links.new(both.outputs["Shader"], output.inputs["Volume"])
+    return world
+
+
+set_water(bpy.context.scene)
+"""
+
+
+def blender_water_numbers(medium: ExportMedium, wall_albedo: float | None) -> dict[str, float]:
+    """The world volume's densities (1/m: one Blender unit a metre) and anisotropy:
+    Volume Absorption (black) of c - sigma_s plus Volume Scatter (white) of sigma_s, so
+    that the extinction is c (`lightcal.io.export_medium` for sigma_s)."""
+    sigma_s = medium.scattering_per_m(wall_albedo)
+    return {
+        "attenuation_per_m": medium.attenuation_per_m,
+        "absorption_per_m": medium.attenuation_per_m - sigma_s,
+        "scattering_per_m": sigma_s,
+        "phase_g": medium.phase_g,
+    }
+
+
+def _water_note(medium: ExportMedium, numbers: dict[str, float], wall_albedo: float | None) -> str:
+    if medium.scatters:
+        how = (
+            f"sigma_s = beta rho / pi = {numbers['scattering_per_m']!r} /m with the wall's "
+            f"albedo rho = {wall_albedo!r}: give the wall that albedo (a wall of albedo rho "
+            "renders rho / pi times lightcal's value and the veil sigma_s / beta times it)."
+        )
+    else:
+        how = "no scattering (backscatter_per_m 0): a purely absorbing medium."
+    text = (
+        f"The calibration's medium: {medium.text()}. set_water makes it the volume of the "
+        "scene's world (a new, black world if the scene has none), which Cycles puts the "
+        "camera, the lights and every ray in: a Volume Absorption of density c - sigma_s "
+        "(black) plus a Volume Scatter of density sigma_s (white, Henyey-Greenstein "
+        "anisotropy g), so that the extinction is c; densities per Blender unit, one unit a "
+        "metre (unit scale 1, as the lights' positions are). The backscatter beta = sigma_s "
+        f"pi / rho is relative to the wall's albedo rho: {how} lightcal's model is single "
+        "scattering: Cycles' Volume bounces 0 (its default), the volume's direct light only. "
+        "A Cycles render of it matches lightcal's in water, veil included "
+        "(tests/test_export_blender_render.py); EEVEE renders no world volume. Not "
+        "modelled: refraction at the camera's and the light's ports."
+    )
+    return "\n\n" + "\n".join(textwrap.wrap(text, 88))
+
+
 def blender_snippet(
-    result: ResultFile, source: str | Path, template: str, *, camera: Camera | None
+    result: ResultFile,
+    source: str | Path,
+    template: str,
+    *,
+    camera: Camera | None,
+    wall_albedo: float | None = None,
 ) -> bytes:
-    """The snippet's text: `template` with the version, camera and lights filled in.
+    """The snippet's text: `template` with the version, camera and lights filled in, and
+    in water the world's volume (`_WATER_CODE`) after it.
 
     Args:
         result: The result (with the project's given RIDs filled in).
@@ -207,14 +303,26 @@ def blender_snippet(
         template: The snippet's code with `{version}`, `{camera_note}`, `{camera}`,
             `{ies_strength}` and `{lights}` to fill.
         camera: The project's camera, or None.
+        wall_albedo: rho, for the scattering coefficient of a medium that scatters.
+
+    Raises:
+        InputError: the medium scatters and `wall_albedo` is None, or its sigma_s > c.
     """
+    medium = export_medium(result, source)
+    water = None if medium is None else blender_water_numbers(medium, wall_albedo)
     specs = [_light_spec(light, source) for light in result.lights]
     lights = "[\n" + "".join(f"    {spec!r},\n" for spec in specs) + "]"
     numbers = None if camera is None else blender_camera_numbers(camera)
-    return template.format(
+    note = _camera_note(camera)
+    if medium is not None and water is not None:
+        note += _water_note(medium, water, wall_albedo)
+    text = template.format(
         version=repr(plain_line(result.lightcal_version)),
-        camera_note=_camera_note(camera),
+        camera_note=note,
         camera=repr(numbers),
         ies_strength=repr(IES_STRENGTH),
         lights=lights,
-    ).encode()
+    )
+    if water is not None:
+        text += _WATER_CODE.format(water=repr(water))
+    return text.encode()

@@ -20,11 +20,19 @@ renders it with a wall and compares with lightcal's `render_image` of the same v
   interpolation (`SymmetricTableRID` / `Table2DRID` of the result's samples) and sized so
   that Mitsuba's bilinear lookup stays within `TEXTURE_STEP_DEG` of the axis
   (`texture_size`).
+- **The medium** (a result calibrated in water, `lightcal.io.export_medium`): a
+  `homogeneous` medium that the sensor and every emitter reference, so that the camera's
+  rays, the wall's shadow rays and the emitters are all in it, sigma_t = c, albedo
+  sigma_s / c with sigma_s = beta rho / pi (0 without backscatter), a Henyey-Greenstein
+  phase of g, and the `volpath` integrator with `max_depth` a parameter of the file
+  (default -1; `max_depth=2` is lightcal's single scattering). A result in air writes
+  none of it: the scene is byte for byte what it was.
 """
 
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -38,12 +46,14 @@ from lightcal.core.camera_frames import (
 from lightcal.core.rid import RID, SymmetricTableRID, Table2DRID
 from lightcal.io.escaping import xml_attribute, xml_comment
 from lightcal.io.export_lights import LightRID, light_rid, light_transform
+from lightcal.io.export_medium import ExportMedium, export_medium
 from lightcal.io.result_file import ResultFile
 
 __all__ = [
     "TEXTURE_MAX_SIZE",
     "TEXTURE_MIN_SIZE",
     "TEXTURE_STEP_DEG",
+    "medium_id",
     "mitsuba_files",
     "rid_values",
     "sensor_numbers",
@@ -70,6 +80,11 @@ _TEXTURE_CUTOFF_LEVEL = 1e-3
 
 _TEXTURE_MAX_CUTOFF_DEG = 80.0
 """Widest texture cone: the texture is a tangent-plane projection (tan of the angle)."""
+
+NEAR_CLIP_M = 1e-5
+"""The sensor's near clip in water: Mitsuba starts a camera ray there, so the default
+1 cm would leave the ray's first centimetre out of the medium (3e-3 of the value at
+c = 0.3 /m)."""
 
 SAMPLES_PER_PIXEL = 16
 """The exported sensor's `multijitter` samples per pixel (a delta light: only the pixel's
@@ -166,7 +181,8 @@ def _png16(image: NDArray[np.float64]) -> bytes:
     return buffer.tobytes()
 
 
-def _sensor_lines(camera: Camera | None) -> list[str]:
+def _sensor_lines(camera: Camera | None, inside: list[str]) -> list[str]:
+    """The sensor's lines, `inside` (the medium's reference) before its end."""
     head = [
         '    <sensor type="perspective" id="camera">',
         '        <transform name="to_world"><matrix value="'
@@ -178,6 +194,7 @@ def _sensor_lines(camera: Camera | None) -> list[str]:
             "    <!-- No project was given: the sensor has Mitsuba's default film and field",
             "         of view (give the export the project for its camera's). -->",
             *head,
+            *inside,
             "    </sensor>",
         ]
     numbers = sensor_numbers(camera)
@@ -209,12 +226,69 @@ def _sensor_lines(camera: Camera | None) -> list[str]:
         '        <sampler type="multijitter">',
         f'            <integer name="sample_count" value="{SAMPLES_PER_PIXEL}"/>',
         "        </sampler>",
+        *inside,
         "    </sensor>",
     ]
 
 
+def medium_id(result: ResultFile) -> str:
+    """The medium's id in the XML: `lightcal_medium`, made unlike every emitter's id."""
+    names = {light.name for light in result.lights}
+    ident = "lightcal_medium"
+    while ident in names:
+        ident += "_"
+    return ident
+
+
+def _medium_lines(medium: ExportMedium, wall_albedo: float | None, ident: str) -> list[str]:
+    """The `homogeneous` medium and the `volpath` integrator (module docstring)."""
+    albedo = medium.albedo(wall_albedo)
+    sigma_s = medium.scattering_per_m(wall_albedo)
+    if medium.scatters:
+        how = (
+            f"sigma_s = beta rho / pi = {sigma_s!r} /m with the wall's albedo rho = "
+            f"{wall_albedo!r}: give the wall that albedo (a wall of albedo rho renders rho / pi "
+            "times lightcal's value, and the water's veil sigma_s / beta times lightcal's)."
+        )
+    else:
+        how = "no scattering (backscatter_per_m 0): albedo 0, a purely absorbing medium."
+    text = (
+        f"The calibration's medium: {medium.text()}. A homogeneous medium (docs/model.md, "
+        '"Medium") that the sensor and the emitters sit in, so that every ray of the scene '
+        "is in it: sigma_t = c (attenuation_per_m), albedo sigma_s / c, a Henyey-Greenstein "
+        "phase of g (phase_g). The result's backscatter beta = sigma_s pi / rho is relative "
+        f"to the wall's albedo rho: {how} lightcal's model is single scattering: "
+        "mi.load_file(path, max_depth=2) renders it (direct light and one scattering); the "
+        "default max_depth -1 follows every order. The sensor's near_clip is 1e-5 m: a camera "
+        "ray starts there, in the water. Not modelled: refraction at the camera's and the "
+        "light's ports."
+    )
+    comment = textwrap.wrap(xml_comment(text, max_chars=4000), 84)
+    return [
+        f"    <!-- {comment[0]}",
+        *(f"         {line}" for line in comment[1:-1]),
+        f"         {comment[-1]} -->",
+        '    <default name="max_depth" value="-1"/>',
+        '    <integrator type="volpath">',
+        '        <integer name="max_depth" value="$max_depth"/>',
+        "    </integrator>",
+        f'    <medium type="homogeneous" id="{ident}">',
+        f'        <float name="sigma_t" value="{medium.attenuation_per_m!r}"/>',
+        f'        <float name="albedo" value="{albedo!r}"/>',
+        '        <phase type="hg">',
+        f'            <float name="g" value="{medium.phase_g!r}"/>',
+        "        </phase>",
+        "    </medium>",
+    ]
+
+
 def mitsuba_files(
-    result: ResultFile, source: str | Path, out: Path, *, camera: Camera | None = None
+    result: ResultFile,
+    source: str | Path,
+    out: Path,
+    *,
+    camera: Camera | None = None,
+    wall_albedo: float | None = None,
 ) -> dict[Path, bytes]:
     """The scene XML (`out`) and the RID textures beside it.
 
@@ -223,8 +297,22 @@ def mitsuba_files(
         source: The result's path, for error messages.
         out: The XML's path; textures are named `<stem>_rid_<k>.png` beside it.
         camera: The project's camera, for the sensor's film and field of view.
+        wall_albedo: rho, for the scattering coefficient of a medium that scatters
+            (`lightcal.io.export_medium`).
+
+    Raises:
+        InputError: the medium scatters and `wall_albedo` is None, or its sigma_s > c.
     """
     files: dict[Path, bytes] = {}
+    medium = export_medium(result, source)
+    ident = medium_id(result)
+    water = [] if medium is None else _medium_lines(medium, wall_albedo, ident)
+    inside = [] if medium is None else [f'        <ref name="medium" id="{ident}"/>']
+    sensor_inside = (
+        []
+        if medium is None
+        else [f'        <float name="near_clip" value="{NEAR_CLIP_M!r}"/>', *inside]
+    )
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: calibrated lights, camera frame.",
@@ -237,7 +325,8 @@ def mitsuba_files(
         "     A spot's texture (16-bit PNG beside this file) is its RID over the cone;",
         "     without one the cone's falloff approximates a 90 degree half angle. -->",
         '<scene version="3.0.0">',
-        *_sensor_lines(camera),
+        *water,
+        *_sensor_lines(camera, sensor_inside),
     ]
     for index, light in enumerate(result.lights):
         rid = light_rid(light, source)
@@ -271,6 +360,7 @@ def mitsuba_files(
             + _matrix_attribute(M)
             + '"/></transform>'
         )
+        lines += inside
         lines.append("    </emitter>")
     lines.append("</scene>")
     return {out: ("\n".join(lines) + "\n").encode("utf-8"), **files}

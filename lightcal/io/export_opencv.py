@@ -11,12 +11,17 @@ position and its solver angles, mapped through the Jacobian of (rvec, tvec) at t
 solution (`pose_covariance`). A rotationally symmetric light's spin about its axis is
 not determined: its rotation covariance has rank 2 (zero along the axis); an isotropic
 light's rotation rows and columns are NaN.
+
+A result calibrated in water adds, after `lights`, a `medium` map: `attenuation_per_m`,
+`backscatter_per_m`, `phase_g`, each's `sigma_<name>` (NaN where given) and the
+`estimated` names (`MEDIUM_NOTE`). A result in air writes none: the file is what it was.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +30,8 @@ from lightcal.core.light_axis import axis_from_angles, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, rotvec_from_matrix
 from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import FRAME_NOTE, light_rid, light_transform
+from lightcal.io.export_medium import NAMES as MEDIUM_NAMES
+from lightcal.io.export_medium import ExportMedium, export_medium
 from lightcal.io.result_file import LightResultModel, ResultFile
 
 __all__ = ["opencv_text", "opencv_yaml", "pose_covariance", "rvec_tvec"]
@@ -136,7 +143,36 @@ def opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
                 fs.write("rid_grid", rid.values)  # (n_phi, n_theta)
         fs.endWriteStruct()
     fs.endWriteStruct()
+    medium = export_medium(result, source)
+    if medium is not None:
+        _write_medium(fs, medium)
     return fs.releaseAndGetString().encode("utf-8")
+
+
+MEDIUM_NOTE = (
+    "the medium between the rig and the wall (homogeneous): attenuation_per_m c (extinction, "
+    "1/m), backscatter_per_m beta = sigma_s pi / rho (1/m, the scattering coefficient "
+    "relative to the wall's diffuse reflectance rho), phase_g the Henyey-Greenstein g; "
+    "sigma_*: 1-sigma of an estimated parameter, NaN for a given one"
+)
+
+
+def _write_medium(fs: Any, medium: ExportMedium) -> None:
+    """The `medium` map: c, beta, g, their sigmas and the estimated names (after `lights`;
+    a result in air has none)."""
+    import cv2
+
+    fs.startWriteStruct("medium", cv2.FileNode_MAP)
+    fs.write("note", MEDIUM_NOTE)
+    for name in MEDIUM_NAMES:
+        fs.write(name, medium.value(name))
+    for name in MEDIUM_NAMES:
+        fs.write(f"sigma_{name}", medium.sigma_of(name))
+    fs.startWriteStruct("estimated", cv2.FileNode_SEQ)
+    for name in medium.estimated:
+        fs.write("", name)
+    fs.endWriteStruct()
+    fs.endWriteStruct()
 
 
 def _known(v: float | None) -> float:

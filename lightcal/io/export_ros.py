@@ -16,12 +16,17 @@ mapping light-frame coordinates to the camera's (ROS: parent `camera_optical_fra
 child the light). Quaternions are in ROS's order **x y z w** (scalar last, as SciPy's
 `Rotation.as_quat`); lightcal's result files write them scalar first (`quaternion_wxyz`).
 URDF's `rpy` are fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
+
+A result calibrated in water says so in the launch file's comment (c, beta, g and their
+sigmas, `lightcal.io.export_medium`): tf has no place for a medium. In air the files are
+what they were.
 """
 
 from __future__ import annotations
 
 import math
 import re
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +35,7 @@ from numpy.typing import NDArray
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.io.escaping import xml_comment
 from lightcal.io.export_lights import light_transform
+from lightcal.io.export_medium import export_medium
 from lightcal.io.result_file import ResultFile
 
 __all__ = ["PARENT_FRAME", "frame_name", "quaternion_xyzw", "ros_files", "rpy_from_matrix"]
@@ -76,7 +82,20 @@ def _frames(result: ResultFile) -> list[str]:
     return names
 
 
-def _launch(result: ResultFile) -> str:
+def _medium_lines(result: ResultFile, source: str | Path) -> list[str]:
+    """The comment's note of a result in water (none in air)."""
+    medium = export_medium(result, source)
+    if medium is None:
+        return []
+    text = (
+        f"The calibration was made in a medium: {medium.text()} (attenuation c and "
+        "backscatter beta = sigma_s pi / rho in 1/m, rho the wall's albedo; phase_g the "
+        "Henyey-Greenstein g). The transforms do not depend on it; tf has no place for it."
+    )
+    return [f"     {line}" for line in textwrap.wrap(xml_comment(text, max_chars=4000), 84)]
+
+
+def _launch(result: ResultFile, source: str | Path) -> str:
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: the calibrated lights as static",
@@ -106,6 +125,7 @@ def _launch(result: ResultFile) -> str:
             f' name="lightcal_{child}"\n'
             f'          args="{ros2} --frame-id {PARENT_FRAME} --child-frame-id {child}"/>'
         )
+    lines += _medium_lines(result, source)
     lines[-1] += " -->"
     lines += [
         "<launch>",
@@ -147,6 +167,10 @@ def urdf_path(out: Path) -> Path:
     return out.with_name(stem + ".urdf")
 
 
-def ros_files(result: ResultFile, out: Path) -> dict[Path, bytes]:
-    """The launch file (`out`) and the URDF fragment beside it (`urdf_path`)."""
-    return {out: _launch(result).encode("utf-8"), urdf_path(out): _urdf(result).encode("utf-8")}
+def ros_files(result: ResultFile, out: Path, source: str | Path = "") -> dict[Path, bytes]:
+    """The launch file (`out`) and the URDF fragment beside it (`urdf_path`); a result in
+    water says so in the launch file's comment (`source`: the result's path, for errors)."""
+    return {
+        out: _launch(result, source).encode("utf-8"),
+        urdf_path(out): _urdf(result).encode("utf-8"),
+    }
