@@ -88,6 +88,7 @@ class SurroundingsPanel(TabPanel):
                 step=0.01,
                 hint="surroundings.wall_albedo: the wall's diffuse reflectance for the bounce "
                 "light, above 0 and below 1 (most of the bounce goes wall -> surface -> wall)",
+                disabled=spec is None,
             )
             self.patch = gui.add_number(
                 "patch (m)",
@@ -97,6 +98,7 @@ class SurroundingsPanel(TabPanel):
                 step=0.01,
                 hint=f"surroundings.patch_m: the side of the mesh's patches, {lo:g} to {hi:g} m "
                 "(the wall's cells: half); finer is slower",
+                disabled=spec is None,
             )
             self.bounces = gui.add_number(
                 "bounces (0: all)",
@@ -106,6 +108,7 @@ class SurroundingsPanel(TabPanel):
                 step=1,
                 hint="surroundings.bounces: keep paths of up to this many reflections "
                 "(1 to 50; 0: all, as in a room; 3: a path tracer's max_depth 5)",
+                disabled=spec is None,
             )
             self.add_button = gui.add_button(
                 "Add a surface", hint="a ceiling along the top of the views; type its numbers"
@@ -193,6 +196,9 @@ class SurroundingsPanel(TabPanel):
         surfaces = [] if spec is None else spec.surfaces
         if tuple(s.name for s in surfaces) != self._names or len(surfaces) != len(self.surfaces):
             self._build_surfaces(spec)
+        for handle in (self.wall_albedo, self.patch, self.bounces):
+            if handle.disabled != (spec is None):
+                handle.disabled = spec is None  # the section's values need a surface
         if spec is not None:
             self.flag.assign(self.wall_albedo, spec.wall_albedo)
             self.flag.assign(self.patch, spec.patch_m)
