@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 from lightcal_app.actions import Actions
+from lightcal_app.overlays import OverlayImages
 from lightcal_app.panels.surroundings import bounces_value, surroundings_text
 from lightcal_app.server import LightcalApp, build_app
 from lightcal_app.session_file import SessionFile, apply_session, read_session, session_from_state
@@ -32,6 +34,7 @@ from lightcal.cli.main import main
 from lightcal.core.bounce import BounceMap
 from lightcal.core.bounce_image import BounceImages
 from lightcal.core.problem import with_view
+from lightcal.core.scene import Rig
 from lightcal.errors import InputError
 from lightcal.io.project import load_project
 from lightcal.io.surroundings_spec import SurroundingsSpec, build_surroundings
@@ -155,6 +158,36 @@ def test_the_page_refuses_what_the_file_meets_only_when_its_model_is_built(corne
     with pytest.raises(InputError) as nan:
         actions.edit_surroundings(lambda s: with_surface_values(s, 0, albedo=math.nan))
     assert str(nan.value) == "surroundings.surfaces[0].albedo: Input should be a finite number"
+
+
+def test_a_wall_grid_past_the_cores_limit_is_refused_as_typed(corner: Path) -> None:
+    """A small surface with 1 cm patches: few patches, but the wall's grid over the wall
+    the images see (as the overlays' bounce map covers it) would pass 40,000 nodes."""
+    state, actions = _actions(corner)
+    actions.edit_surroundings(lambda s: without_surface(s, 1))
+    small = {"edge_u_m": [0.2, 0.0, 0.0], "edge_v_m": [0.0, 0.0, 0.2]}
+    actions.edit_surroundings(lambda s: with_surface_values(s, 0, **small))
+    spec = state.solve_settings.surroundings
+    assert spec is not None
+    with pytest.raises(InputError) as refused:
+        actions.edit_surroundings(lambda s: with_values(s, patch_m=0.01))
+    words = re.fullmatch(
+        r"surroundings\.patch_m: the wall's grid would have about (\d+) nodes of 0\.005 m; "
+        r"expected at most 40000 \(a larger patch_m\)",
+        str(refused.value),
+    )
+    assert words is not None, str(refused.value)
+    assert state.solve_settings.surroundings == spec
+    # The overlays' bounce map of it: the core's count, within 1 % (measured 0.3 %).
+    finer = build_surroundings(spec.model_copy(update={"patch_m": 0.01}), "file")
+    assert finer is not None
+    camera = OverlayImages(state.project, state.loaded).geo.render_camera
+    images = BounceImages(camera, state.project.views, finer)
+    rig = Rig(tuple(u.initial for u in state.project.lights))
+    with pytest.raises(ValueError, match="the wall's grid would have") as core:
+        images.image(0, state.project.views[0], rig)
+    count = int(re.search(r"have (\d+) nodes", str(core.value)).group(1))  # type: ignore[union-attr]
+    assert abs(int(words.group(1)) / count - 1.0) < 0.01
 
 
 def test_removing_every_surface_leaves_none_and_the_project_comes_back(corner: Path) -> None:

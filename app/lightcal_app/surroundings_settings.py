@@ -84,7 +84,7 @@ def with_values(spec: SurroundingsSpec | None, **values: object) -> Surroundings
                 "surroundings", f"expected one of {', '.join(SECTION_KEYS)}, got {key!r}"
             )
     if spec is None:
-        raise InputError("surroundings", "no surfaces: add one first")
+        raise InputError("surroundings", "expected a surface first (Add a surface)")
     return check_surroundings({**_data(spec), **values})
 
 
