@@ -16,6 +16,7 @@ import numpy as np
 from lightcal.core.light_axis import rotation_from_axis
 from lightcal.core.rotations import as_finite_array, matrix_from_quaternion_wxyz
 from lightcal.errors import InputError, LightcalError
+from lightcal.io.surroundings_spec import SurroundingsSpec
 from lightcal.pipeline.auto_start import beam_guess
 from lightcal_app.limits import check_plan, check_position_m, check_rotation, check_selection
 from lightcal_app.picking import FrustumPlane, pick, rect_to_polygon
@@ -47,6 +48,11 @@ from lightcal_app.state import (
     SelectionSettings,
     UserRegion,
 )
+
+
+def _pixel_part(settings: SolveSettings) -> SolveSettings:
+    """The settings without those that leave the selection as it is."""
+    return replace(settings, medium=None, albedo_map=None, surroundings=None)
 
 
 class Actions:
@@ -176,10 +182,8 @@ class Actions:
             if st.project is not project:
                 return  # another project arrived meanwhile
             # The fall-off changes which pixels are usable: the selection is redone (the
-            # water's values and the albedo map alone leave it as it is).
-            selection = replace(settings, medium=None, albedo_map=None) != replace(
-                st.solve_settings, medium=None, albedo_map=None
-            )
+            # water's values, the albedo map and the surroundings leave it as it is).
+            selection = _pixel_part(settings) != _pixel_part(st.solve_settings)
             st.solve_settings = settings
             st.solve_project = solve_project
             st.resume_x = None
@@ -196,6 +200,24 @@ class Actions:
         with st.lock:
             settings, shown = st.solve_settings, st.shown_medium()
         self.set_solve_settings(replace(settings, medium=medium_with(shown, values)))
+
+    def edit_surroundings(
+        self, edit: Callable[[SurroundingsSpec | None], SurroundingsSpec | None]
+    ) -> None:
+        """The surroundings the solve uses now, edited by `edit` (one of
+        `lightcal_app.surroundings_settings`' edits, or a section): the overlays' bounce
+        light, the 3D view and the next solve take them. Refused (InputError naming the
+        key, as for the project file) when the file would refuse them."""
+        st = self.state
+        with st.lock:
+            settings = st.solve_settings
+        self.set_solve_settings(replace(settings, surroundings=edit(settings.surroundings)))
+
+    def reset_surroundings(self) -> None:
+        """Back to the project file's surroundings."""
+        with self.state.lock:
+            spec = self.state.project.spec.surroundings
+        self.edit_surroundings(lambda _: spec)
 
     def clear_selection_override(self, image: str) -> None:
         """Image `image` uses the global selection settings again."""

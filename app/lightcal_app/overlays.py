@@ -11,6 +11,7 @@ on a symmetric scale shared by all images (the legend).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 
@@ -21,12 +22,13 @@ from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.albedo_map import with_albedo
 from lightcal.core.bounce_image import BounceImages
 from lightcal.core.camera import Camera
-from lightcal.core.footprint import room_light_image
+from lightcal.core.footprint import SensorModel, room_light_image
 from lightcal.core.medium import Medium
 from lightcal.core.problem import with_view
 from lightcal.core.quantiles import percentile
 from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
+from lightcal.core.surroundings import Surroundings
 from lightcal.io.project import Project
 from lightcal.pipeline import LoadedImages
 from lightcal.pipeline.albedo_result import albedo_image
@@ -39,6 +41,14 @@ POINT_RGB = (255, 215, 0)
 MASK_RGB = np.array([200, 0, 200], dtype=np.float64)
 OUTLINE_FRACTION = 0.05
 """A selection covering more of a picture than this is drawn as its outline."""
+BOUNCE_KEPT = 3
+"""The surroundings' bounce maps kept (each takes seconds to build): the latest edits'."""
+
+
+def bounce_key(surroundings: Surroundings) -> str:
+    """What the bounce light of `surroundings` depends on, as text (equal text: equal
+    surroundings)."""
+    return json.dumps(surroundings.describe(), sort_keys=True)
 
 
 @dataclass(frozen=True)
@@ -119,8 +129,9 @@ class OverlayImages:
             small = cv2.resize(bad, (self.geo.width, self.geo.height), interpolation=cv2.INTER_AREA)
             self.mask_display.append(small > 0.0)
         self._vignetting = self._binned_vignetting()
-        # Per sensor model, the surroundings' bounce light in the views (built when first drawn).
-        self._bounce: dict[str, BounceImages] = {}
+        # Per sensor model and surroundings (`bounce_key`), their bounce light in the views,
+        # built when first drawn: an edit of the surroundings in the page makes another.
+        self._bounce: dict[tuple[str, str], BounceImages] = {}
         shape = (self.geo.height, self.geo.width, 3)
         self._mask_colour = np.empty(shape, np.uint8)
         self._mask_colour[:] = MASK_RGB.astype(np.uint8)
@@ -148,6 +159,23 @@ class OverlayImages:
         b = self.geo.render_binning
         return bin_values(vmap, b) if b > 1 else vmap
 
+    def _bounce_images(self, sensor: SensorModel, surroundings: Surroundings) -> BounceImages:
+        """The bounce light of `surroundings` in the views (the last `BOUNCE_KEPT` kept)."""
+        key = (sensor, bounce_key(surroundings))
+        images = self._bounce.pop(key, None)
+        if images is None:
+            images = BounceImages(
+                self.geo.render_camera,
+                self.project.views,
+                surroundings,
+                sensor=sensor,
+                vignetting=self._vignetting,
+            )
+        self._bounce[key] = images  # the newest last
+        while len(self._bounce) > BOUNCE_KEPT:
+            del self._bounce[next(iter(self._bounce))]
+        return images
+
     def render(self, index: int, display: Display) -> np.ma.MaskedArray:
         """(h, w) rendered values of image `index` on the binned grid (masked off the wall),
         as the model has them: the estimated room light, fall-off and albedo map in."""
@@ -155,17 +183,11 @@ class OverlayImages:
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model
         bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
-        surroundings = self.project.surroundings
+        surroundings = display.surroundings  # the solve's: as the page edits them
         if surroundings is not None:  # (the wall's: the same without the veil)
-            if sensor not in self._bounce:
-                self._bounce[sensor] = BounceImages(
-                    self.geo.render_camera,
-                    self.project.views,
-                    surroundings,
-                    sensor=sensor,
-                    vignetting=self._vignetting,
-                )
-            bounce = self._bounce[sensor].image(index, view, display.rig, display.medium)
+            bounce = self._bounce_images(sensor, surroundings).image(
+                index, view, display.rig, display.medium
+            )
 
         def through(medium: Medium) -> np.ma.MaskedArray:
             out = bounce + render_image(

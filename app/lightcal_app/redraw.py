@@ -95,6 +95,7 @@ class Redrawer:
         st = self.state
         with st.lock:
             project = st.project
+            surroundings = st.solve_project.surroundings  # as the page edits them
         pictures: dict[int, np.ndarray] = {}
         if d & {"overlays", "selection", "scene"}:
             pictures = self.pictures(frame)
@@ -118,6 +119,7 @@ class Redrawer:
             if d & {"overlays", "scene"}:
                 self.scene.set_focus(frame.focus_image, frame.ref_image)
             if d & {"light", "scene"}:
+                self.scene.set_surroundings(surroundings)
                 self.scene.set_lights(lights)
                 rig = frame.display.rig if frame.display is not None else None
                 self.scene.set_rays(rig, frame.wall_points, frame.rays_image)

@@ -9,7 +9,8 @@ below it, so a node's local pose there is exactly `T_camera_light`:
   camera, with its bulb and cones (half-intensity and cut-off angles of the RID);
 - `/cameras/<i>/light<j>`: the same light drawn on every other camera pose;
 - `/cameras/<i>/truth<j>`: the true light in demo mode (a ghost);
-- `/rays`: rays from the light to the wall for the selected pixels (world frame).
+- `/rays`: rays from the light to the wall for the selected pixels (world frame);
+- `/surroundings/<k>`: the surfaces the solve's surroundings declare (world frame).
 
 `Scene3D` only draws what it is given; it never changes the app state itself: the
 gizmo and pointer callbacks it is built with do that.
@@ -28,7 +29,9 @@ from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import RID
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.core.scene import Light, Rig
+from lightcal.core.surroundings import Surroundings
 from lightcal.io.project import Project
+from lightcal_app.overlays import bounce_key
 from lightcal_app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
 from lightcal_app.state import LightGuess
 
@@ -156,6 +159,8 @@ class Scene3D:
         self.cone_length_m = 0.3
         self.light_size_m = 0.02
         self.frustum_scale = 0.1
+        self._surroundings_key: str | None = None
+        self._surroundings_nodes: list[Any] = []
 
     # -- building ---------------------------------------------------------------------------
 
@@ -206,7 +211,8 @@ class Scene3D:
         )
         label = "wall (z = 0)" if mesh is None else "wall (mesh)"
         scene.add_label("/wall_label", label, position=(float(lo[0]), float(lo[1]), 0.0))
-        self._build_surroundings(project)
+        self._surroundings_key = None  # drawn by `set_surroundings` (the reset removed them)
+        self._surroundings_nodes = []
         fov = cam.fov_y_rad
         scale = frustum_scale_for_depth(depth, fov_y_rad=fov, aspect=cam.aspect)
         self.frustum_scale = scale
@@ -252,15 +258,23 @@ class Scene3D:
         self.server.initial_camera.look_at = (float(center[0]), float(center[1]), 0.0)
         self.server.initial_camera.up = (0.0, -1.0, 0.0)
 
-    def _build_surroundings(self, project: Project) -> None:
-        """The surfaces whose bounce light the model adds (`surroundings:`), each a
-        translucent rectangle named as in the project."""
-        if project.surroundings is None:
+    def set_surroundings(self, surroundings: Surroundings | None) -> None:
+        """The surfaces whose bounce light the model adds (`surroundings:`, as the page
+        edits them), each a translucent rectangle labelled with its name and albedo;
+        redrawn only when they changed."""
+        key = None if surroundings is None else bounce_key(surroundings)
+        if key == self._surroundings_key:
+            return
+        for node in self._surroundings_nodes:
+            node.remove()
+        self._surroundings_nodes = []
+        self._surroundings_key = key
+        if surroundings is None:
             return
         faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
-        for k, surface in enumerate(project.surroundings.surfaces):
+        for k, surface in enumerate(surroundings.surfaces):
             corners = surface.corners_world
-            self.scene.add_mesh_simple(
+            mesh = self.scene.add_mesh_simple(
                 f"/surroundings/{k}",
                 corners.astype(np.float32),
                 faces,
@@ -268,12 +282,12 @@ class Scene3D:
                 opacity=0.5,
                 side="double",
             )
-            name = surface.name
-            self.scene.add_label(
+            label = self.scene.add_label(
                 f"/surroundings/{k}_label",
-                f"{name} (albedo {surface.albedo:.2g})",
+                f"{surface.name} (albedo {surface.albedo:.2g})",
                 position=corners.mean(axis=0),
             )
+            self._surroundings_nodes += [mesh, label]
 
     def _build_lights(self, guess: list[LightGuess]) -> None:
         scene = self.scene

@@ -1,7 +1,8 @@
 """The app session on disk: the user's choices and the solve's progress, as JSON.
 
 A session file records the initial guess, the pixel selection (settings, per-image
-overrides, regions, clicked pixels), what each image shows, and the solve's history
+overrides, regions, clicked pixels), what each image shows, what the solve fits (the
+Solve tab's settings, the water's values, the surroundings), and the solve's history
 (so the plots and the current estimate come back). The app autosaves it atomically
 after every change (`<project stem>.session.json` beside the project, or in the state
 folder when the project's folder is read-only) and restores it at start; the user may
@@ -29,6 +30,7 @@ from lightcal.core.solver import IterationReport
 from lightcal.errors import InputError, LightcalError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.atomic import atomic_write_text
+from lightcal.io.surroundings_spec import SurroundingsSpec
 from lightcal_app.limits import (
     MAX_BINNING,
     MAX_GRID_STEP,
@@ -149,6 +151,9 @@ class SolveSettingsModel(_Model):
     medium: MediumModel | None = None
     # `wall.albedo_map`; None (and files before this field): off.
     albedo_map: AlbedoMapSpec | None = None
+    # `surroundings`, as the page edits them; None: none. Files before this field (the
+    # key absent, `model_fields_set`): the project's.
+    surroundings: SurroundingsSpec | None = None
 
 
 class SessionFile(_Model):
@@ -377,6 +382,11 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
             tuple(saved.medium_estimate),
             None if saved.medium is None else Medium(**saved.medium.model_dump()),
             saved.albedo_map,
+            (
+                saved.surroundings
+                if "surroundings" in saved.model_fields_set
+                else state.project.spec.surroundings
+            ),
         )
         try:
             check_settings(state.project, settings)

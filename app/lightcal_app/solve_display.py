@@ -1,6 +1,6 @@
-"""What the page shows of a solve: the estimate as a `Display`, the light axes of the
-history as roll and pitch, and Run's pace. Pure functions of the model and its
-parameter vectors (no state, no viser)."""
+"""What the page shows of a solve: the guess and the estimate as a `Display`, the light
+axes of the history as roll and pitch, and Run's pace. Pure functions of the model and
+its parameter vectors (no state, no viser)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ import numpy as np
 
 from lightcal.core.footprint import SensorModel
 from lightcal.core.light_axis import paper_angles_from_axis
+from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
+from lightcal.io.project import Project
 from lightcal_app.state import MAX_ITERATION_S, Display
 
 
@@ -50,6 +52,23 @@ def estimate_display(
         tuple(float(c) for c in x[model.layout.fall_off]),
         model.layout.ambient(x),
         model.albedo_map(x),
+        model.surroundings,
+    )
+
+
+def guess_display(project: Project, rig: Rig, setup_rev: int) -> Display:
+    """The page's `Display` of the guess `rig` (its scales fitted) in `project`, the
+    project the solve uses: its wall, fall-off, water and surroundings."""
+    return Display(
+        rig,
+        tuple(1.0 for _ in project.names),
+        project.solver.offset,
+        "guess",
+        setup_rev,
+        project.wall.initial,
+        project.spec.sensor.model,
+        project.medium.initial,
+        surroundings=project.surroundings,
     )
 
 

@@ -40,7 +40,7 @@ from lightcal_app.requests import Finished
 from lightcal_app.results import MISFIT_WORDS
 from lightcal_app.selection_service import Notify, SelectionService
 from lightcal_app.session_file import session_from_state
-from lightcal_app.solve_display import estimate_display, pace_wait_s
+from lightcal_app.solve_display import estimate_display, guess_display, pace_wait_s
 from lightcal_app.solve_settings import restored_wall
 from lightcal_app.state import AppState, Display, LightGuess, PreviousResult
 
@@ -161,16 +161,7 @@ class SolveService:
             gen, rev = st.session_gen, st.setup_rev
             datas, _ = self.selection.usable()
         units = self._lights(project, guess, datas)
-        display = Display(
-            Rig(tuple(u.initial for u in units)),
-            tuple(1.0 for _ in project.names),
-            project.solver.offset,
-            "guess",
-            rev,
-            project.wall.initial,
-            project.spec.sensor.model,
-            project.medium.initial,
-        )
+        display = guess_display(project, Rig(tuple(u.initial for u in units)), rev)
         with st.lock:
             if st.session_gen == gen and st.solve_project is project:
                 st.display = display

@@ -7,8 +7,9 @@ black level left in the images), the room light (`sensor.estimate_ambient`), the
 camera's fall-off (`sensor.model`) and the radial one estimated with the light
 (`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`), the
 water's values (`medium.attenuation_per_m`, `backscatter_per_m`, `phase_g`: the Light
-tab's Water folder), what is estimated of them (`medium.estimate`) and the wall's
-albedo map (`wall.albedo_map`).
+tab's Water folder), what is estimated of them (`medium.estimate`), the wall's
+albedo map (`wall.albedo_map`) and the surroundings (`surroundings`: the Light tab's
+Surroundings folder, `lightcal_app.surroundings_settings`).
 `project_for_solve` makes the project the solve uses: the loaded project with those
 keys set, built by `lightcal.io.project.project_from_spec` exactly as a project file
 with them would be, so the page solves what `lightcal calibrate` solves on the edited
@@ -31,7 +32,9 @@ from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.project import Project, project_from_spec
 from lightcal.io.project_spec import FallOffSpec, WallModelName, WallSpec
+from lightcal.io.surroundings_spec import SurroundingsSpec
 from lightcal.pipeline.wall_choice import candidate_named
+from lightcal_app.surroundings_settings import check_mesh, check_surroundings
 
 FallOff = Literal["radiance", "cos4", "paper", "map"]
 RidEstimate = Literal["none", "cos_power", "curve"]
@@ -78,6 +81,8 @@ class SolveSettings:
         medium: the water's values (`medium.attenuation_per_m`, `backscatter_per_m`,
             `phase_g`): given, or the start of those estimated; None: the project's.
         albedo_map: `wall.albedo_map` (its spacing and prior); None: off.
+        surroundings: `surroundings` (the surfaces whose bounce light the model adds);
+            None: none.
     """
 
     wall_model: str
@@ -90,6 +95,7 @@ class SolveSettings:
     medium_estimate: tuple[str, ...] = ()
     medium: Medium | None = None
     albedo_map: AlbedoMapSpec | None = None
+    surroundings: SurroundingsSpec | None = None
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -108,6 +114,7 @@ def settings_of(project: Project) -> SolveSettings:
         medium_estimate=tuple(n for n in Medium.parameter_names if n in spec.medium.estimate),
         medium=project.medium.initial,
         albedo_map=spec.wall.albedo_map,
+        surroundings=spec.surroundings,
     )
 
 
@@ -186,6 +193,11 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
             "or estimated with g",
         )
     check_albedo_map(project, settings)
+    if settings.surroundings is not None and not isinstance(
+        settings.surroundings, SurroundingsSpec
+    ):
+        raise InputError("surroundings", f"expected its surfaces, got {settings.surroundings!r}")
+    check_mesh(project, check_surroundings(settings.surroundings))
     if len(settings.estimate_rid) != len(project.lights):
         raise InputError(
             "lights.estimate_rid",
@@ -284,6 +296,7 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
                     ),
                 }
             ),
+            "surroundings": settings.surroundings,
         }
     )
     return project_from_spec(edited, project.path)

@@ -21,6 +21,7 @@ from lightcal.core.medium import AIR, Medium
 from lightcal.core.scene import Rig
 from lightcal.core.selection import SelectionOptions, Strategy
 from lightcal.core.solver import IterationReport
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages
@@ -189,6 +190,8 @@ class Display:
         ambient: the estimated room light a (value at exposure and gain 1; 0: none).
         albedo: the estimated albedo map of the wall (`wall.albedo_map`); None: an
             even wall.
+        surroundings: the surfaces whose bounce light they add (the project solved's
+            `surroundings`, as the page edits them); None: none.
     """
 
     rig: Rig
@@ -202,6 +205,7 @@ class Display:
     fall_off_coeffs: tuple[float, ...] = ()
     ambient: float = 0.0
     albedo: AlbedoMap | None = None
+    surroundings: Surroundings | None = None
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""

@@ -1,5 +1,6 @@
-"""The Light tab: the gizmo's image, per light its position and axis as numbers, and the
-water between the rig and the wall (`lightcal_app.panels.water`)."""
+"""The Light tab: the gizmo's image, per light its position and axis as numbers, the
+water between the rig and the wall (`lightcal_app.panels.water`) and the surfaces near
+the wall (`lightcal_app.panels.surroundings`)."""
 
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from lightcal_app.limits import (
     SPIN_LIMIT_DEG,
 )
 from lightcal_app.panels.base import Programmatic, TabPanel, rounded
+from lightcal_app.panels.surroundings import SurroundingsPanel
 from lightcal_app.panels.water import WaterPanel
 from lightcal_app.state import Frame, LightGuess
 from lightcal_app.text import md
@@ -78,6 +80,7 @@ class LightPanel(TabPanel):
             )
             self.light_md = gui.add_markdown("")
             self.water = WaterPanel(server, ctl, flag)
+            self.surroundings = SurroundingsPanel(server, ctl, flag)
         self.light_widgets: list[dict[str, Any]] = []
         self._folders: list[Any] = []
         self._build_light_widgets(st.project)
@@ -160,9 +163,10 @@ class LightPanel(TabPanel):
             self._build_light_widgets(project)
 
     def update(self, frame: Frame) -> None:
-        """The lights shown (estimate or guess) into the widgets and the text, and the
-        water's values."""
+        """The lights shown (estimate or guess) into the widgets and the text, the
+        water's values and the surroundings."""
         self.water.update(frame)
+        self.surroundings.update(frame)
         if not frame.dirty & {"widgets", "scene"}:
             return
         st = self.ctl.state

@@ -30,8 +30,8 @@ SCENE_LEGEND = """**In the scene**
 - *green* bulb: the **true light** (demo data only): where the solve should end
 - *blue* / *red* on the wall: the wall's estimated **albedo map** (darker / brighter than
   its mean; when the solve estimates it)
-- *translucent tan*: the **surroundings** the project declares (a ceiling, side wall:
-  their bounce light is in the model), each labelled with its albedo
+- *translucent tan*: the **surroundings** (a ceiling, side wall: their bounce light is
+  in the model), each labelled with its albedo; edit them in Light > Surroundings
 
 **On the images**
 - *green*: **selected pixels** (dots; a dense selection as its outline)
