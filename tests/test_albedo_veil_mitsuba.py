@@ -25,6 +25,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.medium import Medium
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig, View
+from lightcal.synthetic.texture import AlbedoTexture
 from tests.departure_suite import calibrated, exit_code
 from tests.mitsuba_datasets import read_images, session_dataset, truth_scene
 
@@ -39,14 +40,14 @@ GUESSED = {
 
 @pytest.fixture(scope="module")
 def murky(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """12 views of 480 x 320, realistic noise (rendered in 83-97 s on 2 loaded cores)."""
+    """12 views of 480 x 320, realistic noise (rendered in 83-208 s on 2 loaded cores)."""
     return session_dataset(tmp_path_factory, "murky_albedo", seed=0)
 
 
 def test_the_map_and_the_water_land_on_the_truth(murky: Path) -> None:
     """The map on, c and beta estimated: the light within the issue's bound in water
-    (3 mm, 0.2 deg) and 3 sigma, c within 5 %, beta within 3 sigma, no finding, and the
-    map shows the texture."""
+    (3 mm, 0.2 deg) and 3 sigma, c within 5 %, beta within 10 % and 3 sigma, no finding,
+    and the map is the texture (its range and its correlation with the truth)."""
     doc = json.loads(murky.read_text())
     doc.setdefault("wall", {})["albedo_map"] = {}
     doc["selection"].update(strategy="all", binning=4)  # 120 x 80 super-pixels an image
@@ -54,19 +55,37 @@ def test_the_map_and_the_water_land_on_the_truth(murky: Path) -> None:
     mapped = murky.with_name("murky_map.json")
     mapped.write_text(json.dumps(doc))
     result, (position, position_sigma, axis, axis_sigma) = calibrated(mapped)
-    truth = truth_scene(murky).medium
+    scene = truth_scene(murky)
+    truth = scene.medium
     # Measured: 1.30 mm (sigma 1.31), 0.101 deg (0.091); c 0.1973 (sigma 0.0017), beta
-    # 0.606 (0.154) of 0.628; map 0.76-1.20; 14 iterations, 64-150 s on 2 loaded cores.
+    # 0.606 (0.154) of 0.628; the map 0.76-1.20, correlation 0.70 with the texture (0.92
+    # 40 cm inside the seen wall); 14 iterations, 27-150 s on 2 loaded cores. Mitsuba's
+    # veil noise (+-1 % beside the light) makes the images disagree on beta (the
+    # jackknife): with 4 times the veil's samples beta's sigma is 0.012 and the map's
+    # correlation 0.80, as on lightcal synth's render of the same scene (0.0126, 0.85).
     assert exit_code(result) == 0 and result.fit["findings"] == [], result.fit["findings"]
     assert position < 0.003 and axis < 0.2, (position, axis)
     assert position < 3 * position_sigma and axis < 3 * axis_sigma
     medium = result.medium
     assert medium["attenuation_per_m"] == pytest.approx(truth.attenuation_per_m, rel=0.05)
+    assert medium["backscatter_per_m"] == pytest.approx(truth.backscatter_per_m, rel=0.1)
     beta_error = abs(medium["backscatter_per_m"] - truth.backscatter_per_m)
     assert beta_error < 3 * medium["sigma"]["backscatter_per_m"]
-    assert result.albedo_map is not None
+    assert result.albedo_map is not None and scene.texture is not None
     low, high = result.albedo_map["range"]
     assert low < 0.93 and high > 1.07  # the bitmap's +-10 %, seen through the noise
+    assert _correlation(result.albedo_map, scene.texture) > 0.6
+
+
+def _correlation(summary: dict, texture: AlbedoTexture) -> float:
+    """The correlation of a result's albedo map with the true texture over its seen
+    nodes."""
+    values = np.array([[np.nan if v is None else v for v in row] for row in summary["values"]])
+    j, i = np.mgrid[0 : values.shape[0], 0 : values.shape[1]]
+    x0, y0 = summary["origin_xy_m"]
+    nodes = np.stack([x0 + summary["spacing_m"] * i, y0 + summary["spacing_m"] * j], axis=-1)
+    seen = np.isfinite(values)
+    return float(np.corrcoef(texture.factor(nodes)[seen], values[seen])[0, 1])
 
 
 def _values(camera: Camera, view: View, rig: Rig, medium: Medium) -> np.ndarray:
