@@ -5,8 +5,8 @@ that names the real cause. Each row is one dataset, calibrated in-process as
 `lightcal calibrate` does (`calibrate_project`), against its truth.json:
 
 - the Mitsuba 3 scenarios of `tests/mitsuba_datasets.py` (clean, painted, ambient,
-  vignetting, interreflection, bowed, albedo, medium: 12 views of 480 x 320, the
-  realistic 14-bit sensor), rendered once into `--root` and reused;
+  vignetting, interreflection, bowed, albedo, medium, murky_albedo: 12 views of
+  480 x 320, the realistic 14-bit sensor), rendered once into `--root` and reused;
 - where `lightcal synth` has the departure options (`--ambient`, `--undeclared-vignetting`,
   `--rid-rim`, `--gamma`, `--pose-error-mm/--pose-error-deg`, `--bow-mm`,
   `--albedo-texture`, `--attenuation`), the same departures rendered by lightcal's own

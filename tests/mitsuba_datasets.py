@@ -30,6 +30,11 @@ has the departure: `lightcal.synthetic.departure_truth`):
   (`albedo_texture`).
 - `medium`: clear water between rig and wall, absorption only, 0.2 /m: each value times
   exp(-0.2 (d_light + d_camera)) (`attenuation`, as `--attenuation 0.2`).
+- `murky_albedo`: `albedo`'s texture in water that also scatters (sigma_t 0.2 /m,
+  sigma_s 0.16 /m, Henyey-Greenstein g 0.6): `medium`'s wall plus the veil, Mitsuba's
+  `volpath` of the water in front of a black wall (`murky_veil`) (`albedo_texture`,
+  `attenuation`, `backscatter` with beta = sigma_s pi / 0.8, as `--backscatter 0.63
+  --phase-g 0.6`).
 
 Frames follow docs/conventions.md; Mitsuba's camera is OpenCV's turned half a turn about
 z (`tests/mitsuba_peer.py`): T_world_mitsuba = T_world_camera diag(-1, -1, 1, 1). The
@@ -76,15 +81,20 @@ sample. `medium`: Mitsuba's `volpath` estimates the camera segment's transmittan
 free-flight sampling (a path dies or survives), 5 % relative noise per pixel at 64
 samples; the images are the `direct` render times the exact transmittance of a
 homogeneous absorbing medium, which `tests/test_mitsuba_datasets.py` checks against
-`volpath` (`volpath_transmittance`: 0.9998 +- 0.0003 at 1024 samples).
+`volpath` (`volpath_images`: 0.9998 +- 0.0003 at 1024 samples). `murky_albedo`'s veil
+(a third of the value in most views, three quarters beside the light) is `volpath`'s on
+cells of 16 x 16 pixels at 480 x 320 (`murky_veil`: 0.07 % noise in most cells, up to
+1 % beside the light), 4-12 s a view; `volpath` of the whole scene, the textured wall in
+the scattering water, agrees with wall + veil (0.99969 +- 0.00011 on 80 x 60).
 
 **Variant**: `llvm_ad_rgb` where it runs (needs libLLVM >= 16: Debian's libLLVM 15
 aborts in Dr.Jit's code generation; `apt-get install libllvm19` fixes that), else
 `scalar_rgb`; checked once per process in a subprocess (an LLVM failure aborts the
 process), or set by `LIGHTCAL_MITSUBA_VARIANT`. On 2 cores, quiet, a 12-view 480 x 320
 dataset renders in 0.4-0.7 s with `llvm_ad_rgb` (`clean`: 5.2 s with `scalar_rgb`), an
-`interreflection` view in 2.3 s (9.4 s): all eight scenarios in 31 s (the first time,
-when Dr.Jit compiles its kernels, and under load: 70-100 s).
+`interreflection` view in 2.3 s (9.4 s): the eight scenarios before `murky_albedo` in
+31 s (the first time, when Dr.Jit compiles its kernels, and under load: 70-100 s);
+`murky_albedo` in 80-100 s under load, its veil's `volpath`.
 
 Caching: `cached_dataset(root, scenario, ...)` reuses a folder written with the same
 options (the options are kept in truth.json's `mitsuba.key`); `session_dataset` keeps one
@@ -101,7 +111,7 @@ import shutil
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
@@ -111,6 +121,8 @@ from numpy.typing import NDArray
 
 from lightcal import __version__
 from lightcal.core.camera import Camera
+from lightcal.core.footprint import pixel_footprints
+from lightcal.core.medium import AIR, Medium
 from lightcal.core.pose import describe_pose
 from lightcal.core.scene import Light, View
 from lightcal.core.vignetting import RadialVignetting
@@ -177,7 +189,15 @@ if TYPE_CHECKING:
     import pytest
 
 Scenario = Literal[
-    "clean", "painted", "ambient", "vignetting", "interreflection", "bowed", "albedo", "medium"
+    "clean",
+    "painted",
+    "ambient",
+    "vignetting",
+    "interreflection",
+    "bowed",
+    "albedo",
+    "medium",
+    "murky_albedo",
 ]
 SensorKind = Literal["realistic", "clean"]
 
@@ -203,6 +223,13 @@ INTERREFLECTION = {"distance_m": 0.7, "depth_m": 0.5, "albedo": ALBEDO, "max_dep
 BOW = {"depth_mm": 5.0, "radius_m": 1.0}
 ALBEDO_AMPLITUDE = 0.1
 ATTENUATION_PER_M = 0.2
+MURKY = {"scattering_albedo": 0.8, "phase_g": 0.6}
+"""`murky_albedo`'s water: sigma_s = 0.8 sigma_t (sigma_t = `ATTENUATION_PER_M`), HG g."""
+VEIL_CELLS = 20
+"""`murky_albedo`'s veil is rendered on square cells, VEIL_CELLS across the image's shorter
+side (16 pixels a cell at 480 x 320)."""
+VEIL_SPP_PER_PIXEL = 256
+"""Samples of the veil per pixel of the image (65536 a cell of 16 x 16 pixels)."""
 
 DEFAULT_SPP: dict[str, int] = {name: 16 for name in SCENARIOS} | {"interreflection": 192}
 """Samples per pixel when `spp` is not given."""
@@ -246,6 +273,16 @@ _DEPARTURES: dict[str, dict[str, dict[str, Any]]] = {
             "coefficient_per_m": ATTENUATION_PER_M,
             "formula": "each light's value * exp(-coefficient * (d_light + d_camera))",
         }
+    },
+}
+_DEPARTURES["murky_albedo"] = {
+    **_DEPARTURES["albedo"],
+    **_DEPARTURES["medium"],
+    "backscatter": {
+        "beta_per_m": MURKY["scattering_albedo"] * ATTENUATION_PER_M * math.pi / ALBEDO,
+        "phase_g": MURKY["phase_g"],
+        "scattering_per_m": MURKY["scattering_albedo"] * ATTENUATION_PER_M,
+        "formula": "beta = sigma_s pi / base albedo; Mitsuba's volpath, single scattering",
     },
 }
 """truth.json's `departures` of each scenario, in `lightcal synth`'s names and fields
@@ -386,14 +423,17 @@ def spot_profile(theta_deg: NDArray[np.float64], variant: str | None = None) -> 
     return np.asarray(values / values[0], dtype=np.float64)
 
 
-def _render(mi: Any, scene_dict: dict[str, Any], spp: int, seed: int) -> NDArray[np.float64]:
-    """Mitsuba's radiance image (H, W), the mean of passes of at most `_SPP_PER_PASS`."""
+def _render(
+    mi: Any, scene_dict: dict[str, Any], spp: int, seed: int, *, per_pass: int = _SPP_PER_PASS
+) -> NDArray[np.float64]:
+    """Mitsuba's radiance image (H, W), the mean of passes of at most `per_pass` samples
+    per pixel."""
     scene = mi.load_dict(scene_dict)
-    passes = max(1, math.ceil(spp / _SPP_PER_PASS))
+    passes = max(1, math.ceil(spp / per_pass))
     total = None
     done = 0
     for k in range(passes):
-        n = min(_SPP_PER_PASS, spp - done)
+        n = min(per_pass, spp - done)
         image = np.array(mi.render(scene, seed=seed * 1009 + k, spp=n), dtype=np.float64)[:, :, 0]
         total = image * n if total is None else total + image * n
         done += n
@@ -662,14 +702,14 @@ def _make_world(
             masks="pixels that see the ceiling or the side wall, or wall the light cannot "
             "reach (tested at the corners and centre, grown by 1 pixel)",
         )
-    elif scenario == "albedo":
+    if scenario in ("albedo", "murky_albedo"):
         texture = sample_albedo_texture(ALBEDO_AMPLITUDE, rng_texture)
         found["albedo_texture"] = {
             **texture.describe(),
             "base_albedo": ALBEDO,
             "bitmap": "bilinear, 4 mm texels over the wall rectangle",
         }
-    elif scenario == "bowed":
+    if scenario == "bowed":
         bow_center = _view_target_center(views)
         found["bow"]["center_world_m"] = list(bow_center)
         depth = BOW["depth_mm"] / 1000.0
@@ -677,11 +717,18 @@ def _make_world(
             f"the cap of a sphere of radius {BOW['radius_m'] ** 2 / (2.0 * depth):g} m in "
             "front of the plane (within 1.3e-7 m of the formula)"
         )
-    elif scenario == "medium":
+    elif scenario in ("medium", "murky_albedo"):
         found["attenuation"]["rendered_as"] = (
             "the direct render x exp(-coefficient (d_light + d_camera)) at each pixel centre, "
             "the exact transmittance of a homogeneous absorbing medium (Mitsuba's volpath "
             "agrees: tests/test_mitsuba_datasets.py)"
+        )
+    if scenario == "murky_albedo":
+        found["backscatter"]["rendered_as"] = (
+            f"Mitsuba's volpath (max_depth 2) of the water in front of a black wall, "
+            f"{VEIL_SPP_PER_PIXEL} samples a pixel on cells of {_veil_cell_px(camera)} "
+            "pixels square, "
+            "bilinear between the cells' centres (`murky_veil`), added to the wall's light"
         )
     wall_model: WallReflectance = (
         PlasticWall.from_albedo(PLASTIC["roughness"], PLASTIC["ior"], PLASTIC["albedo"])
@@ -757,6 +804,92 @@ def _view_scene(
     return scene
 
 
+def _in_water(
+    mi: Any, world: _World, scene: dict[str, Any], scattering_albedo: float
+) -> dict[str, Any]:
+    """A view's scene (changed in place and returned) inside water: Mitsuba's homogeneous
+    medium (sigma_t = `ATTENUATION_PER_M`, HG g of `MURKY`) filling a box from behind the
+    wall to 1 m above the cameras, rendered by `volpath` with single scattering
+    (max_depth 2: the camera ray's first interaction, on the wall or in the water)."""
+    top = float(max(x.center_world[2] for x in world.views)) + 1.0
+    reach = world.half_size + 1.0
+    scene["integrator"] = {"type": "volpath", "max_depth": 2}
+    scene["water"] = {
+        "type": "homogeneous",
+        "sigma_t": ATTENUATION_PER_M,
+        "albedo": scattering_albedo,
+        "phase": {"type": "hg", "g": MURKY["phase_g"]},
+    }
+    scene["sensor"]["medium"] = {"type": "ref", "id": "water"}
+    scene["sensor"]["near_clip"] = 1e-5  # the camera ray's first 1 cm is in the water
+    scene["box"] = {
+        "type": "cube",  # [-1, 1]^3
+        "to_world": mi.ScalarTransform4f()
+        .translate([0.0, 0.0, (top - 0.5) / 2.0])
+        .scale([reach, reach, (top + 0.5) / 2.0]),
+        "bsdf": {"type": "null"},
+        "interior": {"type": "ref", "id": "water"},
+    }
+    return scene
+
+
+def _veil_cell_px(camera: Camera) -> int:
+    """The side of `murky_veil`'s cells, pixels: `VEIL_CELLS` across the shorter side."""
+    return max(1, min(camera.width, camera.height) // VEIL_CELLS)
+
+
+def murky_veil(
+    mi: Any,
+    world: _World,
+    view: View,
+    *,
+    seed: int = 0,
+    spp_per_pixel: int = VEIL_SPP_PER_PIXEL,
+) -> NDArray[np.float64]:
+    """(H, W) the backscatter of `murky_albedo`'s water, Mitsuba's radiance.
+
+    `volpath` (single scattering) of the water in front of a black wall, on a coarse
+    film of square cells (`_veil_cell_px`) reaching one cell beyond the image on every
+    side (centred on the principal point), `spp_per_pixel` samples a pixel;
+    the cells' means interpolated bilinearly from their centres to the pixels' centres.
+    The veil is smooth: lightcal's own veil interpolated so from its cell means is within
+    1e-3 of the pixel's value (99th percentile; 2e-3 at most) at 480 x 320, and taking
+    the means for the centres' values (off by s^2 / 24 times the Laplacian) moves the
+    veil by 2e-4 of itself. Its noise is Monte Carlo's: at 256 samples a pixel, 0.07 % of
+    the value in most cells (median), up to +-1 % in the cells beside the light where
+    the veil is three quarters of the value (free-flight sampling of an integrand that
+    peaks as 1 / r^2 near the light). At the image's own resolution it would need 256
+    times the samples for the same noise.
+    """
+    from scipy.interpolate import RegularGridInterpolator
+
+    camera = world.camera
+    s = _veil_cell_px(camera)
+    spp = spp_per_pixel * s * s
+    width, height = math.ceil(camera.width / s) + 2, math.ceil(camera.height / s) + 2
+    cells = Camera.from_params(
+        fx=camera.fx / s,
+        fy=camera.fy / s,
+        cx=(width - 1) / 2,
+        cy=(height - 1) / 2,
+        width=width,
+        height=height,
+    )
+    coarse = replace(world, camera=cells, texture=None)  # the wall black below
+    scene = _view_scene(mi, coarse, _wall_shape(mi, coarse), view, spp)
+    scene["wall"]["bsdf"] = _diffuse(0.0)
+    scene["sensor"]["sampler"] = {"type": "independent"}
+    _in_water(mi, coarse, scene, MURKY["scattering_albedo"])
+    per_pass = max(_SPP_PER_PASS, _SPP_PER_PASS * 480 * 320 // (width * height))
+    cell_means = _render(mi, scene, spp, seed, per_pass=per_pass)
+    # cell k's centre in image pixels: c + (k - (n - 1) / 2) s, c the principal point
+    u = camera.cx + (np.arange(width) - (width - 1) / 2) * s
+    v = camera.cy + (np.arange(height) - (height - 1) / 2) * s
+    pv, pu = np.mgrid[0 : camera.height, 0 : camera.width].astype(np.float64)
+    interpolate = RegularGridInterpolator((v, u), cell_means)
+    return np.asarray(interpolate(np.stack([pv, pu], axis=-1)), dtype=np.float64)
+
+
 def _sky_scene(
     mi: Any, world: _World, wall: dict[str, Any], view: View, radiance: float
 ) -> dict[str, Any]:
@@ -811,8 +944,12 @@ def _render_views(mi: Any, world: _World, spp: int, found: dict[str, dict[str, A
             direct = _render(mi, scene, DEFAULT_SPP["clean"], i)
             image = direct + _smooth(image - direct, ~mask, INDIRECT_SMOOTHING_PX)
         seconds.append(time.perf_counter() - t0)
-        if world.scenario == "medium":
+        if world.scenario in ("medium", "murky_albedo"):
             image = image * medium_transmittance(camera, view, light_world, ATTENUATION_PER_M)
+        if world.scenario == "murky_albedo":
+            t0 = time.perf_counter()
+            image = image + murky_veil(mi, world, view, seed=i)
+            seconds[-1] += time.perf_counter() - t0
         radiance.append(image)
         masks.append(mask)
     if world.scenario == "ambient":
@@ -1104,7 +1241,7 @@ def _write_into(folder: Path, mi: Any, key: dict[str, Any], sensor: SensorConfig
             "mitsuba_version": mi.__version__,
             "variant": mi.variant(),
             "spp": spp,
-            "integrator": "path" if scenario == "interreflection" else "direct",
+            "integrator": _INTEGRATORS.get(scenario, "direct"),
             "spot": {
                 "cutoff_angle_deg": SPOT_CUTOFF_DEG,
                 "profile": "cos^m, f(30 deg) = 1/2, C2 taper 45..55 deg (bitmap texture)",
@@ -1120,6 +1257,9 @@ def _write_into(folder: Path, mi: Any, key: dict[str, Any], sensor: SensorConfig
     atomic_write_text(folder / TRUTH_NAME, json.dumps(truth, indent=2) + "\n")
     save_project(spec, project_path)
     load_project(project_path)  # the dataset must load
+
+
+_INTEGRATORS = {"interreflection": "path", "murky_albedo": "direct; the veil volpath"}
 
 
 def _write_images(
@@ -1181,7 +1321,7 @@ def _key(
     }
 
 
-_GENERATOR_VERSION = 2
+_GENERATOR_VERSION = 3
 """Bumped when what a key renders changes (cached folders are then rendered again)."""
 
 
@@ -1270,12 +1410,27 @@ class TruthScene:
         light: The true light (the table RID of rid.csv, scale in DN per unit of lightcal's
             `radiance` value: `render_image` gives the expected image above black).
         wall: lightcal's model of the true wall.
+        texture: The wall's albedo factor (`albedo`, `murky_albedo`), else None.
+        medium: The water (`medium`, `murky_albedo`; beta relative to the base albedo),
+            else air.
     """
 
     camera: Camera
     views: list[View]
     light: Light
     wall: WallReflectance
+    texture: AlbedoTexture | None = None
+    medium: Medium = AIR
+
+    def albedo_factor(self, view: View) -> NDArray[np.float64]:
+        """(H, W) the texture's albedo factor at each pixel's footprint centre in `view`
+        (1 without a texture)."""
+        camera = self.camera
+        if self.texture is None:
+            return np.ones((camera.height, camera.width))
+        pixels = np.stack(np.meshgrid(np.arange(camera.width), np.arange(camera.height)), -1)
+        centres = pixel_footprints(camera, view, pixels.reshape(-1, 2)).centers_world
+        return self.texture.factor(centres[:, :2]).reshape(camera.height, camera.width)
 
 
 def truth_scene(project_path: Path) -> TruthScene:
@@ -1303,60 +1458,85 @@ def truth_scene(project_path: Path) -> TruthScene:
     if truth["wall"]["model"] == "plastic":
         w = truth["wall"]
         wall = PlasticWall(w["roughness"], w["ior"], w["specular_weight"])
-    return TruthScene(project.camera, views, light, wall)
+    found = truth["departures"]
+    texture = None
+    if "albedo_texture" in found:
+        d = found["albedo_texture"]
+        directions = np.radians(d["directions_deg"])
+        wavevectors = (2.0 * math.pi / np.array(d["wavelengths_m"]))[:, None] * np.stack(
+            [np.cos(directions), np.sin(directions)], axis=1
+        )
+        texture = AlbedoTexture(
+            d["amplitude"], wavevectors, np.array(d["phases_rad"]), np.array(d["weights"])
+        )
+    medium = AIR
+    if "attenuation" in found:
+        scattering = found.get("backscatter", {"beta_per_m": 0.0, "phase_g": 0.9})
+        medium = Medium(
+            found["attenuation"]["coefficient_per_m"],
+            scattering["beta_per_m"],
+            scattering["phase_g"],
+        )
+    return TruthScene(project.camera, views, light, wall, texture, medium)
 
 
-def volpath_transmittance(
-    project_path: Path, *, view: int = 0, spp: int = 1024
-) -> tuple[float, float, int]:
-    """Mitsuba's `volpath` through the water of `medium` against the images' model.
+@dataclass(frozen=True)
+class VolpathImages:
+    """Mitsuba's `volpath` render of a view of `medium` or `murky_albedo` and its parts
+    as the dataset's images carry them (Mitsuba's radiance, (H, W) each).
 
-    Renders a view of the dataset with the water as a Mitsuba medium (homogeneous,
-    sigma_t = `ATTENUATION_PER_M`, albedo 0, filling a box around the scene, the camera
-    inside it) and divides it by the `direct` render times `medium_transmittance`, the
-    transmittance the `medium` images carry.
-
-    Returns:
-        The mean of that ratio over the pixels lit above 5 % of the peak, its standard
-        error (from the pixels' spread: volpath's noise), and the pixel count.
+    Attributes:
+        through_water: The whole scene in the water, one `volpath` render.
+        wall: The `direct` render times `medium_transmittance`.
+        veil: `murky_veil` (zero for `medium`).
+        lit: The pixels whose wall + veil is above 5 % of its peak.
     """
+
+    through_water: NDArray[np.float64]
+    wall: NDArray[np.float64]
+    veil: NDArray[np.float64]
+    lit: NDArray[np.bool_]
+
+    def ratio(self) -> tuple[float, float, int]:
+        """The mean of through_water / (wall + veil) over the lit pixels, its standard
+        error (from the pixels' spread: volpath's noise), and the pixel count."""
+        ratio = self.through_water[self.lit] / (self.wall + self.veil)[self.lit]
+        n = int(self.lit.sum())
+        return float(ratio.mean()), float(ratio.std() / math.sqrt(n)), n
+
+
+def volpath_images(
+    project_path: Path, *, view: int = 0, spp: int = 1024, veil_spp_per_pixel: int = 4096
+) -> VolpathImages:
+    """Mitsuba's `volpath` through the water of `medium` or `murky_albedo` against the
+    images' model: a view of the dataset rendered with its wall (the texture of
+    `murky_albedo`) and the water as a Mitsuba medium (`_in_water`: the camera inside
+    it), beside the parts its images were made of (the veil with `veil_spp_per_pixel`)."""
     scene = truth_scene(project_path)
     camera, v = scene.camera, scene.views[view]
     mi = _mitsuba(mitsuba_variant())
+    murky = scene.medium.scatters
     world = _World(
-        "clean",
+        "murky_albedo" if murky else "clean",
         camera,
         scene.views,
         scene.light,
         _wall_half_size(camera, scene.views),
         LAMBERTIAN,
         [],
-        None,
+        scene.texture,
         (0.0, 0.0),
     )
     wall = _wall_shape(mi, world)
     direct = _render(mi, _view_scene(mi, world, wall, v, 16), 16, 0)
-    water = {"type": "homogeneous", "sigma_t": ATTENUATION_PER_M, "albedo": 0.0}
-    top = float(max(x.center_world[2] for x in scene.views)) + 1.0
-    reach = world.half_size + 1.0
-    volume = _view_scene(mi, world, wall, v, spp)
-    volume["integrator"] = {"type": "volpath", "max_depth": 2}
-    volume["water"] = water
-    volume["sensor"]["medium"] = {"type": "ref", "id": "water"}
-    volume["sensor"]["near_clip"] = 1e-5  # the camera ray's first 1 cm is in the water
-    volume["box"] = {
-        "type": "cube",  # [-1, 1]^3
-        "to_world": mi.ScalarTransform4f()
-        .translate([0.0, 0.0, (top - 0.5) / 2.0])
-        .scale([reach, reach, (top + 0.5) / 2.0]),
-        "bsdf": {"type": "null"},
-        "interior": {"type": "ref", "id": "water"},
-    }
+    scattering = MURKY["scattering_albedo"] if murky else 0.0
+    volume = _in_water(mi, world, _view_scene(mi, world, wall, v, spp), scattering)
     through_water = _render(mi, volume, spp, 1)
-    expected = direct * medium_transmittance(
+    attenuated = direct * medium_transmittance(
         camera, v, scene.light.position_world(v), ATTENUATION_PER_M
     )
-    lit = expected > 0.05 * expected.max()
-    ratio = through_water[lit] / expected[lit]
-    n = int(lit.sum())
-    return float(ratio.mean()), float(ratio.std() / math.sqrt(n)), n
+    veil = np.zeros_like(attenuated)
+    if murky:
+        veil = murky_veil(mi, world, v, spp_per_pixel=veil_spp_per_pixel)
+    expected = attenuated + veil
+    return VolpathImages(through_water, attenuated, veil, expected > 0.05 * expected.max())
