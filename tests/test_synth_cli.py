@@ -55,6 +55,17 @@ def test_synth_writes_a_loadable_dataset_with_progress(tmp_path: Path, capsys):
     assert math.dist(init["position_m"], light["position_m"]) == pytest.approx(0.1)
 
 
+def test_synth_says_it_builds_the_corners_light_before_the_first_image(tmp_path: Path, capsys):
+    """`--corner`'s brute-force bounce takes seconds to set up: a line says so first."""
+    out = tmp_path / "corner"
+    assert main(["synth", str(out), *SMALL, "--corner", "0.7", "0.5", "0.8"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0] == (
+        "lightcal synth: the corner's bounce light: building its cells and transfers (seconds)"
+    )
+    assert lines[1].startswith("lightcal synth: view_00.png 1/3: distance ")
+
+
 def test_synth_options_reach_the_dataset(tmp_path: Path, capsys):
     out = tmp_path / "ds"
     argv = [

@@ -349,6 +349,8 @@ def _write_into(
     check_in_front(initial, measured)  # (as the project will, before the rendering)
 
     # The images.
+    if departures.corner is not None and progress is not None:
+        progress("the corner's bounce light: building its cells and transfers (seconds)")
     imaging = make_imaging(
         camera,
         views,
