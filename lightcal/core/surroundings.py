@@ -236,20 +236,21 @@ def segments_blocked(
 
 
 def screened_footprints(
-    surroundings: Surroundings, center_world: np.ndarray, corners_world: np.ndarray
+    surroundings: Surroundings, eye_world: np.ndarray, corners_world: np.ndarray
 ) -> np.ndarray:
-    """(N,) the pixels a surface hides in part from the camera: a corner of their
-    footprint (corners (N, K, 4, 3), world frame, m; NaN off the wall) behind a surface as
-    the camera centre (3,) sees it. The model renders the wall, not the surfaces, so such a
-    pixel (one that straddles a surface's foot, say) is not modelled (docs/model.md,
-    "Inter-reflection")."""
+    """(N,) the pixels a surface hides in part from a point (3,): a corner of their footprint
+    (corners (N, K, 4, 3), world frame, m; NaN off the wall) behind a surface as the point
+    sees it. From the camera centre: the pixels that see a surface, or straddle its foot;
+    from a light: the pixels in a surface's shadow, or on its edge. The model renders the
+    wall lit by the beam, not the surfaces nor their shadows, so such a pixel is not
+    modelled (docs/model.md, "Inter-reflection")."""
     n = corners_world.shape[0]
     points = corners_world.reshape(-1, 3)
     finite = np.all(np.isfinite(points), axis=1)
     hidden = np.zeros(len(points), dtype=bool)
     hidden[finite] = segments_blocked(
         surroundings.surfaces,
-        np.asarray(center_world, dtype=np.float64)[None, :],
+        np.asarray(eye_world, dtype=np.float64)[None, :],
         np.array([-1]),
         points[finite],
         np.full(int(finite.sum()), -1),

@@ -19,6 +19,7 @@ from lightcal.pipeline.load import LoadedImages, ProgressFn, load_images
 from lightcal.pipeline.measurements import measurements_for
 from lightcal.pipeline.model import build_model
 from lightcal.pipeline.results import CalibrationResult, summarise
+from lightcal.pipeline.shadows import without_shadows
 from lightcal.pipeline.wall_choice import (
     Candidate,
     auto_candidates,
@@ -32,6 +33,10 @@ from lightcal.pipeline.wall_choice import (
 
 #: `SolveOutcome.status` of a solve its caller stopped (StopIteration from on_iteration).
 STOPPED = -2
+
+#: Solves again after dropping the pixels the surroundings shadow at the estimate, at most
+#: this many times (the shadows move with the light's estimate).
+SHADOW_PASSES = 2
 
 # The multi-start defaults are the project file's (defined once).
 _SOLVER_SPEC = SolverSpec()
@@ -306,6 +311,19 @@ def calibrate(
     ]
     notes += same_pose_warnings(project, used)
     outcome = run(model)
+    for _ in range(SHADOW_PASSES):
+        if outcome.status == STOPPED:
+            break
+        unshadowed, dropped = without_shadows(model, outcome.x, project.path)
+        if dropped == 0:
+            break
+        stage(f"dropping {dropped} pixels the surroundings shadow from the light")
+        notes.append(
+            f"surroundings: {dropped} pixels in the surfaces' shadows from the light at the "
+            "estimate were dropped"
+        )
+        outcome = run(unshadowed, start_from(unshadowed, model, outcome.x))
+        model = unshadowed
     limit = project.spec.selection.exclude_mirror_deg
     if limit and outcome.status != STOPPED:
         stage(f"dropping pixels within {limit:g} deg of the mirror direction")

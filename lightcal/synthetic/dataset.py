@@ -352,15 +352,9 @@ def _write_into(
     if departures.corner is not None and progress is not None:
         progress("the corner's bounce light: building its cells and transfers (seconds)")
     imaging = make_imaging(
-        camera,
-        views,
-        rig,
-        departures,
-        rng_texture,
-        sensor=sensor.model,
-        vignetting=vignetting,
+        camera, views, rig, departures, rng_texture, sensor=sensor.model, vignetting=vignetting,
         wall=config.wall,
-    )
+    )  # fmt: skip
     ambient: AmbientLevels | None = None
     if departures.ambient_fraction > 0.0:
         ambient = imaging.ambient(views, departures.ambient_fraction)

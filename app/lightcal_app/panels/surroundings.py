@@ -62,8 +62,8 @@ def surroundings_text(spec: SurroundingsSpec | None, project: SurroundingsSpec |
     return (
         f"**{len(spec.surfaces)} surface{'s' if len(spec.surfaces) > 1 else ''}** ({names}), "
         f"{source}: their bounce light is in the overlays and the solve. The solve drops "
-        "pixels a surface hides; wall a surface shadows from the light must be masked. Each "
-        "edit rebuilds the bounce map (seconds)."
+        "the pixels a surface hides or shadows from the light. Each edit rebuilds the "
+        "bounce map (seconds)."
     )
 
 
