@@ -43,7 +43,7 @@ SPLIT = 8
 
 #: Cells with a node closer than NEAR_PLANE grid spacings to a group's plane interpolate
 #: its light as G / d (module docstring); the others plainly.
-NEAR_PLANE = 2.0
+NEAR_PLANE = 1.0
 
 #: A node within SIDE_TOLERANCE grid spacings of a copy's plane does not interpolate it (its
 #: light there is nearly 0 and its quotient by d ill-conditioned).

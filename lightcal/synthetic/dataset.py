@@ -199,11 +199,14 @@ class SynthConfig:
             raise InputError("seed", f"expected an integer >= 0, got {self.seed!r}")
         if self.image_format not in IMAGE_SUFFIX:
             raise InputError("image_format", f"expected 'png' or 'tiff', got {self.image_format!r}")
-        if self.departures.undeclared_vignetting is not None and self.sensor.model != "radiance":
-            raise InputError(
-                "undeclared_vignetting",
-                f"applies to the radiance sensor model only, got {self.sensor.model!r}",
-            )
+        radiance_only = {  # (checked before the corner's bounce reference is built)
+            "undeclared_vignetting": self.departures.undeclared_vignetting is not None,
+            "corner": self.departures.corner is not None,
+        }
+        for name in (k for k, used in radiance_only.items() if used):
+            if self.sensor.model != "radiance":
+                got = self.sensor.model
+                raise InputError(name, f"applies to the radiance sensor model only, got {got!r}")
 
 
 @dataclass(frozen=True, eq=False)
