@@ -87,30 +87,48 @@ def project_lights(project: Project, scales: list[float]) -> list[Light]:
     ]
 
 
+def stub_result(
+    lights: list[LightResultModel],
+    *,
+    project: str,
+    image_names: list[str],
+    message: str,
+    medium: dict | None = None,
+) -> ResultFile:
+    """A result file of `lights` with placeholder solve fields (one iteration, converged),
+    for the exports' tests; `medium` as the result file holds it (None: in air)."""
+    extra = {} if medium is None else {"medium": medium}
+    return ResultFile(
+        lightcal_version="0.1.0",
+        project=project,
+        lights=lights,
+        offset=0.0,
+        offset_sigma=None,
+        images=[ImageResult(name=n, rms=0.1, pixels=10, gain=1.0) for n in image_names],
+        iterations=1,
+        nfev=1,
+        status=1,
+        message=message,
+        converged=True,
+        cost=1.0,
+        time_s=0.0,
+        warnings=[],
+        parameters=Parameters(names=["x"], x=[0.0], covariance=[[1.0]]),
+        **extra,
+    )
+
+
 def result_of_project(
     project: Project, scales: list[float], path: Path, medium: Medium = AIR
 ) -> Path:
     """A result file holding the project's initial lights with `scales` (no RID estimated),
     calibrated in `medium` (given)."""
     lights = project_lights(project, scales)
-    result = ResultFile(
-        lightcal_version="0.1.0",
+    result = stub_result(
+        [_light_model(light, u.kind()) for light, u in zip(lights, project.lights, strict=True)],
         project=str(project.path),
-        lights=[
-            _light_model(light, u.kind()) for light, u in zip(lights, project.lights, strict=True)
-        ],
-        offset=0.0,
-        offset_sigma=None,
-        images=[ImageResult(name=n, rms=0.1, pixels=10, gain=1.0) for n in project.names],
-        iterations=1,
-        nfev=1,
-        status=1,
+        image_names=list(project.names),
         message="made by tests/export_render.py",
-        converged=True,
-        cost=1.0,
-        time_s=0.0,
-        warnings=[],
-        parameters=Parameters(names=["x"], x=[0.0], covariance=[[1.0]]),
         medium={**medium.describe(), "estimated": [], "sigma": {}},
     )
     write_result(result, path)

@@ -34,13 +34,11 @@ from lightcal.io.export import FORMATS, export_result
 from lightcal.io.export_medium import export_medium
 from lightcal.io.project import load_project
 from lightcal.io.result_file import (
-    ImageResult,
     LightResultModel,
-    Parameters,
     ResultFile,
     write_result,
 )
-from tests.export_render import placeholder_sigma, result_of_project
+from tests.export_render import placeholder_sigma, result_of_project, stub_result
 from tests.test_export import _fake_blender
 
 OUT_NAMES = {
@@ -94,22 +92,11 @@ def air_result() -> ResultFile:
             "values": values2.tolist(),
         },
     )
-    return ResultFile(
-        lightcal_version="0.1.0",
+    return stub_result(
+        [spot, lopsided],
         project="project.json",
-        lights=[spot, lopsided],
-        offset=0.0,
-        offset_sigma=None,
-        images=[ImageResult(name="a.png", rms=0.1, pixels=10, gain=1.0)],
-        iterations=1,
-        nfev=1,
-        status=1,
+        image_names=["a.png"],
         message="written by tests/test_export_medium.py",
-        converged=True,
-        cost=1.0,
-        time_s=0.0,
-        warnings=[],
-        parameters=Parameters(names=["x"], x=[0.0], covariance=[[1.0]]),
     )
 
 
