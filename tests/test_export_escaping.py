@@ -52,6 +52,8 @@ HOSTILE = [
     '"',
     '"a" , evil: "b"',  # cv2 writes a string in matching quotes as is
     "'a\\' x: 'b'",
+    "null",  # cv2 writes a YAML keyword bare and reads it back as empty
+    "True",
 ]
 
 BENIGN = "light"

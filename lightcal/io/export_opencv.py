@@ -180,14 +180,21 @@ def _known(v: float | None) -> float:
     return math.nan if v is None else float(v)
 
 
+_YAML_KEYWORDS = frozenset(["null", "~", "true", "false", "yes", "no", "on", "off", "y", "n"])
+"""Plain scalars a YAML 1.1 reader takes for null or a boolean, in lower case."""
+
+
 def opencv_text(text: str) -> str:
     """`text` as `plain_line` for `cv2.FileStorage.write`, which reads back the same.
 
     cv2 quotes and escapes a string itself, but cuts it at a NUL, refuses one longer than
     its buffer, and writes one that starts and ends with the same quote character as it
-    is (as if already quoted: `"a" b: "c"` would add a key): that one is quoted here.
+    is (as if already quoted: `"a" b: "c"` would add a key): that one is quoted here. So
+    is a YAML keyword (`null`, `true`, `off`, ...), which cv2 writes bare and reads back
+    as empty or a number, and other YAML readers as null or a boolean.
     """
     line = plain_line(text)
-    if line and line[0] == line[-1] and line[0] in "\"'":
+    quoted = line and line[0] == line[-1] and line[0] in "\"'"
+    if quoted or line.lower() in _YAML_KEYWORDS:
         return '"' + line.replace("\\", "\\\\").replace('"', '\\"') + '"'
     return line
