@@ -127,14 +127,19 @@ def run(args: argparse.Namespace) -> int:
     if result.wall.get("model") != "lambertian":
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         output.print(f"wall: {result.wall['model']} ({params})", highlight=False)
-    medium = medium_text(result.medium)
+    if result.channels is not None:  # each its scales, medium and room light
+        from lightcal.pipeline.channel_result import channel_lines
+
+        for line in channel_lines(result.channels):
+            output.print(line, highlight=False, soft_wrap=True)
+    medium = None if result.channels is not None else medium_text(result.medium)
     if medium is not None:
         output.print(medium, highlight=False)
     if result.fall_off is not None:
         from lightcal.pipeline.fall_off_result import fall_off_text
 
         output.print(fall_off_text(result.fall_off), highlight=False, soft_wrap=True)
-    if result.ambient is not None:
+    if result.ambient is not None and result.channels is None:
         from lightcal.pipeline.fall_off_result import ambient_text
 
         output.print(ambient_text(result.ambient, result.ambient_sigma), highlight=False)

@@ -13,18 +13,18 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 
 import numpy as np
 
 from lightcal.core import solver_kernels as sk
-from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection, with_albedo
+from lightcal.core.albedo_map import AlbedoMap, AlbedoProjection
 from lightcal.core.albedo_systems import projected_systems
 from lightcal.core.blas_threads import single_threaded_blas
 from lightcal.core.bounce_term import BounceTerm
+from lightcal.core.channels import check_channels
 from lightcal.core.fall_off import ambient_estimated
 from lightcal.core.light_bounds import parameter_bounds
-from lightcal.core.medium import Medium, MediumUnknown
+from lightcal.core.medium import MediumUnknown
 from lightcal.core.pose import pose_column_map
 from lightcal.core.problem import (
     LOG_CLIP,
@@ -36,9 +36,9 @@ from lightcal.core.problem import (
     with_curve_range,
 )
 from lightcal.core.qr_factors import economic_r, stack_r_factors
-from lightcal.core.render import light_flux, shade
+from lightcal.core.render import light_flux
+from lightcal.core.rendered_signal import rendered_signal
 from lightcal.core.rid_columns import rid_columns
-from lightcal.core.scene import Rig
 from lightcal.core.solver_options import IterationReport, SolverOptions, robust_cost
 from lightcal.core.surroundings import Surroundings
 from lightcal.core.system_buffers import StateAtX, SystemBuffers
@@ -61,6 +61,8 @@ class CalibrationModel:
         wall: the wall's reflectance and what to estimate of it (default: Lambertian).
         medium: the medium between rig and wall, what to estimate of it (default: air).
         surroundings: surfaces whose bounce light the lights' flux gains (default: none).
+        channels: the colour channels solved jointly (`ParameterLayout`), each image's
+            its `ImageData.channel`; `media` then one medium per channel.
     """
 
     def __init__(
@@ -71,11 +73,14 @@ class CalibrationModel:
         wall: WallUnknown | None = None,
         medium: MediumUnknown | None = None,
         surroundings: Surroundings | None = None,
+        channels: tuple[str, ...] = (),
+        media: tuple[MediumUnknown, ...] | None = None,
     ) -> None:
         if not images:
             raise ValueError("calibration: expected at least one image with selected pixels")
         if not unknowns:
             raise ValueError("calibration: expected at least one light")
+        check_channels(images, channels, options, surroundings)
         self.images = images
         self.unknowns = [with_curve_range(u, images) for u in unknowns]
         unknowns = self.unknowns
@@ -90,6 +95,8 @@ class CalibrationModel:
             medium=medium,
             fall_off=options.fall_off,
             estimate_ambient=ambient_estimated(images, options),
+            channels=channels,
+            media=media,
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -237,6 +244,7 @@ class CalibrationModel:
         tops = []
         rms = np.full(len(self.images), np.nan)
         lay = self.layout
+        channels = range(lay.n_channels) if lay.channels else range(0)
         at_x = StateAtX(
             lay.rig(x),
             lay.gain_factors(x),
@@ -244,6 +252,8 @@ class CalibrationModel:
             self._pose_maps(x),
             lay.wall_of(x),
             lay.medium_of(x),
+            tuple(lay.rig(x, ch) for ch in channels),
+            tuple(lay.medium_of(x, ch) for ch in channels),
         )
         for i, A, (squares, finite), fluxes in self._image_systems(x, at_x, visit is not None):
             rows = slice(self.bounds[i], self.bounds[i + 1])
@@ -321,13 +331,14 @@ class CalibrationModel:
         im = self.images[i]
         view = im.view
         n = lay.n
-        rig, offset, pose_maps = at_x.rig, at_x.offset, at_x.pose_maps
+        rig, offset, pose_maps = at_x.rig_of(im.channel), at_x.offset, at_x.pose_maps
+        medium, medium_columns = at_x.medium_of(im.channel), lay.medium_columns(im.channel)
         g = at_x.gains[i]
         N = len(im.observed)
         gain_column = lay.gains.start + i - 1 if lay.gains.stop > lay.gains.start and i > 0 else -1
         offset_column = -1 if lay.offset_index is None else lay.offset_index
         A, grad_buffer = self._buffers.system(
-            N, n + 1, self._unwritten_columns(gain_column, offset_column)
+            N, n + 1, self._unwritten_columns(gain_column, offset_column, im.channel)
         )
         total = np.zeros(N)
         # d L_world / d t = R^T and delta_world = R^T delta_camera: rows (world) -> camera.
@@ -357,12 +368,12 @@ class CalibrationModel:
                 grad_out=grad_buffer,
                 wall=wall,
                 wall_grad_out=wall_grad,
-                medium=at_x.medium,
+                medium=medium,
                 medium_grad_out=medium_grad,
             )
             assert grad_world is not None
             if self.bounce is not None:
-                self.bounce.add(i, view, light, flux, grad_world, at_x.medium, c_grad)
+                self.bounce.add(i, view, light, flux, grad_world, medium, c_grad)
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale
@@ -373,8 +384,8 @@ class CalibrationModel:
                 flux,
                 value_per_flux * (to_camera @ pose_maps[j]),
                 block.pose.start,
-                block.log_scale,
-                value_per_flux if abs(x[block.log_scale]) < LOG_CLIP else 0.0,
+                block.log_scale_of(im.channel),
+                value_per_flux if abs(x[block.log_scale_of(im.channel)]) < LOG_CLIP else 0.0,
                 light.scale,
             )
             if block.rid.stop > block.rid.start:
@@ -382,7 +393,7 @@ class CalibrationModel:
             if wall_grad is not None and wall_idx:
                 A[:, wall_cols] += value_per_flux * wall_grad[:, wall_idx]
             if medium_grad is not None:
-                A[:, lay.medium] += value_per_flux * medium_grad[:, medium_idx]
+                A[:, medium_columns] += value_per_flux * medium_grad[:, medium_idx]
         lay.apply_sensor_terms(A, total, im, x, g, fluxes)  # room light, V: when estimated
         stats = sk.finish_rows(
             A,
@@ -397,15 +408,18 @@ class CalibrationModel:
         )
         return A, stats
 
-    def _unwritten_columns(self, gain_column: int, offset_column: int) -> list[int]:
+    def _unwritten_columns(
+        self, gain_column: int, offset_column: int, channel: int = 0
+    ) -> list[int]:
         """The columns of an image's [J r] that `_image_system` does not assign (zeroed
-        first): other images' gains, the wall's and the medium's (which it adds to)."""
+        first): other images' gains, other channels' scales, the wall's and the medium's
+        (which it adds to)."""
         lay = self.layout
         written = {lay.n, gain_column, offset_column}
         for block in lay.blocks:
             written.update(range(block.pose.start, block.pose.stop))
             written.update(range(block.rid.start, block.rid.stop))
-            written.add(block.log_scale)
+            written.add(block.log_scale_of(channel))
         return [c for c in range(lay.n + 1) if c not in written]
 
     @property
@@ -421,41 +435,18 @@ class CalibrationModel:
         sigmas = [im.sigma for im in self.images]
         if x is not None:
             lay = self.layout
-            rig, gains = lay.rig(x), lay.gain_factors(x)
+            gains = lay.gain_factors(x)
             albedo_map = self.albedo_map(x)
             for i, im in enumerate(self.images):
                 if im.noise is None:
                     continue
-                signal = self._signal(x, i, rig, gains[i], albedo_map)
+                signal = rendered_signal(self, x, i, gains[i], albedo_map)
                 sigma = poisson_gaussian_sigma(signal, im.noise)
                 sigmas[i] = np.where(np.isfinite(sigma), sigma, im.sigma)
         self.sigmas = sigmas
         self.weights_at = None if x is None else np.array(x, dtype=np.float64)
         self._cache_x = self._cache_J_x = None
         self._recent.clear()
-
-    def _signal(
-        self, x: np.ndarray, i: int, rig: Rig, gain: float, albedo_map: AlbedoMap | None
-    ) -> np.ndarray:
-        """(N_i,) image i's rendered values above the offset at x (its rig and gain)."""
-        im, lay = self.images[i], self.layout
-
-        def render(medium: Medium) -> np.ndarray:
-            sh = shade(
-                im.footprints,
-                im.view,
-                rig,
-                rid_subsamples=self.options.rid_subsamples,
-                wall=lay.wall_of(x),
-                medium=medium,
-            )
-            if self.bounce is not None:
-                sh = replace(sh, values=sh.values + self.bounce.values(i, im.view, rig, medium))
-            return lay.image_values(sh.values, im, x, gain)
-
-        if self.albedo is None or albedo_map is None:
-            return render(lay.medium_of(x))
-        return with_albedo(render, lay.medium_of(x), self.albedo.factor(i, albedo_map))
 
     def per_image_rms(self, x: np.ndarray) -> np.ndarray:
         """(n_images,) RMS of m_obs - m_render per image (pixel value units)."""

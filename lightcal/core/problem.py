@@ -2,12 +2,17 @@
 
 The solver minimises sum_pixels rho(((m_obs - m_render(x)) / sigma)^2) over x, the
 concatenation of, for every light, its pose parameters (3, 5 or 6, `lightcal.core.pose`),
-the log of its scale and optionally its RID parameters; then optionally one log-gain per
-image but the first (the first image's gain is fixed: a global gain is the lights'
-scales), optionally the offset b, the wall model's estimated parameters
-(`WallUnknown`), the fall-off's coefficients (`lightcal.core.fall_off`), the room
-light's level a (`ParameterLayout.ambient_index`) and last the medium's
-(`MediumUnknown`).
+the log of its scale (one per colour channel) and optionally its RID parameters; then
+optionally one log-gain per image but the first (the first image's gain is fixed: a
+global gain is the lights' scales), optionally the offset b, the wall model's estimated
+parameters (`WallUnknown`), the fall-off's coefficients (`lightcal.core.fall_off`), the
+room light's level a (`ParameterLayout.ambient_index`; one per channel) and last the
+medium's (`MediumUnknown`; channel after channel).
+
+Colour channels solved jointly (`channels`): every image (`ImageData.channel`) shares
+the lights' poses, RIDs, the gains, offset, wall and fall-off; each channel has its own
+lights' scales, room light and medium (the water's attenuation depends on the
+wavelength).
 
 Room light (ambient) is a uniform radiance on the wall: image i records it as
 g_i e_i a (its gain and exposure: the room's light grows with the exposure time as the
@@ -33,80 +38,32 @@ import numpy as np
 
 from lightcal.core.fall_off import FallOffUnknown, apply_fall_off
 from lightcal.core.footprint import Footprints
+from lightcal.core.image_data import ImageData, poisson_gaussian_sigma
 from lightcal.core.medium import Medium, MediumUnknown
 from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameterization
-from lightcal.core.rid import RID, CosPowerRID, IsotropicRID, SymmetricTableRID
-from lightcal.core.scene import Light, Rig, View
+from lightcal.core.rid import RID, CosPowerRID, IsotropicRID
+from lightcal.core.rid_curve import curve_params_from_rid, curve_rid, fit_cos_power
+from lightcal.core.scene import Light, Rig, with_view
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
+
+__all__ = [
+    "LOG_CLIP",
+    "ImageData",
+    "LightUnknown",
+    "Loss",
+    "MediumUnknown",
+    "ParameterLayout",
+    "RidEstimate",
+    "WallUnknown",
+    "curve_params_from_rid",
+    "curve_rid",
+    "poisson_gaussian_sigma",
+    "with_curve_range",
+    "with_view",
+]
 
 RidEstimate = Literal["none", "cos_power", "curve"]
 Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
-
-
-def poisson_gaussian_sigma(signal: np.ndarray, noise: tuple[float, float]) -> np.ndarray:
-    """(N,) noise sigma of values whose `signal` (N,) above the offset is given.
-
-    sigma = sqrt(gain * max(signal, 0) + read_variance), noise = (gain, read_variance).
-    """
-    gain, read_variance = noise
-    return np.sqrt(gain * np.maximum(signal, 0.0) + read_variance)
-
-
-@dataclass(frozen=True, eq=False)
-class ImageData:
-    """The selected pixels of one image.
-
-    Attributes:
-        name: image label (file name).
-        view: camera pose and exposure.
-        footprints: footprints of the N selected pixels (all valid).
-        observed: (N,) measured linear pixel values.
-        sigma: (N,) noise standard deviation of each value (1 when unweighted).
-        noise: (gain, read_variance) of a Poisson-Gaussian sensor, in the units of
-            `observed`: variance = gain * (value - offset) + read_variance. When given, the
-            solver re-weights from rendered values (`SolverOptions.reweight`).
-    """
-
-    name: str
-    view: View
-    footprints: Footprints
-    observed: np.ndarray
-    sigma: np.ndarray
-    noise: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        n = len(self.footprints)
-        for label, arr in (("observed", self.observed), ("sigma", self.sigma)):
-            a = np.asarray(arr, dtype=np.float64)
-            if a.shape != (n,):
-                raise ValueError(f"{self.name}: {label}: expected shape ({n},), got {a.shape}")
-            if not np.all(np.isfinite(a)):
-                raise ValueError(f"{self.name}: {label}: expected finite values, got NaN or inf")
-            object.__setattr__(self, label, a)
-        if np.any(self.sigma <= 0.0):
-            raise ValueError(f"{self.name}: sigma: expected values > 0")
-        if not np.all(self.footprints.valid):
-            raise ValueError(f"{self.name}: expected only valid footprints (select valid pixels)")
-        if self.noise is not None:
-            gain, read_variance = (float(v) for v in self.noise)
-            if not (math.isfinite(gain) and gain >= 0.0):
-                raise ValueError(f"{self.name}: noise: expected a finite gain >= 0, got {gain}")
-            if not (math.isfinite(read_variance) and read_variance > 0.0):
-                raise ValueError(
-                    f"{self.name}: noise: expected a finite read variance > 0, got {read_variance}"
-                )
-            object.__setattr__(self, "noise", (gain, read_variance))
-
-    def subset(self, rows: np.ndarray) -> ImageData:
-        """The same image with only rows (k,) (indices or a boolean mask) of its pixels."""
-        return ImageData(
-            self.name,
-            self.view,
-            self.footprints.subset(rows),
-            self.observed[rows],
-            self.sigma[rows],
-            self.noise,
-        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,24 +135,6 @@ def _exp(v: float) -> float:
     return math.exp(min(max(v, -LOG_CLIP), LOG_CLIP))
 
 
-def curve_rid(theta_max_rad: float, q: np.ndarray) -> SymmetricTableRID:
-    """The monotone "curve" RID of `q` (K,) free parameters on [0, theta_max]."""
-    k = q.shape[0]
-    theta = np.linspace(0.0, theta_max_rad, k + 1)
-    values = np.concatenate([[1.0], np.exp(-np.cumsum(np.exp(np.clip(q, -700.0, 6.0))))])
-    return SymmetricTableRID(theta, values)
-
-
-def curve_params_from_rid(rid: RID, theta_max_rad: float, k: int) -> np.ndarray:
-    """Initial "curve" parameters (K,) that follow `rid` at the knots (a table's exact
-    interpolation, not its rendering grid: a curve's own parameters come back exactly)."""
-    theta = np.linspace(0.0, theta_max_rad, k + 1)
-    f = np.clip(rid.value_and_derivatives(theta, exact=True)[0], 1e-6, None)
-    f = np.minimum.accumulate(f)
-    ratio = np.clip(f[1:] / f[:-1], 1e-12, 1.0 - 1e-6)
-    return np.log(-np.log(ratio))
-
-
 @dataclass
 class _LightBlock:
     """Where one light's parameters sit in x."""
@@ -206,6 +145,11 @@ class _LightBlock:
     log_scale: int
     rid: slice
     curve_theta_max: float
+    log_scales: tuple[int, ...] = ()  # per channel (the first is `log_scale`)
+
+    def log_scale_of(self, channel: int) -> int:
+        """The index of its log-scale in `channel`."""
+        return self.log_scales[channel] if self.log_scales else self.log_scale
 
 
 @dataclass
@@ -232,6 +176,14 @@ class ParameterLayout:
     ambient_index: int | None = None
     medium_unknown: MediumUnknown = field(default_factory=MediumUnknown)
     medium: slice = field(default_factory=lambda: slice(0, 0))
+    channels: tuple[str, ...] = ()
+    media: tuple[MediumUnknown, ...] = ()
+    ambient_indices: tuple[int, ...] = ()
+
+    @property
+    def n_channels(self) -> int:
+        """How many colour channels are solved jointly (1 without `channels`)."""
+        return max(1, len(self.channels))
 
     @classmethod
     def build(
@@ -246,7 +198,15 @@ class ParameterLayout:
         fall_off: FallOffUnknown | None = None,
         estimate_ambient: bool = False,
         medium: MediumUnknown | None = None,
+        channels: Sequence[str] = (),
+        media: Sequence[MediumUnknown] | None = None,
     ) -> ParameterLayout:
+        """The layout; with `channels` (names, 2 or more) each channel has its lights'
+        scales, its room light and its medium: `media` one per channel (default: `medium`
+        in every channel), all estimating the same parameters."""
+        channels = tuple(channels)
+        media_list = _channel_media(channels, medium, media)
+        medium = media_list[0]
         blocks: list[_LightBlock] = []
         names: list[str] = []
         x0: list[float] = []
@@ -265,11 +225,15 @@ class ParameterLayout:
             names.extend(f"{light.name}.{nm}" for nm in param.names)
             pose = slice(start, len(x0))
             log_scale = len(x0)
-            x0.append(math.log(light.scale))
-            names.append(f"{light.name}.log_scale")
+            log_scales = tuple(range(log_scale, log_scale + max(1, len(channels))))
+            x0.extend([math.log(light.scale)] * len(log_scales))
+            if channels:
+                names.extend(f"{light.name}.log_scale.{ch}" for ch in channels)
+            else:
+                names.append(f"{light.name}.log_scale")
             theta_max = 0.0
             if u.estimate_rid == "cos_power":
-                m = light.rid.m if isinstance(light.rid, CosPowerRID) else _fit_cos_power(light.rid)
+                m = light.rid.m if isinstance(light.rid, CosPowerRID) else fit_cos_power(light.rid)
                 rid_slice = slice(len(x0), len(x0) + 1)
                 x0.append(math.log(max(m, 1e-3)))
                 names.append(f"{light.name}.log_m")
@@ -283,7 +247,7 @@ class ParameterLayout:
                 names.extend(f"{light.name}.curve_q{i + 1}" for i in range(q.size))
             else:
                 rid_slice = slice(len(x0), len(x0))
-            blocks.append(_LightBlock(u, param, pose, log_scale, rid_slice, theta_max))
+            blocks.append(_LightBlock(u, param, pose, log_scale, rid_slice, theta_max, log_scales))
             del j
         gains = slice(len(x0), len(x0))
         if estimate_gains and n_images > 1:
@@ -307,16 +271,18 @@ class ParameterLayout:
             names.extend(fall_off.names)
         fall_off_slice = slice(wall_slice.stop, len(x0))
         ambient_index = None
+        ambient_indices: tuple[int, ...] = ()
         if estimate_ambient:  # a dark room to start
             ambient_index = len(x0)
-            x0.append(0.0)
-            names.append("ambient")
-        medium = medium if medium is not None else MediumUnknown()
+            ambient_indices = tuple(range(len(x0), len(x0) + max(1, len(channels))))
+            x0.extend([0.0] * len(ambient_indices))
+            names.extend([f"ambient.{ch}" for ch in channels] if channels else ["ambient"])
         start = len(x0)
-        p0 = medium.initial.parameters()
-        for k, nm in zip(medium.indices, medium.estimate, strict=True):
-            x0.append(float(p0[k]))
-            names.append(f"medium.{nm}")
+        for ch, unknown in zip(channels or ("",), media_list, strict=True):
+            p0 = unknown.initial.parameters()
+            for k, nm in zip(unknown.indices, unknown.estimate, strict=True):
+                x0.append(float(p0[k]))
+                names.append(f"medium.{ch}.{nm}" if ch else f"medium.{nm}")
         return cls(
             blocks,
             n_images,
@@ -335,6 +301,9 @@ class ParameterLayout:
             ambient_index,
             medium,
             slice(start, len(x0)),
+            channels,
+            tuple(media_list) if channels else (),
+            ambient_indices,
         )
 
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
@@ -345,18 +314,22 @@ class ParameterLayout:
             return curve_rid(block.curve_theta_max, x[block.rid])
         return u.initial.rid
 
-    def light_of(self, block: _LightBlock, x: np.ndarray, *, rid: RID | None = None) -> Light:
+    def light_of(
+        self, block: _LightBlock, x: np.ndarray, *, rid: RID | None = None, channel: int = 0
+    ) -> Light:
+        """The light at x, its scale that of `channel`."""
         R, t = block.param.to_pose(x[block.pose])
         return Light(
             rid if rid is not None else self.rid_of(block, x),
             t,
             R,
-            scale=_exp(float(x[block.log_scale])),
+            scale=_exp(float(x[block.log_scale_of(channel)])),
             name=block.unknown.initial.name,
         )
 
-    def rig(self, x: np.ndarray) -> Rig:
-        return Rig(tuple(self.light_of(b, x) for b in self.blocks))
+    def rig(self, x: np.ndarray, channel: int = 0) -> Rig:
+        """The lights at x, their scales those of `channel`."""
+        return Rig(tuple(self.light_of(b, x, channel=channel) for b in self.blocks))
 
     def gain_factors(self, x: np.ndarray) -> np.ndarray:
         """(n_images,) multiplicative gains on top of each image's exposure."""
@@ -378,19 +351,32 @@ class ParameterLayout:
         f = self.fall_off_unknown
         return None if f is None else f.factor(pixels, x[self.fall_off])
 
-    def ambient(self, x: np.ndarray) -> float:
-        """The room light's level a at x (value units at exposure and gain 1; 0 when not
-        estimated)."""
-        return float(x[self.ambient_index]) if self.ambient_index is not None else 0.0
+    def ambient_index_of(self, channel: int) -> int | None:
+        """The index of `channel`'s room light level in x (None when not estimated)."""
+        if self.ambient_index is None:
+            return None
+        return self.ambient_indices[channel] if self.ambient_indices else self.ambient_index
+
+    def ambient(self, x: np.ndarray, channel: int = 0) -> float:
+        """`channel`'s room light level a at x (value units at exposure and gain 1; 0 when
+        not estimated)."""
+        k = self.ambient_index_of(channel)
+        return float(x[k]) if k is not None else 0.0
 
     def sensor_values(
-        self, values: np.ndarray, footprints: Footprints, x: np.ndarray, exposure_gain: float
+        self,
+        values: np.ndarray,
+        footprints: Footprints,
+        x: np.ndarray,
+        exposure_gain: float,
+        channel: int = 0,
     ) -> np.ndarray:
         """(N,) the sensor terms on the lights' values above the offset `values` (N,) at
-        x: (values + g e a V_s) V (V_s `Footprints.room_light_factor`), g e `exposure_gain`."""
+        x: (values + g e a V_s) V (V_s `Footprints.room_light_factor`), g e `exposure_gain`,
+        a that of `channel`."""
         if self.ambient_index is not None:
             room = footprints.room_light_factor
-            level = exposure_gain * self.ambient(x)
+            level = exposure_gain * self.ambient(x, channel)
             values = values + (level if room is None else level * room)
         v = self.fall_off_factor(footprints.pixels, x)
         return values if v is None else values * v
@@ -401,7 +387,8 @@ class ParameterLayout:
         """(N,) `image`'s rendered values above the offset at x from its lights' shaded
         `values` (N,) (NaN where masked) and its gain g: g (values + e a) V."""
         lights = gain * values.filled(np.nan)
-        return self.sensor_values(lights, image.footprints, x, gain * float(image.view.exposure))
+        exposure_gain = gain * float(image.view.exposure)
+        return self.sensor_values(lights, image.footprints, x, exposure_gain, image.channel)
 
     def apply_sensor_terms(
         self,
@@ -417,12 +404,13 @@ class ParameterLayout:
         d m / d a = g e V_s (V_s the sensor model's fall-off); then A's columns, total and
         each light's flux (N,) in `fluxes` (when given) are multiplied by V
         (`lightcal.core.fall_off.apply_fall_off`). Nothing when neither is estimated."""
-        if self.ambient_index is not None:
+        k = self.ambient_index_of(image.channel)
+        if k is not None:
             exposure = float(image.view.exposure)
             room = image.footprints.room_light_factor  # the sensor's fall-off, or None: 1
             d_ambient = exposure if room is None else exposure * room
-            total += d_ambient * self.ambient(x)
-            A[:, self.ambient_index] = gain * d_ambient
+            total += d_ambient * float(x[k])
+            A[:, k] = gain * d_ambient
         f = self.fall_off_unknown
         if f is None:
             return
@@ -435,13 +423,41 @@ class ParameterLayout:
         """Box bounds (k,) of the estimated wall parameters."""
         return _box(self.wall_unknown.initial.parameter_bounds, self.wall_unknown.indices)
 
-    def medium_of(self, x: np.ndarray) -> Medium:
-        """The medium at x (its estimated parameters taken from x)."""
-        return _estimated(self.medium_unknown, x[self.medium])
+    def medium_columns(self, channel: int = 0) -> slice:
+        """The columns of `channel`'s estimated medium parameters."""
+        k = len(self.medium_unknown.estimate)
+        start = self.medium.start + channel * k
+        return slice(start, start + k)
+
+    def medium_of(self, x: np.ndarray, channel: int = 0) -> Medium:
+        """`channel`'s medium at x (its estimated parameters taken from x)."""
+        unknown = self.media[channel] if self.media else self.medium_unknown
+        return _estimated(unknown, x[self.medium_columns(channel)])
 
     def medium_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds (k,) of the estimated medium parameters."""
-        return _box(Medium.parameter_bounds, self.medium_unknown.indices)
+        """Box bounds (k,) of the estimated medium parameters (every channel's)."""
+        lo, hi = _box(Medium.parameter_bounds, self.medium_unknown.indices)
+        return np.tile(lo, self.n_channels), np.tile(hi, self.n_channels)
+
+
+def _channel_media(
+    channels: tuple[str, ...],
+    medium: MediumUnknown | None,
+    media: Sequence[MediumUnknown] | None,
+) -> list[MediumUnknown]:
+    """One medium per channel (one without channels), each estimating the same."""
+    if len(channels) == 1 or len(set(channels)) != len(channels):
+        raise ValueError(f"channels: expected 2 or more distinct names, got {list(channels)}")
+    if media is None:
+        return [medium if medium is not None else MediumUnknown()] * max(1, len(channels))
+    media = list(media)
+    if len(media) != max(1, len(channels)):
+        raise ValueError(
+            f"medium: expected one per channel ({max(1, len(channels))}), got {len(media)}"
+        )
+    if any(m.estimate != media[0].estimate for m in media):
+        raise ValueError("medium: expected every channel to estimate the same parameters")
+    return media
 
 
 def _estimated(unknown: WallUnknown | MediumUnknown, values: np.ndarray) -> Any:
@@ -459,25 +475,6 @@ def _box(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(lower (k,), upper (k,)) of the parameters `indices` of a model's `bounds`."""
     return np.array([bounds[k][0] for k in indices]), np.array([bounds[k][1] for k in indices])
-
-
-def _fit_cos_power(rid: RID) -> float:
-    """The cos^m exponent with the same half-intensity angle as `rid`."""
-    half = rid.half_angle_rad
-    if not 0.0 < half < math.pi / 2:
-        return 1.0
-    return -math.log(2.0) / math.log(math.cos(half))
-
-
-def with_view(view: View, **changes: object) -> View:
-    """A copy of a view with some fields replaced."""
-    fields: dict[str, object] = {
-        "R_camera_world": view.R_camera_world,
-        "t_camera_world": view.t_camera_world,
-        "exposure": view.exposure,
-    }
-    fields.update(changes)
-    return View(**fields)  # type: ignore[arg-type]
 
 
 def with_curve_range(unknown: LightUnknown, images: list[ImageData]) -> LightUnknown:

@@ -23,14 +23,14 @@ def rid_columns(
     by central differences (V = 1: the sensor terms scale these columns with the others)."""
     block = layout.blocks[j]
     out = np.empty((len(image.observed), block.rid.stop - block.rid.start))
-    lights = list(layout.rig(x).lights)
+    lights = list(layout.rig(x, image.channel).lights)
     render = functools.partial(
         shade,
         image.footprints,
         image.view,
         rid_subsamples=rid_subsamples,
         wall=layout.wall_of(x),
-        medium=layout.medium_of(x),
+        medium=layout.medium_of(x, image.channel),
     )
     for c, k in enumerate(range(block.rid.start, block.rid.stop)):
         h = 1e-6 * max(1.0, abs(x[k]))
@@ -38,7 +38,7 @@ def rid_columns(
         for sgn in (1.0, -1.0):
             xs = x.copy()
             xs[k] += sgn * h
-            lights[j] = layout.light_of(block, xs)
+            lights[j] = layout.light_of(block, xs, channel=image.channel)
             vals.append(gain * render(Rig(tuple(lights))).values.filled(np.nan))
         out[:, c] = (vals[0] - vals[1]) / (2 * h)
     return out

@@ -146,3 +146,14 @@ class Rig:
     @classmethod
     def single(cls, light: Light) -> Rig:
         return cls((light,))
+
+
+def with_view(view: View, **changes: object) -> View:
+    """A copy of a view with some fields replaced."""
+    fields: dict[str, object] = {
+        "R_camera_world": view.R_camera_world,
+        "t_camera_world": view.t_camera_world,
+        "exposure": view.exposure,
+    }
+    fields.update(changes)
+    return View(**fields)  # type: ignore[arg-type]

@@ -34,7 +34,8 @@ class SystemBuffers:
 @dataclass(frozen=True)
 class StateAtX:
     """What every image's system needs at x: the lights, gains, offset, pose maps, wall,
-    medium."""
+    medium; `rigs` and `media` per colour channel when channels are solved jointly (the
+    first channel's are `rig` and `medium`)."""
 
     rig: Rig
     gains: np.ndarray
@@ -42,3 +43,13 @@ class StateAtX:
     pose_maps: list[np.ndarray]
     wall: WallReflectance
     medium: Medium
+    rigs: tuple[Rig, ...] = ()
+    media: tuple[Medium, ...] = ()
+
+    def rig_of(self, channel: int) -> Rig:
+        """The lights, their scales those of `channel`."""
+        return self.rigs[channel] if self.rigs else self.rig
+
+    def medium_of(self, channel: int) -> Medium:
+        """`channel`'s medium."""
+        return self.media[channel] if self.media else self.medium

@@ -6,15 +6,19 @@
       phase_g: 0.9                    # its Henyey-Greenstein asymmetry (given)
       estimate: [attenuation_per_m, backscatter_per_m]   # default: given
 
-Without the section the rig is in air (c = 0, nothing estimated). The model is
-docs/model.md's "Medium"; `build_medium` turns the section into the core's
-`MediumUnknown`.
+Without the section the rig is in air (c = 0, nothing estimated). With
+`sensor.channels` (colour channels solved jointly) c and beta may be lists, one value
+per channel (a number: the same start in every channel); each channel then has its own
+medium, all estimating the same parameters, and `phase_g` is shared. The model is
+docs/model.md's "Medium"; `build_media` turns the section into the core's
+`MediumUnknown`, one per channel.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -22,9 +26,12 @@ from lightcal.core.medium import MAX_ATTENUATION_PER_M, MAX_BACKSCATTER_PER_M, M
 from lightcal.core.problem import MediumUnknown
 from lightcal.errors import InputError
 
-__all__ = ["MediumParameterName", "MediumSpec", "build_medium"]
+__all__ = ["MediumParameterName", "MediumSpec", "build_media", "build_medium"]
 
 MediumParameterName = Literal["attenuation_per_m", "backscatter_per_m", "phase_g"]
+
+_Attenuation = Annotated[float, Field(ge=0.0, le=MAX_ATTENUATION_PER_M)]
+_Backscatter = Annotated[float, Field(ge=0.0, le=MAX_BACKSCATTER_PER_M)]
 
 
 class MediumSpec(BaseModel):
@@ -41,19 +48,16 @@ class MediumSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
 
-    attenuation_per_m: float = Field(
+    attenuation_per_m: _Attenuation | list[_Attenuation] = Field(
         default=0.0,
-        ge=0.0,
-        le=MAX_ATTENUATION_PER_M,
         description="attenuation coefficient c, 1/m (0: air; clear ocean water 0.05-0.5); "
-        "the start when estimated",
+        "the start when estimated; a list: one per `sensor.channels`",
     )
-    backscatter_per_m: float = Field(
+    backscatter_per_m: _Backscatter | list[_Backscatter] = Field(
         default=0.0,
-        ge=0.0,
-        le=MAX_BACKSCATTER_PER_M,
         description="backscatter coefficient beta relative to the wall's diffuse "
-        "reflectance (sigma_s pi / albedo), 1/m; the start when estimated",
+        "reflectance (sigma_s pi / albedo), 1/m; the start when estimated; a list: one per "
+        "`sensor.channels`",
     )
     phase_g: float = Field(
         default=0.9,
@@ -75,9 +79,20 @@ class MediumSpec(BaseModel):
 
 
 def build_medium(spec: MediumSpec, sensor_model: str, source: str | Path) -> MediumUnknown:
-    """The core's `MediumUnknown` of a medium section; backscatter (given or estimated)
-    needs the `radiance` sensor model (the renderer's backscatter is a radiance)."""
-    scatters = spec.backscatter_per_m > 0.0 or "backscatter_per_m" in spec.estimate
+    """The core's `MediumUnknown` of a medium section of one channel (see `build_media`)."""
+    return build_media(spec, sensor_model, source, ())[0]
+
+
+def build_media(
+    spec: MediumSpec, sensor_model: str, source: str | Path, channels: Sequence[str]
+) -> tuple[MediumUnknown, ...]:
+    """One `MediumUnknown` per channel of `channels` (one without channels); a list of
+    values needs one per channel. Backscatter (given or estimated) needs the `radiance`
+    sensor model (the renderer's backscatter is a radiance)."""
+    n = max(1, len(channels))
+    attenuation = _per_channel(spec.attenuation_per_m, "attenuation_per_m", channels, source)
+    backscatter = _per_channel(spec.backscatter_per_m, "backscatter_per_m", channels, source)
+    scatters = max(backscatter) > 0.0 or "backscatter_per_m" in spec.estimate
     if scatters and sensor_model != "radiance":
         raise InputError(
             source,
@@ -90,5 +105,29 @@ def build_medium(spec: MediumSpec, sensor_model: str, source: str | Path) -> Med
             "medium.estimate: phase_g shapes the backscatter; expected backscatter_per_m > 0 "
             "or estimated beside it",
         )
-    medium = Medium(spec.attenuation_per_m, spec.backscatter_per_m, spec.phase_g)
-    return MediumUnknown(medium, tuple(spec.estimate))
+    return tuple(
+        MediumUnknown(Medium(attenuation[k], backscatter[k], spec.phase_g), tuple(spec.estimate))
+        for k in range(n)
+    )
+
+
+def _per_channel(
+    value: float | list[float], key: str, channels: Sequence[str], source: str | Path
+) -> list[float]:
+    """`value` per channel: a number for every channel, a list one per channel."""
+    n = max(1, len(channels))
+    if not isinstance(value, list):
+        return [float(value)] * n
+    if not channels:
+        raise InputError(
+            source,
+            f"medium.{key}: a list gives one value per colour channel; expected a number, "
+            "or sensor.channels",
+        )
+    if len(value) != n:
+        raise InputError(
+            source,
+            f"medium.{key}: expected one value per channel of sensor.channels "
+            f"({', '.join(channels)}: {n}), got {len(value)}",
+        )
+    return [float(v) for v in value]

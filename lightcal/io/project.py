@@ -15,6 +15,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import yaml
@@ -36,7 +37,9 @@ from lightcal.io.atomic import atomic_write_text
 from lightcal.io.dark_frames import dark_paths
 from lightcal.io.document import read_document
 from lightcal.io.exposure_factors import exposure_factors
-from lightcal.io.medium_spec import build_medium
+from lightcal.io.images import Channel
+from lightcal.io.medium_spec import build_media
+from lightcal.io.project_channels import check_channel_terms, with_channels
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
     INTRINSIC_COUNTS,
@@ -128,6 +131,11 @@ class Project:
         medium: the medium between the rig and the wall and what to estimate of it.
         wall_mesh: the wall's shape (`wall.mesh`), or None: the plane z = 0.
         surroundings: surfaces near the wall whose bounce light the model adds, or None.
+        channels: the colour channels solved jointly (`sensor.channels`), or empty: then
+            each image is one entry; with channels each image is one entry per channel,
+            its channel `channel_of[i]` and its image `spec_index[i]` of `spec.images`
+            (named `name[channel]`), and `media` has each channel's medium (`medium` the
+            first's).
     """
 
     spec: ProjectFile
@@ -148,10 +156,33 @@ class Project:
     medium: MediumUnknown = field(default_factory=MediumUnknown)
     wall_mesh: WallMesh | None = None
     surroundings: Surroundings | None = None
+    channels: tuple[str, ...] = ()
+    channel_of: list[int] = field(default_factory=list)
+    spec_index: list[int] = field(default_factory=list)
+    media: tuple[MediumUnknown, ...] = ()
 
     @property
     def folder(self) -> Path:
         return self.path.parent
+
+    def spec_image(self, i: int) -> int:
+        """The index in `spec.images` of entry i."""
+        return self.spec_index[i] if self.spec_index else i
+
+    def channel_index(self, i: int) -> int:
+        """Entry i's channel among `channels` (0 without channels)."""
+        return self.channel_of[i] if self.channel_of else 0
+
+    def channel_name(self, i: int) -> Channel:
+        """The channel entry i is read in (`sensor.channel` without channels)."""
+        if not self.channels:
+            return self.spec.sensor.channel
+        return cast("Channel", self.channels[self.channel_index(i)])
+
+    def photo_name(self, i: int) -> str:
+        """The name of entry i's photo (its name without the channel)."""
+        im = self.spec.images[self.spec_image(i)]
+        return im.name or Path(im.path).stem
 
 
 def _resolve(folder: Path, rel: str, source: Path, field: str, what: str) -> Path:
@@ -368,8 +399,10 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         if spec.sensor.vignetting
         else None
     )
-    medium = build_medium(spec.medium, spec.sensor.model, source)
-    return Project(
+    channels = tuple(spec.sensor.channels or ())
+    media = build_media(spec.medium, spec.sensor.model, source, channels)
+    check_channel_terms(spec, views, source)
+    project = Project(
         spec,
         source,
         camera,
@@ -385,10 +418,11 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         [im.T_camera_world.covariance_matrix() for im in spec.images],
         _intrinsics_jacobians(spec, camera, source),
         dark_paths(spec, folder, source, image_paths),
-        medium,
+        media[0],
         wall_mesh,
         build_surroundings(spec.surroundings, source),
     )
+    return with_channels(project, media) if channels else project
 
 
 def _intrinsics_jacobians(

@@ -31,6 +31,7 @@ from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.medium_spec import MediumSpec
+from lightcal.io.sensor_spec import FallOffSpec, NoiseSpec, SensorSpec  # noqa: F401 (re-exported)
 from lightcal.io.spec_errors import format_loc, on_literal_branch
 from lightcal.io.surroundings_spec import SurroundingsSpec
 
@@ -187,60 +188,9 @@ class ImageSpec(_Model):
     )
 
 
-class NoiseSpec(_Model):
-    """Poisson-Gaussian noise: variance = gain * signal + read_variance (pixel units)."""
-
-    gain: float = Field(ge=0)
-    read_variance: float = Field(gt=0)
-
-
 # The defaults of the selection and solver sections are the core options' (defined once).
 _SELECTION = SelectionOptions()
 _SOLVER = SolverOptions()
-
-
-class FallOffSpec(_Model):
-    """A radial fall-off V = 1 + c1 r^2 + ... + cK r^(2K) estimated with the lights
-    (docs/model.md, "The fall-off estimated from the photos"): r is 1 at the sensor's
-    corners, from the image centre; V multiplies the sensor model's values."""
-
-    model: Literal["radial"] = "radial"
-    order: int = Field(default=2, ge=1, le=3, description="K, the number of coefficients")
-
-
-class SensorSpec(_Model):
-    model: Literal["radiance", "cos4", "paper", "map"] = "radiance"
-    vignetting: str | None = Field(default=None, description="fall-off map file for 'map'")
-    channel: Literal["auto", "green_binned", "luminance", "R", "G", "G1", "G2", "B"] = "auto"
-    black_level: float | None = Field(default=None, ge=0, description="subtracted on load")
-    white_level: float | None = Field(default=None, gt=0)
-    assume_linear: bool = False
-    response: str | None = Field(default=None, description="camera response curve file")
-    offset: float = Field(
-        default=_SOLVER.offset, description="known (or initial) offset after black level"
-    )
-    estimate_offset: bool = _SOLVER.estimate_offset
-    estimate_ambient: bool = _SOLVER.estimate_ambient  # room light, grows with exposure
-    noise: NoiseSpec | None = None
-    estimate_fall_off: FallOffSpec | None = Field(
-        default=None,
-        description="estimate the camera's radial fall-off with the lights; null: V as "
-        "the sensor model says",
-    )
-
-    @model_validator(mode="after")
-    def _map_needs_file(self) -> SensorSpec:
-        if self.model == "map" and self.vignetting is None:
-            raise ValueError("the 'map' sensor model needs a vignetting file")
-        if (
-            self.black_level is not None
-            and self.white_level is not None
-            and not self.white_level > self.black_level
-        ):
-            raise ValueError(
-                f"white_level {self.white_level:g} must be above black_level {self.black_level:g}"
-            )
-        return self
 
 
 class RIDSpec(_Model):

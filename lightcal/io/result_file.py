@@ -33,6 +33,10 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   (`lightcal.core.medium`).
 - ``ambient``, ``ambient_sigma``: the room light's level (pixel units at exposure and
   gain 1) when the project estimates it (``sensor.estimate_ambient``); null otherwise.
+- ``channels``: colour channels solved jointly (``sensor.channels``): per channel its
+  ``name``, its lights' ``scales`` and ``scale_sigmas`` (by light name), its ``ambient``
+  and ``ambient_sigma``, and its ``medium`` (as ``medium``); the lights' ``scale``,
+  ``ambient`` and ``medium`` are then the first channel's. Null: one channel.
 - ``fall_off``: the camera's fall-off when the project estimates it
   (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
   ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
@@ -256,6 +260,13 @@ class ResultFile(_Model):
         "(sensor.estimate_ambient); null when not estimated",
     )
     ambient_sigma: float | None = Field(default=None, description="1-sigma of ambient")
+    channels: list[dict[str, Any]] | None = Field(
+        default=None,
+        description="colour channels solved jointly (sensor.channels): per channel its "
+        "name, its lights' scales and their sigmas, its room light and its medium (as "
+        "`medium`); the lights' `scale`, `ambient` and `medium` are the first channel's; "
+        "null: one channel",
+    )
     fall_off: dict[str, Any] | None = Field(
         default=None,
         description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
@@ -339,6 +350,7 @@ def result_to_file(
         albedo_map=result.albedo_map,
         ambient=result.ambient,
         ambient_sigma=_nan_to_none(result.ambient_sigma),
+        channels=_nan_to_none(getattr(result, "channels", None)),
     )
 
 

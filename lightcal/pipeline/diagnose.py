@@ -102,17 +102,17 @@ def dark_light_warnings(
 
 def _light_shares(model: CalibrationModel, x: np.ndarray) -> np.ndarray:
     """(L,) sum over pixels of gain * scale * flux of each light at x."""
-    rig = model.layout.rig(x)
     gains = model.layout.gain_factors(x)
-    share = np.zeros(len(rig.lights))
+    share = np.zeros(len(model.layout.blocks))
     for i, im in enumerate(model.images):
+        rig = model.layout.rig(x, im.channel)
         sh = shade(
             im.footprints,
             im.view,
             rig,
             rid_subsamples=model.options.rid_subsamples,
             wall=model.layout.wall_of(x),
-            medium=model.layout.medium_of(x),
+            medium=model.layout.medium_of(x, im.channel),
         )
         share += gains[i] * np.array([light.scale for light in rig.lights]) * sh.flux.sum(axis=1)
     return share

@@ -126,7 +126,10 @@ def pixel_evidence(
     lay = model.layout
     n = lay.n
     rig, gains, offset = lay.rig(x), lay.gain_factors(x), lay.offset(x)
-    scales = np.array([light.scale for light in rig.lights])
+    # Each colour channel has its lights' scales (one row without channels).
+    channel_scales = np.array(
+        [[light.scale for light in lay.rig(x, ch).lights] for ch in range(lay.n_channels)]
+    )
     # Filled image by image (lists of parts and their concatenation held every figure
     # twice: 0.6 GB for a dense 9.5 M pixel problem). The angles and relative residuals
     # only choose and fill the diagnosis' bins: float32 (angles to 4e-6 degrees, relative
@@ -163,6 +166,7 @@ def pixel_evidence(
             relative[rows],
             ratio,
         )
+        scales = channel_scales[model.images[i].channel]
         shares[0] = shares[0] + gains[i] * scales * fluxes.sum(axis=1)
         lit = fluxes * scales[:, None] * gains[i]
         _angles(model, i, rig.lights, lit, mirror[rows], incidence[rows])

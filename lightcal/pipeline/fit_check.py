@@ -76,18 +76,20 @@ def _renderer(
 ) -> Callable[[int, View, Footprints], np.ndarray]:
     """(i, view, footprints) -> image i's rendered values at the solution x."""
     lay = model.layout
-    rig, gains, offset, wall = lay.rig(x), lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
-    medium = lay.medium_of(x)
+    gains, offset, wall = lay.gain_factors(x), lay.offset(x), lay.wall_of(x)
     rid_subsamples = model.options.rid_subsamples
     albedo = model.albedo_map(x)
 
     def render(i: int, view: View, fp: Footprints) -> np.ndarray:
+        channel = model.images[i].channel
+        rig, medium = lay.rig(x, channel), lay.medium_of(x, channel)
+
         def through(medium: Medium) -> np.ndarray:
             sh = shade(
                 fp, view, rig, offset=0.0, rid_subsamples=rid_subsamples, wall=wall, medium=medium
             )
             lights = float(gains[i]) * sh.values.filled(np.nan)
-            return lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure)
+            return lay.sensor_values(lights, fp, x, float(gains[i]) * view.exposure, channel)
 
         if albedo is None:
             return offset + through(medium)

@@ -74,10 +74,10 @@ def load_images(
 
     darks = project.dark_paths or [None] * len(paths)
 
-    def read_one(path: Path) -> LinearImage:
+    def read_one(path: Path, i: int) -> LinearImage:
         return read_image(
             path,
-            channel=sensor.channel,
+            channel=project.channel_name(i),
             black_level=sensor.black_level,
             white_level=sensor.white_level,
             response=response,
@@ -85,17 +85,17 @@ def load_images(
         )
 
     def read(i: int) -> tuple[LinearImage, np.ndarray | None, float | None]:
-        img = read_one(paths[i])
+        img = read_one(paths[i], i)
         level = None
         dark_path = darks[i]
         if dark_path is not None:  # the light-off photo, read as its image is
-            dark = read_one(dark_path)
+            dark = read_one(dark_path, i)
             img = subtract_dark(
                 img,
                 dark,
                 image_path=paths[i],
                 dark_path=dark_path,
-                declared=declared_exposure(project.spec, i),
+                declared=declared_exposure(project.spec, project.spec_image(i)),
             )
             level = dark_level(dark)
         # The noise floor's percentile (`select.noise_floor`), on this thread while the

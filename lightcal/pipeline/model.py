@@ -128,7 +128,14 @@ def build_model(
     unknowns = list(lights) if lights is not None else starting_lights(project, data)
     options = solver_options(project, loaded)
     model = CalibrationModel(
-        data, unknowns, options, project.wall, project.medium, project.surroundings
+        data,
+        unknowns,
+        options,
+        project.wall,
+        project.medium,
+        project.surroundings,
+        project.channels,
+        project.media or None,
     )
     if model.m <= model.layout.n:
         raise InputError(

@@ -47,6 +47,7 @@ import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.core.light_axis import axis_jacobian
+from lightcal.core.model_rebuild import rebuilt
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
 from lightcal.core.solver import CalibrationModel, SolverOptions
 from lightcal.core.uncertainty import noise_inflation
@@ -153,7 +154,7 @@ def camera_pixel_model(model: CalibrationModel) -> CalibrationModel:
     options = camera_pixel_options(model.options)
     if options is model.options:
         return model
-    return CalibrationModel(model.images, model.unknowns, options, model.layout.wall_unknown)
+    return rebuilt(model, options=options, surroundings=None)
 
 
 class InformationState:
@@ -191,9 +192,7 @@ class InformationState:
         # A planned view's pixels, on a wall taken as even: an albedo map is known only
         # where the photos saw the wall, and N has its uncertainty marginalised already.
         options = replace(camera_pixel_options(self.model.options), albedo_map=None)
-        single = CalibrationModel(
-            [image], self.model.unknowns, options, lay.wall_unknown, lay.medium_unknown
-        )
+        single = rebuilt(self.model, images=[image], options=options, surroundings=None)
         index = [lay.names.index(nm) for nm in single.layout.names]
         J = single.jacobian(self.x[index])
         scale = 1.0 if self.rows_per_view is None else self.rows_per_view / len(image.observed)

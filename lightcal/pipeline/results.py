@@ -17,6 +17,7 @@ from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.pipeline.albedo_result import albedo_map_summary
+from lightcal.pipeline.channel_result import channel_summaries
 from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
 from lightcal.pipeline.fall_off_result import fall_off_problems, fall_off_summary, fall_off_warnings
 from lightcal.pipeline.fit_check import check_fit
@@ -181,6 +182,7 @@ class CalibrationResult:
     ambient: float | None = None
     ambient_sigma: float | None = None
     albedo_map: dict | None = None  # the estimated albedo map (`albedo_map_summary`)
+    channels: list[dict] | None = None  # per colour channel (`channel_summaries`)
 
     @property
     def fit_adequate(self) -> bool:
@@ -334,6 +336,7 @@ def summarise(
             else math.sqrt(max(cov[lay.ambient_index, lay.ambient_index], 0.0))
         ),
         albedo_map=albedo_map_summary(model, x),
+        channels=channel_summaries(model, x, cov),
     )
 
 

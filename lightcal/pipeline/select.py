@@ -24,10 +24,10 @@ from lightcal.pipeline.load import LoadedImages, vignetting_for
 
 def regions_for(project: Project, image_index: int) -> list[Region]:
     """The project's selection regions that apply to one image."""
-    name = project.names[image_index]
+    names = {project.names[image_index], project.photo_name(image_index)}  # with a channel
     out = []
     for r in project.spec.selection.regions:
-        if r.images is None or name in r.images:
+        if r.images is None or names & set(r.images):
             out.append(Region(r.kind, np.array(r.points, dtype=np.float64), r.include))
     return out
 
@@ -127,12 +127,13 @@ def image_data(
     px = fp.pixels
     observed = values[px[:, 1], px[:, 0]]
     noise = declared_noise(project, loaded.dark_level(index))
+    name, channel = project.names[index], project.channel_index(index)
     if noise is None:
-        return ImageData(project.names[index], view, fp, observed, np.ones(len(observed)))
+        return ImageData(name, view, fp, observed, np.ones(len(observed)), channel=channel)
     # A super-pixel value is the mean of b^2 pixels: its variance is 1 / b^2 of theirs.
     per_value = (noise[0] / (b * b), noise[1] / (b * b))
     sigma = poisson_gaussian_sigma(observed - project.spec.sensor.offset, per_value)
-    return ImageData(project.names[index], view, fp, observed, sigma, per_value)
+    return ImageData(name, view, fp, observed, sigma, per_value, channel)
 
 
 def selection_binning(project: Project) -> int:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lightcal.core.light_axis import rotation_from_axis
+from lightcal.core.model_rebuild import rebuilt
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome, run_least_squares
 from lightcal.io.project import Project, SolverSpec
@@ -128,15 +129,7 @@ def coarse_start(
     k = max(2, model.m // COARSE_PIXELS)
     # Indices, not strided views: the kernels take contiguous arrays.
     images = [im.subset(np.arange(0, len(im.observed), k)) for im in model.images]
-    lay = model.layout
-    coarse = CalibrationModel(
-        images,
-        model.unknowns,
-        model.options,
-        lay.wall_unknown,
-        lay.medium_unknown,
-        model.surroundings,
-    )
+    coarse = rebuilt(model, images=images)
     if coarse.layout.names != model.layout.names or coarse.m <= coarse.layout.n:
         return None
     if on_stage is not None:

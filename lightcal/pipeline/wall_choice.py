@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcal.core.misfit import pixel_angles
+from lightcal.core.model_rebuild import rebuilt
 from lightcal.core.problem import WallUnknown
 from lightcal.core.solver import CalibrationModel, SolveOutcome
 from lightcal.core.wall import WALL_MODELS
@@ -65,16 +66,7 @@ def restarted(model: CalibrationModel, x: np.ndarray, **changes: object) -> Cali
         replace(u, initial=model.layout.light_of(b, x))
         for u, b in zip(model.unknowns, model.layout.blocks, strict=True)
     ]
-    fields: dict[str, object] = {
-        "images": model.images,
-        "unknowns": lights,
-        "options": model.options,
-        "wall": model.layout.wall_unknown,
-        "medium": model.layout.medium_unknown,
-        "surroundings": model.surroundings,
-    }
-    fields.update(changes)
-    return CalibrationModel(**fields)  # type: ignore[arg-type]
+    return rebuilt(model, **({"unknowns": lights} | changes))
 
 
 def start_from(model: CalibrationModel, old: CalibrationModel, x: np.ndarray) -> np.ndarray:
