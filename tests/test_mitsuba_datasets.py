@@ -141,6 +141,7 @@ DEPARTURE_NAMES = {
     "albedo": {"albedo_texture"},
     "medium": {"attenuation"},
     "murky_albedo": {"albedo_texture", "attenuation", "backscatter"},
+    "rgb_water": {"attenuation"},
 }
 
 
@@ -158,7 +159,7 @@ def test_every_scenario_writes_a_project_like_lightcal_synth(
     assert project.spec.wall.model == ("auto" if scenario == "painted" else "lambertian")
     assert len(project.image_paths) == 2
     for image, mask_path in zip(read_images(project_path), project.mask_paths, strict=True):
-        assert image.shape == (48, 64)
+        assert image.shape == ((48, 64, 3) if scenario == "rgb_water" else (48, 64))
         assert image.max() > 1000.0  # the beam is in every view
         if scenario == "interreflection":
             assert mask_path is not None
