@@ -43,9 +43,8 @@ has the departure: `lightcal.synthetic.departure_truth`):
   channel: truth.json's `lights[0].scale` is the list (R, G, B) and `lights[0].channels`
   their names. With `declare=True` the project says `sensor.channels: [R, G, B]` and
   `medium: {attenuation_per_m: [0.2, 0.2, 0.2], estimate: [attenuation_per_m]}` (the
-  joint per-channel solve's syntax; written without lightcal's validation while lightcal
-  does not know it); without, it is a project of today's lightcal (`sensor.channel`
-  `auto`: the luminance, a mix of three waters that is not lightcal's model). 12 views
+  joint per-channel solve); without, it reads one `sensor.channel` (`auto`: the
+  luminance, a mix of three waters that is not lightcal's model). 12 views
   of 480 x 320 render in 0.4 s (1.2-1.7 s written) with `llvm_ad_rgb`.
 
 Frames follow docs/conventions.md; Mitsuba's camera is OpenCV's turned half a turn about
@@ -1346,14 +1345,12 @@ def _write_into(folder: Path, mi: Any, key: dict[str, Any], sensor: SensorConfig
     save_project(spec, project_path)
     if key.get("declare", False):
         _declare_channels(project_path)
-    if not key.get("declare", False) or "channels" in SensorSpec.model_fields:
-        load_project(project_path)  # the dataset must load (once lightcal knows its keys)
+    load_project(project_path)  # the dataset must load
 
 
 def _declare_channels(project_path: Path) -> None:
     """`rgb_water` with `declare`: the project (written by `save_project`) gains
-    `sensor.channels` and the medium to estimate, as JSON, past lightcal's validation
-    (today's lightcal does not know these keys)."""
+    `sensor.channels` and the medium to estimate (the writer then loads it, validated)."""
     doc = json.loads(project_path.read_text(encoding="utf-8"))
     doc["sensor"].pop("channel", None)
     doc["sensor"]["channels"] = list(RGB_CHANNELS)
@@ -1627,13 +1624,7 @@ def truth_scene(project_path: Path, channel: str | None = None) -> TruthScene:
 
 
 def _camera_and_rid(project_path: Path, truth: dict[str, Any]) -> tuple[Camera, Any]:
-    """The camera and the light's profile as a calibration loads them: from the project,
-    or, for a declared `rgb_water` that today's lightcal cannot load (no
-    `sensor.channels` yet), from the dataset's files as the project names them."""
-    if truth["mitsuba"].get("declared") and "channels" not in SensorSpec.model_fields:
-        folder = project_path.parent
-        rid = build_rid(RIDSpec(type="table", path=RID_NAME), folder, project_path, "rid")
-        return read_camera(folder / CAMERA_NAME), rid
+    """The camera and the light's profile as a calibration loads them (the project)."""
     project = load_project(project_path)
     return project.camera, project.lights[0].initial.rid
 

@@ -12,7 +12,14 @@ from lightcal.core.medium import Medium
 from lightcal.core.problem import LightUnknown, MediumUnknown, ParameterLayout
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel, SolverOptions, run_least_squares
-from tests.calib_scenes import observe, pose_errors, small_camera, start_near, symmetric_light, views
+from tests.calib_scenes import (
+    observe,
+    pose_errors,
+    small_camera,
+    start_near,
+    symmetric_light,
+    views,
+)
 
 CHANNELS = ("R", "G", "B")
 C_TRUE = (0.45, 0.12, 0.06)  # ocean water: red absorbed most

@@ -9,7 +9,7 @@ of `tests/mitsuba_datasets.py`): c = (0.40, 0.12, 0.06) /m for (R, G, B), a wall
 - The per-channel transmittance the images carry is Mitsuba's own: `volpath` through a
   medium whose sigma_t is the RGB value (albedo 0).
 - The joint per-channel calibration (`sensor.channels: [R, G, B]`, one light, a scale and
-  a c per channel) lands on the truth: skipped until lightcal knows `sensor.channels`.
+  a c per channel) lands on the truth.
 
 Skipped without Mitsuba (`pip install .[reference]`).
 """
@@ -30,7 +30,6 @@ from lightcal.core.medium import Medium
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
 from lightcal.io.images import Channel, read_image
-from lightcal.io.project_spec import SensorSpec
 from tests.mitsuba_datasets import (
     RGB_ATTENUATION_PER_M,
     RGB_CHANNELS,
@@ -167,10 +166,9 @@ def test_one_channel_at_a_time_lands_on_the_truth(declared: Path) -> None:
 
 def _channel_attenuations(result: Any) -> list[float]:
     """The estimated c of each channel, in the order of `sensor.channels`, from a
-    calibration result: its `medium.channels`, a list of per-channel dicts each with
-    `attenuation_per_m` (the one place that knows the result's per-channel format)."""
-    medium = result.medium if hasattr(result, "medium") else result["medium"]
-    return [float(channel["attenuation_per_m"]) for channel in medium["channels"]]
+    calibration result: its `channels`, each with its `medium`."""
+    channels = result.channels if hasattr(result, "channels") else result["channels"]
+    return [float(channel["medium"]["attenuation_per_m"]) for channel in channels]
 
 
 def test_joint_channels_recover_the_light_and_each_c(declared: Path) -> None:
@@ -178,11 +176,6 @@ def test_joint_channels_recover_the_light_and_each_c(declared: Path) -> None:
     `sensor.channels: [R, G, B]`, c estimated from 0.2 /m in every channel), calibrated
     jointly: the light within the issue's bound in water (3 mm, 0.2 deg) and each
     channel's c within 5 %."""
-    if "channels" not in SensorSpec.model_fields:
-        pytest.skip(
-            "lightcal does not know sensor.channels yet (the joint per-channel solve): "
-            "this test runs once it is merged"
-        )
     from lightcal.io.project import load_project
     from lightcal.pipeline import calibrate_project
     from lightcal.synthetic.dataset import read_truth

@@ -179,6 +179,7 @@ class OverlayImages:
     def render(self, index: int, display: Display) -> np.ma.MaskedArray:
         """(h, w) rendered values of image `index` on the binned grid (masked off the wall),
         as the model has them: the estimated room light, fall-off and albedo map in."""
+        display = display.of_channel(self.project.channel_index(index))
         view = self.project.views[index]
         view = with_view(view, exposure=view.exposure * display.gains[index])
         sensor = display.fall_off or self.project.spec.sensor.model

@@ -53,6 +53,10 @@ def estimate_display(
         model.layout.ambient(x),
         model.albedo_map(x),
         model.surroundings,
+        tuple(
+            (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
+            for ch in range(len(model.layout.channels))
+        ),
     )
 
 
@@ -69,6 +73,7 @@ def guess_display(project: Project, rig: Rig, setup_rev: int) -> Display:
         project.spec.sensor.model,
         project.medium.initial,
         surroundings=project.surroundings,
+        channels=tuple((rig, m.initial, 0.0) for m in project.media),
     )
 
 

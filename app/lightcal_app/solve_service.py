@@ -182,7 +182,9 @@ class SolveService:
         options = solver_options(project, loaded)  # the fall-off on the images' grid
         lights = self._lights(project, guess, datas)
         p = project
-        model = CalibrationModel(datas, lights, options, p.wall, p.medium, p.surroundings)
+        model = CalibrationModel(
+            datas, lights, options, p.wall, p.medium, p.surroundings, p.channels, p.media or None
+        )
         return model, index
 
     def ensure_session(self, client: Any = None) -> bool:

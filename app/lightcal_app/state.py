@@ -8,6 +8,7 @@ pool) change it only through `AppState` methods under `lock`, mark what must be 
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -192,6 +193,9 @@ class Display:
             even wall.
         surroundings: the surfaces whose bounce light they add (the project solved's
             `surroundings`, as the page edits them); None: none.
+        channels: per colour channel solved jointly (`sensor.channels`), its (lights,
+            medium, room light); `rig`, `medium` and `ambient` are the first's. Empty:
+            one channel.
     """
 
     rig: Rig
@@ -206,6 +210,15 @@ class Display:
     ambient: float = 0.0
     albedo: AlbedoMap | None = None
     surroundings: Surroundings | None = None
+    channels: tuple[tuple[Rig, Medium, float], ...] = ()
+
+    def of_channel(self, channel: int) -> Display:
+        """The display of one colour channel's images: its lights' scales, medium and
+        room light (itself without channels)."""
+        if not self.channels:
+            return self
+        rig, medium, ambient = self.channels[channel]
+        return dataclasses.replace(self, rig=rig, medium=medium, ambient=ambient)
 
     def current(self, state: AppState) -> bool:
         """Made from the guess and selection the state holds now (call under the lock)."""

@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         params = ", ".join(f"{k} {v:.4g}" for k, v in result.wall.items() if isinstance(v, float))
         output.print(f"wall: {result.wall['model']} ({params})", highlight=False)
     if result.channels is not None:  # each its scales, medium and room light
-        from lightcal.pipeline.channel_result import channel_lines
+        from lightcal.pipeline.result_text import channel_lines
 
         for line in channel_lines(result.channels):
             output.print(line, highlight=False, soft_wrap=True)

@@ -1,6 +1,6 @@
 """Colour channels solved jointly in the result (`channels`): per channel its lights'
 scales, its room light and its medium, with their 1-sigmas; and their lines for
-`lightcal calibrate`."""
+`lightcal calibrate` (`lightcal.pipeline.result_text.channel_lines`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 
 from lightcal.core.solver import CalibrationModel
 
-__all__ = ["channel_lines", "channel_summaries"]
+__all__ = ["channel_summaries"]
 
 
 def _sigma(cov: np.ndarray, k: int) -> float:
@@ -48,23 +48,3 @@ def channel_summaries(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -
             }
         )
     return out
-
-
-def channel_lines(channels: list[dict] | None) -> list[str]:
-    """A line per channel: its lights' scales (+- 1 sigma), its medium and room light."""
-    from lightcal.pipeline.result_text import medium_text, sigma_text  # it imports results
-
-    lines = []
-    for ch in channels or []:
-        parts = [
-            f"{light} scale {s:.6g} ± {sigma_text(ch['scale_sigmas'].get(light) or math.nan)}"
-            for light, s in ch["scales"].items()
-        ]
-        medium = medium_text(ch["medium"])
-        if medium is not None:
-            parts.append(medium)
-        if ch["ambient"] is not None:
-            sigma = sigma_text(math.nan if ch["ambient_sigma"] is None else ch["ambient_sigma"])
-            parts.append(f"room light {ch['ambient']:.4g} ± {sigma}")
-        lines.append(f"channel {ch['name']}: " + "; ".join(parts))
-    return lines

@@ -74,3 +74,21 @@ def medium_text(medium: dict) -> str | None:
                 how += f", g {g:.3g}"
         parts.append(f"{label} {v:.4g}{sigma} /m ({how})")
     return "medium: " + ", ".join(parts) if parts else None
+
+
+def channel_lines(channels: list[dict] | None) -> list[str]:
+    """A line per channel: its lights' scales (+- 1 sigma), its medium and room light."""
+    lines = []
+    for ch in channels or []:
+        parts = [
+            f"{light} scale {s:.6g} ± {sigma_text(ch['scale_sigmas'].get(light) or math.nan)}"
+            for light, s in ch["scales"].items()
+        ]
+        medium = medium_text(ch["medium"])
+        if medium is not None:
+            parts.append(medium)
+        if ch["ambient"] is not None:
+            sigma = sigma_text(math.nan if ch["ambient_sigma"] is None else ch["ambient_sigma"])
+            parts.append(f"room light {ch['ambient']:.4g} ± {sigma}")
+        lines.append(f"channel {ch['name']}: " + "; ".join(parts))
+    return lines

@@ -1,0 +1,76 @@
+"""Colour photos through water whose attenuation differs by channel, calibrated in one
+solve (`sensor.channels: [R, G, B]`) as a user would: 16-bit colour PNGs, the project
+file, `lightcal calibrate`.
+
+The colour photos are three `lightcal synth --attenuation C` datasets of the same seed
+(the same views, poses and noise draws), one per channel, merged into one 3-channel PNG a
+view (OpenCV's B, G, R order on disk). Their noise is therefore correlated between the
+channels, which makes the joint sigma optimistic; the independent check with
+independent per-channel noise is Mitsuba's (`tests/test_rgb_water_mitsuba.py`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from lightcal.cli.main import main
+from lightcal.synthetic.dataset import SynthConfig, read_truth, write_dataset
+from lightcal.synthetic.departures import Departures
+from tests.departure_suite import camera
+
+C_RGB = (0.4, 0.12, 0.06)  # /m: ocean water absorbs red most
+
+
+def _colour_project(root: Path, *, seed: int = 5) -> Path:
+    """The R dataset's folder with colour images and a project solving the channels."""
+    sets = []
+    for ch, c in zip("RGB", C_RGB, strict=True):
+        config = SynthConfig(camera=camera(), seed=seed, departures=Departures(attenuation_per_m=c))
+        sets.append(write_dataset(root / ch, config))
+    for k, path in enumerate(sets[0].image_paths):
+        planes = [cv2.imread(str(s.image_paths[k]), cv2.IMREAD_UNCHANGED) for s in sets]
+        assert all(p.dtype == np.uint16 and p.ndim == 2 for p in planes)
+        cv2.imwrite(str(path), np.dstack(planes[::-1]))  # B, G, R on disk
+    project = sets[0].project_path
+    doc = json.loads(project.read_text())
+    doc["sensor"]["channels"] = ["R", "G", "B"]
+    doc["medium"] = {"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]}
+    doc.setdefault("selection", {})["n_per_image"] = 800
+    project.write_text(json.dumps(doc))
+    return project
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory) -> tuple[dict, dict, str]:
+    root = tmp_path_factory.mktemp("rgb")
+    project = _colour_project(root)
+    out = root / "result.json"
+    code = main(["calibrate", str(project), "--out", str(out), "--quiet"])
+    truth = read_truth(project.parent / "truth.json")
+    return json.loads(out.read_text()), truth, str(code)
+
+
+def test_joint_channels_land_on_the_light_and_each_c(solved) -> None:
+    """One pose from the three channels: within 3 mm and 0.2 deg; each channel's c
+    within 5 %; the fit test finds nothing (exit 0)."""
+    result, truth, code = solved
+    assert code == "0", result["warnings"]
+    light, true_light = result["lights"][0], truth["lights"][0]
+    position_m = np.linalg.norm(np.subtract(light["position_m"], true_light["position_m"]))
+    cos = np.clip(np.dot(light["axis_camera"], true_light["axis_camera"]), -1.0, 1.0)
+    axis_deg = np.degrees(np.arccos(cos))
+    assert position_m < 0.003
+    assert axis_deg < 0.2
+    channels = result["channels"]
+    assert [ch["name"] for ch in channels] == ["R", "G", "B"]
+    for ch, c in zip(channels, C_RGB, strict=True):
+        assert ch["medium"]["attenuation_per_m"] == pytest.approx(c, rel=0.05)
+        assert 0.0 < ch["medium"]["sigma"]["attenuation_per_m"] < 0.01
+    assert result["medium"]["attenuation_per_m"] == channels[0]["medium"]["attenuation_per_m"]
+    names = [im["name"] for im in result["images"]]
+    assert names[:3] == ["view_00[R]", "view_00[G]", "view_00[B]"]
