@@ -74,3 +74,76 @@ def test_joint_channels_land_on_the_light_and_each_c(solved) -> None:
     assert result["medium"]["attenuation_per_m"] == channels[0]["medium"]["attenuation_per_m"]
     names = [im["name"] for im in result["images"]]
     assert names[:3] == ["view_00[R]", "view_00[G]", "view_00[B]"]
+
+
+# ------------------------------------------------------------------------- project file
+
+
+def _channel_doc(**sensor) -> dict:
+    from tests.test_project import _doc
+
+    doc = _doc()
+    doc["sensor"] = {"channels": ["R", "G", "B"], **sensor}
+    return doc
+
+
+def test_project_has_an_entry_per_photo_and_channel(tmp_path: Path) -> None:
+    from lightcal.io.project import load_project
+    from tests.test_project import _write, folder
+
+    root = folder.__wrapped__(tmp_path)
+    doc = _channel_doc()
+    doc["medium"] = {"attenuation_per_m": [0.4, 0.1, 0.05], "estimate": ["attenuation_per_m"]}
+    project = load_project(_write(root, doc))
+    assert project.names[:4] == ["a[R]", "a[G]", "a[B]", "b[R]"]
+    assert project.channel_of == [0, 1, 2] * 3
+    assert [project.spec_image(i) for i in range(9)] == [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    assert [project.channel_name(i) for i in range(3)] == ["R", "G", "B"]
+    assert project.photo_name(4) == "b"
+    assert project.views[3] is project.views[4]
+    assert [m.initial.attenuation_per_m for m in project.media] == [0.4, 0.1, 0.05]
+    assert project.medium is project.media[0]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            lambda d: d.update(medium={"attenuation_per_m": [0.1, 0.2]}),
+            "medium.attenuation_per_m: expected one value per channel of sensor.channels "
+            "(R, G, B: 3), got 2",
+        ),
+        (
+            lambda d: (d.pop("sensor"), d.update(medium={"backscatter_per_m": [0.1, 0.2]})),
+            "medium.backscatter_per_m: a list gives one value per colour channel; expected a "
+            "number, or sensor.channels",
+        ),
+        (
+            lambda d: d["sensor"].update(channel="G"),
+            "sensor: channel 'G' beside channels: expected one of the two",
+        ),
+        (
+            lambda d: d["sensor"].update(channels=["R", "R"]),
+            "sensor: channels: expected each channel once, got ['R', 'R']",
+        ),
+        (
+            lambda d: d.update(wall={"albedo_map": {"spacing_mm": 100}}),
+            "wall.albedo_map: modelled for one channel, not beside sensor.channels; calibrate "
+            "each channel on its own (sensor.channel)",
+        ),
+        (
+            lambda d: d["sensor"].update(estimate_offset=True, estimate_ambient=True),
+            "sensor.estimate_offset: with sensor.channels and every image at the same "
+            "exposure the one offset cannot be told from each channel's room light; expected "
+            "estimate_offset false (the room light per channel) or images of different "
+            "exposures",
+        ),
+    ],
+)
+def test_channel_refusals_name_the_key(tmp_path: Path, change, message) -> None:
+    from tests.test_project import _error, folder
+
+    root = folder.__wrapped__(tmp_path)
+    doc = _channel_doc()
+    change(doc)
+    assert _error(root, doc) == f"{root / 'project.json'}: {message}"

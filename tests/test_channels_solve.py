@@ -204,3 +204,29 @@ def test_joint_pose_is_tighter_than_one_channel_alone() -> None:
     assert np.all(sd_joint < 0.8 * sd_alone), (sd_joint, sd_alone)
     dp, _ = pose_errors(joint.layout.rig(out.x).lights[0], truth)
     assert dp < 4 * np.linalg.norm(sd_joint)
+
+
+def test_page_display_renders_each_channel_with_its_own() -> None:
+    """The page's estimate display holds every channel's lights, medium and room light;
+    an image's overlay takes its channel's (`Display.of_channel`)."""
+    from lightcal_app.solve_display import estimate_display
+
+    images, truth = _channel_images(n_views=2)
+    model = _joint_model(images, truth)
+    lay = model.layout
+    x = lay.x0.copy()
+    x[lay.medium] = [0.4, 0.1, 0.05]
+    x[list(lay.blocks[0].log_scales)] = np.log([2.0, 3.0, 4.0])
+    display = estimate_display(
+        model,
+        x,
+        n_images=len(images),
+        model_index=range(len(images)),
+        setup_rev=0,
+        fall_off="radiance",
+    )
+    for ch, (c, s) in enumerate(zip((0.4, 0.1, 0.05), (2.0, 3.0, 4.0), strict=True)):
+        shown = display.of_channel(ch)
+        assert shown.medium.attenuation_per_m == c
+        assert shown.rig.lights[0].scale == pytest.approx(s)
+    assert display.medium.attenuation_per_m == 0.4
