@@ -171,6 +171,7 @@ def render(
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
     from lightcal.pipeline import load_images
+    from lightcal.pipeline.channel_result import channel_scenes
     from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
@@ -191,6 +192,7 @@ def render(
         raise InputError(source, f"wall: {exc}") from exc
     try:
         medium = medium_from_description(file.medium)
+        channels = channel_scenes(file.channels, lights, project.channels)
     except ValueError as exc:
         raise InputError(source, str(exc)) from exc
     try:  # the sensor terms the result estimated (checked before any work)
@@ -213,6 +215,7 @@ def render(
         medium=medium,
         fall_off=fall_off,
         ambient=file.ambient or 0.0,
+        channels=channels,
     )
 
 

@@ -13,6 +13,7 @@ import functools
 import math
 import os
 import re
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -63,12 +64,15 @@ def render_views(
     fall_off: np.ndarray | None = None,
     ambient: float = 0.0,
     albedo: AlbedoMap | None = None,
+    channels: Sequence[tuple[Rig, Medium, float]] = (),
 ) -> list[np.ma.MaskedArray]:
     """Render every project image with `rig` on `wall` through `medium`: (H, W) masked
     arrays. `ambient`, an estimated room light (value at exposure and gain 1), adds
     gain x exposure x it; `fall_off` (H, W), an estimated fall-off V, multiplies the
     values above the offset, as does an estimated albedo map `albedo` at each pixel's
-    wall point (the wall's light: not the water's veil)."""
+    wall point (the wall's light: not the water's veil). With colour channels solved
+    jointly, `channels` gives each channel's (rig, medium, ambient), used for the images
+    of that channel instead."""
     out = []
     n = len(project.views)
     vignetting = vignetting_for(project, loaded.camera)
@@ -82,9 +86,11 @@ def render_views(
             sensor=project.spec.sensor.model,
             vignetting=vignetting,
         )
+    base = (rig, medium, ambient)
     for i, view in enumerate(project.views):
         if progress is not None:
             progress("rendering", i, n)
+        rig, medium, ambient = channels[project.channel_index(i)] if channels else base
         g = 1.0 if gains is None else gains[i]
         seen = with_view(view, exposure=view.exposure * g)
         bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
@@ -97,6 +103,8 @@ def render_views(
             bounce: float | np.ndarray = bounce,
             g: float = g,
             view: View = view,
+            rig: Rig = rig,
+            ambient: float = ambient,
         ) -> np.ma.MaskedArray:
             values = bounce + render_image(
                 loaded.camera,
@@ -170,6 +178,10 @@ def write_report(
         ),
         ambient=model.layout.ambient(x),
         albedo=model.albedo_map(x),
+        channels=[
+            (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
+            for ch in range(len(model.layout.channels))
+        ],
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 

@@ -46,13 +46,43 @@ def _colour_project(root: Path, *, seed: int = 5) -> Path:
 
 
 @pytest.fixture(scope="module")
-def solved(tmp_path_factory) -> tuple[dict, dict, str]:
+def solved_files(tmp_path_factory) -> tuple[Path, Path, int]:
+    """(project, result file, calibrate's exit code)."""
     root = tmp_path_factory.mktemp("rgb")
     project = _colour_project(root)
     out = root / "result.json"
     code = main(["calibrate", str(project), "--out", str(out), "--quiet"])
+    return project, out, code
+
+
+@pytest.fixture(scope="module")
+def solved(solved_files) -> tuple[dict, dict, str]:
+    project, out, code = solved_files
     truth = read_truth(project.parent / "truth.json")
     return json.loads(out.read_text()), truth, str(code)
+
+
+def test_render_draws_each_channel_with_its_scale_and_water(solved_files, tmp_path) -> None:
+    """`lightcal render` of the joint result: every channel's rendered image matches its
+    photo (median ratio within 1 %); with the first channel's scale and water for all
+    (the old way) the blue images would be far off."""
+    import tifffile
+
+    from lightcal.io.images import read_image
+    from lightcal.io.outputs import safe_names
+
+    project, out, _ = solved_files
+    renders = tmp_path / "renders"
+    assert main(["render", str(project), "--result", str(out), "--out", str(renders)]) == 0
+    doc = json.loads(project.read_text())
+    black = doc["sensor"].get("black_level", 0.0)
+    for ch in "RGB":
+        file = safe_names([f"view_03[{ch}]"])[0]
+        rendered = tifffile.imread(renders / f"{file}_rendered.tif")
+        photo = read_image(project.parent / "images" / "view_03.png", channel=ch).values
+        lit = np.isfinite(rendered) & (rendered > 0.2 * np.nanmax(rendered))
+        ratio = np.median((photo[lit] - black) / rendered[lit])
+        assert ratio == pytest.approx(1.0, abs=0.01), ch
 
 
 def test_joint_channels_land_on_the_light_and_each_c(solved) -> None:
@@ -147,3 +177,18 @@ def test_channel_refusals_name_the_key(tmp_path: Path, change, message) -> None:
     doc = _channel_doc()
     change(doc)
     assert _error(root, doc) == f"{root / 'project.json'}: {message}"
+
+
+def test_export_says_it_carries_the_first_channel(solved_files, tmp_path, capsys) -> None:
+    _, out, _ = solved_files
+    target = tmp_path / "light.yaml"
+    assert main(["export", str(out), "--format", "opencv", "--out", str(target)]) == 0
+    err = capsys.readouterr().err
+    assert (
+        "note: the result has colour channels R, G, B; the export carries the first's (R) "
+        "scale and medium, as the result's lights and medium do"
+    ) in " ".join(err.split())
+    fs = cv2.FileStorage(str(target), cv2.FILE_STORAGE_READ)
+    result = json.loads(out.read_text())
+    c = fs.getNode("medium").getNode("attenuation_per_m").real()
+    assert c == pytest.approx(result["channels"][0]["medium"]["attenuation_per_m"])

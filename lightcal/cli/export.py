@@ -155,4 +155,11 @@ def run(args: argparse.Namespace) -> int:
             f"albedo rho = {wall_albedo:g} ({where}): give the scene's wall that albedo",
             file=sys.stderr,
         )
+    if result.channels:  # colour channels solved jointly: the files hold one channel
+        names = [str(ch.get("name")) for ch in result.channels]
+        print(
+            f"note: the result has colour channels {', '.join(names)}; the export carries "
+            f"the first's ({names[0]}) scale and medium, as the result's lights and medium do",
+            file=sys.stderr,
+        )
     return 0

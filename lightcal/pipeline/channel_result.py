@@ -5,12 +5,15 @@ scales, its room light and its medium, with their 1-sigmas; and their lines for
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
+from lightcal.core.medium import Medium, medium_from_description
+from lightcal.core.scene import Light, Rig
 from lightcal.core.solver import CalibrationModel
 
-__all__ = ["channel_summaries"]
+__all__ = ["channel_scenes", "channel_summaries"]
 
 
 def _sigma(cov: np.ndarray, k: int) -> float:
@@ -47,4 +50,32 @@ def channel_summaries(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -
                 },
             }
         )
+    return out
+
+
+def channel_scenes(
+    channels: list[dict] | None, lights: list[Light], project_channels: tuple[str, ...]
+) -> list[tuple[Rig, Medium, float]]:
+    """Per channel of a result file's `channels`, (its lights at their scales, its
+    medium, its room light) for `lightcal.report.render_views`; empty without channels.
+
+    Raises:
+        ValueError: the result's channels are not the project's (`sensor.channels`), a
+            light has no scale in a channel, or a medium is malformed.
+    """
+    names = [str(ch.get("name")) for ch in channels or []]
+    if names != list(project_channels):
+        raise ValueError(
+            f"channels: the result's are {names or 'none'}, the project's "
+            f"{list(project_channels) or 'none'}; expected the project the result was made of"
+        )
+    out = []
+    for ch in channels or []:
+        scales = ch.get("scales") or {}
+        missing = [light.name for light in lights if light.name not in scales]
+        if missing:
+            raise ValueError(f"channels: {ch['name']}: no scale for light {missing[0]!r}")
+        rig = Rig(tuple(replace(light, scale=float(scales[light.name])) for light in lights))
+        ambient = ch.get("ambient")
+        out.append((rig, medium_from_description(ch.get("medium") or {}), float(ambient or 0.0)))
     return out
