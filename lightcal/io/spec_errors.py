@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 _UNION_BRANCHES = frozenset({"float", "int", "str", "bool", "list", "dict"})
-_TAGS = ("function-", "literal[")  # pydantic's names of validator and literal branches
+_TAGS = ("function-", "literal[", "constrained-", "list[")  # pydantic's names of branches
 
 
 def on_literal_branch(err: Any) -> bool:
