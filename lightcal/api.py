@@ -171,7 +171,7 @@ def render(
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
     from lightcal.pipeline import load_images
-    from lightcal.pipeline.channel_result import channel_scenes
+    from lightcal.pipeline.channel_result import channel_scenes, estimated_surroundings
     from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
@@ -193,6 +193,7 @@ def render(
     try:
         medium = medium_from_description(file.medium)
         channels = channel_scenes(file.channels, lights, project.channels)
+        surroundings = estimated_surroundings(project.surroundings, file.surroundings)
     except ValueError as exc:
         raise InputError(source, str(exc)) from exc
     try:  # the sensor terms the result estimated (checked before any work)
@@ -216,6 +217,7 @@ def render(
         fall_off=fall_off,
         ambient=file.ambient or 0.0,
         channels=channels,
+        surroundings=surroundings,
     )
 
 

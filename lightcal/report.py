@@ -27,6 +27,7 @@ from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig, View
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.io.atomic import atomic_folder, atomic_write_text, signals_held
 from lightcal.io.cause_figure import cause_figure
@@ -43,6 +44,7 @@ from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
 from lightcal.pipeline.albedo_result import albedo_image, albedo_text
+from lightcal.pipeline.channel_result import estimated_surroundings
 from lightcal.pipeline.fall_off_result import ambient_text, fall_off_text
 from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
@@ -65,6 +67,7 @@ def render_views(
     ambient: float = 0.0,
     albedo: AlbedoMap | None = None,
     channels: Sequence[tuple[Rig, Medium, float]] = (),
+    surroundings: Surroundings | None = None,
 ) -> list[np.ma.MaskedArray]:
     """Render every project image with `rig` on `wall` through `medium`: (H, W) masked
     arrays. `ambient`, an estimated room light (value at exposure and gain 1), adds
@@ -72,17 +75,19 @@ def render_views(
     values above the offset, as does an estimated albedo map `albedo` at each pixel's
     wall point (the wall's light: not the water's veil). With colour channels solved
     jointly, `channels` gives each channel's (rig, medium, ambient), used for the images
-    of that channel instead."""
+    of that channel instead. `surroundings`: the bounce's (the project's when None; the
+    result's albedos when it estimated them)."""
     out = []
     n = len(project.views)
     vignetting = vignetting_for(project, loaded.camera)
     room_factor = room_light_image(loaded.camera, project.spec.sensor.model, vignetting)
     bounces = None
-    if project.surroundings is not None:  # one bounce map for every view
+    surroundings = surroundings or project.surroundings
+    if surroundings is not None:  # one bounce map for every view
         bounces = BounceImages(
             loaded.camera,
             project.views,
-            project.surroundings,
+            surroundings,
             sensor=project.spec.sensor.model,
             vignetting=vignetting,
         )
@@ -182,6 +187,7 @@ def write_report(
             (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
             for ch in range(len(model.layout.channels))
         ],
+        surroundings=estimated_surroundings(model.surroundings, result.surroundings),
     )
     files = safe_names(names)  # image names come from the data: one plain part each
 

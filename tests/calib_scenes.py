@@ -365,3 +365,23 @@ __all__ = [
     "with_exposure",
     "write_npy_project",
 ]
+
+
+def assert_columns_match_differences(
+    model, x: np.ndarray, *, rtol: float = 1e-4, atol: float = 1e-5
+) -> np.ndarray:
+    """Every column of `model`'s Jacobian at x against central differences of its
+    residuals (step 1e-6 max(1, |x_k|)), within rtol and atol times the column's largest
+    difference; returns the Jacobian."""
+    J = model.jacobian(x).copy()
+    for k in range(model.layout.n):
+        h = 1e-6 * max(1.0, abs(x[k]))
+        hi, lo = x.copy(), x.copy()
+        hi[k] += h
+        lo[k] -= h
+        fd = (model.residuals(hi).copy() - model.residuals(lo).copy()) / (2 * h)
+        scale = np.abs(fd).max()
+        np.testing.assert_allclose(
+            J[:, k], fd, rtol=rtol, atol=atol * scale, err_msg=model.layout.names[k]
+        )
+    return J

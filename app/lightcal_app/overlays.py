@@ -186,8 +186,9 @@ class OverlayImages:
         bounce: float | np.ndarray = 0.0  # the surroundings' light, as the model adds it
         surroundings = display.surroundings  # the solve's: as the page edits them
         if surroundings is not None:  # (the wall's: the same without the veil)
+            albedos = np.array(display.surface_albedos) if display.surface_albedos else None
             bounce = self._bounce_images(sensor, surroundings).image(
-                index, view, display.rig, display.medium
+                index, view, display.rig, display.medium, albedos
             )
 
         def through(medium: Medium) -> np.ma.MaskedArray:

@@ -57,6 +57,7 @@ def estimate_display(
             (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
             for ch in range(len(model.layout.channels))
         ),
+        _albedos_at(model, x),
     )
 
 
@@ -99,3 +100,9 @@ def light_angles_deg(
         ).reshape(-1, 2)
         out.append((unknown.initial.name, np.degrees(angles)))
     return out
+
+
+def _albedos_at(model: CalibrationModel, x: np.ndarray) -> tuple[float, ...]:
+    """The surroundings' surfaces' albedos the model estimates at x (empty: none)."""
+    albedos = model.layout.surface_albedos(x)
+    return () if albedos is None else tuple(float(a) for a in albedos)

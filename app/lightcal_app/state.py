@@ -196,6 +196,8 @@ class Display:
         channels: per colour channel solved jointly (`sensor.channels`), its (lights,
             medium, room light); `rig`, `medium` and `ambient` are the first's. Empty:
             one channel.
+        surface_albedos: the surroundings' surfaces' albedos the solve estimates (empty:
+            the declared).
     """
 
     rig: Rig
@@ -211,6 +213,7 @@ class Display:
     albedo: AlbedoMap | None = None
     surroundings: Surroundings | None = None
     channels: tuple[tuple[Rig, Medium, float], ...] = ()
+    surface_albedos: tuple[float, ...] = ()
 
     def of_channel(self, channel: int) -> Display:
         """The display of one colour channel's images: its lights' scales, medium and

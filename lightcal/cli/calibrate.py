@@ -147,6 +147,10 @@ def run(args: argparse.Namespace) -> int:
         from lightcal.pipeline.albedo_result import albedo_text
 
         output.print(albedo_text(result.albedo_map), highlight=False, soft_wrap=True)
+    if result.surroundings is not None:
+        from lightcal.pipeline.result_text import surroundings_text
+
+        output.print(surroundings_text(result.surroundings), highlight=False, soft_wrap=True)
     if cal.outcome.f_scale_used is not None:
         solver = project.spec.solver
         how = "auto, from the linear solve's residuals" if solver.f_scale == "auto" else "given"

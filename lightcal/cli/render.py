@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.project_identity import check_result_of
     from lightcal.io.result_file import read_result
     from lightcal.pipeline import load_images
-    from lightcal.pipeline.channel_result import channel_scenes
+    from lightcal.pipeline.channel_result import channel_scenes, estimated_surroundings
     from lightcal.pipeline.fall_off_result import fall_off_map
     from lightcal.report import render_views
 
@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         medium = medium_from_description(result.medium)
         channels = channel_scenes(result.channels, lights, project.channels)
+        surroundings = estimated_surroundings(project.surroundings, result.surroundings)
     except ValueError as exc:
         raise InputError(args.result, str(exc)) from exc
     try:  # the sensor terms the result estimated (checked before any work)
@@ -109,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
             fall_off=fall_off,
             ambient=result.ambient or 0.0,
             channels=channels,
+            surroundings=surroundings,
         )
     for name, file, img, rendered in zip(project.names, files, loaded.images, renders, strict=True):
         data = np.ma.filled(rendered.astype(np.float32), np.nan)

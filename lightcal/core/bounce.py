@@ -190,6 +190,8 @@ class BounceMap:
         )
         # The transfers in a medium: (c, at c, their slopes or None), the last c asked.
         self._in_medium: tuple[float, Transfers, TransferSlopes | None] | None = None
+        # The transfers with other albedos: ((c, albedos), transfers), the last asked.
+        self._with_albedos: tuple[tuple[float, tuple[float, ...]], Transfers] | None = None
         self._medium_lock = threading.Lock()
         owners = np.concatenate([self.owner, no_owner])
         self._points = np.concatenate([self.centres, self.nodes])
@@ -288,6 +290,29 @@ class BounceMap:
                 kept = (c, at_c, slopes(at_c, R_SS, R_SW) if want_slopes else None)
                 self._in_medium = kept
             return kept[1], kept[2]
+
+    def transfers_at(
+        self, attenuation_per_m: float, albedos: np.ndarray | None, *, want_slopes: bool
+    ) -> tuple[Transfers, TransferSlopes | None]:
+        """`in_medium`'s transfers with the surfaces' albedos (S,) instead of the declared
+        (None: the declared); the slopes d/dc do not depend on them. Kept for the last
+        (c, albedos) asked (a K x K factorisation, the (K, J) x (J, K) product)."""
+        t, d = self.in_medium(attenuation_per_m, want_slopes=want_slopes)
+        if albedos is None:
+            return t, d
+        key = (float(attenuation_per_m), tuple(float(a) for a in albedos))
+        with self._medium_lock:
+            kept = self._with_albedos
+            if kept is None or kept[0] != key:
+                rho = np.asarray(albedos, dtype=np.float64)[self.owner] / math.pi
+                built = Transfers.build(t.G_SS, t.G_SW, t.G_WS, rho, t.wall_albedo, t.bounces)
+                kept = (key, built)
+                self._with_albedos = kept
+            return kept[1], d
+
+    def surface_masks(self, surfaces: tuple[int, ...]) -> np.ndarray:
+        """(K, m) which copies belong to each of the surfaces (indices)."""
+        return np.stack([self.owner == k for k in surfaces], axis=1)
 
     @functools.cached_property
     def medium_distances(self) -> tuple[np.ndarray, np.ndarray]:

@@ -57,13 +57,22 @@ class BounceImages:
         self._surroundings = surroundings
         self._term: BounceTerm | None = None
 
-    def image(self, i: int, view: View, rig: Rig, medium: Medium = AIR) -> np.ndarray:
+    def image(
+        self,
+        i: int,
+        view: View,
+        rig: Rig,
+        medium: Medium = AIR,
+        albedos: np.ndarray | None = None,
+    ) -> np.ndarray:
         """(H, W) the rig's bounce light in image i seen from `view` (its pose, with the
         exposure to render at), in the units of `render.render_image` (exposure and
-        scales in; 0 where a pixel does not see the wall), through `medium`."""
+        scales in; 0 where a pixel does not see the wall), through `medium`, the
+        surfaces' albedos `albedos` (S,) (None: the declared)."""
         if self._term is None:
             self._term = BounceTerm(self._surroundings, self._footprints)
-        values = self._term.values(i, view, rig, medium).reshape(len(self.vs), len(self.us))
+        values = self._term.values(i, view, rig, medium, albedos)
+        values = values.reshape(len(self.vs), len(self.us))
         values = np.where(self._footprints[i].valid.reshape(values.shape), values, 0.0)
         height, width = self.shape
         if len(self.us) == width and len(self.vs) == height:

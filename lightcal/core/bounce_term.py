@@ -21,7 +21,7 @@ from scipy import sparse
 
 from lightcal.core.bounce import BounceMap
 from lightcal.core.bounce_pixels import PixelMap
-from lightcal.core.bounce_transfers import radiance_slope
+from lightcal.core.bounce_transfers import albedo_slopes, radiance_slope
 from lightcal.core.footprint import Footprints
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.scene import Light, Rig, View
@@ -88,6 +88,7 @@ class BounceTerm:
         self.pixels = [self.map.pixel_map(c) for c in self.centers_world]
         # Per image, the near copies' sparse maps in a medium: (c, near, its slope or None).
         self._near: list[_Near | None] = [None] * len(footprints)
+        self.estimated = surroundings.estimate_albedo  # the surfaces whose albedo is solved
 
     @classmethod
     def of(
@@ -105,24 +106,45 @@ class BounceTerm:
         grad: np.ndarray | None,
         medium: Medium = AIR,
         d_attenuation: np.ndarray | None = None,
+        albedos: np.ndarray | None = None,
+        d_albedo: np.ndarray | None = None,
     ) -> None:
         """Add image i's bounce to a light's flux (N_i,) and its gradients (N_i, 6) (as
         `render.light_flux` gives them, per unit scale), in place; with d_attenuation
-        (N_i,) and grad, its derivative with respect to the medium's c too."""
+        (N_i,) and grad, its derivative with respect to the medium's c too. `albedos`
+        (S,): the surfaces' albedos (None: the declared); d_albedo (N_i, m), with grad,
+        gains the derivatives with respect to the albedos the surroundings estimate
+        (`Surroundings.estimate_albedo`)."""
         want_dc = grad is not None and d_attenuation is not None
-        b = self.flux(i, view, light, want_grad=grad is not None, medium=medium, want_dc=want_dc)
+        estimated = self.estimated if grad is not None and d_albedo is not None else ()
+        b = self.flux(
+            i,
+            view,
+            light,
+            want_grad=grad is not None,
+            medium=medium,
+            want_dc=want_dc,
+            albedos=albedos,
+            albedo_surfaces=estimated,
+        )
         flux += b[:, 0]
         if grad is not None:
             grad += b[:, 1:7]
         if want_dc:
             assert d_attenuation is not None
-            d_attenuation += b[:, -1]
+            d_attenuation += b[:, 7]
+        if estimated:
+            assert d_albedo is not None
+            d_albedo += b[:, -len(estimated) :]
 
-    def values(self, i: int, view: View, rig: Rig, medium: Medium = AIR) -> np.ndarray:
+    def values(
+        self, i: int, view: View, rig: Rig, medium: Medium = AIR, albedos: np.ndarray | None = None
+    ) -> np.ndarray:
         """(N_i,) image i's bounce value: the sum over the rig's lights of scale x flux."""
         return np.asarray(
             sum(
-                light.scale * self.flux(i, view, light, want_grad=False, medium=medium)[:, 0]
+                light.scale
+                * self.flux(i, view, light, want_grad=False, medium=medium, albedos=albedos)[:, 0]
                 for light in rig.lights
             )
         )
@@ -136,33 +158,46 @@ class BounceTerm:
         want_grad: bool,
         medium: Medium = AIR,
         want_dc: bool = False,
+        albedos: np.ndarray | None = None,
+        albedo_surfaces: tuple[int, ...] = (),
     ) -> np.ndarray:
-        """(N_i, 1 or 7, + 1 with want_dc) image i's bounce flux per unit scale (exposure
-        included), with want_grad d / d (L_world (3), delta_world (3)) as
-        `render.light_flux`, with want_dc (last column) d / dc, c the medium's attenuation
-        (1/m)."""
+        """(N_i, 1 or 7, + 1 with want_dc, + m) image i's bounce flux per unit scale
+        (exposure included), with want_grad d / d (L_world (3), delta_world (3)) as
+        `render.light_flux`, with want_dc (the column after) d / dc, c the medium's
+        attenuation (1/m), and last d / d a_k of the m surfaces `albedo_surfaces`, the
+        surfaces' albedos `albedos` (S,) (None: the declared)."""
         L_world = light.position_world(view)
         n = len(self.coverage[i])
         if L_world[2] <= 0.0:  # a light on or behind the wall lights nothing
-            return np.zeros((n, (7 if want_grad else 1) + want_dc))
+            return np.zeros((n, (7 if want_grad else 1) + want_dc + len(albedo_surfaces)))
         c = medium.attenuation_per_m
-        if c == 0.0 and not want_dc:  # air: the map as built
+        if c == 0.0 and not want_dc and albedos is None and not albedo_surfaces:  # as built
             src = self.map.source_columns(
                 L_world, light.rotation_world(view), light.rid, want_grad=want_grad
             )
             b = self.map.bounce(self.map.radiance(src), self.pixels[i])
         else:
-            b = self._in_medium(i, view, light, c, want_grad=want_grad, want_dc=want_dc)
+            b = self._in_medium(
+                i, view, light, c, want_grad, want_dc, albedos, tuple(albedo_surfaces)
+            )
         return b * (view.exposure * self.coverage[i])[:, None]
 
     def _in_medium(
-        self, i: int, view: View, light: Light, c: float, *, want_grad: bool, want_dc: bool
+        self,
+        i: int,
+        view: View,
+        light: Light,
+        c: float,
+        want_grad: bool,
+        want_dc: bool,
+        albedos: np.ndarray | None,
+        albedo_surfaces: tuple[int, ...],
     ) -> np.ndarray:
-        """(N_i, 1 or 7, + 1 with want_dc) `flux` in a medium of attenuation c, before
-        the exposure and the sensor's weights."""
+        """`flux` in a medium of attenuation c (0: air) with the surfaces' albedos,
+        before the exposure and the sensor's weights."""
         L_world = light.position_world(view)
         bm = self.map
-        t, d = bm.in_medium(c, want_slopes=want_dc)
+        t, d = bm.transfers_at(c, albedos, want_slopes=want_dc)
         src = bm.source_columns(
             L_world, light.rotation_world(view), light.rid, want_grad=want_grad, attenuation_per_m=c
         )
@@ -173,15 +208,20 @@ class BounceTerm:
             src_dc = -bm.source_distances(L_world) * src[:, 0]
             radiance_dc = radiance_slope(t, d, src[:, 0], src_dc, radiance[:, 0])
             radiance = np.column_stack([radiance, radiance_dc])
+        dc = radiance.shape[1] - 1  # the column of d/dc, with want_dc
+        if albedo_surfaces:
+            masks = bm.surface_masks(albedo_surfaces)
+            slopes = albedo_slopes(t, src[:, 0], radiance[:, 0], masks)
+            radiance = np.column_stack([radiance, slopes])
         pixels = self.pixels[i]
         b = np.asarray(pixels.gather(t.G_WS, radiance) + near @ radiance)
         if want_dc:
             assert d is not None and near_dc is not None
-            b[:, -1] += pixels.gather(d.D_WS, radiance[:, :1])[:, 0] + near_dc @ radiance[:, 0]
+            b[:, dc] += pixels.gather(d.D_WS, radiance[:, :1])[:, 0] + near_dc @ radiance[:, 0]
         to_camera_m = np.linalg.norm(self.centers_world[i] - view.center_world, axis=1)
         b *= np.exp(-c * to_camera_m)[:, None]
         if want_dc:
-            b[:, -1] -= to_camera_m * b[:, 0]
+            b[:, dc] -= to_camera_m * b[:, 0]
         return b
 
     def _near_at(

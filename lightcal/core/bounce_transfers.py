@@ -13,7 +13,8 @@ uses (copy centre to copy centre, copy centre to wall node): G_ab(c) = G_ab exp(
 elementwise, whose derivative is D_ab = d G_ab(c) / dc = -R_ab G_ab(c) (`attenuated`,
 `slopes`). The copies' radiance solves L = rho (S + G_SS L + b G_SW (W + G_WS L)), b =
 rho_w / pi, S (K,) and W (J,) the beam's irradiance, or its Neumann series cut after n
-reflections (`Transfers.radiance`); `radiance_slope` is its derivative with respect to c.
+reflections (`Transfers.radiance`); `radiance_slope` is its derivative with respect to c,
+`albedo_slopes` with respect to surfaces' albedos.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from scipy.spatial.distance import cdist
 __all__ = [
     "TransferSlopes",
     "Transfers",
+    "albedo_slopes",
     "attenuated",
     "pair_distances",
     "radiance_slope",
@@ -177,5 +179,40 @@ def radiance_slope(
             t.rho * (t.G_SS @ surfaces + t.G_SW @ wall),
             b * (t.G_WS @ surfaces),
         )
+        total += d_surfaces
+    return np.asarray(total)
+
+
+def albedo_slopes(
+    t: Transfers, sources: np.ndarray, radiance: np.ndarray, masks: np.ndarray
+) -> np.ndarray:
+    """(K, m) d L / d a_k: the derivative of the copies' radiance L (K,) (`Transfers.
+    radiance` of sources (K + J,)) with respect to the albedo a_k of the copies in column
+    k of masks (K, m) (bool: a surface's copies), rho = a / pi.
+
+    Every bounce: M L = rho (S + b G_SW W), so M L' = (mask / pi) (S + b G_SW W + G_SS L
+    + b G_SW G_WS L), the light arriving at those copies. n bounces: the series'
+    recursion differentiated term by term.
+    """
+    K = len(t.rho)
+    b = t.wall_albedo / math.pi
+    S, W = sources[:K], sources[K:]
+    unit = masks.astype(np.float64) / math.pi  # d rho / d a_k
+    if t.lu is not None:
+        arriving = S + b * (t.G_SW @ W) + t.G_SS @ radiance + b * (t.G_SW @ (t.G_WS @ radiance))
+        return np.asarray(lu_solve(t.lu, unit * arriving[:, None]))
+    assert t.bounces is not None
+    rho = t.rho[:, None]
+    surfaces, wall = t.rho * S, b * W
+    d_surfaces = unit * S[:, None]
+    d_wall = np.zeros((len(W), masks.shape[1]))
+    total = d_surfaces.copy()
+    for _ in range(t.bounces - 1):
+        arriving = t.G_SS @ surfaces + t.G_SW @ wall
+        d_surfaces, d_wall = (
+            unit * arriving[:, None] + rho * (t.G_SS @ d_surfaces + t.G_SW @ d_wall),
+            b * (t.G_WS @ d_surfaces),
+        )
+        surfaces, wall = t.rho * arriving, b * (t.G_WS @ surfaces)
         total += d_surfaces
     return np.asarray(total)

@@ -97,6 +97,7 @@ class CalibrationModel:
             estimate_ambient=ambient_estimated(images, options),
             channels=channels,
             media=media,
+            surroundings=surroundings,
         )
         self.sizes = np.array([len(im.observed) for im in images])
         self.bounds = np.cumsum(np.concatenate([[0], self.sizes]))
@@ -254,6 +255,7 @@ class CalibrationModel:
             lay.medium_of(x),
             tuple(lay.rig(x, ch) for ch in channels),
             tuple(lay.medium_of(x, ch) for ch in channels),
+            lay.surface_albedos(x),
         )
         for i, A, (squares, finite), fluxes in self._image_systems(x, at_x, visit is not None):
             rows = slice(self.bounds[i], self.bounds[i + 1])
@@ -354,6 +356,8 @@ class CalibrationModel:
             wall_grad = np.empty((N, len(wall.parameter_names)))
         medium_idx = lay.medium_unknown.indices
         medium_grad = np.empty((N, max(medium_idx) + 1)) if medium_idx else None
+        albedo_cols = lay.surface_albedo  # the surroundings' estimated albedos
+        albedo_grad = np.empty((N, albedo_cols.stop - albedo_cols.start))
         c_grad = None  # the bounce's d/dc joins the medium's column of c when c is estimated
         if medium_grad is not None and "attenuation_per_m" in lay.medium_unknown.estimate:
             c_grad = medium_grad[:, 0]  # d flux / dc (`Medium.parameter_names`)
@@ -373,7 +377,12 @@ class CalibrationModel:
             )
             assert grad_world is not None
             if self.bounce is not None:
-                self.bounce.add(i, view, light, flux, grad_world, medium, c_grad)
+                albedo_grad[:] = 0.0
+                albedos = at_x.surface_albedos
+                self.bounce.add(
+                    i, view, light, flux, grad_world, medium, c_grad, albedos, albedo_grad
+                )
+                A[:, albedo_cols] += g * light.scale * albedo_grad
             if fluxes is not None:
                 fluxes.append(flux)
             value_per_flux = g * light.scale

@@ -15,6 +15,11 @@ from lightcal.core.problem import ImageData, ParameterLayout
 LIGHT_MOUNT_MARGIN_M = 0.5
 
 
+#: The largest albedo a surroundings' surface may be estimated at (a surface that
+#: reflects all it receives would make the bounce's series diverge).
+MAX_SURFACE_ALBEDO = 0.999
+
+
 def parameter_bounds(
     layout: ParameterLayout, images: list[ImageData], position_bound_m: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -73,6 +78,7 @@ def parameter_bounds(
         hi[s + 2] = max(z_max(d), z0 + 1e-9)
     lo[layout.wall], hi[layout.wall] = layout.wall_bounds()
     lo[layout.medium], hi[layout.medium] = layout.medium_bounds()
+    lo[layout.surface_albedo], hi[layout.surface_albedo] = 0.0, MAX_SURFACE_ALBEDO
     if layout.fall_off_unknown is not None:
         lo[layout.fall_off], hi[layout.fall_off] = layout.fall_off_unknown.bounds()
     return lo, hi

@@ -6,8 +6,9 @@ the log of its scale (one per colour channel) and optionally its RID parameters;
 optionally one log-gain per image but the first (the first image's gain is fixed: a
 global gain is the lights' scales), optionally the offset b, the wall model's estimated
 parameters (`WallUnknown`), the fall-off's coefficients (`lightcal.core.fall_off`), the
-room light's level a (`ParameterLayout.ambient_index`; one per channel) and last the
-medium's (`MediumUnknown`; channel after channel).
+room light's level a (`ParameterLayout.ambient_index`; one per channel), the medium's
+(`MediumUnknown`; channel after channel) and last the albedos of the surroundings'
+surfaces it estimates (`Surroundings.estimate_albedo`).
 
 Colour channels solved jointly (`channels`): every image (`ImageData.channel`) shares
 the lights' poses, RIDs, the gains, offset, wall and fall-off; each channel has its own
@@ -36,6 +37,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from lightcal.core.channels import channel_media
 from lightcal.core.fall_off import FallOffUnknown, apply_fall_off
 from lightcal.core.footprint import Footprints
 from lightcal.core.image_data import ImageData, poisson_gaussian_sigma
@@ -44,6 +46,7 @@ from lightcal.core.pose import PoseKind, PoseParameterization, pose_parameteriza
 from lightcal.core.rid import RID, CosPowerRID, IsotropicRID
 from lightcal.core.rid_curve import curve_params_from_rid, curve_rid, fit_cos_power
 from lightcal.core.scene import Light, Rig, with_view
+from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 
 __all__ = [
@@ -179,6 +182,8 @@ class ParameterLayout:
     channels: tuple[str, ...] = ()
     media: tuple[MediumUnknown, ...] = ()
     ambient_indices: tuple[int, ...] = ()
+    surface_albedo: slice = field(default_factory=lambda: slice(0, 0))
+    surroundings: Surroundings | None = None
 
     @property
     def n_channels(self) -> int:
@@ -200,12 +205,13 @@ class ParameterLayout:
         medium: MediumUnknown | None = None,
         channels: Sequence[str] = (),
         media: Sequence[MediumUnknown] | None = None,
+        surroundings: Surroundings | None = None,
     ) -> ParameterLayout:
         """The layout; with `channels` (names, 2 or more) each channel has its lights'
         scales, its room light and its medium: `media` one per channel (default: `medium`
         in every channel), all estimating the same parameters."""
         channels = tuple(channels)
-        media_list = _channel_media(channels, medium, media)
+        media_list = channel_media(channels, medium, media)
         medium = media_list[0]
         blocks: list[_LightBlock] = []
         names: list[str] = []
@@ -283,6 +289,11 @@ class ParameterLayout:
             for k, nm in zip(unknown.indices, unknown.estimate, strict=True):
                 x0.append(float(p0[k]))
                 names.append(f"medium.{ch}.{nm}" if ch else f"medium.{nm}")
+        medium_slice = slice(start, len(x0))
+        surfaces = () if surroundings is None else surroundings.surfaces
+        for k in () if surroundings is None else surroundings.estimate_albedo:
+            x0.append(surfaces[k].albedo)
+            names.append(f"surroundings.surfaces[{k}].albedo")
         return cls(
             blocks,
             n_images,
@@ -300,10 +311,12 @@ class ParameterLayout:
             fall_off_slice,
             ambient_index,
             medium,
-            slice(start, len(x0)),
+            medium_slice,
             channels,
             tuple(media_list) if channels else (),
             ambient_indices,
+            slice(medium_slice.stop, len(x0)),
+            surroundings,
         )
 
     def rid_of(self, block: _LightBlock, x: np.ndarray) -> RID:
@@ -434,30 +447,20 @@ class ParameterLayout:
         unknown = self.media[channel] if self.media else self.medium_unknown
         return _estimated(unknown, x[self.medium_columns(channel)])
 
+    def surface_albedos(self, x: np.ndarray) -> np.ndarray | None:
+        """(S,) the surroundings' albedos at x, the estimated from x; None when none is
+        estimated (the declared hold)."""
+        s = self.surroundings
+        if s is None or not s.estimate_albedo:
+            return None
+        albedos = s.albedos()
+        albedos[list(s.estimate_albedo)] = x[self.surface_albedo]
+        return albedos
+
     def medium_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds (k,) of the estimated medium parameters (every channel's)."""
         lo, hi = _box(Medium.parameter_bounds, self.medium_unknown.indices)
         return np.tile(lo, self.n_channels), np.tile(hi, self.n_channels)
-
-
-def _channel_media(
-    channels: tuple[str, ...],
-    medium: MediumUnknown | None,
-    media: Sequence[MediumUnknown] | None,
-) -> list[MediumUnknown]:
-    """One medium per channel (one without channels), each estimating the same."""
-    if len(channels) == 1 or len(set(channels)) != len(channels):
-        raise ValueError(f"channels: expected 2 or more distinct names, got {list(channels)}")
-    if media is None:
-        return [medium if medium is not None else MediumUnknown()] * max(1, len(channels))
-    media = list(media)
-    if len(media) != max(1, len(channels)):
-        raise ValueError(
-            f"medium: expected one per channel ({max(1, len(channels))}), got {len(media)}"
-        )
-    if any(m.estimate != media[0].estimate for m in media):
-        raise ValueError("medium: expected every channel to estimate the same parameters")
-    return media
 
 
 def _estimated(unknown: WallUnknown | MediumUnknown, values: np.ndarray) -> Any:

@@ -36,7 +36,9 @@ def rendered_signal(
             medium=medium,
         )
         if model.bounce is not None:
-            sh = replace(sh, values=sh.values + model.bounce.values(i, im.view, rig, medium))
+            albedos = lay.surface_albedos(x)
+            bounce = model.bounce.values(i, im.view, rig, medium, albedos)
+            sh = replace(sh, values=sh.values + bounce)
         return lay.image_values(sh.values, im, x, gain)
 
     medium = lay.medium_of(x, im.channel)

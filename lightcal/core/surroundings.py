@@ -11,6 +11,7 @@ light only).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -144,12 +145,15 @@ class Surroundings:
         bounces: None for every bounce (a room); n to keep only the light of paths with at
             most n reflections between the light and the wall point a pixel sees (n = 1:
             off a surface; 3: what a path tracer of `max_depth` 5 renders).
+        estimate_albedo: the surfaces (indices) whose albedo the calibration estimates,
+            from their declared albedo.
     """
 
     surfaces: tuple[Surface, ...]
     wall_albedo: float = 0.8
     patch_m: float = DEFAULT_PATCH_M
     bounces: int | None = None
+    estimate_albedo: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "surfaces", tuple(self.surfaces))
@@ -169,6 +173,25 @@ class Surroundings:
             raise ValueError(f"surroundings: patch_m: expected {lo:g} to {hi:g} m, got {h:g}")
         object.__setattr__(self, "wall_albedo", w)
         object.__setattr__(self, "patch_m", h)
+        chosen = tuple(int(k) for k in self.estimate_albedo)
+        if len(set(chosen)) != len(chosen) or any(not 0 <= k < len(self.surfaces) for k in chosen):
+            raise ValueError(
+                f"surroundings: estimate_albedo: expected distinct surfaces among "
+                f"0-{len(self.surfaces) - 1}, got {list(chosen)}"
+            )
+        object.__setattr__(self, "estimate_albedo", chosen)
+
+    def albedos(self) -> np.ndarray:
+        """(S,) the surfaces' albedos."""
+        return np.array([surface.albedo for surface in self.surfaces])
+
+    def with_albedos(self, albedos: np.ndarray) -> Surroundings:
+        """The same surroundings, the surfaces' albedos (S,) replaced."""
+        surfaces = tuple(
+            dataclasses.replace(surface, albedo=float(a))
+            for surface, a in zip(self.surfaces, albedos, strict=True)
+        )
+        return dataclasses.replace(self, surfaces=surfaces)
 
     def describe(self) -> dict:
         """Its fields for files."""

@@ -45,6 +45,7 @@ class StateAtX:
     medium: Medium
     rigs: tuple[Rig, ...] = ()
     media: tuple[Medium, ...] = ()
+    surface_albedos: np.ndarray | None = None  # the surroundings' (None: the declared)
 
     def rig_of(self, channel: int) -> Rig:
         """The lights, their scales those of `channel`."""

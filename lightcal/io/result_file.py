@@ -37,6 +37,8 @@ Field names (also in the JSON Schema, `lightcal schema result`):
   ``name``, its lights' ``scales`` and ``scale_sigmas`` (by light name), its ``ambient``
   and ``ambient_sigma``, and its ``medium`` (as ``medium``); the lights' ``scale``,
   ``ambient`` and ``medium`` are then the first channel's. Null: one channel.
+- ``surroundings``: the surroundings' estimated albedos (``surfaces[i].estimate_albedo``):
+  ``albedos`` (every surface's), ``estimated`` (their indices) and ``sigma`` (by index).
 - ``fall_off``: the camera's fall-off when the project estimates it
   (``sensor.estimate_fall_off``): ``coefficients`` and ``sigma`` of r^2, r^4, ...,
   ``corner_value`` and ``corner_sigma`` (V at the sensor's corners); null otherwise.
@@ -267,6 +269,12 @@ class ResultFile(_Model):
         "`medium`); the lights' `scale`, `ambient` and `medium` are the first channel's; "
         "null: one channel",
     )
+    surroundings: dict[str, Any] | None = Field(
+        default=None,
+        description="the surroundings' surfaces' albedos when the calibration estimates "
+        "any (surfaces[i].estimate_albedo): albedos (per surface), estimated (indices), "
+        "sigma (by index); null otherwise",
+    )
     fall_off: dict[str, Any] | None = Field(
         default=None,
         description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
@@ -351,6 +359,7 @@ def result_to_file(
         ambient=result.ambient,
         ambient_sigma=_nan_to_none(result.ambient_sigma),
         channels=_nan_to_none(getattr(result, "channels", None)),
+        surroundings=_nan_to_none(getattr(result, "surroundings", None)),
     )
 
 

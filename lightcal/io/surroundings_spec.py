@@ -10,6 +10,7 @@
           edge_u_m: [2.8, 0.0, 0.0]
           edge_v_m: [0.0, 0.0, 0.5]
           albedo: 0.8
+          estimate_albedo: true     # solve it with the light, from 0.8 (default: given)
 
 Without the section nothing surrounds the wall. The model is docs/model.md's
 "Inter-reflection"; `build_surroundings` turns the section into the core's
@@ -52,6 +53,9 @@ class SurfaceSpec(_Model):
     edge_u_m: _Vec3 = Field(description="the first edge from that corner, m")
     edge_v_m: _Vec3 = Field(description="the second edge from that corner, m")
     albedo: float = Field(ge=0.0, lt=1.0, description="its diffuse reflectance, 0 to 1")
+    estimate_albedo: bool = Field(
+        default=False, description="estimate its albedo with the light, from `albedo`"
+    )
 
 
 class SurroundingsSpec(_Model):
@@ -99,7 +103,8 @@ def build_surroundings(spec: SurroundingsSpec | None, source: str | Path) -> Sur
             surfaces.append(Surface(corner, u, v, s.albedo, name))
         except ValueError as exc:
             raise InputError(source, str(exc)) from exc
-    return Surroundings(tuple(surfaces), spec.wall_albedo, spec.patch_m, spec.bounces)
+    estimated = tuple(k for k, s in enumerate(spec.surfaces) if s.estimate_albedo)
+    return Surroundings(tuple(surfaces), spec.wall_albedo, spec.patch_m, spec.bounces, estimated)
 
 
 def surroundings_spec(surroundings: Surroundings) -> SurroundingsSpec:
@@ -111,8 +116,9 @@ def surroundings_spec(surroundings: Surroundings) -> SurroundingsSpec:
             edge_u_m=s.edge_u_world.tolist(),
             edge_v_m=s.edge_v_world.tolist(),
             albedo=s.albedo,
+            estimate_albedo=k in surroundings.estimate_albedo,
         )
-        for s in surroundings.surfaces
+        for k, s in enumerate(surroundings.surfaces)
     ]
     return SurroundingsSpec(
         surfaces=surfaces,

@@ -1,6 +1,8 @@
-"""Colour channels solved jointly in the result (`channels`): per channel its lights'
-scales, its room light and its medium, with their 1-sigmas; and their lines for
-`lightcal calibrate` (`lightcal.pipeline.result_text.channel_lines`)."""
+"""What a result says of the medium and the surroundings: the medium (`medium`), per
+colour channel solved jointly (`channels`) its lights' scales, its room light and its
+medium, with their 1-sigmas (their lines for `lightcal calibrate`:
+`lightcal.pipeline.result_text.channel_lines`), and the surroundings' estimated albedos
+(`surroundings`)."""
 
 from __future__ import annotations
 
@@ -12,8 +14,16 @@ import numpy as np
 from lightcal.core.medium import Medium, medium_from_description
 from lightcal.core.scene import Light, Rig
 from lightcal.core.solver import CalibrationModel
+from lightcal.core.surroundings import Surroundings
 
-__all__ = ["channel_scenes", "channel_summaries"]
+__all__ = [
+    "channel_scenes",
+    "channel_summaries",
+    "estimated_surroundings",
+    "medium_summary",
+    "medium_summary_at",
+    "surroundings_summary",
+]
 
 
 def _sigma(cov: np.ndarray, k: int) -> float:
@@ -79,3 +89,55 @@ def channel_scenes(
         ambient = ch.get("ambient")
         out.append((rig, medium_from_description(ch.get("medium") or {}), float(ambient or 0.0)))
     return out
+
+
+def medium_summary(
+    medium: Medium, estimated: tuple[str, ...] = (), sigma: dict[str, float] | None = None
+) -> dict:
+    """The medium's parameters, which were estimated and their 1-sigma (a result's
+    `medium`)."""
+    return {**medium.describe(), "estimated": list(estimated), "sigma": dict(sigma or {})}
+
+
+def medium_summary_at(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict:
+    """`medium_summary` of the solution x, sigmas from the covariance."""
+    lay = model.layout
+    estimated = lay.medium_unknown.estimate
+    sigma = {
+        name: math.sqrt(max(cov[lay.medium.start + k, lay.medium.start + k], 0.0))
+        for k, name in enumerate(estimated)
+    }
+    return medium_summary(lay.medium_of(x), estimated, sigma)
+
+
+def surroundings_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict | None:
+    """The surroundings' albedos at x when the calibration estimates any ({"albedos":
+    [per surface], "estimated": [surface indices], "sigma": {index: 1-sigma}}); None
+    otherwise."""
+    lay = model.layout
+    albedos = lay.surface_albedos(x)
+    if albedos is None or model.surroundings is None:
+        return None
+    estimated = list(model.surroundings.estimate_albedo)
+    sigma = {str(k): _sigma(cov, lay.surface_albedo.start + j) for j, k in enumerate(estimated)}
+    return {"albedos": albedos.tolist(), "estimated": estimated, "sigma": sigma}
+
+
+def estimated_surroundings(
+    surroundings: Surroundings | None, summary: dict | None
+) -> Surroundings | None:
+    """`surroundings` with the albedos a result estimated (its `surroundings`: None
+    keeps the declared).
+
+    Raises:
+        ValueError: the summary's albedos are not one per surface in [0, 1).
+    """
+    if surroundings is None or summary is None:
+        return surroundings
+    albedos = summary.get("albedos")
+    if not isinstance(albedos, list) or len(albedos) != len(surroundings.surfaces):
+        raise ValueError(
+            f"surroundings.albedos: expected {len(surroundings.surfaces)} values, one per "
+            f"surface of the project, got {albedos!r}"
+        )
+    return surroundings.with_albedos(np.array(albedos, dtype=np.float64))

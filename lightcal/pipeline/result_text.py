@@ -92,3 +92,14 @@ def channel_lines(channels: list[dict] | None) -> list[str]:
             parts.append(f"room light {ch['ambient']:.4g} ± {sigma}")
         lines.append(f"channel {ch['name']}: " + "; ".join(parts))
     return lines
+
+
+def surroundings_text(surroundings: dict) -> str:
+    """The surroundings' estimated albedos in words ("surroundings: surfaces[0] albedo
+    0.79 ± 0.01 (estimated)")."""
+    parts = []
+    for k in surroundings["estimated"]:
+        sigma = surroundings["sigma"].get(str(k))
+        spread = sigma_text(math.nan if sigma is None else sigma)
+        parts.append(f"surfaces[{k}] albedo {surroundings['albedos'][k]:.3g} ± {spread}")
+    return "surroundings: " + ", ".join(parts) + " (estimated)"

@@ -11,13 +11,18 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from lightcal.core.medium import AIR, Medium
+from lightcal.core.medium import AIR
 from lightcal.core.misfit_verdict import significant_digits
 from lightcal.core.pose import describe_pose
 from lightcal.core.rid import CosPowerRID
 from lightcal.core.solver import CalibrationModel, IterationReport, SolveOutcome
 from lightcal.pipeline.albedo_result import albedo_map_summary
-from lightcal.pipeline.channel_result import channel_summaries
+from lightcal.pipeline.channel_result import (
+    channel_summaries,
+    medium_summary,
+    medium_summary_at,
+    surroundings_summary,
+)
 from lightcal.pipeline.diagnose import dark_light_warnings, variety_warnings
 from lightcal.pipeline.fall_off_result import fall_off_problems, fall_off_summary, fall_off_warnings
 from lightcal.pipeline.fit_check import check_fit
@@ -183,6 +188,7 @@ class CalibrationResult:
     ambient_sigma: float | None = None
     albedo_map: dict | None = None  # the estimated albedo map (`albedo_map_summary`)
     channels: list[dict] | None = None  # per colour channel (`channel_summaries`)
+    surroundings: dict | None = None  # the estimated albedos (`surroundings_summary`)
 
     @property
     def fit_adequate(self) -> bool:
@@ -321,7 +327,7 @@ def summarise(
         history=outcome.history,
         fit=diagnosis.to_dict(),
         wall=_wall_summary(model, x, cov),
-        medium=_medium_summary(model, x, cov),
+        medium=medium_summary_at(model, x, cov),
         uncertainty_terms=_sized_terms(unc.terms, breakdown),
         uncertainty_breakdown=breakdown,
         undetermined=undetermined,
@@ -337,6 +343,7 @@ def summarise(
         ),
         albedo_map=albedo_map_summary(model, x),
         channels=channel_summaries(model, x, cov),
+        surroundings=surroundings_summary(model, x, cov),
     )
 
 
@@ -435,25 +442,6 @@ def _wall_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> di
     out["estimated"] = ["sigma_deg" if n == "sigma" else n for n in lay.wall_unknown.estimate]
     out["sigma"] = sig
     return out
-
-
-def medium_summary(
-    medium: Medium, estimated: tuple[str, ...] = (), sigma: dict[str, float] | None = None
-) -> dict:
-    """The medium's parameters, which were estimated and their 1-sigma (a result's
-    `medium`)."""
-    return {**medium.describe(), "estimated": list(estimated), "sigma": dict(sigma or {})}
-
-
-def _medium_summary(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -> dict:
-    """`medium_summary` of the solution x, sigmas from the covariance."""
-    lay = model.layout
-    estimated = lay.medium_unknown.estimate
-    sigma = {
-        name: math.sqrt(max(cov[lay.medium.start + k, lay.medium.start + k], 0.0))
-        for k, name in enumerate(estimated)
-    }
-    return medium_summary(lay.medium_of(x), estimated, sigma)
 
 
 def _bound_warnings(model: CalibrationModel, x: np.ndarray) -> list[str]:
