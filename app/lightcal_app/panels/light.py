@@ -156,6 +156,7 @@ class LightPanel(TabPanel):
     def set_project(self, project: Project) -> None:
         """Options that depend on the project (after an upload)."""
         self.ref_image.options = list(project.names)
+        self.water.set_project(project)
         if len(self.light_widgets) != len(project.lights) or any(
             f.label != f"{u.initial.name} ({u.kind()})"
             for f, u in zip(self._folders, project.lights, strict=False)
