@@ -238,6 +238,10 @@ def test_run_in_the_page_gives_the_cli_answer_per_channel(app: LightcalApp, colo
         assert f"| scale ({ch['name']}) | {ch['scales']['light']:.5g} |" in text
     assert "Water: " not in text  # the first channel's alone: not shown
 
+    # The Light tab names each channel's scale of the estimate.
+    scales = ", ".join(f"{ch['name']} {ch['scales']['light']:.4g}" for ch in result.channels)
+    assert f"scales {scales}" in app.panels.light.light_md.content
+
     # The Water folder shows each channel's estimate.
     for ch in result.channels:
         shown = water.fields[f"attenuation_per_m[{ch['name']}]"].value
@@ -254,3 +258,34 @@ def test_run_in_the_page_gives_the_cli_answer_per_channel(app: LightcalApp, colo
         assert display.of_channel(ch).medium.attenuation_per_m == c
         first = overlays.render(i, dataclasses.replace(display, channels=()))
         assert ch == 0 or not np.ma.allclose(own, first)  # R's water would be another
+
+
+def test_the_3d_view_shows_one_channels_pictures_and_clicks_land_on_them(
+    app: LightcalApp,
+) -> None:
+    """A photo's channels share a pose (their frusta coincide): the pictures of the
+    highlighted image's channel, else of the gizmo's image's; a click lands on those
+    (after the Run above: the points change the selection)."""
+    st, ctl, scene = app.state, app.controller, app.controller.scene
+    channel_of = [st.project.channel_index(i) for i in range(len(st.project.names))]
+
+    def pictured() -> list[int]:
+        return sorted({channel_of[i] for i, h in enumerate(scene.frusta) if h.image is not None})
+
+    assert pictured() == [0]  # the gizmo's image: view_00[R]
+    plane = scene.planes[4]  # view_01[G]
+    d = plane.R_world_camera @ np.array([0.1 * plane.half_width_m, 0.0, plane.depth_m])
+    ctl.click(plane.center_world, d, mode="add")
+    assert app.wait_idle(120.0)
+    assert list(st.points) == ["view_01[R]"]  # the picture shown there
+    ctl.clear_points()
+    ctl.set_focus("view_01[G]")
+    assert app.wait_idle(120.0)
+    assert pictured() == [1]
+    ctl.click(plane.center_world, d, mode="add")
+    assert app.wait_idle(120.0)
+    assert [k for k, v in st.points.items() if v] == ["view_01[G]"]
+    ctl.clear_points()
+    ctl.set_focus(None)
+    assert app.wait_idle(120.0)
+    assert pictured() == [0]

@@ -7,7 +7,7 @@ worker and the services.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -65,7 +65,11 @@ class Actions:
     """
 
     def __init__(
-        self, state: AppState, *, planes: Callable[[], list[FrustumPlane]], notify: Notify
+        self,
+        state: AppState,
+        *,
+        planes: Callable[[], Sequence[FrustumPlane | None]],
+        notify: Notify,
     ) -> None:
         self.state = state
         self._planes = planes
@@ -192,12 +196,10 @@ class Actions:
 
     def set_medium(self, channel: int | None = None, **values: object) -> None:
         """The water's values typed in the page (`attenuation_per_m`, `backscatter_per_m`,
-        `phase_g`); the others stay as shown now (the estimate after a solve that fitted
-        them). With `sensor.channels`: those of colour channel `channel` (index in
-        `project.channels`), or of every channel when None (g, which they share). The
-        overlays render through it and the solve starts over from it. Refused
-        (InputError naming the key) when out of the core's range, or backscatter with a
-        camera fall-off other than radiance."""
+        `phase_g`; of colour channel `channel`, or of all when None); the others stay as
+        shown now (after a solve: its estimate). The overlays render through it and the
+        solve starts over from it. Refused (InputError naming the key) when out of the
+        core's range, or backscatter with a camera fall-off other than radiance."""
         st = self.state
         with st.lock:
             settings, shown = st.solve_settings, st.shown_media()
