@@ -156,6 +156,12 @@ def test_typed_water_goes_into_the_solved_project_and_the_session_as_lists(
     with pytest.raises(InputError, match=r"expected a channel of sensor\.channels"):
         actions.set_medium(3, attenuation_per_m=0.1)
     assert state.solve_project is solved  # nothing refused reached the state
+    # Backscatter in one channel: the list, and the fall-off it needs checked over all.
+    actions.set_medium(1, backscatter_per_m=0.2)
+    assert state.solve_project.spec.medium.backscatter_per_m == [0.0, 0.2, 0.0]
+    cos4 = dataclasses.replace(state.solve_settings, fall_off="cos4")
+    with pytest.raises(InputError, match=r"medium\.backscatter_per_m: the backscatter is"):
+        check_settings(project, cos4)
 
 
 def test_water_text_names_each_channels_start() -> None:
@@ -289,3 +295,28 @@ def test_the_3d_view_shows_one_channels_pictures_and_clicks_land_on_them(
     ctl.set_focus(None)
     assert app.wait_idle(120.0)
     assert pictured() == [0]
+
+
+def test_another_project_gets_its_own_water_fields(app: LightcalApp, colour: Path) -> None:
+    """From the colour project to a one-channel one (its G dataset) and back: the Water
+    folder's fields follow the project's channels."""
+    from lightcal_app.requests import SwitchProject
+
+    def switch(path: Path) -> None:
+        project = load_project(path)
+        app.state.request(SwitchProject(project, load_images(project), None, False))
+        assert app.wait_idle(120.0)
+        assert app.state.project.path == path
+
+    water = app.panels.light.water
+    switch(colour.parent.parent / "G" / "project.json")
+    assert list(water.fields) == ["attenuation_per_m", "backscatter_per_m", "phase_g"]
+    assert water.fields["attenuation_per_m"].label == "attenuation c (m⁻¹)"
+    water.fields["attenuation_per_m"].value = 0.12
+    assert app.wait_idle(120.0)
+    assert app.state.solve_project.spec.medium.attenuation_per_m == 0.12
+    assert app.state.solve_settings.media is None
+    switch(colour)
+    assert len(water.fields) == 7
+    assert [water.fields[f"attenuation_per_m[{ch}]"].value for ch in "RGB"] == C_FILE
+    assert not [b for t, b in app.state.messages if t.startswith("⚠")]

@@ -118,16 +118,16 @@ class WaterPanel(TabPanel):
         self.text: Any = None
         with ctl.state.lock:
             project = ctl.state.project
-        self._build(project.channels)
+        self._build(project)
 
-    def _build(self, channels: tuple[str, ...]) -> None:
-        """The fields of a project with these `sensor.channels` (none: one of each)."""
+    def _build(self, project: Project) -> None:
+        """The fields of the project's `sensor.channels` (none: one of each) with its
+        values (`update` then writes those shown)."""
         gui = self.gui
         for handle in [*self.fields.values(), *([self.text] if self.text else [])]:
             handle.remove()
-        self.channels = channels
-        with self.ctl.state.lock:
-            media = self.ctl.state.shown_media()
+        channels = self.channels = project.channels
+        media = [m.initial for m in project.media] or [project.medium.initial]
         step = 10.0**-DIGITS
         with self.folder:
             self.fields = {}
@@ -148,7 +148,7 @@ class WaterPanel(TabPanel):
     def set_project(self, project: Project) -> None:
         """Another project: fields per colour channel when its channels differ."""
         if project.channels != self.channels:
-            self._build(project.channels)
+            self._build(project)
 
     def _edit(self, name: str, channel: int | None, handle: Any) -> Any:
         def edit(event: Any) -> None:
