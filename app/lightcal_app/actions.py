@@ -7,7 +7,7 @@ worker and the services.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -65,7 +65,11 @@ class Actions:
     """
 
     def __init__(
-        self, state: AppState, *, planes: Callable[[], list[FrustumPlane]], notify: Notify
+        self,
+        state: AppState,
+        *,
+        planes: Callable[[], Sequence[FrustumPlane | None]],
+        notify: Notify,
     ) -> None:
         self.state = state
         self._planes = planes
@@ -190,16 +194,25 @@ class Actions:
             st.resume_end = None
             st.setup_changed(selection=selection)
 
-    def set_medium(self, **values: object) -> None:
+    def set_medium(self, channel: int | None = None, **values: object) -> None:
         """The water's values typed in the page (`attenuation_per_m`, `backscatter_per_m`,
-        `phase_g`); the others stay as shown now (the estimate after a solve that fitted
-        them). The overlays render through it and the solve starts over from it. Refused
-        (InputError naming the key) when out of the core's range, or backscatter with a
-        camera fall-off other than radiance."""
+        `phase_g`; of colour channel `channel`, or of all when None); the others stay as
+        shown now (after a solve: its estimate). The overlays render through it and the
+        solve starts over from it. Refused (InputError naming the key) when out of the
+        core's range, or backscatter with a camera fall-off other than radiance."""
         st = self.state
         with st.lock:
-            settings, shown = st.solve_settings, st.shown_medium()
-        self.set_solve_settings(replace(settings, medium=medium_with(shown, values)))
+            settings, shown = st.solve_settings, st.shown_media()
+            channels = st.project.channels
+        if channel is not None and not 0 <= channel < len(channels):
+            raise InputError("medium", f"expected a channel of sensor.channels, got {channel}")
+        if not channels:
+            self.set_solve_settings(replace(settings, medium=medium_with(shown[0], values)))
+            return
+        media = tuple(
+            medium_with(m, values) if channel in (None, k) else m for k, m in enumerate(shown)
+        )
+        self.set_solve_settings(replace(settings, medium=media[0], media=media))
 
     def edit_surroundings(
         self, edit: Callable[[SurroundingsSpec | None], SurroundingsSpec | None]

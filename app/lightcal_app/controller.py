@@ -59,7 +59,7 @@ class Controller(Actions):
     ) -> None:
         self.server = server
         self.scene = Scene3D(server, on_gizmo=self.on_gizmo)
-        super().__init__(state, planes=lambda: self.scene.planes, notify=self.notify)
+        super().__init__(state, planes=self.scene.pickable_planes, notify=self.notify)
         self.redrawer = Redrawer(
             server, state, self.scene, OverlayImages(state.project, state.loaded)
         )

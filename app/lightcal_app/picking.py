@@ -15,6 +15,7 @@ u = W - 1/2 (pixel centres at integers), top y < 0.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -132,13 +133,14 @@ def plane_hit_unbounded(
 
 
 def pick(
-    planes: list[FrustumPlane], origin_world: np.ndarray, direction_world: np.ndarray
+    planes: Sequence[FrustumPlane | None], origin_world: np.ndarray, direction_world: np.ndarray
 ) -> tuple[int, float, float] | None:
-    """The nearest picture a ray hits: (image index, u, v), or None."""
+    """The nearest picture a ray hits: (image index, u, v), or None (a None plane: a
+    picture not shown, never hit)."""
     best: tuple[int, float, float] | None = None
     best_t = math.inf
     for i, plane in enumerate(planes):
-        hit = ray_hit(plane, origin_world, direction_world)
+        hit = None if plane is None else ray_hit(plane, origin_world, direction_world)
         if hit is not None and hit[2] < best_t:
             best_t = hit[2]
             best = (i, hit[0], hit[1])
@@ -174,7 +176,7 @@ def screen_ray(
 
 
 def rect_to_polygon(
-    planes: list[FrustumPlane],
+    planes: Sequence[FrustumPlane | None],
     camera_position: np.ndarray,
     camera_wxyz: np.ndarray,
     *,
@@ -199,6 +201,7 @@ def rect_to_polygon(
         return None
     index = hit[0]
     plane = planes[index]
+    assert plane is not None  # (hit)
     corners = [
         (screen_min[0], screen_min[1]),
         (screen_max[0], screen_min[1]),

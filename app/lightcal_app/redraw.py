@@ -118,6 +118,9 @@ class Redrawer:
                 self.scene.set_pictures(pictures)
             if d & {"overlays", "scene"}:
                 self.scene.set_focus(frame.focus_image, frame.ref_image)
+                # Colour channels: the highlighted image's pictures, else the gizmo's image's.
+                pictured = frame.ref_image if frame.focus_image is None else frame.focus_image
+                self.scene.set_channel(project.channel_index(pictured))
             if d & {"light", "scene"}:
                 self.scene.set_surroundings(surroundings)
                 self.scene.set_lights(lights)

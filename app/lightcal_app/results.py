@@ -20,7 +20,7 @@ from lightcal.io.project_identity import project_identity
 from lightcal.io.result_file import result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal.pipeline.albedo_result import albedo_text
-from lightcal.pipeline.result_text import axis_text, medium_text, position_text
+from lightcal.pipeline.result_text import axis_text, channel_lines, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
 from lightcal_app.state import PreviousResult
 from lightcal_app.text import md, md_prose
@@ -88,7 +88,7 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
             )
             lines.append(f"| roll (deg) | {lr.pose.roll_deg:+.3f} | {lr.sigma.roll_deg:.2g} |")
             lines.append(f"| pitch (deg) | {lr.pose.pitch_deg:+.3f} | {lr.sigma.pitch_deg:.2g} |")
-        lines.append(f"| scale | {lr.scale:.5g} | {lr.scale_sigma:.2g} |")
+        lines += _scale_rows(result, lr.name, lr.scale, lr.scale_sigma)
         lines.append("")
     lines += _wall_and_fit(result)
     if result.warnings:
@@ -104,6 +104,29 @@ def result_markdown(result: CalibrationResult | None, *, state: str) -> str:
     return "\n".join(lines)
 
 
+def _scale_rows(result: CalibrationResult, light: str, scale: float, sigma: float) -> list[str]:
+    """A light's scale row: one per colour channel solved jointly (`sensor.channels`)."""
+    if not result.channels:
+        return [f"| scale | {scale:.5g} | {sigma:.2g} |"]
+    rows = []
+    for ch in result.channels:
+        if light in ch["scales"]:
+            s = ch["scale_sigmas"].get(light)
+            sigma_text = f"{math.nan if s is None else s:.2g}"
+            rows.append(f"| scale ({md(ch['name'])}) | {ch['scales'][light]:.5g} | {sigma_text} |")
+    return rows
+
+
+def channels_markdown(result: CalibrationResult) -> list[str]:
+    """Each colour channel's lights' scales, water and room light with their sigmas, as
+    `lightcal calibrate` prints them (`channel_lines`); nothing without channels."""
+    if not result.channels:
+        return []
+    lines = ["", "#### Colour channels", "Each has its own (the light's pose is one for all):"]
+    lines += [f"- {md_prose(line)}" for line in channel_lines(result.channels)]
+    return [*lines, ""]
+
+
 def _wall_and_fit(result: CalibrationResult) -> list[str]:
     """The wall model with its parameters, the water (as `lightcal calibrate` prints it;
     nothing in air), the wall's albedo map (when estimated) and the fit test's verdict."""
@@ -116,7 +139,8 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
         for k, v in params:
             s = f"{sig[k]:.2g}" if k in sig else "fixed"
             lines.append(f"| {k} | {v:.4g} | {s} |")
-    water = medium_text(result.medium)
+    lines += channels_markdown(result)
+    water = None if result.channels else medium_text(result.medium)  # the channels' lines
     if water is not None:
         lines += ["", f"Water: {md_prose(water.removeprefix('medium: '))}", ""]
     if result.albedo_map is not None:  # as `lightcal calibrate` prints it

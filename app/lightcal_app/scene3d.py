@@ -149,6 +149,8 @@ class Scene3D:
         self.frusta: list[Any] = []
         self.pictures: dict[int, np.ndarray] = {}  # what each frustum shows, or would
         self.outlines_only = False  # the frusta without pictures (`set_outlines_only`)
+        self.channel_shown = 0  # the colour channel whose pictures show (`set_channel`)
+        self.channel_of: list[int] = []  # each image's (`Project.channel_index`)
         self.planes: list[FrustumPlane] = []
         self.gizmos: list[Any] = []
         self.light_frames: dict[tuple[int, int], Any] = {}
@@ -219,6 +221,8 @@ class Scene3D:
         self.frusta = []
         self.pictures = dict(enumerate(pictures))
         self.outlines_only = False
+        self.channel_shown = 0
+        self.channel_of = [project.channel_index(i) for i in range(len(project.views))]
         self.planes = []
         for i, view in enumerate(project.views):
             R_wc = view.R_camera_world.T
@@ -230,7 +234,7 @@ class Scene3D:
                 thickness=FRUSTUM_PX,
                 thickness_units="screen",
                 color=REF_CAMERA_RGB if i == ref_image else CAMERA_RGB,
-                image=pictures[i],
+                image=pictures[i] if self._pictured(i) else None,
                 format="jpeg",
                 jpeg_quality=80,
                 wxyz=quaternion_wxyz_from_matrix(R_wc),
@@ -359,9 +363,25 @@ class Scene3D:
     def set_pictures(self, pictures: dict[int, np.ndarray]) -> None:
         """Replace the pictures of some frusta."""
         self.pictures.update(pictures)
-        if not self.outlines_only:
-            for i, rgb in pictures.items():
-                self.frusta[i].image = rgb
+        for i in filter(self._pictured, pictures):
+            self.frusta[i].image = pictures[i]
+
+    def _pictured(self, i: int) -> bool:
+        """Frustum i shows its picture: not outlines only, and of the channel shown."""
+        return not self.outlines_only and self.channel_of[i] == self.channel_shown
+
+    def set_channel(self, channel: int) -> None:
+        """Pictures on this colour channel's frusta only (`sensor.channels`: a photo's
+        channels share a pose, their frusta coincide); clicks land there (`pickable_planes`)."""
+        if channel != self.channel_shown:
+            self.channel_shown = channel
+            for i, h in enumerate(self.frusta):
+                h.image = self.pictures.get(i) if self._pictured(i) else None
+
+    def pickable_planes(self) -> list[FrustumPlane | None]:
+        """Per image its picture's plane, None for a channel not shown."""
+        shown = zip(self.planes, self.channel_of, strict=True)
+        return [plane if ch == self.channel_shown else None for plane, ch in shown]
 
     def set_outlines_only(self, outlines: bool) -> None:
         """Draw the frusta as outlines (True) or with their pictures. viser draws no
@@ -371,7 +391,7 @@ class Scene3D:
             return
         self.outlines_only = outlines
         for i, h in enumerate(self.frusta):
-            h.image = None if outlines else self.pictures.get(i)
+            h.image = self.pictures.get(i) if self._pictured(i) else None
 
     def set_focus(self, focus: int | None, ref_image: int) -> None:
         """Frame the highlighted image's frustum (thick, crimson); the others as built."""

@@ -154,6 +154,9 @@ class SolveSettingsModel(_Model):
     # `surroundings`, as the page edits them; None: none. Files before this field (the
     # key absent, `model_fields_set`): the project's.
     surroundings: SurroundingsSpec | None = None
+    # With `sensor.channels`: each channel's water (`medium` the first's); None (and
+    # files before this field): `medium` in every channel.
+    media: list[MediumModel] | None = Field(default=None, max_length=8)
 
 
 class SessionFile(_Model):
@@ -371,6 +374,15 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
         state.ref_image = session.ref_image
     if session.solve_settings is not None:
         saved = session.solve_settings
+        media = (
+            None if saved.media is None else tuple(Medium(**m.model_dump()) for m in saved.media)
+        )
+        if media is None and saved.medium is not None and state.project.channels:
+            # A colour project's file before `media`: its `medium` was the first channel's
+            # (kept per channel when that is the project's own).
+            first = Medium(**saved.medium.model_dump())
+            own = tuple(m.initial for m in state.project.media)
+            media = own if first == own[0] else None
         settings = SolveSettings(
             saved.wall_model,
             saved.exclude_mirror_deg,
@@ -387,6 +399,7 @@ def apply_session(state: AppState, session: SessionFile) -> list[str]:
                 if "surroundings" in saved.model_fields_set
                 else state.project.spec.surroundings
             ),
+            media,
         )
         try:
             check_settings(state.project, settings)

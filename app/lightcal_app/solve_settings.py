@@ -7,7 +7,8 @@ black level left in the images), the room light (`sensor.estimate_ambient`), the
 camera's fall-off (`sensor.model`) and the radial one estimated with the light
 (`sensor.estimate_fall_off`), each light's RID estimate (`lights[].estimate_rid`), the
 water's values (`medium.attenuation_per_m`, `backscatter_per_m`, `phase_g`: the Light
-tab's Water folder), what is estimated of them (`medium.estimate`), the wall's
+tab's Water folder; with `sensor.channels` c and beta per channel, lists in the file),
+what is estimated of them (`medium.estimate`), the wall's
 albedo map (`wall.albedo_map`) and the surroundings (`surroundings`: the Light tab's
 Surroundings folder, `lightcal_app.surroundings_settings`).
 `project_for_solve` makes the project the solve uses: the loaded project with those
@@ -79,7 +80,11 @@ class SolveSettings:
         estimate_fall_off: the order of `sensor.estimate_fall_off`; 0: off (null).
         medium_estimate: `medium.estimate` (a value of `MEDIUM_ESTIMATES`).
         medium: the water's values (`medium.attenuation_per_m`, `backscatter_per_m`,
-            `phase_g`): given, or the start of those estimated; None: the project's.
+            `phase_g`): given, or the start of those estimated; None: the project's. With
+            `sensor.channels`: the first channel's (`media` has each).
+        media: with `sensor.channels`, each channel's water (its c and beta, lists in the
+            file; g the same in each); None: `medium` in every channel (the project's
+            when that is None too). Without channels: None.
         albedo_map: `wall.albedo_map` (its spacing and prior); None: off.
         surroundings: `surroundings` (the surfaces whose bounce light the model adds);
             None: none.
@@ -96,6 +101,7 @@ class SolveSettings:
     medium: Medium | None = None
     albedo_map: AlbedoMapSpec | None = None
     surroundings: SurroundingsSpec | None = None
+    media: tuple[Medium, ...] | None = None
 
 
 def settings_of(project: Project) -> SolveSettings:
@@ -115,7 +121,45 @@ def settings_of(project: Project) -> SolveSettings:
         medium=project.medium.initial,
         albedo_map=spec.wall.albedo_map,
         surroundings=spec.surroundings,
+        media=tuple(m.initial for m in project.media) if project.channels else None,
     )
+
+
+def settings_media(project: Project, settings: SolveSettings) -> tuple[Medium, ...]:
+    """The water the settings give each channel (one without `sensor.channels`)."""
+    if settings.media is not None:
+        return settings.media
+    n = max(1, len(project.channels))
+    return (project.medium.initial if settings.medium is None else settings.medium,) * n
+
+
+def check_media(project: Project, media: object) -> None:
+    """InputError naming the key when `media` (`SolveSettings.media`) is not one water
+    per channel of the project's `sensor.channels` with one g."""
+    if media is None:
+        return
+    channels = project.channels
+    if not channels:
+        raise InputError(
+            "medium",
+            f"values per colour channel need sensor.channels; expected one water, got {media!r}",
+        )
+    if (
+        not isinstance(media, tuple)
+        or len(media) != len(channels)
+        or not all(isinstance(m, Medium) for m in media)
+    ):
+        raise InputError(
+            "medium",
+            f"expected the water's values of each channel ({', '.join(channels)}), got {media!r}",
+        )
+    for m in media:  # each value in the core's range
+        medium_with(m, {nm: getattr(m, nm) for nm in MEDIUM_BOUNDS})
+    if len({m.phase_g for m in media}) > 1:
+        raise InputError(
+            "medium.phase_g",
+            "expected one g for every channel, got " + ", ".join(f"{m.phase_g:g}" for m in media),
+        )
 
 
 def medium_with(base: Medium, values: Mapping[str, object]) -> Medium:
@@ -175,8 +219,10 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
     medium = project.medium.initial if settings.medium is None else settings.medium
     if not isinstance(medium, Medium):
         raise InputError("medium", f"expected the water's values, got {medium!r}")
+    check_media(project, settings.media)
+    scatters = any(m.scatters for m in settings_media(project, settings))
     if settings.fall_off != "radiance" and (
-        medium.scatters or "backscatter_per_m" in settings.medium_estimate
+        scatters or "backscatter_per_m" in settings.medium_estimate
     ):
         # The core's renderer refuses it: its backscatter is a radiance.
         raise InputError(
@@ -185,7 +231,7 @@ def check_settings(project: Project, settings: SolveSettings) -> SolveSettings:
             f"only, not {settings.fall_off!r}: set backscatter to 0 or the fall-off to radiance",
         )
     if "phase_g" in settings.medium_estimate and not (
-        medium.scatters or "backscatter_per_m" in settings.medium_estimate
+        scatters or "backscatter_per_m" in settings.medium_estimate
     ):
         raise InputError(
             "medium.estimate",
@@ -289,17 +335,27 @@ def project_for_solve(project: Project, settings: SolveSettings) -> Project:
             "medium": spec.medium.model_copy(
                 update={
                     "estimate": list(settings.medium_estimate),
-                    **(
-                        {}
-                        if settings.medium is None
-                        else {nm: getattr(settings.medium, nm) for nm in MEDIUM_BOUNDS}
-                    ),
+                    **_medium_keys(settings),
                 }
             ),
             "surroundings": settings.surroundings,
         }
     )
     return project_from_spec(edited, project.path)
+
+
+def _medium_keys(settings: SolveSettings) -> dict[str, object]:
+    """The `medium` keys of the settings' water values: per channel c and beta as lists
+    (`media`), else one value each (`medium`); none when the project's."""
+    if settings.media is not None:
+        return {
+            "attenuation_per_m": [m.attenuation_per_m for m in settings.media],
+            "backscatter_per_m": [m.backscatter_per_m for m in settings.media],
+            "phase_g": settings.media[0].phase_g,
+        }
+    if settings.medium is None:
+        return {}
+    return {nm: getattr(settings.medium, nm) for nm in MEDIUM_BOUNDS}
 
 
 def restored_wall(

@@ -361,6 +361,16 @@ class AppState:
         estimate = self.shown_estimate()
         return estimate.medium if estimate is not None else self.solve_project.medium.initial
 
+    def shown_media(self) -> tuple[Medium, ...]:
+        """`shown_medium` of each colour channel (`sensor.channels`; call under the lock):
+        one without channels."""
+        estimate = self.shown_estimate()
+        if estimate is not None and estimate.channels:
+            return tuple(medium for _, medium, _ in estimate.channels)
+        if estimate is not None or not self.solve_project.media:
+            return (self.shown_medium(),)
+        return tuple(m.initial for m in self.solve_project.media)
+
     def image_index(self, name: str) -> int:
         """Index of an image by name (ValueError naming it when unknown)."""
         try:

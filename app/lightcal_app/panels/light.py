@@ -156,6 +156,7 @@ class LightPanel(TabPanel):
     def set_project(self, project: Project) -> None:
         """Options that depend on the project (after an upload)."""
         self.ref_image.options = list(project.names)
+        self.water.set_project(project)
         if len(self.light_widgets) != len(project.lights) or any(
             f.label != f"{u.initial.name} ({u.kind()})"
             for f, u in zip(self._folders, project.lights, strict=False)
@@ -173,6 +174,7 @@ class LightPanel(TabPanel):
         with st.lock:
             self.flag.assign(self.ref_image, st.project.names[st.ref_image])
             names = [u.initial.name for u in st.project.lights]
+            channels = st.project.channels
             # The state's lights, not the frame's: a frame is taken before the redraw, and
             # an edit that reached the state since must not be written back over.
             display = st.display if st.display is not None and st.display.current(st) else None
@@ -193,6 +195,11 @@ class LightPanel(TabPanel):
             pose = describe_pose(R, t)
             ax = np.asarray(pose["axis_camera"]) + 0.0  # no "-0.0000"
             scale = f", scale {light.scale:.4g}" if isinstance(light, Light) else ""
+            if scale and display is not None and len(display.channels) == len(channels) > 0:
+                scale = ", scales " + ", ".join(  # each colour channel's (`sensor.channels`)
+                    f"{md(ch)} {rig.lights[j].scale:.4g}"
+                    for ch, (rig, _, _) in zip(channels, display.channels, strict=True)
+                )
             lines.append(
                 f"**{md(names[j])}**: axis ({ax[0]:+.4f}, {ax[1]:+.4f}, {ax[2]:+.4f}), "
                 f"{pose['axis_angle_from_optical_axis_deg']:.2f}° from the optical axis{scale}"
