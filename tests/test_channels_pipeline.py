@@ -104,6 +104,10 @@ def test_joint_channels_land_on_the_light_and_each_c(solved) -> None:
     assert result["medium"]["attenuation_per_m"] == channels[0]["medium"]["attenuation_per_m"]
     names = [im["name"] for im in result["images"]]
     assert names[:3] == ["view_00[R]", "view_00[G]", "view_00[B]"]
+    # A photo's channels are one exposure from one pose: not repeated views, one pose error.
+    assert not any("one camera pose" in w for w in result["warnings"])
+    photos = len(names) // 3
+    assert any(f"camera poses ({photos} images'" in t for t in result["uncertainty"])
 
 
 # ------------------------------------------------------------------------- project file

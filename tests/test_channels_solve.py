@@ -223,3 +223,30 @@ def test_page_display_renders_each_channel_with_its_own() -> None:
         assert shown.medium.attenuation_per_m == c
         assert shown.rig.lights[0].scale == pytest.approx(s)
     assert display.medium.attenuation_per_m == 0.4
+
+
+def test_a_photos_channels_share_one_pose_error() -> None:
+    """Blocks of one pose (a photo's channels) add G C G^T of their summed sensitivity:
+    two blocks of pose 0 are the one block of their rows stacked, and twice as much as
+    two independent poses for equal blocks (errors add in amplitude, not in variance)."""
+    from lightcal.core.uncertainty import PoseBlock, pose_terms
+
+    rng = np.random.default_rng(0)
+    n, k = 4, 30
+    A = rng.normal(size=(2 * k, n))
+    N_inv = np.linalg.inv(A.T @ A)
+    J, S = rng.normal(size=(k, n)), rng.normal(size=(k, 6))
+    C = np.diag(rng.uniform(0.5, 2.0, size=6))
+    ratio = np.ones(k)
+    shared = pose_terms(
+        N_inv, [PoseBlock(J, S, C, ratio, 1.0, 0), PoseBlock(J, S, C, ratio, 1.0, 0)]
+    )
+    stacked = pose_terms(
+        N_inv, [PoseBlock(np.vstack([J, J]), np.vstack([S, S]), C, np.ones(2 * k), 1.0)]
+    )
+    np.testing.assert_allclose(shared.covariance, stacked.covariance, rtol=1e-12)
+    assert shared.expected_chi2_extra == pytest.approx(stacked.expected_chi2_extra, rel=1e-12)
+    assert shared.images == stacked.images == 1
+    apart = pose_terms(N_inv, [PoseBlock(J, S, C, ratio), PoseBlock(J, S, C, ratio)])
+    assert apart.images == 2
+    np.testing.assert_allclose(shared.covariance, 2.0 * apart.covariance, rtol=1e-12)

@@ -113,6 +113,8 @@ class PoseBlock:
             weights by the noise).
         row_scale: N_i / k, the image's pixels per subset row (sums over the subset are
             scaled by it: an unbiased estimate of the sums over all pixels).
+        pose: which camera pose it was taken from: blocks of one pose (a photo's colour
+            channels, `sensor.channels`) share one pose error; None: a pose of its own.
     """
 
     J: np.ndarray
@@ -120,6 +122,7 @@ class PoseBlock:
     covariance: np.ndarray
     noise_ratio: np.ndarray
     row_scale: float = 1.0
+    pose: int | None = None
 
 
 @dataclass(frozen=True)
@@ -130,7 +133,7 @@ class PoseTerms:
         covariance: (n, n) sum_i G_i Sigma_i G_i^T.
         expected_chi2_extra: sum_i tr(Sigma_i (S_i^T S_i - T_i^T (J^T J)^-1 T_i)) in noise
             units: the residuals the poses' errors leave on average.
-        images: how many images carried a pose covariance.
+        images: how many camera poses (images) carried a covariance.
     """
 
     covariance: np.ndarray
@@ -148,15 +151,26 @@ def pose_terms(normal_inverse: np.ndarray, blocks: list[PoseBlock]) -> PoseTerms
     n = normal_inverse.shape[0]
     cov = np.zeros((n, n))
     extra = 0.0
-    for b in blocks:
-        T = b.row_scale * (b.J.T @ b.S)  # (n, 6)
-        G = normal_inverse @ T
-        cov += G @ b.covariance @ G.T
+    # Per pose: T = sum J^T S, Tn the same noise-weighted, SS = sum Sn^T Sn, its covariance.
+    poses: dict[object, list] = {}
+    for k, b in enumerate(blocks):
         Sn = b.S * b.noise_ratio[:, None]
-        Tn = b.row_scale * ((b.J * b.noise_ratio[:, None] ** 2).T @ b.S)
-        left = b.row_scale * (Sn.T @ Sn) - Tn.T @ normal_inverse @ T
-        extra += float(np.trace(b.covariance @ left))
-    return PoseTerms(0.5 * (cov + cov.T), extra, len(blocks))
+        parts = [
+            b.row_scale * (b.J.T @ b.S),  # (n, 6)
+            b.row_scale * ((b.J * b.noise_ratio[:, None] ** 2).T @ b.S),
+            b.row_scale * (Sn.T @ Sn),
+        ]
+        key = ("image", k) if b.pose is None else ("pose", b.pose)
+        if key in poses:
+            for total, part in zip(poses[key], parts, strict=False):
+                total += part
+        else:
+            poses[key] = [*parts, b.covariance]
+    for T, Tn, SS, covariance in poses.values():
+        G = normal_inverse @ T
+        cov += G @ covariance @ G.T
+        extra += float(np.trace(covariance @ (SS - Tn.T @ normal_inverse @ T)))
+    return PoseTerms(0.5 * (cov + cov.T), extra, len(poses))
 
 
 def intrinsics_sensitivity(

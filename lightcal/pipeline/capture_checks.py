@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from lightcal.core.scene import View
 from lightcal.io.project import Project
 
 SAME_POSITION_M = 0.002
@@ -17,8 +18,15 @@ SAME_ANGLE_DEG = 0.2
 
 
 def same_pose_warnings(project: Project, used: set[str]) -> list[str]:
-    """Warnings for the images of `used` (names) taken from one camera pose."""
-    views = [(n, v) for n, v in zip(project.names, project.views, strict=True) if n in used]
+    """Warnings for the images of `used` (names) taken from one camera pose. A photo read
+    in several colour channels (`sensor.channels`) is one image here: its channels are
+    one exposure, not repeated views."""
+    views: list[tuple[str, View]] = []
+    photos: set[int] = set()
+    for i, (name, view) in enumerate(zip(project.names, project.views, strict=True)):
+        if name in used and project.spec_image(i) not in photos:
+            photos.add(project.spec_image(i))
+            views.append((project.photo_name(i), view))
     groups: list[list[str]] = []
     poses: list[tuple[np.ndarray, np.ndarray]] = []
     for name, view in views:

@@ -127,7 +127,8 @@ def pose_uncertainty(
 
         S = pose_sensitivity(model.images[i].view, render_i, footprints, model.sigmas[i][rows])
         S[~np.all(np.isfinite(S), axis=1)] = 0.0  # pixels a perturbed pose pushes off the wall
-        blocks.append(PoseBlock(sub.J, S, cov, sub.noise_ratio, sub.row_scale))
+        pose = None if meas.poses is None else meas.poses[i]
+        blocks.append(PoseBlock(sub.J, S, cov, sub.noise_ratio, sub.row_scale, pose))
     return pose_terms(normal_inverse, blocks)
 
 

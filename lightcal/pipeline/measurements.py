@@ -50,6 +50,8 @@ class Measurements:
             dK (p,) (None: unknown).
         wall_flatness_m: the wall's declared flatness tolerance (`wall.flatness_mm`), m;
             0: flat (`lightcal.core.wall_flatness`).
+        poses: per image, the photo it was read from (`Project.spec_image`: a photo's
+            colour channels share its pose and its pose error), or None: each its own.
     """
 
     noise: list[tuple[float, float] | None]
@@ -60,6 +62,7 @@ class Measurements:
     pose_intrinsics_jacobians: list[np.ndarray | None] | None = None
     footprints_with: Callable[[int, np.ndarray, View, np.ndarray], Footprints] | None = None
     wall_flatness_m: float = 0.0
+    poses: list[int] | None = None
 
 
 def model_only(model: CalibrationModel) -> Measurements:
@@ -137,4 +140,5 @@ def measurements_for(
         jacobians,
         footprints_with,
         project.spec.wall.flatness_mm / 1000.0,
+        [project.spec_image(k) for k in rows] if project.channels else None,
     )
