@@ -732,6 +732,45 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--phase-g: expected a value in [-0.99, 0.99], got 1.5"),
     ),
     (
+        "synth: --attenuation two values",
+        "synth {n} --attenuation 0.4 0.1",
+        _error("synth", "--attenuation: expected 1 value or 3 (R G B), got 2"),
+    ),
+    (
+        "synth: --backscatter a negative channel",
+        "synth {n} --backscatter 0.1 -1 0.1",
+        _error("synth", "--backscatter: expected a finite value >= 0, got -1"),
+    ),
+    (
+        "synth: --colour two values",
+        "synth {n} --attenuation 0.4 0.12 0.06 --colour 1 1",
+        _usage("synth", "argument --colour: expected 3 arguments"),
+    ),
+    (
+        "synth: --colour 0",
+        "synth {n} --attenuation 0.4 0.12 0.06 --colour 1 0 1",
+        _error("synth", "--colour: expected finite values > 0, got 0"),
+    ),
+    (
+        "synth: --colour without a colour dataset",
+        "synth {n} --colour 1 0.9 0.7",
+        _error(
+            "synth",
+            "--colour: applies to a colour dataset (three --attenuation or --backscatter "
+            "values, R G B) only",
+        ),
+    ),
+    (
+        "synth: --corner in a colour dataset",
+        "synth {n} --attenuation 0.4 0.12 0.06 --corner 0.7 0.5 0.8",
+        _error(
+            "synth",
+            "--corner: not in a colour dataset (three --attenuation or --backscatter values, "
+            "R G B): its bounce light is computed for one water, and the joint solve of colour "
+            "channels does not model surroundings",
+        ),
+    ),
+    (
         "synth: --declare-albedo-map given a value",
         "synth {n} --declare-albedo-map=yes",
         _usage("synth", "argument --declare-albedo-map: ignored explicit argument 'yes'"),

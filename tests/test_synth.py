@@ -18,7 +18,7 @@ from lightcal.core.scene import Light, Rig, View
 from lightcal.errors import InputError
 from lightcal.io.images import read_image
 from lightcal.io.project import load_project
-from lightcal.synthetic import dataset as synth_dataset
+from lightcal.synthetic import dataset_images
 from lightcal.synthetic.dataset import SynthConfig, read_truth, write_dataset
 from lightcal.synthetic.scenes import (
     RigConfig,
@@ -487,7 +487,7 @@ def test_failure_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.Monke
     def broken(*args, **kwargs):
         raise RuntimeError("sensor broke")
 
-    monkeypatch.setattr(synth_dataset, "apply_sensor", broken)
+    monkeypatch.setattr(dataset_images, "apply_sensor", broken)
     with pytest.raises(RuntimeError, match="sensor broke"):
         write_dataset(tmp_path / "d", small_config())
     assert list(tmp_path.iterdir()) == []

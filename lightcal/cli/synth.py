@@ -29,7 +29,9 @@ what the project declares in one everyday way, each recorded in truth.json under
 - `--albedo-texture AMPLITUDE`: the wall's albedo is 1 + AMPLITUDE t(x, y), t a smooth
   random field in [-1, 1] with 10-30 cm features, the same in every view.
 - `--attenuation C`: a medium (clear water): each value is multiplied by
-  exp(-C (d_light + d_camera)), C in 1/m.
+  exp(-C (d_light + d_camera)), C in 1/m. Three values C_R C_G C_B (of `--attenuation` or
+  `--backscatter`) make a colour dataset, each channel in its own water, `--colour R G B`
+  the channels' relative light scales (`lightcal.cli.synth_colour`).
 - `--corner D DEPTH ALBEDO`: a ceiling and a side wall meet the wall D m from where the
   views look; their bounce light, computed by brute force
   (`lightcal.synthetic.bounce_reference`), is added. `--declare-surroundings` makes the
@@ -54,6 +56,7 @@ import math
 import sys
 from typing import TYPE_CHECKING
 
+from lightcal.cli.synth_colour import colour_medium, water_of
 from lightcal.cli.synth_options import (
     MAX_POSE_MM,
     build,
@@ -255,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.pose_noise_mm >= 0.0:
         raise InputError("--pose-noise-mm", f"expected a value >= 0, got {args.pose_noise_mm:g}")
     _check_scene(args)
+    args, channels = water_of(args)
     departures = departures_of(args, sensor_model)
     if args.dark_frames and not args.ambient > 0.0:
         raise InputError(
@@ -262,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
             "expected room light to photograph (--ambient FRACTION > 0): without it a "
             "light-off photo is black",
         )
-    medium = declared_medium(args)
+    medium = declared_medium(args) if channels is None else colour_medium(args, channels)
     fx = 0.9 * args.width if args.fx is None else args.fx
     camera = build(
         lambda: Camera.from_params(
@@ -323,6 +327,7 @@ def run(args: argparse.Namespace) -> int:
             dark_frames=args.dark_frames,
             declare_wall_mesh=args.declare_wall_mesh,
             albedo_map=args.declare_albedo_map,
+            channels=channels,
         )
     )
 

@@ -69,6 +69,8 @@ OPTIONS = {
     "attenuation_per_m": "--attenuation",
     "backscatter_per_m": "--backscatter",
     "phase_g": "--phase-g",
+    "colour": "--colour",
+    "albedo_map": "--declare-albedo-map",
     "medium": "--declare-medium",
     "dark_frames": "--dark-frames",
     "declare_wall_mesh": "--declare-wall-mesh",
@@ -166,18 +168,31 @@ def register_departures(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--attenuation",
         type=float,
-        default=0.0,
+        nargs="+",
+        default=None,
         metavar="C",
-        help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m (0)",
+        help="a medium (clear water): each value x exp(-C (d_light + d_camera)), C in 1/m; "
+        "three values C_R C_G C_B (or three --backscatter values) make a colour dataset: "
+        "3-channel 16-bit images, each channel in its own water (0)",
     )
     g.add_argument(
         "--backscatter",
         type=float,
-        default=0.0,
+        nargs="+",
+        default=None,
         metavar="BETA",
         help="the water scatters the beam back: each pixel gains BETA x the single-"
         "scattering integral along its ray (attenuated by --attenuation), BETA in 1/m; "
-        "--sensor radiance only (0)",
+        "three values: one per colour channel (R G B); --sensor radiance only (0)",
+    )
+    g.add_argument(
+        "--colour",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("R", "G", "B"),
+        help="a colour dataset's wall-times-light colour: each channel's light scale, "
+        "relative (the brightest channel at --exposure-target); values > 0 (1 1 1)",
     )
     g.add_argument(
         "--phase-g",
@@ -191,8 +206,10 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         choices=("given", "estimated"),
         default=None,
         help="the project declares the water of --attenuation and --backscatter: given "
-        "(their true values) or estimated (from 0, with the light; --phase-g given); "
-        "truth.json still records them (none)",
+        "(their true values) or estimated (from 0, with the light; --phase-g given); a "
+        "colour dataset's project solves its channels jointly (sensor.channels, the medium "
+        "per channel, estimated from c = 0.2 and beta = 0.5 /m); truth.json still records "
+        "them (none)",
     )
     g.add_argument(
         "--declare-albedo-map",

@@ -31,6 +31,9 @@ from what its project declares in one everyday way (room light, undeclared vigne
 rimmed light profile, a tone curve, poses worse than declared, a bowed wall, an albedo
 texture, an absorbing medium, a corner). `lightcal.synthetic.imaging` makes the images
 (the light scale from the true rig on the flat wall); truth.json records each departure.
+A colour dataset (`SynthConfig.channels`, `lightcal.synthetic.colour`) writes 3-channel
+images, each channel in its own water with its own noise; `lightcal.synthetic.dataset_images`
+renders and writes every view's image.
 
 The dataset is built in a hidden folder beside `out_dir` and renamed into place when
 complete. With `force`, an existing folder's dataset files are replaced one by one (each
@@ -46,11 +49,9 @@ from __future__ import annotations
 import json
 import math
 import shutil
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,7 +60,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.errors import InputError
-from lightcal.io.atomic import atomic_write_bytes, atomic_write_text
+from lightcal.io.atomic import atomic_write_text
 from lightcal.io.camera_file import read_camera, write_camera
 from lightcal.io.medium_spec import MediumSpec
 from lightcal.io.project import (
@@ -74,11 +75,15 @@ from lightcal.io.project import (
     load_project,
     save_project,
 )
+from lightcal.synthetic.colour import (
+    ColourChannels,
+    check_colour_config,
+    colour_truth,
+    declared_channels,
+)
 from lightcal.synthetic.dataset_files import (
     CAMERA_NAME,
-    DARK_SUFFIX,
     IMAGE_SUFFIX,
-    IMAGES_DIR,
     PROJECT_NAME,
     TRUTH_FORMAT,
     TRUTH_NAME,
@@ -86,7 +91,6 @@ from lightcal.synthetic.dataset_files import (
     check_target,
     declared_pose_covariance,
     declared_wall,
-    encode_image,
     initial_spec,
     make_staging,
     pose_kind,
@@ -95,9 +99,9 @@ from lightcal.synthetic.dataset_files import (
     read_truth,
     rid_file,
     truth_document,
-    view_geometry,
     vignetting_file,
 )
+from lightcal.synthetic.dataset_images import write_images
 from lightcal.synthetic.departure_truth import departures_truth
 from lightcal.synthetic.departures import Departures
 from lightcal.synthetic.imaging import AmbientLevels, make_imaging
@@ -106,7 +110,6 @@ from lightcal.synthetic.scenes import (
     RigConfig,
     SceneConfig,
     SensorConfig,
-    apply_sensor,
     check_in_front,
     describe_rid,
     initial_guess,
@@ -162,6 +165,8 @@ class SynthConfig:
         declare_wall_mesh, albedo_map, declare_surroundings: the project declares the true
             wall's mesh (`wall.mesh`), an albedo map with a dense selection
             (`declared_wall`), the `corner` departure's surfaces (`surroundings`).
+        channels: A colour dataset's channels (`lightcal.synthetic.colour`: their water
+            replaces the departures', which must have none), or None: one channel.
     """
 
     camera: Camera
@@ -181,8 +186,10 @@ class SynthConfig:
     declare_wall_mesh: bool = False
     albedo_map: bool = False
     declare_surroundings: bool = False
+    channels: ColourChannels | None = None
 
     def __post_init__(self) -> None:
+        check_colour_config(self)
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
             raise InputError(
                 "dark_frames",
@@ -354,61 +361,22 @@ def _write_into(
     # The images.
     if departures.corner is not None and progress is not None:
         progress("the corner's bounce light: building its cells and transfers (seconds)")
+    if config.channels is not None:  # (the widest water's checks; each channel's below)
+        departures = config.channels.widest(departures)
     imaging = make_imaging(
         camera, views, rig, departures, rng_texture, sensor=sensor.model, vignetting=vignetting,
         wall=config.wall,
     )  # fmt: skip
-    ambient: AmbientLevels | None = None
+    imagings = [imaging] if config.channels is None else config.channels.imagings(imaging)
+    ambients: list[AmbientLevels] | None = None
     if departures.ambient_fraction > 0.0:
-        ambient = imaging.ambient(views, departures.ambient_fraction)
-    n = len(views)
-    digits = max(2, len(str(n - 1)))
-    suffix = IMAGE_SUFFIX[config.image_format]
-    image_paths: list[Path] = []
-    view_truth: list[dict[str, Any]] = []
-    black = sensor.black_level
-    for i, view in enumerate(views):
-        started = time.perf_counter()
-        name = f"view_{i:0{digits}d}"
-        beam = imaging.beam(view)
-        signal, sensor_input = imaging.expose(
-            beam, 0.0 if ambient is None else ambient.levels_dn[i], view
-        )
-        dn, saturated = apply_sensor(sensor_input, sensor, rng_sensor, gamma=departures.gamma)
-        path = folder / IMAGES_DIR / f"{name}{suffix}"
-        atomic_write_bytes(path, encode_image(dn, config.image_format))
-        image_paths.append(path)
-        dark: dict[str, str] = {}
-        if config.dark_frames and ambient is not None:  # the room light alone
-            _, dark_input = imaging.expose(beam * 0.0, ambient.levels_dn[i], view)
-            dark_dn, _ = apply_sensor(dark_input, sensor, rng_dark, gamma=departures.gamma)
-            dark["dark"] = f"{IMAGES_DIR}/{name}{DARK_SUFFIX}{suffix}"
-            atomic_write_bytes(folder / dark["dark"], encode_image(dark_dn, config.image_format))
-        valid = int(signal.count())
-        view_truth.append(
-            {
-                "name": name,
-                "path": f"{IMAGES_DIR}/{name}{suffix}",
-                **dark,
-                "T_camera_world": pose_spec(view).model_dump(exclude_none=True),
-                "T_camera_world_measured": pose_spec(measured[i]).model_dump(exclude_none=True),
-                "center_world_m": view.center_world.tolist(),
-                **view_geometry(view),
-                "exposure_time_s": float(times_s[i]),
-                "exposure": view.exposure,
-                "peak_signal_dn": float(signal.max()) if valid else 0.0,
-                "valid_pixels": valid,
-                "saturated_pixels": int(np.count_nonzero(saturated)),
-            }
-        )
-        if progress is not None:
-            done = view_truth[-1]
-            progress(
-                f"{name}{suffix} {i + 1}/{n}: distance {done['distance_m']:.2f} m, tilt "
-                f"{done['tilt_deg']:.1f} deg, exposure 1/{1.0 / times_s[i]:.0f} s, peak "
-                f"{done['peak_signal_dn']:.0f} DN above black, {done['saturated_pixels']} "
-                f"saturated ({time.perf_counter() - started:.1f} s)"
-            )
+        ambients = [im.ambient(views, departures.ambient_fraction) for im in imagings]
+    written = write_images(
+        folder, imagings=imagings, ambients=ambients, views=views, measured=measured,
+        times_s=times_s, sensor=sensor, gamma=departures.gamma, image_format=config.image_format,
+        dark_frames=config.dark_frames, rngs=(rng_sensor, rng_dark), progress=progress,
+    )  # fmt: skip
+    image_paths, view_truth = written.paths, written.views
 
     # The project: the measured poses with the covariance of their error.
     pose_covariance = declared_pose_covariance(config.pose_noise_m, config.pose_noise_deg)
@@ -418,9 +386,10 @@ def _write_into(
         sensor=SensorSpec(
             model=sensor.model,
             vignetting=vignetting_rel,
-            black_level=black,
+            black_level=sensor.black_level,
             white_level=white_level(sensor),
             noise=NoiseSpec(gain=gain, read_variance=read_variance),
+            channels=declared_channels(config.channels),
         ),
         images=[
             ImageSpec(
@@ -457,7 +426,7 @@ def _write_into(
     departure_truth = departures_truth(
         departures,
         imaging,
-        ambient=ambient,
+        ambient=None if ambients is None else ambients[0],
         view_names=[v["name"] for v in view_truth],
         declared_rid=rid,
         declared_rid_truth=rid_truth,
@@ -478,6 +447,11 @@ def _write_into(
         initial=initial,
         rid_truth=rid_truth,
     )
+    if config.channels is not None:
+        truth = colour_truth(
+            truth, config.channels, phase_g=departures.phase_g, ambients=ambients,
+            view_channels=written.channels,
+        )  # fmt: skip
     atomic_write_text(folder / TRUTH_NAME, json.dumps(truth, indent=2) + "\n")
     save_project(spec, project_path)
     try:

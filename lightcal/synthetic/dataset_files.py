@@ -201,6 +201,8 @@ def pose_kind(rid: RID) -> Literal["auto", "isotropic"]:
 
 
 def encode_image(dn: NDArray[np.uint16], image_format: ImageFormat) -> bytes:
+    """The file's bytes of (H, W) grey or (H, W, 3) colour values in OpenCV's B, G, R order
+    (a PNG stores them so; a TIFF as R, G, B samples, photometric RGB)."""
     if image_format == "png":
         ok, encoded = cv2.imencode(".png", dn)
         if not ok:  # pragma: no cover - OpenCV always encodes uint16 PNG
@@ -209,7 +211,10 @@ def encode_image(dn: NDArray[np.uint16], image_format: ImageFormat) -> bytes:
     import tifffile
 
     buffer = io.BytesIO()
-    tifffile.imwrite(buffer, dn, photometric="minisblack")
+    if dn.ndim == 3:
+        tifffile.imwrite(buffer, np.ascontiguousarray(dn[..., ::-1]), photometric="rgb")
+    else:
+        tifffile.imwrite(buffer, dn, photometric="minisblack")
     return buffer.getvalue()
 
 
