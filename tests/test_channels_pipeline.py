@@ -1,12 +1,10 @@
 """Colour photos through water whose attenuation differs by channel, calibrated in one
 solve (`sensor.channels: [R, G, B]`) as a user would: 16-bit colour PNGs, the project
-file, `lightcal calibrate`.
+file, `lightcal calibrate`, `lightcal render`, `lightcal export`.
 
-The colour photos are three `lightcal synth --attenuation C` datasets of the same seed
-(the same views, poses and noise draws), one per channel, merged into one 3-channel PNG a
-view (OpenCV's B, G, R order on disk). Their noise is therefore correlated between the
-channels, which makes the joint sigma optimistic; the independent check with
-independent per-channel noise is Mitsuba's (`tests/test_rgb_water_mitsuba.py`).
+The photos are `lightcal synth`'s colour data (`SynthConfig.channels`: each channel in
+its own water through synth's own imaging, noise drawn per channel); the independent
+check is Mitsuba's (`tests/test_rgb_water_mitsuba.py`).
 """
 
 from __future__ import annotations
@@ -19,27 +17,26 @@ import numpy as np
 import pytest
 
 from lightcal.cli.main import main
+from lightcal.io.medium_spec import MediumSpec
+from lightcal.synthetic.colour import ColourChannels
 from lightcal.synthetic.dataset import SynthConfig, read_truth, write_dataset
-from lightcal.synthetic.departures import Departures
 from tests.departure_suite import camera
 
 C_RGB = (0.4, 0.12, 0.06)  # /m: ocean water absorbs red most
 
 
 def _colour_project(root: Path, *, seed: int = 5) -> Path:
-    """The R dataset's folder with colour images and a project solving the channels."""
-    sets = []
-    for ch, c in zip("RGB", C_RGB, strict=True):
-        config = SynthConfig(camera=camera(), seed=seed, departures=Departures(attenuation_per_m=c))
-        sets.append(write_dataset(root / ch, config))
-    for k, path in enumerate(sets[0].image_paths):
-        planes = [cv2.imread(str(s.image_paths[k]), cv2.IMREAD_UNCHANGED) for s in sets]
-        assert all(p.dtype == np.uint16 and p.ndim == 2 for p in planes)
-        cv2.imwrite(str(path), np.dstack(planes[::-1]))  # B, G, R on disk
-    project = sets[0].project_path
+    """A colour dataset in that water whose project solves the channels, c estimated
+    from 0.2 /m in every channel."""
+    config = SynthConfig(
+        camera=camera(),
+        seed=seed,
+        channels=ColourChannels(attenuation_per_m=C_RGB, colour=(1.0, 0.94, 0.75), declare=True),
+        medium=MediumSpec(attenuation_per_m=[0.2] * 3, estimate=["attenuation_per_m"]),
+    )
+    project = write_dataset(root / "ds", config).project_path
     doc = json.loads(project.read_text())
-    doc["sensor"]["channels"] = ["R", "G", "B"]
-    doc["medium"] = {"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]}
+    assert doc["sensor"]["channels"] == ["R", "G", "B"]
     doc.setdefault("selection", {})["n_per_image"] = 800
     project.write_text(json.dumps(doc))
     return project
