@@ -62,6 +62,8 @@ def test_the_project_declares_the_corner_that_truth_records(corner_dataset: Path
     corner = truth["departures"]["corner"]
     assert (corner["distance_m"], corner["depth_m"], corner["albedo"]) == (0.7, 0.5, 0.8)
     declared = json.loads((corner_dataset / "project.json").read_text())["surroundings"]
+    # The true albedos, given (not estimated).
+    assert [s.pop("estimate_albedo") for s in declared["surfaces"]] == [False, False]
     assert declared["surfaces"] == corner["surroundings"]["surfaces"]
     assert declared["wall_albedo"] == 0.8
 
