@@ -44,7 +44,7 @@ from lightcal.io.outputs import inside, safe_names
 from lightcal.io.project import Project
 from lightcal.pipeline import CalibrationResult, LoadedImages, ProgressFn, vignetting_for
 from lightcal.pipeline.albedo_result import albedo_image, albedo_text
-from lightcal.pipeline.channel_result import estimated_surroundings
+from lightcal.pipeline.channel_result import channel_scenes_at, estimated_surroundings
 from lightcal.pipeline.fall_off_result import ambient_text, fall_off_text
 from lightcal.pipeline.result_text import axis_text, medium_text, position_text
 from lightcal.pipeline.results import stop_reason
@@ -183,10 +183,7 @@ def write_report(
         ),
         ambient=model.layout.ambient(x),
         albedo=model.albedo_map(x),
-        channels=[
-            (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
-            for ch in range(len(model.layout.channels))
-        ],
+        channels=channel_scenes_at(model, x),
         surroundings=estimated_surroundings(model.surroundings, result.surroundings),
     )
     files = safe_names(names)  # image names come from the data: one plain part each

@@ -13,6 +13,7 @@ from lightcal.core.light_axis import paper_angles_from_axis
 from lightcal.core.scene import Rig
 from lightcal.core.solver import CalibrationModel
 from lightcal.io.project import Project
+from lightcal.pipeline.channel_result import channel_scenes_at
 from lightcal_app.state import MAX_ITERATION_S, Display
 
 
@@ -53,10 +54,7 @@ def estimate_display(
         model.layout.ambient(x),
         model.albedo_map(x),
         model.surroundings,
-        tuple(
-            (model.layout.rig(x, ch), model.layout.medium_of(x, ch), model.layout.ambient(x, ch))
-            for ch in range(len(model.layout.channels))
-        ),
+        tuple(channel_scenes_at(model, x)),
         _albedos_at(model, x),
     )
 

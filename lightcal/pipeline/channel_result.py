@@ -18,6 +18,7 @@ from lightcal.core.surroundings import Surroundings
 
 __all__ = [
     "channel_scenes",
+    "channel_scenes_at",
     "channel_summaries",
     "estimated_surroundings",
     "medium_summary",
@@ -61,6 +62,17 @@ def channel_summaries(model: CalibrationModel, x: np.ndarray, cov: np.ndarray) -
             }
         )
     return out
+
+
+def channel_scenes_at(model: CalibrationModel, x: np.ndarray) -> list[tuple[Rig, Medium, float]]:
+    """Per colour channel of `model`, (its lights at their scales, its medium, its room
+    light) at x, for the pictures (`lightcal.report.render_views`, the page's overlays);
+    empty without channels."""
+    lay = model.layout
+    return [
+        (lay.rig(x, ch), lay.medium_of(x, ch), lay.ambient(x, ch))
+        for ch in range(len(lay.channels))
+    ]
 
 
 def channel_scenes(
