@@ -36,6 +36,10 @@ what the project declares in one everyday way, each recorded in truth.json under
   views look; their bounce light, computed by brute force
   (`lightcal.synthetic.bounce_reference`), is added. `--declare-surroundings` makes the
   project declare them (`surroundings:`, docs/model.md "Inter-reflection").
+- `--port D_MM T_MM NG NW`: the camera looks through a flat port (docs/model.md, "The
+  camera's flat port"): each pixel centre's ray refracted into the water
+  (`lightcal.synthetic.port_imaging`); `--declare-port` makes the project declare it
+  (`camera.port`).
 
 `--declare-medium given|estimated` makes the project declare that water (`medium:` with
 the true C, or estimated from 0): data whose project models the medium
@@ -328,6 +332,7 @@ def run(args: argparse.Namespace) -> int:
             declare_wall_mesh=args.declare_wall_mesh,
             albedo_map=args.declare_albedo_map,
             channels=channels,
+            declare_port=args.declare_port,
         )
     )
 

@@ -76,6 +76,8 @@ OPTIONS = {
     "declare_wall_mesh": "--declare-wall-mesh",
     "corner": "--corner",
     "declare_surroundings": "--declare-surroundings",
+    "port": "--port",
+    "declare_port": "--declare-port",
 }
 
 
@@ -236,6 +238,22 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         "geometry and albedo)",
     )
     g.add_argument(
+        "--port",
+        type=float,
+        nargs=4,
+        default=None,
+        metavar=("D_MM", "T_MM", "NG", "NW"),
+        help="the camera looks through a flat port: its inner face D_MM mm in front of the "
+        "centre of projection, T_MM mm of glass of index NG, water of index NW outside "
+        "(each pixel's ray refracted, point-sampled; flat wall, Lambertian, no backscatter) "
+        "(none)",
+    )
+    g.add_argument(
+        "--declare-port",
+        action="store_true",
+        help="the project declares --port (camera.port)",
+    )
+    g.add_argument(
         "--dark-frames",
         action="store_true",
         help="with --ambient: also write a light-off photo of each view (the room light "
@@ -282,6 +300,9 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             "--declare-surroundings", "expected --corner D DEPTH ALBEDO (the surfaces to declare)"
         )
     corner = None if args.corner is None else (args.corner[0], args.corner[1], args.corner[2])
+    if args.declare_port and args.port is None:
+        raise InputError("--declare-port", "expected --port D_MM T_MM NG NW (the port to declare)")
+    port = None if args.port is None else (args.port[0], args.port[1], args.port[2], args.port[3])
     return build(
         lambda: Departures(
             ambient_fraction=args.ambient,
@@ -296,6 +317,7 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             backscatter_per_m=args.backscatter,
             phase_g=args.phase_g,
             corner=corner,
+            port=port,
         )
     )
 

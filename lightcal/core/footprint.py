@@ -149,6 +149,11 @@ class Footprints:
             invalid pixels): a light lights the pixel only on that side. None on the
             plane z = 0 (normal +z).
         sensor: the sensor model the weights carry.
+        port_exits_world: (N, 3) behind the camera's flat port
+            (`lightcal.core.port_footprints`), where each pixel's rays leave the port
+            into the water (the mean of its corners' exit points, as the centre is of
+            its corners), world frame, m: the camera side's path in the medium starts
+            there (`camera_side`). None without a port (the camera centre).
     """
 
     pixels: np.ndarray
@@ -159,6 +164,7 @@ class Footprints:
     grid: GridCorners | None = None
     normals_world: np.ndarray | None = None
     sensor: SensorModel = "radiance"
+    port_exits_world: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if (self.stored_corners is None) == (self.grid is None):
@@ -195,7 +201,14 @@ class Footprints:
             self.grid,
             None if self.normals_world is None else self.normals_world[rows],
             self.sensor,
+            None if self.port_exits_world is None else self.port_exits_world[rows],
         )
+
+    def camera_side(self, center_world: np.ndarray) -> np.ndarray:
+        """Where the rays to the footprints start in the medium: the camera centre
+        `center_world` (3,) itself, or behind a flat port each pixel's exit point from
+        it (N, 3) (`port_exits_world`), world frame, m."""
+        return center_world if self.port_exits_world is None else self.port_exits_world
 
     @property
     def room_light_factor(self) -> np.ndarray | None:

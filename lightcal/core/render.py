@@ -185,7 +185,7 @@ def light_flux(
             L_world,
             R_world_light,
             light.rid.data(),
-            view.center_world,
+            footprints.camera_side(view.center_world),
             medium,
             flux,
             grad,
@@ -210,8 +210,9 @@ def _apply_wall(
     d(flux B)/dL = B d flux/dL + flux dB/dL; d(flux B)/d delta = B d flux/d delta;
     d(flux B)/d p = flux dB/dp (written to wall_grad_out (N, P)).
     """
-    if footprints.normals_world is not None:  # each footprint's own normal
-        apply_wall_on_mesh(footprints, L_world, view.center_world, wall, flux, grad, wall_grad_out)
+    if footprints.normals_world is not None:  # each footprint's own normal (or a port's)
+        camera = footprints.camera_side(view.center_world)
+        apply_wall_on_mesh(footprints, L_world, camera, wall, flux, grad, wall_grad_out)
         return
     d = wall.data()
     want_grad = grad is not None
@@ -229,9 +230,7 @@ def _apply_wall(
     )
 
 
-#: Placeholders for `apply_wall`'s unused outputs.
-_NO_GRAD = np.zeros((1, 6))
-_NO_PARAMS = np.zeros((1, 0))
+_NO_GRAD, _NO_PARAMS = np.zeros((1, 6)), np.zeros((1, 0))  # apply_wall's unused outputs
 
 
 def shade(

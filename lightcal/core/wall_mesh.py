@@ -33,6 +33,7 @@ import numpy as np
 
 from lightcal.core import mesh_kernels as mk
 from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import (
     MAX_QUADS_PER_SIDE,
     Footprints,
@@ -41,6 +42,7 @@ from lightcal.core.footprint import (
     pixel_footprints,
 )
 from lightcal.core.kernels.wall import MU_FLOOR, brdf_many
+from lightcal.core.port_footprints import port_footprints
 from lightcal.core.scene import View
 from lightcal.core.wall import WallReflectance
 
@@ -216,9 +218,21 @@ def wall_footprints(
     sensor: SensorModel = "radiance",
     vignetting: np.ndarray | None = None,
     binning: int = 1,
+    port: FlatPort | None = None,
 ) -> Footprints:
     """The footprints of pixels on the wall: on `mesh` when given (`mesh_footprints`),
-    else on the plane z = 0 (`pixel_footprints`)."""
+    else on the plane z = 0 (`pixel_footprints`); through the camera's flat `port` when
+    given (`lightcal.core.port_footprints`: on the plane only; None: the numbers
+    without a port, bit for bit)."""
+    if port is not None:
+        if mesh is not None:
+            raise ValueError(
+                "camera port: footprints through a flat port are modelled on the plane "
+                "z = 0 only, not on a wall mesh"
+            )
+        return port_footprints(
+            camera, view, pixels, port, sensor=sensor, vignetting=vignetting, binning=binning
+        )
     if mesh is None:
         return pixel_footprints(
             camera, view, pixels, sensor=sensor, vignetting=vignetting, binning=binning
@@ -290,6 +304,8 @@ def apply_wall_on_mesh(
     """`render`'s wall factor on a mesh: flux (N,) *= B at the footprint centres with each
     footprint's own normal n (`Footprints.normals_world`), and the chain rule on grad
     (N, 6) and wall_grad_out (N, P), as `kernels.wall.apply_wall` does with n = +z.
+    camera_world: (3,) the camera centre, or (N, 3) where each pixel's ray starts in
+    the water behind a flat port (`Footprints.camera_side`).
 
     B is a function of mu_l = l . n, q = l . v and mu_v = v . n (`kernels.wall.brdf_many`),
     so dB/dL = (I - l l^T) (dB/dmu_l n + dB/dq v) / |L - P|; B and its derivatives are 0

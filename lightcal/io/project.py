@@ -22,6 +22,7 @@ import yaml
 
 from lightcal.core.camera import Camera
 from lightcal.core.fall_off import FallOffUnknown
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.pose import axis_from_paper_angles, rotation_from_axis
 from lightcal.core.problem import LightUnknown, MediumUnknown, WallUnknown
 from lightcal.core.rid import RID, CosPowerRID, GaussianRID, IsotropicRID
@@ -39,6 +40,7 @@ from lightcal.io.document import read_document
 from lightcal.io.exposure_factors import exposure_factors
 from lightcal.io.images import Channel
 from lightcal.io.medium_spec import build_media
+from lightcal.io.port_spec import build_port
 from lightcal.io.project_channels import check_channel_terms, with_channels
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
@@ -136,6 +138,7 @@ class Project:
             its channel `channel_of[i]` and its image `spec_index[i]` of `spec.images`
             (named `name[channel]`), and `media` has each channel's medium (`medium` the
             first's).
+        camera_port: the camera's flat port (`camera.port`), or None: straight rays.
     """
 
     spec: ProjectFile
@@ -160,6 +163,7 @@ class Project:
     channel_of: list[int] = field(default_factory=list)
     spec_index: list[int] = field(default_factory=list)
     media: tuple[MediumUnknown, ...] = ()
+    camera_port: FlatPort | None = None
 
     @property
     def folder(self) -> Path:
@@ -421,6 +425,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
         media[0],
         wall_mesh,
         build_surroundings(spec.surroundings, source),
+        camera_port=build_port(spec, source),
     )
     return with_channels(project, media) if channels else project
 

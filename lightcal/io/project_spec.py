@@ -31,6 +31,7 @@ from lightcal.core.solver_options import AUTO_F_SCALE_FACTORS
 from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.medium_spec import MediumSpec
+from lightcal.io.port_spec import PortSpec
 from lightcal.io.sensor_spec import FallOffSpec, NoiseSpec, SensorSpec  # noqa: F401 (re-exported)
 from lightcal.io.spec_errors import format_loc, on_literal_branch
 from lightcal.io.surroundings_spec import SurroundingsSpec
@@ -60,6 +61,9 @@ class CameraSpec(_Model):
     width: int | None = None
     height: int | None = None
     dist: list[float] = Field(default_factory=list)
+    port: PortSpec | None = Field(
+        default=None, description="the camera's flat port under water (docs/model.md)"
+    )
 
     @model_validator(mode="after")
     def _one_source(self) -> CameraSpec:

@@ -126,6 +126,7 @@ def measurements_for(
             sensor=project.spec.sensor.model,
             vignetting=vignetting,
             binning=b,
+            port=project.camera_port,
         )
 
     def footprints_at(i: int, view: View, rows: np.ndarray) -> Footprints:

@@ -108,6 +108,7 @@ def image_data(
         sensor=project.spec.sensor.model,
         vignetting=vignetting,
         binning=b,
+        port=project.camera_port,
     )
     usable = fp.valid
     if project.surroundings is not None:  # the surfaces as the camera sees them: unmodelled

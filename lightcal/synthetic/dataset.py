@@ -89,6 +89,7 @@ from lightcal.synthetic.dataset_files import (
     TRUTH_NAME,
     ImageFormat,
     check_target,
+    declared_port,
     declared_pose_covariance,
     declared_wall,
     initial_spec,
@@ -167,6 +168,7 @@ class SynthConfig:
             (`declared_wall`), the `corner` departure's surfaces (`surroundings`).
         channels: A colour dataset's channels (`lightcal.synthetic.colour`: their water
             replaces the departures', which must have none), or None: one channel.
+        declare_port: the project declares the `port` departure (`camera.port`).
     """
 
     camera: Camera
@@ -187,9 +189,12 @@ class SynthConfig:
     albedo_map: bool = False
     declare_surroundings: bool = False
     channels: ColourChannels | None = None
+    declare_port: bool = False
 
     def __post_init__(self) -> None:
         check_colour_config(self)
+        if self.declare_port and self.departures.port is None:
+            raise InputError("declare_port", "expected a port to declare (departures.port)")
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
             raise InputError(
                 "dark_frames",
@@ -382,7 +387,7 @@ def _write_into(
     pose_covariance = declared_pose_covariance(config.pose_noise_m, config.pose_noise_deg)
     gain, read_variance = noise_model(sensor)
     spec = ProjectFile(
-        camera=CameraSpec(path=CAMERA_NAME),
+        camera=CameraSpec(path=CAMERA_NAME, port=declared_port(config)),
         sensor=SensorSpec(
             model=sensor.model,
             vignetting=vignetting_rel,

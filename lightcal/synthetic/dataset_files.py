@@ -31,6 +31,7 @@ from lightcal.errors import InputError
 from lightcal.io.albedo_map_spec import AlbedoMapSpec
 from lightcal.io.ies import write_ies
 from lightcal.io.photometric_table import PhotometricTable, write_rid_csv
+from lightcal.io.port_spec import PortSpec
 from lightcal.io.project import InitialSpec, PoseSpec, RIDSpec, SelectionSpec, WallSpec
 from lightcal.io.vignetting_file import load_vignetting, save_radial_vignetting
 from lightcal.synthetic.scenes import (
@@ -388,3 +389,13 @@ def declared_wall(cam: Camera, *, albedo_map: bool) -> dict[str, Any]:
         "wall": WallSpec(albedo_map=AlbedoMapSpec()),
         "selection": SelectionSpec(strategy="all", binning=binning),
     }
+
+
+def declared_port(config: Any) -> PortSpec | None:
+    """The project's `camera.port` of a `SynthConfig`: its `port` departure when
+    `declare_port`, else None (the data seen through a port nobody declared)."""
+    port = config.departures.port
+    if not config.declare_port or port is None:
+        return None
+    d_mm, t_mm, n_g, n_w = (float(v) for v in port)
+    return PortSpec(distance_mm=d_mm, thickness_mm=t_mm, glass_index=n_g, water_index=n_w)

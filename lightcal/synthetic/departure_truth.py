@@ -19,6 +19,7 @@ angles in degrees):
 - `attenuation`: coefficient_per_m, formula.
 - `backscatter`: beta_per_m, phase_g, formula.
 - `corner`: distance_m, depth_m, albedo, surroundings (the surfaces), rendered_as.
+- `port`: distance_mm, thickness_mm, glass_index, water_index, rendered_as.
 
 The true lights (the rimmed profile included) are in truth.json's "lights" as always.
 """
@@ -154,5 +155,16 @@ def departures_truth(
             "rendered_as": "brute-force radiosity, every bounce, attenuated by the medium "
             "(lightcal.synthetic.bounce_reference); pixels that see a surface or wall it "
             "shadows are black",
+        }
+    if "port" in names and departures.port is not None:
+        d_mm, t_mm, n_g, n_w = departures.port
+        out["port"] = {
+            "distance_mm": d_mm,
+            "thickness_mm": t_mm,
+            "glass_index": n_g,
+            "water_index": n_w,
+            "rendered_as": "each pixel centre's ray refracted by Snell's law (scalar form) "
+            "into the water, the irradiance point-sampled on the wall, the camera's "
+            "attenuation from the ray's exit point (lightcal.synthetic.port_imaging)",
         }
     return out

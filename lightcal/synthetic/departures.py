@@ -18,6 +18,7 @@ calibration's diagnostics can be tested on data whose fault is known:
 | `attenuation` | `attenuation_per_m` | a clear but absorbing medium (water) |
 | `backscatter` | `backscatter_per_m`, `phase_g` | the water scatters the beam back to the camera |
 | `corner` | `corner` | a ceiling and a side wall light the wall back (inter-reflection) |
+| `port` | `port` | the camera looks through a flat port (refraction) |
 
 The exact definitions are in `Departures`; `lightcal.synthetic.imaging` applies them and
 `describe` writes the parameters that truth.json records under "departures" (name ->
@@ -53,6 +54,7 @@ DEPARTURE_NAMES = (
     "attenuation",
     "backscatter",
     "corner",
+    "port",
 )
 """The departures' names in truth.json, in the order they are listed there."""
 
@@ -139,6 +141,10 @@ class Departures:
             beta S, S the single-scattering integral with the Henyey-Greenstein phase g
             (`lightcal.core.medium.backscatter`, attenuated by C) along the ray to the
             pixel centre's point on the wall (the `radiance` sensor model only).
+        port: (distance_mm, thickness_mm, glass_index, water_index) or None. The camera
+            looks through a flat port (`lightcal.core.flat_port`): each pixel's ray is
+            refracted into the water (`lightcal.synthetic.port_imaging`, point-sampled
+            with its own Snell's law), the camera's attenuation from its exit point.
     """
 
     ambient_fraction: float = 0.0
@@ -153,6 +159,7 @@ class Departures:
     backscatter_per_m: float = 0.0
     phase_g: float = 0.9
     corner: tuple[float, float, float] | None = None
+    port: tuple[float, float, float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("ambient_fraction", "rid_rim_amplitude", "attenuation_per_m"):
@@ -198,6 +205,14 @@ class Departures:
             _check("corner", d, 0.05 <= d <= 5.0, "a distance D of 0.05 to 5 m")
             _check("corner", depth, 0.01 <= depth <= 5.0, "a depth of 0.01 to 5 m")
             _check("corner", albedo, 0.0 < albedo < 1.0, "an albedo in (0, 1)")
+        if self.port is not None:
+            from lightcal.core.flat_port import FlatPort
+
+            try:
+                d, t, n_g, n_w = (float(v) for v in self.port)
+                FlatPort(d / 1000.0, t / 1000.0, n_g, n_w)
+            except (TypeError, ValueError) as exc:
+                raise InputError("port", str(exc)) from exc
         coeffs = self.undeclared_vignetting
         if coeffs is not None and (
             len(coeffs) != 2 or not all(math.isfinite(float(c)) for c in coeffs)
@@ -220,15 +235,17 @@ class Departures:
             "attenuation": self.attenuation_per_m > 0.0,
             "backscatter": self.backscatter_per_m > 0.0,
             "corner": self.corner is not None,
+            "port": self.port is not None,
         }
         return tuple(name for name in DEPARTURE_NAMES if on[name])
 
     @property
     def changes_beam(self) -> bool:
         """Whether the beam's image needs more than the flat renderer (`render_image`):
-        a bowed wall, an albedo texture, attenuation, backscatter or a corner."""
+        a bowed wall, an albedo texture, attenuation, backscatter, a corner or a port."""
         return (
             self.corner is not None
+            or self.port is not None
             or self.bow_m != 0.0
             or self.albedo_texture_amplitude > 0.0
             or self.attenuation_per_m > 0.0

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import SensorModel
 from lightcal.core.medium import Medium, backscatter
 from lightcal.core.render import render_image
@@ -48,6 +49,7 @@ from lightcal.synthetic.height_field import (
     shade_height_field,
     surface_points,
 )
+from lightcal.synthetic.port_imaging import port_shading
 from lightcal.synthetic.texture import AlbedoTexture, sample_albedo_texture
 
 __all__ = ["AmbientLevels", "Imaging", "ambient_levels", "make_imaging", "view_target_center"]
@@ -70,6 +72,7 @@ class Imaging:
             the Henyey-Greenstein g of its scattering.
         undeclared_vignetting: (H, W) the undeclared fall-off V, or None.
         corner: The ceiling and side wall's brute-force bounce, or None.
+        port: The camera's flat port the beam is seen through (`port_shading`), or None.
     """
 
     camera: Camera
@@ -84,6 +87,7 @@ class Imaging:
     phase_g: float = 0.9
     undeclared_vignetting: NDArray[np.float64] | None = None
     corner: CornerBounce | None = None
+    port: FlatPort | None = None
 
     def _render(self, view: View, rig: Rig) -> np.ma.MaskedArray:
         return render_image(
@@ -93,9 +97,16 @@ class Imaging:
     def beam(self, view: View) -> np.ma.MaskedArray:
         """(H, W) the lights' signal, masked where the pixel does not see the wall."""
         plain = self.wall_shape is None and self.texture is None and self.corner is None
+        plain = plain and self.port is None
         if plain and self.attenuation_per_m == 0.0 and self.backscatter_per_m == 0.0:
             return self._render(view, self.rig)
-        if self.wall_shape is not None:
+        camera_side: NDArray[np.float64] = view.center_world
+        if self.port is not None:  # point-sampled through the port, its own Snell's law
+            per_light, points, valid, camera_side = port_shading(
+                self.camera, view, self.rig, self.port, sensor=self.sensor,
+                vignetting=self.vignetting,
+            )  # fmt: skip
+        elif self.wall_shape is not None:
             shading = shade_height_field(
                 self.camera,
                 view,
@@ -129,7 +140,7 @@ class Imaging:
             total = total + self.corner.image_bounce(self.rig, view, points, valid)
             valid &= ~self.corner.hidden(self.rig, view, points)
         if self.attenuation_per_m > 0.0:
-            d_camera = np.linalg.norm(points - view.center_world, axis=-1)
+            d_camera = np.linalg.norm(points - camera_side, axis=-1)
             total *= np.exp(-self.attenuation_per_m * d_camera)
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
@@ -307,6 +318,16 @@ def make_imaging(
                 f"the fall-off reaches {float(undeclared.min()):.3g} inside the image; "
                 "expected V > 0 everywhere",
             )
+    port = None
+    if departures.port is not None:
+        if wall_shape is not None or texture is not None or corner is not None:
+            raise InputError("port", "not rendered with a bowed wall, a texture or a corner")
+        if departures.backscatter_per_m > 0.0 or not wall.is_lambertian or sensor == "paper":
+            raise InputError(
+                "port", "not rendered with backscatter, a non-Lambertian wall or 'paper'"
+            )
+        d_mm, t_mm, n_g, n_w = departures.port
+        port = FlatPort(d_mm / 1000.0, t_mm / 1000.0, n_g, n_w)
     return Imaging(
         camera=camera,
         rig=rig,
@@ -320,6 +341,7 @@ def make_imaging(
         phase_g=departures.phase_g,
         undeclared_vignetting=undeclared,
         corner=corner,
+        port=port,
     )
 
 

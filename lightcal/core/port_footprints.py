@@ -1,0 +1,186 @@
+"""Pixel footprints on the wall z = 0 seen through the camera's flat port.
+
+As `lightcal.core.footprint.pixel_footprints` does in air, each pixel corner is
+undistorted (the intrinsics and distortion of the camera in its housing, as without a
+port) and turned into a ray; the ray is refracted through the port
+(`lightcal.core.flat_port.FlatPort.trace`: air -> glass -> water) and runs on in the
+water from its exit point X_p on the port's outer face; where it meets the wall z = 0 is
+the footprint's corner. A corner ray that misses the wall in front of the port makes the
+pixel invalid. The four corners make the footprint quad, and everything after is the
+planar model's (docs/model.md, "The camera's flat port"):
+
+- the flux on the quad is the light's intensity over its solid angle (the quad lies on
+  z = 0, so the renderer's plane paths apply);
+- the `radiance` sensor model's weight is 1 / A (A the quad's area, the footprint's
+  irradiance): the radiance a pixel sees through the port is the wall's times
+  (n_air / n_w)^2 (radiance over n^2 is conserved along a refracted ray), a constant
+  factor that the light's scale absorbs; `cos4` and `map` are fall-offs of the lens,
+  taken in the air as without a port (the cos^4 of the ray's angle in the air);
+- `paper` (cos(theta_v) / d^2 from the camera centre) is refused: its d has no
+  meaning once the ray bends;
+- each pixel keeps the mean of its corners' exit points (`Footprints.port_exits_world`)
+  where the camera side's path in the medium starts (|P - X_p|, not |P - C|), and the
+  footprints carry their normal +z (`Footprints.normals_world`) so that a
+  non-Lambertian wall's B takes the viewing direction from the port's exit point
+  (`lightcal.core.wall_mesh.apply_wall_on_mesh`, which on the plane gives the planar
+  kernel's numbers).
+
+Not here: a wall mesh behind a port (refused by `wall_footprints`), the corner grid of
+dense selections (the quads are always kept: 96 bytes a quad), and the light's port.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
+from lightcal.core.footprint import (
+    MAX_QUADS_PER_SIDE,
+    Footprints,
+    SensorModel,
+    checked_selection,
+    quad_corner_means,
+)
+from lightcal.core.scene import View
+
+
+def port_rays_world(
+    camera: Camera, view: View, port: FlatPort, pixels_xy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rays of pixel coordinates through the port, world frame.
+
+    Args:
+        camera: intrinsics and distortion (of the camera in its housing).
+        view: its pose.
+        port: the camera's flat port.
+        pixels_xy: (M, 2) pixel coordinates (u, v).
+
+    Returns:
+        origins: (M, 3) the exit points from the port, m (NaN where not ok).
+        directions: (M, 3) the unit directions in the water.
+        xy: (M, 2) the undistorted normalised coordinates (the rays in the air).
+        ok: (M,) undistorted and through the port.
+    """
+    xy, ok = camera.pixels_to_normalized(pixels_xy)
+    rays = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
+    origins_c, dirs_c, through = port.trace(rays)
+    R = view.R_camera_world
+    origins = origins_c @ R + view.center_world  # R^T X_c + C, row by row
+    return origins, dirs_c @ R, xy, ok & through
+
+
+def wall_hits(
+    origins: np.ndarray, directions: np.ndarray, ok: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where rays (M, 3) from origins (M, 3) meet the wall z = 0 in front of them:
+    (points (M, 3) with z exactly 0, NaN on a miss; hit (M,))."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam = -origins[:, 2] / directions[:, 2]
+        hit = ok & (directions[:, 2] < 0.0) & (lam > 0.0) & np.isfinite(lam)
+    points = origins + lam[:, None] * directions
+    points[:, 2] = 0.0
+    points[~hit] = np.nan
+    return points, hit
+
+
+def port_footprints(
+    camera: Camera,
+    view: View,
+    pixels: np.ndarray,
+    port: FlatPort,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+    max_quads_per_side: int | None = MAX_QUADS_PER_SIDE,
+) -> Footprints:
+    """Footprints and sensor weights of (super-)pixels on the wall z = 0 through the
+    camera's flat port (`pixel_footprints`' arguments and `port`).
+
+    A super-pixel is valid when every corner of its b x b pixels reaches the wall; its
+    area is the sum of its pixels' quads' areas; merged quads (`quads_per_side`) take the
+    groups' outer corners, as without a port. The quads are kept.
+    """
+    if sensor == "paper":
+        raise ValueError(
+            "sensor: the 'paper' model (cos(theta_v) / d^2 from the camera centre) is not "
+            "defined behind a flat port; use radiance, cos4 or map"
+        )
+    b, p, vmap, s = checked_selection(
+        camera, pixels, sensor, vignetting, binning, max_quads_per_side
+    )
+    step = b // s
+    n = p.shape[0]
+    # The (b+1)^2 lattice of each super-pixel's corners, as full-resolution corner
+    # indices (row, col): corner (r, c) sits at pixel coordinates (c - 1/2, r - 1/2).
+    offs = np.arange(b + 1)
+    rows = p[:, 1, None, None] * b + offs[None, :, None]
+    cols = p[:, 0, None, None] * b + offs[None, None, :]
+    keys = (rows * (camera.width + 1) + cols).ravel().astype(np.int64)
+    unique, inverse = np.unique(keys, return_inverse=True)
+    corner_px = np.stack(
+        [unique % (camera.width + 1) - 0.5, unique // (camera.width + 1) - 0.5], axis=1
+    ).astype(np.float64)
+    origins, directions, xy, ok = port_rays_world(camera, view, port, corner_px)
+    points, hit = wall_hits(origins, directions, ok)
+    lattice = points[inverse].reshape(n, b + 1, b + 1, 3)
+    exits = origins[inverse].reshape(n, b + 1, b + 1, 3)
+    lattice_xy = xy[inverse].reshape(n, b + 1, b + 1, 2)
+    valid = np.asarray(hit[inverse].reshape(n, -1).all(axis=1), dtype=np.bool_)
+    # Member quads P1..P4 = lattice (j, i), (j, i+1), (j+1, i+1), (j+1, i); on z = 0 the
+    # area is the z component of the vector area 0.5 (P3 - P1) x (P4 - P2).
+    d13 = lattice[:, 1:, 1:, :2] - lattice[:, :-1, :-1, :2]
+    d24 = lattice[:, 1:, :-1, :2] - lattice[:, :-1, 1:, :2]
+    member_area = 0.5 * np.abs(d13[..., 0] * d24[..., 1] - d13[..., 1] * d24[..., 0])
+    area = member_area.reshape(n, -1).sum(axis=1)
+    terms = _sensor_terms(sensor, p, b, lattice_xy, vmap)
+    k = s * s
+    with np.errstate(invalid="ignore", divide="ignore"):
+        weight = terms.reshape(n, -1).mean(axis=1) / area
+    weights = np.repeat(weight[:, None], k, axis=1)
+
+    def quads(grid: np.ndarray) -> np.ndarray:
+        g = grid[:, ::step, ::step]
+        q = np.stack([g[:, :-1, :-1], g[:, :-1, 1:], g[:, 1:, 1:], g[:, 1:, :-1]], axis=3)
+        return np.ascontiguousarray(q.reshape(n, k, 4, 3))
+
+    corners = quads(lattice)
+    corners[~valid] = np.nan
+    exits_mean = quad_corner_means(quads(exits))
+    exits_mean[~valid] = np.nan
+    weights = np.where(valid[:, None], weights, 0.0)
+    area = np.where(valid, area, np.nan)
+    normals = np.zeros((n, 3))
+    normals[:, 2] = 1.0
+    normals[~valid] = np.nan
+    return Footprints(
+        p,
+        corners,
+        np.ascontiguousarray(weights),
+        valid,
+        area,
+        normals_world=normals,
+        sensor=sensor,
+        port_exits_world=exits_mean,
+    )
+
+
+def _sensor_terms(
+    sensor: SensorModel, pixels: np.ndarray, b: int, lattice_xy: np.ndarray, vmap: np.ndarray | None
+) -> np.ndarray:
+    """(N, b, b) each member pixel's sensor term: `radiance` 1, `cos4` cos^4 of its mean
+    undistorted corner (the ray's angle in the air), `map` V(u, v)."""
+    n = pixels.shape[0]
+    if sensor == "radiance":
+        return np.ones((n, b, b))
+    if sensor == "cos4":
+        xy = lattice_xy
+        mean = (xy[:, :-1, :-1] + xy[:, :-1, 1:] + xy[:, 1:, 1:] + xy[:, 1:, :-1]) / 4.0
+        cos2 = 1.0 / (1.0 + np.sum(mean * mean, axis=-1))
+        return np.asarray(cos2 * cos2)
+    assert sensor == "map" and vmap is not None
+    offs = np.arange(b)
+    rows = pixels[:, 1, None, None] * b + offs[None, :, None]
+    cols = pixels[:, 0, None, None] * b + offs[None, None, :]
+    return np.asarray(vmap[rows, cols])
