@@ -16,18 +16,15 @@ import re
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from lightcal.core.albedo_map import AlbedoMap, with_albedo
 from lightcal.core.bounce_image import BounceImages
-from lightcal.core.camera import Camera
 from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
-from lightcal.core.port_render import render_image_through_port
+from lightcal.core.port_render import render_view_image
 from lightcal.core.problem import with_view
-from lightcal.core.render import render_image
 from lightcal.core.scene import Rig, View
 from lightcal.core.solver import CalibrationModel
 from lightcal.core.surroundings import Surroundings
@@ -54,16 +51,6 @@ from lightcal.pipeline.results import stop_reason
 
 FIGURE_THREADS = min(2, os.cpu_count() or 1)
 """Images whose figures `write_report` makes at once."""
-
-
-def _render_view(
-    project: Project, camera: Camera, view: View, rig: Rig, **kwargs: Any
-) -> np.ma.MaskedArray:
-    """The whole image of a view as the model renders it: on the wall mesh, or through
-    the camera's flat port (`camera.port`), else on the plane z = 0."""
-    if project.camera_port is not None:
-        return render_image_through_port(camera, view, rig, project.camera_port, **kwargs)
-    return render_image(camera, view, rig, mesh=project.wall_mesh, **kwargs)
 
 
 def render_views(
@@ -124,11 +111,12 @@ def render_views(
             rig: Rig = rig,
             ambient: float = ambient,
         ) -> np.ma.MaskedArray:
-            values = bounce + _render_view(
-                project,
+            values = bounce + render_view_image(
                 loaded.camera,
                 seen,
                 rig,
+                port=project.camera_port,
+                mesh=project.wall_mesh,
                 sensor=project.spec.sensor.model,
                 vignetting=vignetting,
                 offset=0.0,

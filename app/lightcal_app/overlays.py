@@ -24,9 +24,9 @@ from lightcal.core.bounce_image import BounceImages
 from lightcal.core.camera import Camera
 from lightcal.core.footprint import SensorModel, room_light_image
 from lightcal.core.medium import Medium
+from lightcal.core.port_render import render_view_image
 from lightcal.core.problem import with_view
 from lightcal.core.quantiles import percentile
-from lightcal.core.render import render_image
 from lightcal.core.selection import bin_values
 from lightcal.core.surroundings import Surroundings
 from lightcal.io.project import Project
@@ -192,10 +192,11 @@ class OverlayImages:
             )
 
         def through(medium: Medium) -> np.ma.MaskedArray:
-            out = bounce + render_image(
+            out = bounce + render_view_image(
                 self.geo.render_camera,
                 view,
                 display.rig,
+                port=self.project.camera_port,
                 sensor=sensor,
                 vignetting=self._vignetting,
                 offset=0.0,

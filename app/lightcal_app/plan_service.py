@@ -196,6 +196,7 @@ class PlanService:
             noise_scale2=s2,
             progress=progress,
             mesh=project.wall_mesh,
+            port=project.camera_port,
         )
         log.info("planned %d views in %.2f s", len(planned), time.perf_counter() - t0)
         with st.lock:

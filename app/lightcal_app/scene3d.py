@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 import viser
 
-from lightcal.core.footprint import pixel_footprints
 from lightcal.core.rid import RID
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.core.scene import Light, Rig
 from lightcal.core.surroundings import Surroundings
+from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.project import Project
 from lightcal_app.overlays import bounce_key
 from lightcal_app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
@@ -119,7 +119,7 @@ def wall_extent(project: Project, *, margin: float = 0.15) -> tuple[np.ndarray, 
     )
     pts = []
     for view in project.views:
-        fp = pixel_footprints(cam, view, corners_px)
+        fp = wall_footprints(cam, view, corners_px, mesh=None, port=project.camera_port)
         c = fp.corners_world.reshape(-1, 3)
         pts.append(c[np.all(np.isfinite(c), axis=1), :2])
         pts.append(view.center_world[None, :2])

@@ -113,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
             noise_scale2=s2,
             progress=progress,
             mesh=project.wall_mesh,
+            port=project.camera_port,
         )
     light_names = [u.initial.name for u in model.unknowns]
     plan = plan_to_dict(current, planned, light_names)

@@ -9,6 +9,8 @@ whole-image kernel knows rays from the camera centre only.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from lightcal.core.camera import Camera
@@ -16,9 +18,10 @@ from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import SensorModel
 from lightcal.core.medium import AIR, Medium
 from lightcal.core.port_footprints import port_footprints
-from lightcal.core.render import shade
+from lightcal.core.render import render_image, shade
 from lightcal.core.scene import Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
+from lightcal.core.wall_mesh import WallMesh
 
 
 def render_pixels_through_port(
@@ -74,3 +77,21 @@ def render_image_through_port(
         fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium
     ).values
     return values.reshape(hb, wb)
+
+
+def render_view_image(
+    camera: Camera,
+    view: View,
+    rig: Rig,
+    *,
+    port: FlatPort | None = None,
+    mesh: WallMesh | None = None,
+    **options: Any,
+) -> np.ma.MaskedArray:
+    """The whole image of a view as the model renders it: through the camera's flat
+    `port` (`render_image_through_port`), else on the wall `mesh` or the plane z = 0
+    (`lightcal.core.render.render_image`); `options` are theirs (sensor, vignetting,
+    offset, rid_subsamples, wall, medium). Returns (H, W), masked where invalid."""
+    if port is not None:
+        return render_image_through_port(camera, view, rig, port, **options)
+    return render_image(camera, view, rig, mesh=mesh, **options)

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.light_axis import axis_jacobian
 from lightcal.core.model_rebuild import rebuilt
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
@@ -289,6 +290,7 @@ def plan_views(
     noise_scale2: float | None = None,
     progress: Callable[[str, int, int], None] | None = None,
     mesh: WallMesh | None = None,
+    port: FlatPort | None = None,
 ) -> tuple[Sigmas, list[PlannedView]]:
     """The current sigmas and the `n` best next views of a calibration model at x.
 
@@ -303,6 +305,7 @@ def plan_views(
             are rendered (the long part).
         mesh: the wall's shape (`wall.mesh`): the candidates' footprints on it (a
             candidate whose image corners miss it is dropped); None: the plane z = 0.
+        port: the camera's flat port (`camera.port`): the candidates seen through it.
     """
     grid = PlanGrid() if grid is None else grid
     if noise_scale2 is None:
@@ -311,7 +314,7 @@ def plan_views(
     state = InformationState(model, x, noise_scale2, rows)
     exposure = float(np.median([im.view.exposure for im in model.images]))
     centre = wall_centre([im.view for im in model.images])
-    pool = candidates(camera, grid, centre, exposure, mesh=mesh)
+    pool = candidates(camera, grid, centre, exposure, mesh=mesh, port=port)
     peak = typical_peak(model, state.x)
     at_camera_pixels = camera_pixel_model(model)
     images = []
@@ -328,6 +331,7 @@ def plan_views(
                 f"plan_{k:03d}",
                 peak=peak,
                 mesh=mesh,
+                port=port,
             )
         )
     if progress is not None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.problem import ImageData, poisson_gaussian_sigma
 from lightcal.core.render import shade
 from lightcal.core.rotations import matrix_from_rotvec
@@ -123,9 +124,11 @@ def candidates(
     exposure: float,
     *,
     mesh: WallMesh | None = None,
+    port: FlatPort | None = None,
 ) -> list[Candidate]:
     """The grid's poses whose image corners see the wall within its extent (on `mesh`,
-    the wall's shape, when given: a corner that misses it drops the pose)."""
+    the wall's shape, when given: a corner that misses it drops the pose; through the
+    camera's flat `port` when given)."""
     corners = np.array(
         [
             [0, 0],
@@ -141,7 +144,7 @@ def candidates(
             for az in grid.azimuths_deg if t > 0 else grid.azimuths_deg[:1]:
                 for roll in grid.rolls_deg:
                     c = candidate_view(d, t, az, roll, target_world, exposure)
-                    fp = wall_footprints(camera, c.view, corners, mesh=mesh)
+                    fp = wall_footprints(camera, c.view, corners, mesh=mesh, port=port)
                     if not np.all(fp.valid):
                         continue
                     pts = fp.corners_world.reshape(-1, 3)
@@ -160,18 +163,20 @@ def candidate_image(
     *,
     peak: float | None = None,
     mesh: WallMesh | None = None,
+    port: FlatPort | None = None,
 ) -> ImageData | None:
     """A synthetic selection of `view`'s pixels rendered at the estimate x: about
-    `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
-    sigma from the noise model (or the images' median sigma); None when too few are lit.
-    With `peak` the view's exposure is set so that its brightest pixel reads `peak` above
-    the offset (as a photographer exposes each view; `typical_peak`)."""
+        `grid.pixels_per_view` lit pixels on a regular grid, observed = rendered (+ offset),
+        sigma from the noise model (or the images' median sigma); None when too few are lit.
+        With `peak` the view's exposure is set so that its brightest pixel reads `peak` above
+        the offset (as a photographer exposes each view; `typical_peak`). Its footprints are on
+    `mesh` and through the camera's flat `port` when given."""
     side = max(2, math.ceil(math.sqrt(4 * grid.pixels_per_view)))
     us = np.linspace(0, camera.width - 1, side).round()
     vs = np.linspace(0, camera.height - 1, max(2, side * camera.height // camera.width)).round()
     pix = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2).astype(np.int64)
     pix = np.unique(pix, axis=0)
-    fp = wall_footprints(camera, view, pix, mesh=mesh)
+    fp = wall_footprints(camera, view, pix, mesh=mesh, port=port)
     lay = model.layout
     rig, wall = lay.rig(x), lay.wall_of(x)
     values = shade(
@@ -204,5 +209,5 @@ def candidate_image(
     else:
         sigma = np.full(len(keep), float(np.median(np.concatenate(model.sigmas))))
     offset = lay.offset(x)
-    fp = wall_footprints(camera, view, pix[keep], mesh=mesh)
+    fp = wall_footprints(camera, view, pix[keep], mesh=mesh, port=port)
     return ImageData(name, view, fp, signal + offset, sigma)
