@@ -82,7 +82,8 @@ def test_the_3d_views_wall_is_what_the_port_sees(app: LightcalApp) -> None:
     corners = np.array([[0, 0], [w, 0], [w, h], [0, h]])
     xy = np.concatenate(
         [
-            port_footprints(cam, v, corners, project.camera_port).corners_world[..., :2]
+            port_footprints(cam, v, corners, project.camera_port)
+            .corners_world[..., :2]
             .reshape(-1, 2)
             for v in project.views
         ]
