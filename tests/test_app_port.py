@@ -5,6 +5,7 @@ port")."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -93,11 +94,13 @@ def test_the_3d_views_wall_is_what_the_port_sees(app: LightcalApp) -> None:
     np.testing.assert_allclose(hi, xy.max(axis=0), atol=1e-12)
 
 
-def test_backscatter_typed_in_the_page_is_refused_naming_the_port(app: LightcalApp) -> None:
+def test_a_fall_off_chosen_in_the_page_is_refused_naming_the_port(app: LightcalApp) -> None:
+    """`paper` (its d and viewing angle assume straight rays), as the file refuses it."""
+    settings = app.state.solve_settings
     with pytest.raises(InputError) as info:
-        app.controller.set_medium(None, backscatter_per_m=1.0)
-    assert "camera.port: not modelled together with medium.backscatter_per_m" in str(info.value)
-    assert app.state.solve_project.spec.medium.backscatter_per_m == 0.0
+        app.controller.set_solve_settings(dataclasses.replace(settings, fall_off="paper"))
+    assert "camera.port: not modelled together with sensor.model: paper" in str(info.value)
+    assert app.state.solve_settings == settings
 
 
 def test_plan_candidates_are_seen_through_the_port(app: LightcalApp) -> None:

@@ -209,8 +209,6 @@ def test_port_refusals() -> None:
         wall_footprints(camera, view, pixels, mesh=mesh, port=PORT)
     with pytest.raises(ValueError, match="'paper' model"):
         wall_footprints(camera, view, pixels, mesh=None, port=PORT, sensor="paper")
-    with pytest.raises(ValueError, match="backscatter behind the camera's flat port"):
-        render_pixels_through_port(camera, view, _rig(), pixels, PORT, medium=Medium(0.3, 1.0))
 
 
 def test_gradients_through_the_port_agree_with_central_differences() -> None:

@@ -96,7 +96,10 @@ def test_the_port_key_builds_a_flat_port(tmp_path: Path) -> None:
         (lambda d: d["camera"]["port"].update(distance_mm=-1.0), r"camera\.port\.distance_mm"),
         (lambda d: d["camera"]["port"].update(index=1.3), r"camera\.port\.index"),
         (lambda d: d["camera"]["port"].update(water_index=0.9), r"camera\.port\.water_index"),
-        (lambda d: d["medium"].update(backscatter_per_m=1.0), r"camera\.port: .*backscatter"),
+        (
+            lambda d: d.setdefault("wall", {}).update(albedo_map={"spacing_mm": 50}),
+            r"camera\.port: .*wall\.albedo_map",
+        ),
         (lambda d: d["sensor"].update(model="paper"), r"camera\.port: .*paper"),
         (lambda d: d["lights"][0].update(initial="auto"), r"camera\.port: .*initial: auto"),
     ],

@@ -45,7 +45,7 @@ def test_synths_imaging_through_the_port_agrees_with_the_renderer() -> None:
         (["--declare-port"], "--declare-port: expected --port D_MM T_MM NG NW"),
         (["--port", "-1", "10", "1.49", "1.333"], "--port: port: distance_m"),
         ([*PORT_ARGS, "--bow-mm", "3"], "--port: not rendered with a bowed wall"),
-        ([*PORT_ARGS, "--backscatter", "1"], "--port: not rendered with backscatter"),
+        ([*PORT_ARGS, "--wall", "plastic"], "--port: not rendered with a non-Lambertian wall"),
     ],
 )
 def test_synth_port_errors(tmp_path: Path, capsys, args: list[str], message: str) -> None:

@@ -205,8 +205,7 @@ def apply_medium(
             centers_world, light_world, camera_world, medium, flux, grad, extra_grads,
             d_medium_out if want else None,
         )  # fmt: skip
-        return
-    if medium.attenuation_per_m > 0.0 or want:
+    elif medium.attenuation_per_m > 0.0 or want:
         t = np.empty(n)
         dc = np.empty(n) if want else _NO_DC
         mk.apply_attenuation(
@@ -265,17 +264,13 @@ def _apply_through_port(
     extra_grads: np.ndarray | None,
     d_medium_out: np.ndarray | None,
 ) -> None:
-    """`apply_medium` behind the camera's flat port: flux (N,) *= T = exp(-c (|P - L| +
-    |P - X_p|)), X_p (N, 3) `exits_world` where each pixel's ray leaves the port, with
-    the chain rule of the kernel (`kernels.medium.apply_attenuation`): d(flux T)/dL =
-    T dflux/dL - c flux T (L - P) / |L - P|, d/d delta scaled by T, d/dc = -(|P - L| +
-    |P - X_p|) flux T. Invalid footprints (NaN) keep their flux and gradients. The
-    backscatter along the refracted rays is not modelled: refused."""
-    if medium.scatters or (d_medium_out is not None and d_medium_out.shape[1] > 1):
-        raise ValueError(
-            "medium: backscatter_per_m: the backscatter behind the camera's flat port is "
-            "not modelled (only the attenuation is): give 0 with a camera port"
-        )
+    """`apply_medium`'s attenuation behind the camera's flat port: flux (N,) *= T =
+    exp(-c (|P - L| + |P - X_p|)), X_p (N, 3) `exits_world` where each pixel's ray leaves
+    the port, with the chain rule of the kernel (`kernels.medium.apply_attenuation`):
+    d(flux T)/dL = T dflux/dL - c flux T (L - P) / |L - P|, d/d delta scaled by T, d/dc =
+    -(|P - L| + |P - X_p|) flux T. Invalid footprints (NaN) keep their flux and
+    gradients. (The backscatter along the refracted rays, from X_p to P, is
+    `apply_medium`'s.)"""
     to_light = light_world - centers_world
     d_light = np.linalg.norm(to_light, axis=1)
     path = d_light + np.linalg.norm(exits_world - centers_world, axis=1)

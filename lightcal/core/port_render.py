@@ -40,7 +40,7 @@ def render_pixels_through_port(
     medium: Medium = AIR,
 ) -> np.ma.MaskedArray:
     """`lightcal.core.render.render_pixels` through the camera's flat `port` (on the
-    plane z = 0; the backscatter is refused). Returns (N,) values, masked where invalid."""
+    plane z = 0). Returns (N,) values, masked where invalid."""
     fp = port_footprints(
         camera, view, pixels, port, sensor=sensor, vignetting=vignetting, binning=binning
     )

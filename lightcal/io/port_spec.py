@@ -52,7 +52,7 @@ class PortSpec(BaseModel):
 def build_port(spec: Any, source: Path) -> FlatPort | None:
     """The project's camera port (`spec`: the `ProjectFile`), or None; InputError naming
     `camera.port` when it is combined with what is not modelled behind a port: a wall
-    mesh, the `paper` sensor model, backscatter, the wall's albedo map, the
+    mesh, the `paper` sensor model, the wall's albedo map, the
     surroundings' bounce light, the automatic initial guess (the beam's rays are traced
     straight)."""
     port_spec: PortSpec | None = spec.camera.port
@@ -63,12 +63,6 @@ def build_port(spec: Any, source: Path) -> FlatPort | None:
         refusals.append("wall.mesh (footprints through a port are on the plane z = 0 only)")
     if spec.sensor.model == "paper":
         refusals.append("sensor.model: paper (its d and theta_v assume straight rays)")
-    medium = spec.medium
-    scatter = medium.backscatter_per_m
-    if (scatter if isinstance(scatter, int | float) else max(scatter)) > 0.0 or (
-        "backscatter_per_m" in medium.estimate
-    ):
-        refusals.append("medium.backscatter_per_m (the veil along refracted rays)")
     if spec.wall.albedo_map is not None:
         refusals.append("wall.albedo_map (its image is traced along straight rays)")
     if spec.surroundings is not None:

@@ -145,7 +145,7 @@ class Imaging:
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
         if self.backscatter_per_m > 0.0:
-            total = total + self._backscatter(view, points)
+            total = total + self._backscatter(view, points, camera_side)
         return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
 
     def declared(self, declare: bool) -> SurroundingsSpec | None:
@@ -154,13 +154,18 @@ class Imaging:
             return None
         return surroundings_spec(self.corner.surroundings)
 
-    def _backscatter(self, view: View, points: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(H, W) every light's backscatter along the rays to `points` (H, W, 3)."""
+    def _backscatter(
+        self, view: View, points: NDArray[np.float64], camera_side: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """(H, W) every light's backscatter along the rays to `points` (H, W, 3) from
+        `camera_side`: the camera centre (3,), or behind the port each ray's exit point
+        (H, W, 3) (the water starts there)."""
         medium = Medium(self.attenuation_per_m, self.backscatter_per_m, self.phase_g)
         flat = points.reshape(-1, 3)
+        start = camera_side.reshape(-1, 3)
         out = np.zeros(flat.shape[0])
         for light in self.rig.lights:
-            s = backscatter(flat, view.center_world, light, view, medium)
+            s = backscatter(flat, start if len(start) > 1 else start[0], light, view, medium)
             out += light.scale * view.exposure * medium.backscatter_per_m * s
         return out.reshape(points.shape[:2])
 
@@ -322,10 +327,8 @@ def make_imaging(
     if departures.port is not None:
         if wall_shape is not None or texture is not None or corner is not None:
             raise InputError("port", "not rendered with a bowed wall, a texture or a corner")
-        if departures.backscatter_per_m > 0.0 or not wall.is_lambertian or sensor == "paper":
-            raise InputError(
-                "port", "not rendered with backscatter, a non-Lambertian wall or 'paper'"
-            )
+        if not wall.is_lambertian or sensor == "paper":
+            raise InputError("port", "not rendered with a non-Lambertian wall or 'paper'")
         d_mm, t_mm, n_g, n_w = departures.port
         port = FlatPort(d_mm / 1000.0, t_mm / 1000.0, n_g, n_w)
     return Imaging(

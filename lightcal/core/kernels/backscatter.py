@@ -142,12 +142,13 @@ def _points_range(
     out_grad: np.ndarray,
 ) -> None:
     g8 = np.zeros(8)
+    per_point = camera.shape[0] > 1
     for i in range(i0, i1):
         out[i] = ray_integral(
             points[i, 0],
             points[i, 1],
             points[i, 2],
-            camera,
+            camera[i] if per_point else camera[0],
             light,
             R_world_light,
             rid,
@@ -211,11 +212,12 @@ def scatter_points(
     out: np.ndarray,
     out_grad: np.ndarray | None,
 ) -> None:
-    """S (N,) of the rays to wall points (N, 3) (`ray_integral`); out_grad (N, 8) its
-    gradients, or None."""
+    """S (N,) of the rays to wall points (N, 3) (`ray_integral`) from `camera_world`,
+    (3,) one point for all (the camera centre) or (N, 3) one per ray (where it leaves
+    the camera's flat port into the water); out_grad (N, 8) its gradients, or None."""
     args = (
         np.ascontiguousarray(points_world, dtype=np.float64),
-        np.ascontiguousarray(camera_world, dtype=np.float64),
+        np.ascontiguousarray(np.reshape(camera_world, (-1, 3)), dtype=np.float64),
         np.ascontiguousarray(light_world, dtype=np.float64),
         np.ascontiguousarray(R_world_light, dtype=np.float64),
         rid,
