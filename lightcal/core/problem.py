@@ -338,6 +338,7 @@ class ParameterLayout:
             R,
             scale=_exp(float(x[block.log_scale_of(channel)])),
             name=block.unknown.initial.name,
+            port=block.unknown.initial.port,
         )
 
     def rig(self, x: np.ndarray, channel: int = 0) -> Rig:
