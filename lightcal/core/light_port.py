@@ -45,7 +45,7 @@ import numpy as np
 
 from lightcal.core.flat_port import FlatPort
 
-#: Newton iterations at most (quadratic convergence: 5-8 are used from the start).
+#: Newton iterations at most (measured: 11 for d = 2 cm, 13 for d = 2 mm, up to 70 deg).
 MAX_NEWTON = 100
 
 
