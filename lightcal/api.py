@@ -167,7 +167,7 @@ def render(
     import numpy as np
 
     from lightcal.core.medium import medium_from_description
-    from lightcal.core.scene import Light, Rig
+    from lightcal.core.scene import Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.io.project_identity import check_result_of
     from lightcal.pipeline import load_images
@@ -185,7 +185,8 @@ def render(
         if lr is None:
             raise InputError(source, f"no result for light {unknown.initial.name!r}")
         position, R = np.array(lr.position_m), np.array(lr.R_camera_light)
-        lights.append(Light(unknown.initial.rid, position, R, scale=lr.scale, name=lr.name))
+        lights.append(unknown.initial.replace(t_camera_light=position, R_camera_light=R,
+                                              scale=lr.scale, name=lr.name))  # fmt: skip
     try:
         wall = wall_from_description(file.wall)
     except ValueError as exc:

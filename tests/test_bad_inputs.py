@@ -46,6 +46,9 @@ def _surface(**changes: Any) -> dict[str, Any]:
     }
 
 
+#: A light's flat port (`lights[i].port`) for the cases of what it does not model.
+_LIGHT_PORT = {"distance_mm": 15, "thickness_mm": 8}
+
 # (case, project edit, the message after "<project>: ")
 PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     (
@@ -166,6 +169,55 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "no lights",
         _set("lights", []),
         "lights: List should have at least 1 item after validation, not 0",
+    ),
+    (
+        "light port distance 0",
+        _set("lights.0.port", {"distance_mm": 0, "thickness_mm": 8}),
+        "lights[0].port.distance_mm: Input should be greater than 0",
+    ),
+    (
+        "light port unknown key",
+        _set("lights.0.port", {"distance_mm": 15, "thickness_mm": 8, "index": 1.5}),
+        "lights[0].port.index: Extra inputs are not permitted",
+    ),
+    (
+        "light port with backscatter",
+        lambda p: (
+            _set("lights.0.port", _LIGHT_PORT)(p),
+            _set("medium", {"attenuation_per_m": 0.2, "backscatter_per_m": 0.5})(p),
+        ),
+        "lights[0].port: not modelled together with medium.backscatter_per_m (the veil's "
+        "beam is traced straight)",
+    ),
+    (
+        "light port with a glossy wall",
+        lambda p: (_set("lights.0.port", _LIGHT_PORT)(p), _set("wall", {"model": "plastic"})(p)),
+        "lights[0].port: not modelled together with wall.model: plastic (a non-Lambertian "
+        "wall's reflectance needs the water direction at the wall)",
+    ),
+    (
+        "light port with surroundings",
+        lambda p: (
+            _set("lights.0.port", _LIGHT_PORT)(p),
+            _set("surroundings", {"surfaces": [_surface()]})(p),
+        ),
+        "lights[0].port: not modelled together with surroundings (their bounce light is "
+        "traced straight from the light)",
+    ),
+    (
+        "light port with an estimated RID",
+        lambda p: (
+            _set("lights.0.port", _LIGHT_PORT)(p),
+            _set("lights.0.estimate_rid", "cos_power")(p),
+        ),
+        "lights[0].port: not modelled together with lights[0].estimate_rid: cos_power (its "
+        "columns take the straight direction, not the air's)",
+    ),
+    (
+        "light port with initial auto",
+        lambda p: (_set("lights.0.port", _LIGHT_PORT)(p), _set("lights.0.initial", "auto")(p)),
+        "lights[0].port: not modelled together with lights[0].initial: auto (the beam is "
+        "sighted along straight rays)",
     ),
     (
         "light behind the wall",

@@ -407,6 +407,40 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--light-radius-m: expected two finite numbers (min, max), got (nan, 0.1)"),
     ),
     (
+        "synth: --declare-light-port without --light-port",
+        "synth {n} --declare-light-port",
+        _error(
+            "synth",
+            "--declare-light-port: expected --light-port D_MM T_MM NG NW (the port to declare)",
+        ),
+    ),
+    (
+        "synth: --light-port distance 0",
+        "synth {n} --light-port 0 8 1.49 1.333",
+        _error("synth", "--light-port: port: distance_m: expected a finite value > 0.0, got 0.0"),
+    ),
+    (
+        "synth: --light-port three numbers",
+        "synth {n} --light-port 15 8 1.49",
+        _usage("synth", "argument --light-port: expected 4 arguments"),
+    ),
+    (
+        "synth: --light-port with --port",
+        "synth {n} --light-port 15 8 1.49 1.333 --port 20 10 1.49 1.333",
+        _error(
+            "synth",
+            "--light-port: not rendered with a camera port, a bowed wall, a texture or a corner",
+        ),
+    ),
+    (
+        "synth: --light-port with --backscatter",
+        "synth {n} --light-port 15 8 1.49 1.333 --backscatter 1",
+        _error(
+            "synth",
+            "--light-port: not rendered with backscatter, a non-Lambertian wall or 'paper'",
+        ),
+    ),
+    (
         "synth: --init-offset-m -1",
         "synth {n} --init-offset-m -1",
         _error("synth", "--init-offset-m: expected a finite value >= 0, got -1.0"),

@@ -516,8 +516,10 @@ def test_every_departure_together_is_recorded_and_the_dataset_loads(tmp_path: Pa
         backscatter_per_m=0.2,
         corner=(0.7, 0.5, 0.8),
     )
-    # All but the camera's flat port, which is rendered on the flat wall without them.
-    assert departures.names == tuple(n for n in DEPARTURE_NAMES if n != "port")
+    # All but the camera's and the lights' flat ports, rendered on the flat wall without
+    # them.
+    ports = ("port", "light_port")
+    assert departures.names == tuple(n for n in DEPARTURE_NAMES if n not in ports)
     cfg = config(sensor=SensorConfig(), departures=departures)
     dataset = write_dataset(tmp_path / "a", cfg)
     again = write_dataset(tmp_path / "b", cfg)
@@ -583,7 +585,8 @@ def test_cli_departure_options_reach_truth_json(tmp_path: Path, no_warmup: None)
     ]  # fmt: skip
     assert main(argv) == 0
     found = read_departures(json.loads((out / "truth.json").read_text()))
-    assert list(found) == [n for n in DEPARTURE_NAMES if n != "port"]  # (port: alone)
+    ports = ("port", "light_port")  # (rendered without the others)
+    assert list(found) == [n for n in DEPARTURE_NAMES if n not in ports]
     assert found["ambient"]["fraction"] == 0.1
     assert found["undeclared_vignetting"]["coeffs"] == [-0.3, 0.05]
     assert found["rid_rim"]["amplitude"] == 0.25

@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
 
     from lightcal.cli.progress import console, ensure_kernels, stage_progress
     from lightcal.core.medium import medium_from_description
-    from lightcal.core.scene import Light, Rig
+    from lightcal.core.scene import Rig
     from lightcal.core.wall import wall_from_description
     from lightcal.errors import InputError
     from lightcal.io.atomic import atomic_write_bytes
@@ -55,11 +55,10 @@ def run(args: argparse.Namespace) -> int:
         lr = by_name.get(unknown.initial.name)
         if lr is None:
             raise InputError(args.result, f"no result for light {unknown.initial.name!r}")
-        lights.append(
-            Light(
-                unknown.initial.rid,
-                np.array(lr.position_m),
-                np.array(lr.R_camera_light),
+        lights.append(  # the project's light (its RID and port) at the result's pose
+            unknown.initial.replace(
+                t_camera_light=np.array(lr.position_m),
+                R_camera_light=np.array(lr.R_camera_light),
                 scale=lr.scale,
                 name=lr.name,
             )

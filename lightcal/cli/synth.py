@@ -40,6 +40,10 @@ what the project declares in one everyday way, each recorded in truth.json under
   camera's flat port"): each pixel centre's ray refracted into the water
   (`lightcal.synthetic.port_imaging`); `--declare-port` makes the project declare it
   (`camera.port`).
+- `--light-port D_MM T_MM NG NW`: every light shines through a flat port (docs/model.md,
+  "The light's flat port"), computed per pixel centre by
+  `lightcal.synthetic.light_port_imaging`; `--declare-light-port` makes the project
+  declare it (`lights[i].port`).
 
 `--declare-medium given|estimated` makes the project declare that water (`medium:` with
 the true C, or estimated from 0): data whose project models the medium
@@ -333,6 +337,7 @@ def run(args: argparse.Namespace) -> int:
             albedo_map=args.declare_albedo_map,
             channels=channels,
             declare_port=args.declare_port,
+            declare_light_port=args.declare_light_port,
         )
     )
 

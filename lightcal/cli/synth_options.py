@@ -78,6 +78,8 @@ OPTIONS = {
     "declare_surroundings": "--declare-surroundings",
     "port": "--port",
     "declare_port": "--declare-port",
+    "light_port": "--light-port",
+    "declare_light_port": "--declare-light-port",
 }
 
 
@@ -254,6 +256,22 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         help="the project declares --port (camera.port)",
     )
     g.add_argument(
+        "--light-port",
+        type=float,
+        nargs=4,
+        default=None,
+        metavar=("D_MM", "T_MM", "NG", "NW"),
+        help="every light shines through a flat port along its axis: its inner face D_MM mm "
+        "in front of the emitter, T_MM mm of glass of index NG, water of index NW outside "
+        "(the air direction solved per pixel, the irradiance point-sampled with the "
+        "Fresnel transmittance; flat wall, Lambertian, no backscatter, no --port) (none)",
+    )
+    g.add_argument(
+        "--declare-light-port",
+        action="store_true",
+        help="the project declares --light-port (lights[i].port)",
+    )
+    g.add_argument(
         "--dark-frames",
         action="store_true",
         help="with --ambient: also write a light-off photo of each view (the room light "
@@ -303,6 +321,11 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
     if args.declare_port and args.port is None:
         raise InputError("--declare-port", "expected --port D_MM T_MM NG NW (the port to declare)")
     port = None if args.port is None else (args.port[0], args.port[1], args.port[2], args.port[3])
+    if args.declare_light_port and args.light_port is None:
+        raise InputError(
+            "--declare-light-port", "expected --light-port D_MM T_MM NG NW (the port to declare)"
+        )
+    light_port = None if args.light_port is None else tuple(args.light_port)
     return build(
         lambda: Departures(
             ambient_fraction=args.ambient,
@@ -318,6 +341,7 @@ def departures_of(args: argparse.Namespace, sensor_model: str) -> Departures:
             phase_g=args.phase_g,
             corner=corner,
             port=port,
+            light_port=light_port,
         )
     )
 

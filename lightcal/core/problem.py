@@ -332,12 +332,11 @@ class ParameterLayout:
     ) -> Light:
         """The light at x, its scale that of `channel`."""
         R, t = block.param.to_pose(x[block.pose])
-        return Light(
-            rid if rid is not None else self.rid_of(block, x),
-            t,
-            R,
+        return block.unknown.initial.replace(  # its name and port kept
+            rid=rid if rid is not None else self.rid_of(block, x),
+            t_camera_light=t,
+            R_camera_light=R,
             scale=_exp(float(x[block.log_scale_of(channel)])),
-            name=block.unknown.initial.name,
         )
 
     def rig(self, x: np.ndarray, channel: int = 0) -> Rig:

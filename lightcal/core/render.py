@@ -17,28 +17,24 @@ that is decided per pixel: a light behind the footprint's plane lights nothing t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
-import numba
 import numpy as np
 
 from lightcal.core.camera import Camera
-from lightcal.core.corner_grid import GRID_CACHE
 from lightcal.core.corner_grid import corner_grid as corner_grid  # re-exported
 from lightcal.core.footprint import (
-    SENSOR_CODES,
     SENSOR_MODELS,
     Footprints,
     SensorModel,
     check_vignetting,
 )
 from lightcal.core.footprint import pixel_footprints as pixel_footprints  # re-exported
-from lightcal.core.kernels.backscatter import add_scatter_image
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
-from lightcal.core.kernels.image import render_image_fused
-from lightcal.core.kernels.medium import attenuate_image
 from lightcal.core.kernels.wall import apply_wall
-from lightcal.core.medium import AIR, Medium, apply_medium, scatter_grid, scatter_nodes
-from lightcal.core.rid_stack import stack_rid_data
+from lightcal.core.light_port_flux import port_light_flux
+from lightcal.core.medium import AIR, Medium, apply_medium
+from lightcal.core.render_fused import render_fused, render_in_medium
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.core.wall_mesh import (
@@ -111,7 +107,9 @@ def light_flux(
 
     A wall model other than Lambertian multiplies each pixel's flux by its relative
     reflectance B (`lightcal.core.wall`) at the footprint centre, a medium other than
-    air by its transmittance T (`lightcal.core.medium`) there.
+    air by its transmittance T (`lightcal.core.medium`) there. A light behind a flat
+    port (`light.port`) is lit through it (`lightcal.core.light_port_flux`; a
+    Lambertian wall on the plane, no backscatter).
 
     Args:
         footprints: from `pixel_footprints` for this view.
@@ -143,6 +141,11 @@ def light_flux(
         grad = np.empty((n, 6)) if grad_out is None else grad_out
         if grad.shape != (n, 6) or grad.dtype != np.float64 or not grad.flags.c_contiguous:
             raise ValueError(f"grad_out: expected a C-contiguous float64 ({n}, 6) array")
+    if light.port is not None:
+        return port_light_flux(
+            footprints, view, light, rid_subsamples=n_sub, want_grad=want_grad,
+            grad_out=grad, wall=wall, medium=medium, medium_grad_out=medium_grad_out,
+        )  # fmt: skip
     L_world, R_world_light = light_in_view(light, view)
     on_mesh = footprints.normals_world is not None
     if not on_mesh and L_world[2] <= 0.0:
@@ -368,12 +371,14 @@ def render_image(
     """
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
-    if mesh is not None:
+    if mesh is not None or any(light.port is not None for light in rig.lights):
+        # On a mesh, or with a light behind its port: every pixel's footprint, shaded.
         hb, wb = camera.height // binning, camera.width // binning
         v, u = np.mgrid[0:hb, 0:wb]
-        fp = mesh_footprints(
-            camera, view, np.stack([u.ravel(), v.ravel()], axis=1), mesh, sensor=sensor,
-            vignetting=vignetting, binning=int(binning), max_quads_per_side=None,
+        every = np.stack([u.ravel(), v.ravel()], axis=1)
+        fp = (pixel_footprints if mesh is None else partial(mesh_footprints, mesh=mesh))(
+            camera, view, every, sensor=sensor, vignetting=vignetting, binning=int(binning),
+            max_quads_per_side=None,
         )  # fmt: skip
         _check_scatter_sensor(medium, sensor)
         on_mesh = shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples,
@@ -392,108 +397,9 @@ def render_image(
         if light.position_world(view)[2] > 0.0
     ]
     if medium.is_clear or not lit:
-        out, invalid = _render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset, wall)
+        out, invalid = render_fused(camera, view, lit, sensor, vmap, b, n_sub, offset, wall)
     else:
-        out, invalid = _render_in_medium(
+        out, invalid = render_in_medium(
             camera, view, lit, sensor, vmap, b, n_sub, offset, wall, medium
         )
     return np.ma.masked_array(out, mask=invalid, copy=False)
-
-
-def _render_in_medium(
-    camera: Camera,
-    view: View,
-    lit: list[tuple[Light, np.ndarray, np.ndarray]],
-    sensor: SensorModel,
-    vmap: np.ndarray,
-    b: int,
-    n_sub: int,
-    offset: float,
-    wall: WallReflectance,
-    medium: Medium,
-) -> tuple[np.ndarray, np.ndarray]:
-    """`_render_fused` with each light's value times its transmittance T at the
-    footprint centres (`attenuate_image`): one fused pass per light, whose T differs;
-    then each light's backscatter along the rays to those centres (`add_scatter_image`,
-    exact on the nodes of `scatter_grid`, interpolated between them)."""
-    grid_xy, grid_ok = GRID_CACHE.get(camera)
-    view_args = (
-        grid_xy,
-        grid_ok,
-        np.ascontiguousarray(view.R_camera_world),
-        np.ascontiguousarray(view.center_world),
-        b,
-    )
-    total, invalid = _render_fused(camera, view, lit[:1], sensor, vmap, b, n_sub, 0.0, wall)
-    c = medium.attenuation_per_m
-    with numba.parallel_chunksize(1):
-        attenuate_image(*view_args, lit[0][1], c, total, total, False, float(offset))
-        for k in range(1, len(lit)):
-            out, _ = _render_fused(camera, view, lit[k : k + 1], sensor, vmap, b, n_sub, 0.0, wall)
-            attenuate_image(*view_args, lit[k][1], c, out, total, True, 0.0)
-        if medium.scatters:
-            nodes, weights = scatter_nodes()
-            node_rows, node_cols = scatter_grid(total.shape)
-            for light, L_world, R_world_light in lit:
-                add_scatter_image(
-                    *view_args,
-                    L_world,
-                    np.ascontiguousarray(R_world_light),
-                    light.rid.data(),
-                    c,
-                    medium.phase_g,
-                    nodes,
-                    weights,
-                    light.scale * view.exposure * medium.backscatter_per_m,
-                    node_rows,
-                    node_cols,
-                    total,
-                )
-    return total, invalid
-
-
-def _render_fused(
-    camera: Camera,
-    view: View,
-    lit: list[tuple[Light, np.ndarray, np.ndarray]],
-    sensor: SensorModel,
-    vmap: np.ndarray,
-    b: int,
-    n_sub: int,
-    offset: float,
-    wall: WallReflectance,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The fused kernel over lights `lit` (light, L_world, R_world_light): values, invalid."""
-    grid_xy, grid_ok = GRID_CACHE.get(camera)
-    hb, wb = camera.height // b, camera.width // b
-    lights_world = np.array([p for _, p, _ in lit], dtype=np.float64).reshape(len(lit), 3)
-    R_world_lights = np.array([r for _, _, r in lit], dtype=np.float64).reshape(len(lit), 3, 3)
-    scales = np.array([light.scale for light, _, _ in lit], dtype=np.float64)
-    rids = stack_rid_data([light.rid.data() for light, _, _ in lit])
-    wd = wall.data()
-    out = np.empty((hb, wb))
-    invalid = np.empty((hb, wb), dtype=np.bool_)
-    # Dynamic scheduling of the row chunks: the machine's cores may be shared.
-    with numba.parallel_chunksize(1):
-        render_image_fused(
-            grid_xy,
-            grid_ok,
-            np.ascontiguousarray(view.R_camera_world),
-            np.ascontiguousarray(view.center_world),
-            SENSOR_CODES[sensor],
-            vmap,
-            b,
-            lights_world,
-            R_world_lights,
-            scales,
-            rids,
-            n_sub,
-            float(view.exposure),
-            float(offset),
-            wd.kind,
-            wd.params,
-            wd.tables,
-            out,
-            invalid,
-        )
-    return out, invalid

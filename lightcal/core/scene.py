@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.rid import RID
 from lightcal.core.rotations import as_finite_array, check_rotation_matrix
 
@@ -84,6 +85,10 @@ class Light:
         R_camera_light: (3, 3) rotation light -> camera (light +z is its axis).
         scale: the global scale k of docs/model.md (I0 x albedo / pi x sensor gain), > 0.
         name: a label for results and the viewer.
+        port: the flat window of its underwater housing (a `FlatPort` in the light
+            frame: its normal `normal_camera` is the light frame's, by default the axis
+            +z), or None: the light shines straight into the medium
+            (docs/model.md, "The light's flat port").
     """
 
     rid: RID
@@ -91,6 +96,7 @@ class Light:
     R_camera_light: np.ndarray = field(default_factory=lambda: np.eye(3))
     scale: float = 1.0
     name: str = "light"
+    port: FlatPort | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(
@@ -127,6 +133,7 @@ class Light:
             "R_camera_light": self.R_camera_light,
             "scale": self.scale,
             "name": self.name,
+            "port": self.port,
         }
         fields.update(changes)
         return Light(**fields)  # type: ignore[arg-type]

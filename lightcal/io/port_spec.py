@@ -1,4 +1,4 @@
-"""The project file's `camera.port`: the camera's flat port under water.
+"""The project file's `camera.port` and `lights[i].port`: flat ports under water.
 
     camera:
       fx: ...
@@ -14,6 +14,10 @@ intrinsics that absorb the port). With it the footprints are built through the p
 intrinsics are then those of the camera in its housing, in air. `build_port` turns the
 section into the core's `FlatPort` and refuses what is not modelled behind a port,
 naming the key.
+
+A light's port, `lights[i].port` (the same keys; `distance_mm` from the emitter to the
+window's inner face along the light's axis), is the light's housing window
+(docs/model.md, "The light's flat port"; `lightcal.core.light_port`): `build_light_port`.
 """
 
 from __future__ import annotations
@@ -26,14 +30,15 @@ from pydantic import BaseModel, ConfigDict, Field
 from lightcal.core.flat_port import FlatPort
 from lightcal.errors import InputError
 
-__all__ = ["PortSpec", "build_port"]
+__all__ = ["PortSpec", "build_light_port", "build_port"]
 
 
 class PortSpec(BaseModel):
-    """The camera's flat port (docs/model.md, "The camera's flat port"): a window of
-    thickness `thickness_mm` and index `glass_index` whose inner face lies `distance_mm`
-    in front of the centre of projection, its normal along the optical axis, water of
-    index `water_index` outside."""
+    """A flat port (docs/model.md, "The camera's flat port", "The light's flat port"): a
+    window of thickness `thickness_mm` and index `glass_index` whose inner face lies
+    `distance_mm` in front of the centre of projection (the emitter, for a light's), its
+    normal along the optical axis (the light's axis), water of index `water_index`
+    outside."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
 
@@ -80,3 +85,53 @@ def build_port(spec: Any, source: Path) -> FlatPort | None:
         )
     except ValueError as exc:
         raise InputError(source, f"camera.port: {exc}") from exc
+
+
+def build_light_port(spec: Any, index: int, source: Path) -> FlatPort | None:
+    """Light `index`'s port (`spec`: the `ProjectFile`), or None; InputError naming
+    `lights[index].port` when it is combined with what is not modelled behind a light's
+    port: a wall mesh, a wall model other than Lambertian (its B would need the water
+    direction at the wall), backscatter (the veil's beam is traced straight from the
+    emitter), the surroundings' bounce light, an estimated RID (its columns take the
+    straight direction) and the automatic initial guess (the beam is sighted along
+    straight rays)."""
+    light = spec.lights[index]
+    port_spec: PortSpec | None = light.port
+    field = f"lights[{index}]"
+    key = f"{field}.port"
+    if port_spec is None:
+        return None
+    refusals = []
+    if spec.wall.mesh is not None:
+        refusals.append("wall.mesh (the flux through the port is on the plane z = 0 only)")
+    if spec.wall.model != "lambertian":
+        refusals.append(
+            f"wall.model: {spec.wall.model} (a non-Lambertian wall's reflectance needs the "
+            "water direction at the wall)"
+        )
+    medium = spec.medium
+    scatter = medium.backscatter_per_m
+    if (scatter if isinstance(scatter, int | float) else max(scatter)) > 0.0 or (
+        "backscatter_per_m" in medium.estimate
+    ):
+        refusals.append("medium.backscatter_per_m (the veil's beam is traced straight)")
+    if spec.surroundings is not None:
+        refusals.append("surroundings (their bounce light is traced straight from the light)")
+    if light.estimate_rid != "none":
+        refusals.append(
+            f"{field}.estimate_rid: {light.estimate_rid} (its columns take the straight "
+            "direction, not the air's)"
+        )
+    if light.initial == "auto":
+        refusals.append(f"{field}.initial: auto (the beam is sighted along straight rays)")
+    if refusals:
+        raise InputError(source, f"{key}: not modelled together with {'; '.join(refusals)}")
+    try:
+        return FlatPort(
+            port_spec.distance_mm / 1000.0,
+            port_spec.thickness_mm / 1000.0,
+            port_spec.glass_index,
+            port_spec.water_index,
+        )
+    except ValueError as exc:
+        raise InputError(source, f"{key}: {exc}") from exc

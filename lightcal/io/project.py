@@ -40,7 +40,7 @@ from lightcal.io.document import read_document
 from lightcal.io.exposure_factors import exposure_factors
 from lightcal.io.images import Channel
 from lightcal.io.medium_spec import build_media
-from lightcal.io.port_spec import build_port
+from lightcal.io.port_spec import build_light_port, build_port
 from lightcal.io.project_channels import check_channel_terms, with_channels
 from lightcal.io.project_keys import check_no_ignored_keys
 from lightcal.io.project_spec import (
@@ -344,6 +344,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
     for j, ls in enumerate(spec.lights):
         field = f"lights[{j}]"
         rid = build_rid(ls.rid, folder, source, f"{field}.rid")
+        light_port = build_light_port(spec, j, source)
         if ls.initial == "auto":
             if len(spec.lights) > 1:
                 raise InputError(
@@ -353,7 +354,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                 )
             # At the camera centre looking ahead, until the images are read
             # (lightcal.pipeline.auto_start.with_auto_initial puts it on its beam).
-            light = Light(rid, np.zeros(3), np.eye(3), name=ls.name)
+            light = Light(rid, np.zeros(3), np.eye(3), name=ls.name, port=light_port)
         else:
             try:
                 R = _initial_rotation(ls.initial)
@@ -363,6 +364,7 @@ def project_from_spec(spec: ProjectFile, source: Path) -> Project:
                     R,
                     scale=ls.initial.scale or 1.0,
                     name=ls.name,
+                    port=light_port,
                 )
             except ValueError as exc:
                 raise InputError(source, f"{field}.initial: {exc}") from exc

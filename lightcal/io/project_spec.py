@@ -264,6 +264,11 @@ class LightSpec(_Model):
         le=89,
         description="range of a 'curve' RID; null: the largest angle the pixels are seen at",
     )
+    port: PortSpec | None = Field(
+        default=None,
+        description="the light's flat port under water: its window's inner face distance_mm "
+        "from the emitter along the light's axis (docs/model.md, \"The light's flat port\")",
+    )
 
 
 class RegionSpec(_Model):

@@ -168,7 +168,8 @@ class SynthConfig:
             (`declared_wall`), the `corner` departure's surfaces (`surroundings`).
         channels: A colour dataset's channels (`lightcal.synthetic.colour`: their water
             replaces the departures', which must have none), or None: one channel.
-        declare_port: the project declares the `port` departure (`camera.port`).
+        declare_port: the project declares the `port` departure (`camera.port`);
+            declare_light_port its `light_port` departure (each `lights[i].port`).
     """
 
     camera: Camera
@@ -190,11 +191,16 @@ class SynthConfig:
     declare_surroundings: bool = False
     channels: ColourChannels | None = None
     declare_port: bool = False
+    declare_light_port: bool = False
 
     def __post_init__(self) -> None:
         check_colour_config(self)
         if self.declare_port and self.departures.port is None:
             raise InputError("declare_port", "expected a port to declare (departures.port)")
+        if self.declare_light_port and self.departures.light_port is None:
+            raise InputError(
+                "declare_light_port", "expected a port to declare (departures.light_port)"
+            )
         if self.dark_frames and self.departures.ambient_fraction == 0.0:
             raise InputError(
                 "dark_frames",
@@ -412,6 +418,7 @@ def _write_into(
                 rid=rid_spec,
                 pose=pose_kind(light.rid),
                 initial=initial_spec(initial[j]),
+                port=declared_port(config, light=True),
             )
             for j, light in enumerate(rig.lights)
         ],

@@ -391,11 +391,12 @@ def declared_wall(cam: Camera, *, albedo_map: bool) -> dict[str, Any]:
     }
 
 
-def declared_port(config: Any) -> PortSpec | None:
+def declared_port(config: Any, *, light: bool = False) -> PortSpec | None:
     """The project's `camera.port` of a `SynthConfig`: its `port` departure when
-    `declare_port`, else None (the data seen through a port nobody declared)."""
-    port = config.departures.port
-    if not config.declare_port or port is None:
+    `declare_port`, else None (the data seen through a port nobody declared); with
+    `light`, each `lights[i].port`: its `light_port` departure when `declare_light_port`."""
+    port = config.departures.light_port if light else config.departures.port
+    if not (config.declare_light_port if light else config.declare_port) or port is None:
         return None
     d_mm, t_mm, n_g, n_w = (float(v) for v in port)
     return PortSpec(distance_mm=d_mm, thickness_mm=t_mm, glass_index=n_g, water_index=n_w)

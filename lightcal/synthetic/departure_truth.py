@@ -167,4 +167,16 @@ def departures_truth(
             "into the water, the irradiance point-sampled on the wall, the camera's "
             "attenuation from the ray's exit point (lightcal.synthetic.port_imaging)",
         }
+    if "light_port" in names and departures.light_port is not None:
+        d_mm, t_mm, n_g, n_w = departures.light_port
+        out["light_port"] = {
+            "distance_mm": d_mm,
+            "thickness_mm": t_mm,
+            "glass_index": n_g,
+            "water_index": n_w,
+            "rendered_as": "each pixel centre's wall point reached from each light through "
+            "its port (the air angle by bisection on the scalar path equation), the "
+            "irradiance f(theta_a) T_Fresnel dOmega_air/dA point-sampled, the light's "
+            "attenuation from the port (lightcal.synthetic.light_port_imaging)",
+        }
     return out

@@ -19,6 +19,7 @@ calibration's diagnostics can be tested on data whose fault is known:
 | `backscatter` | `backscatter_per_m`, `phase_g` | the water scatters the beam back to the camera |
 | `corner` | `corner` | a ceiling and a side wall light the wall back (inter-reflection) |
 | `port` | `port` | the camera looks through a flat port (refraction) |
+| `light_port` | `light_port` | the lights shine through flat ports (refraction, Fresnel) |
 
 The exact definitions are in `Departures`; `lightcal.synthetic.imaging` applies them and
 `describe` writes the parameters that truth.json records under "departures" (name ->
@@ -55,6 +56,7 @@ DEPARTURE_NAMES = (
     "backscatter",
     "corner",
     "port",
+    "light_port",
 )
 """The departures' names in truth.json, in the order they are listed there."""
 
@@ -145,6 +147,10 @@ class Departures:
             looks through a flat port (`lightcal.core.flat_port`): each pixel's ray is
             refracted into the water (`lightcal.synthetic.port_imaging`, point-sampled
             with its own Snell's law), the camera's attenuation from its exit point.
+        light_port: (distance_mm, thickness_mm, glass_index, water_index) or None. Every
+            light shines through a flat port along its axis
+            (`lightcal.synthetic.light_port_imaging`: the air direction by its own
+            solve, the irradiance point-sampled), its attenuation from the port.
     """
 
     ambient_fraction: float = 0.0
@@ -160,6 +166,7 @@ class Departures:
     phase_g: float = 0.9
     corner: tuple[float, float, float] | None = None
     port: tuple[float, float, float, float] | None = None
+    light_port: tuple[float, float, float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("ambient_fraction", "rid_rim_amplitude", "attenuation_per_m"):
@@ -205,14 +212,16 @@ class Departures:
             _check("corner", d, 0.05 <= d <= 5.0, "a distance D of 0.05 to 5 m")
             _check("corner", depth, 0.01 <= depth <= 5.0, "a depth of 0.01 to 5 m")
             _check("corner", albedo, 0.0 < albedo < 1.0, "an albedo in (0, 1)")
-        if self.port is not None:
+        for name in ("port", "light_port"):
+            if getattr(self, name) is None:
+                continue
             from lightcal.core.flat_port import FlatPort
 
             try:
-                d, t, n_g, n_w = (float(v) for v in self.port)
+                d, t, n_g, n_w = (float(v) for v in getattr(self, name))
                 FlatPort(d / 1000.0, t / 1000.0, n_g, n_w)
             except (TypeError, ValueError) as exc:
-                raise InputError("port", str(exc)) from exc
+                raise InputError(name, str(exc)) from exc
         coeffs = self.undeclared_vignetting
         if coeffs is not None and (
             len(coeffs) != 2 or not all(math.isfinite(float(c)) for c in coeffs)
@@ -236,6 +245,7 @@ class Departures:
             "backscatter": self.backscatter_per_m > 0.0,
             "corner": self.corner is not None,
             "port": self.port is not None,
+            "light_port": self.light_port is not None,
         }
         return tuple(name for name in DEPARTURE_NAMES if on[name])
 
@@ -246,6 +256,7 @@ class Departures:
         return (
             self.corner is not None
             or self.port is not None
+            or self.light_port is not None
             or self.bow_m != 0.0
             or self.albedo_texture_amplitude > 0.0
             or self.attenuation_per_m > 0.0

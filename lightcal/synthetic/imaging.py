@@ -49,6 +49,7 @@ from lightcal.synthetic.height_field import (
     shade_height_field,
     surface_points,
 )
+from lightcal.synthetic.light_port_imaging import light_port_shading
 from lightcal.synthetic.port_imaging import port_shading
 from lightcal.synthetic.texture import AlbedoTexture, sample_albedo_texture
 
@@ -73,6 +74,8 @@ class Imaging:
         undeclared_vignetting: (H, W) the undeclared fall-off V, or None.
         corner: The ceiling and side wall's brute-force bounce, or None.
         port: The camera's flat port the beam is seen through (`port_shading`), or None.
+        light_port: The flat port every light shines through (`light_port_shading`), or
+            None.
     """
 
     camera: Camera
@@ -88,6 +91,7 @@ class Imaging:
     undeclared_vignetting: NDArray[np.float64] | None = None
     corner: CornerBounce | None = None
     port: FlatPort | None = None
+    light_port: FlatPort | None = None
 
     def _render(self, view: View, rig: Rig) -> np.ma.MaskedArray:
         return render_image(
@@ -97,11 +101,17 @@ class Imaging:
     def beam(self, view: View) -> np.ma.MaskedArray:
         """(H, W) the lights' signal, masked where the pixel does not see the wall."""
         plain = self.wall_shape is None and self.texture is None and self.corner is None
-        plain = plain and self.port is None
+        plain = plain and self.port is None and self.light_port is None
         if plain and self.attenuation_per_m == 0.0 and self.backscatter_per_m == 0.0:
             return self._render(view, self.rig)
         camera_side: NDArray[np.float64] = view.center_world
-        if self.port is not None:  # point-sampled through the port, its own Snell's law
+        light_water = None  # behind the lights' port: each light's path from its port
+        if self.light_port is not None:  # point-sampled, its own path solve
+            per_light, points, valid, light_water = light_port_shading(
+                self.camera, view, self.rig, self.light_port, sensor=self.sensor,
+                vignetting=self.vignetting,
+            )  # fmt: skip
+        elif self.port is not None:  # point-sampled through the port, its own Snell's law
             per_light, points, valid, camera_side = port_shading(
                 self.camera, view, self.rig, self.port, sensor=self.sensor,
                 vignetting=self.vignetting,
@@ -129,8 +139,10 @@ class Imaging:
         if self.attenuation_per_m > 0.0:
             c = self.attenuation_per_m
             total = np.zeros(points.shape[:2])
-            for light, values in zip(self.rig.lights, per_light, strict=True):
+            for k, (light, values) in enumerate(zip(self.rig.lights, per_light, strict=True)):
                 d_light = np.linalg.norm(points - light.position_world(view), axis=-1)
+                if light_water is not None:
+                    d_light = light_water[k]
                 total += values * np.exp(-c * d_light)
         else:
             total = per_light.sum(axis=0)
@@ -345,7 +357,27 @@ def make_imaging(
         undeclared_vignetting=undeclared,
         corner=corner,
         port=port,
+        light_port=_light_port(departures, wall, sensor, (wall_shape, texture, corner)),
     )
+
+
+def _light_port(
+    departures: Departures, wall: WallReflectance, sensor: SensorModel, shapes: tuple
+) -> FlatPort | None:
+    """The lights' port of the `light_port` departure, or None; InputError for what
+    `light_port_shading` does not render."""
+    if departures.light_port is None:
+        return None
+    if departures.port is not None or any(shape is not None for shape in shapes):
+        raise InputError(
+            "light_port", "not rendered with a camera port, a bowed wall, a texture or a corner"
+        )
+    if departures.backscatter_per_m > 0.0 or not wall.is_lambertian or sensor == "paper":
+        raise InputError(
+            "light_port", "not rendered with backscatter, a non-Lambertian wall or 'paper'"
+        )
+    d_mm, t_mm, n_g, n_w = departures.light_port
+    return FlatPort(d_mm / 1000.0, t_mm / 1000.0, n_g, n_w)
 
 
 def _wall_extent(camera: Camera, views: list[View]) -> tuple[float, float, float, float]:
