@@ -1,0 +1,76 @@
+"""A light behind its own flat port (`lights[i].port`) in the page: the overlays render
+its refracted beam, and the page's solve is `lightcal calibrate`'s (docs/model.md, "The
+light's flat port")."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from lightcal_app.server import LightcalApp, build_app
+
+from lightcal.cli.main import main
+from lightcal.core.medium import Medium
+from lightcal.core.problem import with_view
+from lightcal.core.render import render_image
+from lightcal.core.scene import Rig
+from tests.test_one_engine import _cli, _same
+
+
+@pytest.fixture(scope="module")
+def ported(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Synth's light behind a port (d 15 mm, t 8 mm, acrylic into sea water) in water of
+    c = 0.2 /m, both declared."""
+    folder = tmp_path_factory.mktemp("light_port") / "data"
+    argv = ["synth", str(folder), "--views", "5", "--width", "160", "--height", "120"]
+    argv += ["--light-port", "15", "8", "1.49", "1.333", "--declare-light-port"]
+    argv += ["--attenuation", "0.2", "--declare-medium", "given"]
+    assert main([*argv, "--seed", "4", "--quiet"]) == 0
+    return folder / "project.json"
+
+
+@pytest.fixture(scope="module")
+def app(ported: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[LightcalApp]:
+    a = build_app(ported, port=0, session_path=False, state_dir=tmp_path_factory.mktemp("s"))
+    assert a.wait_idle(120.0)
+    yield a
+    a.close()
+
+
+def test_the_overlays_render_the_refracted_beam(app: LightcalApp) -> None:
+    st, overlays = app.state, app.controller.overlays
+    project, display = st.project, st.display
+    assert display is not None
+    light = display.rig.lights[0]
+    assert light.port is not None and light.port.distance_m == pytest.approx(0.015)
+    camera = overlays.geo.render_camera
+    view = project.views[0]
+    view = with_view(view, exposure=view.exposure * display.gains[0])
+    options = {
+        "sensor": project.spec.sensor.model,
+        "rid_subsamples": project.solver.rid_subsamples,
+        "medium": Medium(0.2),
+    }
+    ours = overlays.render(0, display).filled(np.nan)
+    through = render_image(camera, view, display.rig, **options).filled(np.nan)
+    np.testing.assert_allclose(ours, through + display.offset, rtol=1e-12, equal_nan=True)
+    bare = Rig.single(light.replace(port=None))
+    straight = render_image(camera, view, bare, **options).filled(np.nan)
+    lit = np.isfinite(straight) & np.isfinite(through) & (through > 0.1 * np.nanmax(through))
+    assert np.nanmax(np.abs(straight[lit] / through[lit] - 1.0)) > 0.2
+
+
+def test_the_pages_solve_is_the_clis(app: LightcalApp, ported: Path) -> None:
+    app.controller.set_pace(0.0)
+    app.controller.run()
+    deadline = time.monotonic() + 300.0
+    while app.state.solver_state not in ("converged", "not converged"):
+        assert time.monotonic() < deadline, "the solve did not end"
+        time.sleep(0.05)
+    assert app.wait_idle(120.0)
+    result = app.state.result
+    assert result is not None
+    _same(result, _cli(ported))
