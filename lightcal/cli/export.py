@@ -95,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     result = read_result(args.result)
     medium = export_medium(result, args.result)  # a broken medium: refused before writing
     camera = None if project is None else project.camera
+    port = None if project is None else project.camera_port
     wall_albedo = args.wall_albedo
     if wall_albedo is None and project is not None and project.surroundings is not None:
         wall_albedo = project.surroundings.wall_albedo
@@ -121,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         light_name=args.light,
         camera=camera,
         wall_albedo=wall_albedo,
+        port=port,
     )
     for path in list(files)[1:]:
         check_output_file(path, option="--out", inputs=inputs, inputs_of="the export")
@@ -132,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         light_name=args.light,
         camera=camera,
         wall_albedo=wall_albedo,
+        port=port,
         force=args.force,
     )
     print(f"{args.format} export written to {', '.join(str(p) for p in written)}")
@@ -153,6 +156,12 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"note: the medium's scattering coefficient is beta rho / pi with the wall's "
             f"albedo rho = {wall_albedo:g} ({where}): give the scene's wall that albedo",
+            file=sys.stderr,
+        )
+    if port is not None and args.format in ("opencv", "ros"):
+        print(
+            "note: camera.port: the poses are in the frame of the camera in its housing, "
+            "whose intrinsics are those in air, behind the port (the file says so)",
             file=sys.stderr,
         )
     if result.channels:  # colour channels solved jointly: the files hold one channel

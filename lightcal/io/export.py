@@ -27,6 +27,11 @@ volume, the opencv file a `medium` map of c, beta, g and their sigmas and the RO
 file a comment; ies/ldt cannot hold it (`lightcal export` says so on stderr). The
 renderers need the scattering coefficient sigma_s = beta rho / pi: `wall_albedo` rho.
 In air the files are what they were before media, byte for byte.
+
+A project whose camera looked through a flat port (`port`, its `camera.port`) gives
+Mitsuba the port's two dielectric faces, the opencv file a `camera_port` map and the ROS
+launch file a note (the camera frame and intrinsics are the housing's, in air, behind
+the port); Blender is refused (`lightcal.io.export_port`).
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from typing import Literal
 import numpy as np
 
 from lightcal.core.camera import Camera
+from lightcal.core.flat_port import FlatPort
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
 from lightcal.io.export_blender import blender_snippet
@@ -54,6 +60,7 @@ from lightcal.io.export_lights import (
 from lightcal.io.export_medium import check_wall_albedo
 from lightcal.io.export_mitsuba import mitsuba_files, rid_values, spot_texture
 from lightcal.io.export_opencv import opencv_yaml
+from lightcal.io.export_port import BLENDER_REFUSAL
 from lightcal.io.export_ros import ros_files
 from lightcal.io.photometric_table import PhotometricTable
 from lightcal.io.result_file import LightResultModel, ResultFile
@@ -280,6 +287,7 @@ def export_files(
     light_name: str | None = None,
     camera: Camera | None = None,
     wall_albedo: float | None = None,
+    port: FlatPort | None = None,
 ) -> dict[Path, bytes]:
     """The exported files' contents: `out` first, then any it refers to (Mitsuba textures).
 
@@ -294,10 +302,12 @@ def export_files(
         wall_albedo: rho, the wall's diffuse reflectance, in (0, 1]: Mitsuba's and
             Blender's scattering coefficient sigma_s = beta rho / pi of a result whose
             medium scatters (`lightcal.io.export_medium`).
+        port: The project's camera port (`camera.port`), or None.
 
     Raises:
         InputError: an unknown format, the result lacks what the format needs, or its
-            medium scatters and the format needs `wall_albedo`.
+            medium scatters and the format needs `wall_albedo`; naming `camera.port`:
+            the Blender export of a camera behind a port.
     """
     out = Path(out)
     check_wall_albedo(wall_albedo)
@@ -308,13 +318,15 @@ def export_files(
             "export; fix the project and calibrate again",
         )
     if fmt == "opencv":
-        return {out: opencv_yaml(result, source)}
+        return {out: opencv_yaml(result, source, port)}
     if fmt == "blender":
+        if port is not None:
+            raise InputError("camera.port", BLENDER_REFUSAL)
         return {out: _blender_snippet(result, source, camera, wall_albedo)}
     if fmt == "mitsuba":
-        return mitsuba_files(result, source, out, camera=camera, wall_albedo=wall_albedo)
+        return mitsuba_files(result, source, out, camera=camera, wall_albedo=wall_albedo, port=port)
     if fmt == "ros":
-        return ros_files(result, out, source)
+        return ros_files(result, out, source, port)
     if fmt == "ies":
         return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
     if fmt == "ldt":
@@ -331,6 +343,7 @@ def export_result(
     light_name: str | None = None,
     camera: Camera | None = None,
     wall_albedo: float | None = None,
+    port: FlatPort | None = None,
     force: bool = False,
 ) -> list[Path]:
     """Write `export_files` atomically, each; existing files only with `force`.
@@ -350,6 +363,7 @@ def export_result(
         light_name=light_name,
         camera=camera,
         wall_albedo=wall_albedo,
+        port=port,
     )
     out = Path(out)
     if not out.parent.is_dir():

@@ -25,8 +25,13 @@ renders it with a wall and compares with lightcal's `render_image` of the same v
   rays, the wall's shadow rays and the emitters are all in it, sigma_t = c, albedo
   sigma_s / c with sigma_s = beta rho / pi (0 without backscatter), a Henyey-Greenstein
   phase of g, and the `volpath` integrator with `max_depth` a parameter of the file
-  (default -1; `max_depth=2` is lightcal's single scattering). A result in air writes
+  default -1; `max_depth=2` is lightcal's single scattering). A result in air writes
   none of it: the scene is byte for byte what it was.
+- **The camera's flat port** (`port`, the project's `camera.port`,
+  `lightcal.io.export_port`): its two faces as dielectric rectangles in front of the
+  sensor, which then sits in the housing's air (the medium, if any, is the outer face's
+  interior and the emitters'); a `path` integrator (`volpath` in water) with `max_depth`
+  a parameter of the file, since `direct` does not follow a ray through a dielectric.
 """
 
 from __future__ import annotations
@@ -43,10 +48,12 @@ from lightcal.core.camera_frames import (
     mitsuba_from_opencv,
     mitsuba_spot_cone,
 )
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.rid import RID, SymmetricTableRID, Table2DRID
 from lightcal.io.escaping import xml_attribute, xml_comment
 from lightcal.io.export_lights import LightRID, light_rid, light_transform
 from lightcal.io.export_medium import ExportMedium, export_medium
+from lightcal.io.export_port import mitsuba_port_lines
 from lightcal.io.result_file import ResultFile
 
 __all__ = [
@@ -240,8 +247,11 @@ def medium_id(result: ResultFile) -> str:
     return ident
 
 
-def _medium_lines(medium: ExportMedium, wall_albedo: float | None, ident: str) -> list[str]:
-    """The `homogeneous` medium and the `volpath` integrator (module docstring)."""
+def _medium_lines(
+    medium: ExportMedium, wall_albedo: float | None, ident: str, *, port: bool = False
+) -> list[str]:
+    """The `homogeneous` medium and the `volpath` integrator (module docstring); behind
+    the camera's `port` the sensor is in the housing's air."""
     albedo = medium.albedo(wall_albedo)
     sigma_s = medium.scattering_per_m(wall_albedo)
     if medium.scatters:
@@ -252,16 +262,26 @@ def _medium_lines(medium: ExportMedium, wall_albedo: float | None, ident: str) -
         )
     else:
         how = "no scattering (backscatter_per_m 0): albedo 0, a purely absorbing medium."
+    where = (
+        "that the emitters sit in and the camera's port's outer face opens into (the sensor "
+        "is in the housing's air), so that every ray in the water is in it"
+        if port
+        else "that the sensor and the emitters sit in, so that every ray of the scene is in it"
+    )
+    ports = (
+        "The camera's port is below; not modelled: refraction at the light's port."
+        if port
+        else "The sensor's near_clip is 1e-5 m: a camera ray starts there, in the water. Not "
+        "modelled: refraction at the camera's and the light's ports."
+    )
     text = (
         f"The calibration's medium: {medium.text()}. A homogeneous medium (docs/model.md, "
-        '"Medium") that the sensor and the emitters sit in, so that every ray of the scene '
-        "is in it: sigma_t = c (attenuation_per_m), albedo sigma_s / c, a Henyey-Greenstein "
+        f'"Medium") {where}: sigma_t = c (attenuation_per_m), albedo sigma_s / c, '
+        "a Henyey-Greenstein "
         "phase of g (phase_g). The result's backscatter beta = sigma_s pi / rho is relative "
         f"to the wall's albedo rho: {how} lightcal's model is single scattering: "
         "mi.load_file(path, max_depth=2) renders it (direct light and one scattering); the "
-        "default max_depth -1 follows every order. The sensor's near_clip is 1e-5 m: a camera "
-        "ray starts there, in the water. Not modelled: refraction at the camera's and the "
-        "light's ports."
+        f"default max_depth -1 follows every order. {ports}"
     )
     comment = textwrap.wrap(xml_comment(text, max_chars=4000), 84)
     return [
@@ -289,6 +309,7 @@ def mitsuba_files(
     *,
     camera: Camera | None = None,
     wall_albedo: float | None = None,
+    port: FlatPort | None = None,
 ) -> dict[Path, bytes]:
     """The scene XML (`out`) and the RID textures beside it.
 
@@ -299,6 +320,7 @@ def mitsuba_files(
         camera: The project's camera, for the sensor's film and field of view.
         wall_albedo: rho, for the scattering coefficient of a medium that scatters
             (`lightcal.io.export_medium`).
+        port: The project's camera port, or None (`lightcal.io.export_port`).
 
     Raises:
         InputError: the medium scatters and `wall_albedo` is None, or its sigma_s > c.
@@ -306,13 +328,22 @@ def mitsuba_files(
     files: dict[Path, bytes] = {}
     medium = export_medium(result, source)
     ident = medium_id(result)
-    water = [] if medium is None else _medium_lines(medium, wall_albedo, ident)
+    behind = port is not None
+    water = [] if medium is None else _medium_lines(medium, wall_albedo, ident, port=behind)
     inside = [] if medium is None else [f'        <ref name="medium" id="{ident}"/>']
-    sensor_inside = (
-        []
-        if medium is None
-        else [f'        <float name="near_clip" value="{NEAR_CLIP_M!r}"/>', *inside]
-    )
+    clip = [f'        <float name="near_clip" value="{NEAR_CLIP_M!r}"/>']
+    sensor_inside = [] if medium is None else [*clip, *inside]
+    port_lines: list[str] = []
+    if port is not None:  # the sensor in the housing's air, its rays through the port
+        sensor_inside = clip
+        port_lines = mitsuba_port_lines(port, camera, None if medium is None else ident)
+        if medium is None:
+            water = [
+                '    <default name="max_depth" value="-1"/>',
+                '    <integrator type="path">',
+                '        <integer name="max_depth" value="$max_depth"/>',
+                "    </integrator>",
+            ]
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: calibrated lights, camera frame.",
@@ -327,6 +358,7 @@ def mitsuba_files(
         '<scene version="3.0.0">',
         *water,
         *_sensor_lines(camera, sensor_inside),
+        *port_lines,
     ]
     for index, light in enumerate(result.lights):
         rid = light_rid(light, source)

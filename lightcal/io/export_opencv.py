@@ -15,6 +15,11 @@ light's rotation rows and columns are NaN.
 A result calibrated in water adds, after `lights`, a `medium` map: `attenuation_per_m`,
 `backscatter_per_m`, `phase_g`, each's `sigma_<name>` (NaN where given) and the
 `estimated` names (`MEDIUM_NOTE`). A result in air writes none: the file is what it was.
+
+The file holds no intrinsics. Exported with a project whose camera looked through a flat
+port (`camera.port`), it adds a `camera_port` map (`lightcal.io.export_port`): the
+port's numbers and a note that the camera frame is the housing's, its intrinsics those
+in air behind the port.
 """
 
 from __future__ import annotations
@@ -26,12 +31,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.light_axis import axis_from_angles, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, rotvec_from_matrix
 from lightcal.io.escaping import plain_line
 from lightcal.io.export_lights import FRAME_NOTE, light_rid, light_transform
 from lightcal.io.export_medium import NAMES as MEDIUM_NAMES
 from lightcal.io.export_medium import ExportMedium, export_medium
+from lightcal.io.export_port import write_opencv_port
 from lightcal.io.result_file import LightResultModel, ResultFile
 
 __all__ = ["opencv_text", "opencv_yaml", "pose_covariance", "rvec_tvec"]
@@ -97,8 +104,9 @@ def pose_covariance(result: ResultFile, light: LightResultModel) -> NDArray[np.f
     return out
 
 
-def opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
-    """The FileStorage YAML of every light (`lightcal.io.export`'s `opencv` format)."""
+def opencv_yaml(result: ResultFile, source: str | Path, port: FlatPort | None = None) -> bytes:
+    """The FileStorage YAML of every light (`lightcal.io.export`'s `opencv` format);
+    `port`, the project's camera port, adds its `camera_port` map."""
     import cv2
 
     fs = cv2.FileStorage(
@@ -146,6 +154,8 @@ def opencv_yaml(result: ResultFile, source: str | Path) -> bytes:
     medium = export_medium(result, source)
     if medium is not None:
         _write_medium(fs, medium)
+    if port is not None:
+        write_opencv_port(fs, port)
     return fs.releaseAndGetString().encode("utf-8")
 
 

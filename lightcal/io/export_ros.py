@@ -18,8 +18,11 @@ child the light). Quaternions are in ROS's order **x y z w** (scalar last, as Sc
 URDF's `rpy` are fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
 
 A result calibrated in water says so in the launch file's comment (c, beta, g and their
-sigmas, `lightcal.io.export_medium`): tf has no place for a medium. In air the files are
-what they were.
+sigmas, `lightcal.io.export_medium`): tf has no place for a medium. Exported with a
+project whose camera looked through a flat port (`camera.port`), the comment says so too
+(`lightcal.io.export_port.PORT_NOTE`): the optical frame is the camera's in its housing,
+its intrinsics (in the camera's own calibration) the housing's in air behind the port.
+In air, without a port, the files are what they were.
 """
 
 from __future__ import annotations
@@ -32,10 +35,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.io.escaping import xml_comment
 from lightcal.io.export_lights import light_transform
 from lightcal.io.export_medium import export_medium
+from lightcal.io.export_port import PORT_NOTE, port_text
 from lightcal.io.result_file import ResultFile
 
 __all__ = ["PARENT_FRAME", "frame_name", "quaternion_xyzw", "ros_files", "rpy_from_matrix"]
@@ -95,7 +100,15 @@ def _medium_lines(result: ResultFile, source: str | Path) -> list[str]:
     return [f"     {line}" for line in textwrap.wrap(xml_comment(text, max_chars=4000), 84)]
 
 
-def _launch(result: ResultFile, source: str | Path) -> str:
+def _port_lines(port: FlatPort | None) -> list[str]:
+    """The comment's note of a camera behind a flat port (none without)."""
+    if port is None:
+        return []
+    text = f"Camera port ({port_text(port)}): {PORT_NOTE}."
+    return [f"     {line}" for line in textwrap.wrap(xml_comment(text, max_chars=4000), 84)]
+
+
+def _launch(result: ResultFile, source: str | Path, port: FlatPort | None = None) -> str:
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: the calibrated lights as static",
@@ -126,6 +139,7 @@ def _launch(result: ResultFile, source: str | Path) -> str:
             f'          args="{ros2} --frame-id {PARENT_FRAME} --child-frame-id {child}"/>'
         )
     lines += _medium_lines(result, source)
+    lines += _port_lines(port)
     lines[-1] += " -->"
     lines += [
         "<launch>",
@@ -167,10 +181,13 @@ def urdf_path(out: Path) -> Path:
     return out.with_name(stem + ".urdf")
 
 
-def ros_files(result: ResultFile, out: Path, source: str | Path = "") -> dict[Path, bytes]:
+def ros_files(
+    result: ResultFile, out: Path, source: str | Path = "", port: FlatPort | None = None
+) -> dict[Path, bytes]:
     """The launch file (`out`) and the URDF fragment beside it (`urdf_path`); a result in
-    water says so in the launch file's comment (`source`: the result's path, for errors)."""
+    water, or a camera behind a flat `port` (the project's), says so in the launch file's
+    comment (`source`: the result's path, for errors)."""
     return {
-        out: _launch(result, source).encode("utf-8"),
+        out: _launch(result, source, port).encode("utf-8"),
         urdf_path(out): _urdf(result).encode("utf-8"),
     }
