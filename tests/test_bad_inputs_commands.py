@@ -407,6 +407,26 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         _error("synth", "--light-radius-m: expected two finite numbers (min, max), got (nan, 0.1)"),
     ),
     (
+        "synth: --declare-port without --port",
+        "synth {n} --declare-port",
+        _error("synth", "--declare-port: expected --port D_MM T_MM NG NW (the port to declare)"),
+    ),
+    (
+        "synth: --port negative distance",
+        "synth {n} --port -1 10 1.49 1.333",
+        _error("synth", "--port: port: distance_m: expected a finite value > 0.0, got -0.001"),
+    ),
+    (
+        "synth: --port three numbers",
+        "synth {n} --port 20 10 1.49",
+        _usage("synth", "argument --port: expected 4 arguments"),
+    ),
+    (
+        "synth: --port with a bowed wall",
+        "synth {n} --port 20 10 1.49 1.333 --bow-mm 3",
+        _error("synth", "--port: not rendered with a bowed wall, a texture or a corner"),
+    ),
+    (
         "synth: --declare-light-port without --light-port",
         "synth {n} --declare-light-port",
         _error(

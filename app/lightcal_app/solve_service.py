@@ -418,7 +418,7 @@ class SolveService:
                 st.solver_state = "not converged"
                 st.solver_message = f"the solver failed: {reason}"
                 st.mark("status", changed=True)
-            log.warning("solver failed: %r", error)
+            log.warning("solver failed: %r", error, exc_info=error)
             self.notify(None, "Solver failed", reason, error=True)
 
     def interim_result(self) -> None:

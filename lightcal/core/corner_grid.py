@@ -402,6 +402,12 @@ class CornerGridCache:
         self._lock = Lock()
         self._max = max_entries
 
+    @staticmethod
+    def key(camera: Camera) -> bytes:
+        """What a camera's grid depends on (K, the distortion, the image size): a key
+        for caches of things made from the grid."""
+        return _camera_key(camera)
+
     def lookup(self, camera: Camera) -> CornerGrid | None:
         """The camera's grid if it is cached (marked as recently used), else None."""
         key = _camera_key(camera)

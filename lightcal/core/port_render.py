@@ -17,7 +17,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import SensorModel
 from lightcal.core.medium import AIR, Medium
-from lightcal.core.port_footprints import port_footprints
+from lightcal.core.port_footprints import image_footprints_through_port, port_footprints
 from lightcal.core.render import render_image, shade
 from lightcal.core.scene import Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
@@ -68,11 +68,9 @@ def render_image_through_port(
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
     hb, wb = camera.height // int(binning), camera.width // int(binning)
-    v, u = np.mgrid[0:hb, 0:wb]
-    fp = port_footprints(
-        camera, view, np.stack([u.ravel(), v.ravel()], axis=1), port, sensor=sensor,
-        vignetting=vignetting, binning=int(binning), max_quads_per_side=None,
-    )  # fmt: skip
+    fp = image_footprints_through_port(
+        camera, view, port, sensor=sensor, vignetting=vignetting, binning=int(binning)
+    )
     values = shade(
         fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium
     ).values

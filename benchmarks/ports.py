@@ -1,0 +1,134 @@
+"""Speed of the flat ports (docs/model.md, "The camera's flat port", "The light's flat
+port") against the same work in air, measured in the same run.
+
+Run `python benchmarks/ports.py` (about a minute on 2 cores; `--quick` for a smoke run).
+The scene: a 1200 x 800 camera (f 1100 px, distortion) 1.5 m from the wall, one cos^3
+light 12 cm beside it, water of c = 0.3 /m; the camera's port d 20 mm, t 10 mm, the
+light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
+
+- footprints: `wall_footprints` of N random pixels, straight rays against the camera's
+  port (NumPy, refracted corner rays; once per solve);
+- shade + gradients: `shade(want_grad=True)` of those N pixels as the solver calls it
+  (footprints precomputed), in air, through the camera's port, with the light's port,
+  and both;
+- full frame: `render_view_image` of the whole frame (the fused kernel in air; every
+  pixel's footprint through a port).
+
+Each figure is the best of several calls after a warm-up (numba kernels compiled and
+caches filled). Nothing is asserted: the machine may be shared (the load average is
+printed). Timings are wall-clock seconds (`time.perf_counter`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from lightcal.core.camera import Camera  # noqa: E402
+from lightcal.core.flat_port import FlatPort  # noqa: E402
+from lightcal.core.medium import Medium  # noqa: E402
+from lightcal.core.port_render import render_view_image  # noqa: E402
+from lightcal.core.render import shade  # noqa: E402
+from lightcal.core.rid import CosPowerRID  # noqa: E402
+from lightcal.core.scene import Light, Rig, View  # noqa: E402
+from lightcal.core.wall_mesh import wall_footprints  # noqa: E402
+
+CAMERA_PORT = FlatPort(0.020, 0.010, 1.49, 1.333)
+LIGHT_PORT = FlatPort(0.015, 0.008, 1.49, 1.333)
+WATER = Medium(0.3)
+
+
+def _best(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm-up: kernels, caches
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def _scene(width: int, height: int) -> tuple[Camera, View, Light]:
+    f = 1100.0 * width / 1200.0
+    camera = Camera.from_params(
+        fx=f, fy=f, cx=(width - 1) / 2, cy=(height - 1) / 2, width=width, height=height,
+        dist=(-0.05, 0.01, 0.0, 0.0),
+    )  # fmt: skip
+    view = View.looking_at(np.array([0.1, -0.05, 1.5]), np.array([0.0, 0.05, 0.0]))
+    axis = np.array([-0.08, 0.0, 1.0])
+    z = axis / np.linalg.norm(axis)
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    R = np.stack([x, np.cross(z, x), z], axis=1)
+    return camera, view, Light(CosPowerRID(3.0), np.array([0.12, 0.0, 0.02]), R)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a small smoke run")
+    args = parser.parse_args(argv)
+    width, height = (300, 200) if args.quick else (1200, 800)
+    counts = (1_000,) if args.quick else (4_000, 40_000)
+    repeats = 2 if args.quick else 5
+    camera, view, light = _scene(width, height)
+    rigs = {"air": Rig.single(light), "light port": Rig.single(light.replace(port=LIGHT_PORT))}
+    rng = np.random.default_rng(0)
+    print(f"load average {os.getloadavg()[0]:.2f}; {width} x {height}, water c = 0.3 /m")
+    print(f"{'row':44s} {'seconds':>9s} {'x air':>7s}")
+    for n in counts:
+        pixels = np.stack(
+            [rng.integers(0, width, n), rng.integers(0, height, n)], axis=1
+        ).astype(np.int64)
+        air_fp = _best(lambda: wall_footprints(camera, view, pixels, mesh=None), repeats)
+        port_fp = _best(
+            lambda: wall_footprints(camera, view, pixels, mesh=None, port=CAMERA_PORT), repeats
+        )
+        print(f"{f'footprints, {n} px: straight':44s} {air_fp:9.4f} {1.0:7.2f}")
+        print(f"{f'footprints, {n} px: camera port':44s} {port_fp:9.4f} {port_fp / air_fp:7.2f}")
+        footprints = {
+            "air": wall_footprints(camera, view, pixels, mesh=None),
+            "camera port": wall_footprints(camera, view, pixels, mesh=None, port=CAMERA_PORT),
+        }
+        base = None
+        for fp_name, fp in footprints.items():
+            for rig_name, rig in rigs.items():
+                seconds = _best(
+                    lambda fp=fp, rig=rig: shade(fp, view, rig, want_grad=True, medium=WATER),
+                    repeats,
+                )
+                base = seconds if base is None else base
+                label = "air" if (fp_name, rig_name) == ("air", "air") else (
+                    " + ".join(n for n in (fp_name, rig_name) if n != "air")
+                )  # fmt: skip
+                row = f"shade + gradients, {n} px: {label}"
+                print(f"{row:44s} {seconds:9.4f} {seconds / base:7.2f}")
+    base = None
+    for label, port, rig in (
+        ("air", None, rigs["air"]),
+        ("camera port", CAMERA_PORT, rigs["air"]),
+        ("light port", None, rigs["light port"]),
+        ("camera port + light port", CAMERA_PORT, rigs["light port"]),
+    ):
+        seconds = _best(
+            lambda port=port, rig=rig: render_view_image(
+                camera, view, rig, port=port, medium=WATER
+            ),
+            max(1, repeats // 2),
+        )
+        base = seconds if base is None else base
+        print(f"{f'full frame: {label}':44s} {seconds:9.4f} {seconds / base:7.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
