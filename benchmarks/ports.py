@@ -86,12 +86,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average {os.getloadavg()[0]:.2f}; {width} x {height}, water c = 0.3 /m")
     print(f"{'row':44s} {'seconds':>9s} {'x air':>7s}")
     for n in counts:
-        pixels = np.stack(
-            [rng.integers(0, width, n), rng.integers(0, height, n)], axis=1
-        ).astype(np.int64)
-        air_fp = _best(lambda: wall_footprints(camera, view, pixels, mesh=None), repeats)
+        pixels = np.stack([rng.integers(0, width, n), rng.integers(0, height, n)], axis=1).astype(
+            np.int64
+        )
+        air_fp = _best(lambda px=pixels: wall_footprints(camera, view, px, mesh=None), repeats)
         port_fp = _best(
-            lambda: wall_footprints(camera, view, pixels, mesh=None, port=CAMERA_PORT), repeats
+            lambda px=pixels: wall_footprints(camera, view, px, mesh=None, port=CAMERA_PORT),
+            repeats,
         )
         print(f"{f'footprints, {n} px: straight':44s} {air_fp:9.4f} {1.0:7.2f}")
         print(f"{f'footprints, {n} px: camera port':44s} {port_fp:9.4f} {port_fp / air_fp:7.2f}")
