@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from lightcal_app.beam_shapes import cone_lines, cone_mesh
 from lightcal_app.demo_truth import read_truth_lights
 from lightcal_app.overlays import (
     OUTLINE_FRACTION,
@@ -35,7 +36,6 @@ from lightcal_app.panels.base import Programmatic
 from lightcal_app.panels.light import pose_angles_deg, rotation_from_angles_deg
 from lightcal_app.panels.solve import status_text
 from lightcal_app.picking import frustum_plane, frustum_scale_for_depth, pick, ray_hit, screen_ray
-from lightcal_app.scene3d import cone_lines, cone_mesh
 from lightcal_app.server import LightcalApp, build_app
 from lightcal_app.session_file import (
     apply_session,

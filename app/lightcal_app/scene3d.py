@@ -7,7 +7,10 @@ below it, so a node's local pose there is exactly `T_camera_light`:
 
 - `/cameras/<ref>/light<j>`: the draggable gizmo of light j on the reference image's
   camera, with its bulb and cones (half-intensity and cut-off angles of the RID);
-- `/cameras/<i>/light<j>`: the same light drawn on every other camera pose;
+- `/cameras/<i>/light<j>`: the same light drawn on every other camera pose; behind a
+  light's flat port its cones are the beam refracted into the water and the port is
+  drawn below it (`/cameras/<i>/light<j>/port`, `lightcal_app.port_scene`);
+- `/cameras/<i>/port`: the camera's flat port, when the project declares one;
 - `/cameras/<i>/truth<j>`: the true light in demo mode (a ghost);
 - `/rays`: rays from the light to the wall for the selected pixels (world frame);
 - `/surroundings/<k>`: the surfaces the solve's surroundings declare (world frame).
@@ -25,14 +28,18 @@ from typing import Any
 import numpy as np
 import viser
 
+from lightcal.core.flat_port import FlatPort
 from lightcal.core.rid import RID
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.core.scene import Light, Rig
 from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.project import Project
+from lightcal_app.beam_scene import draw_beam, draw_beam_fill
+from lightcal_app.beam_shapes import rid_angles
 from lightcal_app.overlays import bounce_key
 from lightcal_app.picking import FrustumPlane, frustum_plane, frustum_scale_for_depth
+from lightcal_app.port_scene import camera_port_faces, draw_port_slab
 from lightcal_app.state import LightGuess
 
 LIGHT_RGB = (255, 170, 0)
@@ -46,68 +53,20 @@ WALL_RGB = (228, 226, 220)
 #: The surroundings' surfaces (`surroundings:`), drawn translucent.
 SURROUNDINGS_RGB = (214, 190, 150)
 MAX_RAYS_PER_IMAGE = 300
-CONE_MAX_ANGLE_RAD = math.radians(85.0)
 
 GizmoCallback = Callable[[int, np.ndarray, np.ndarray, Any], tuple[np.ndarray, np.ndarray] | None]
 """`on_gizmo(light, position as sent, wxyz as sent, client)`: the pose taken, or None."""
 
 
-def cone_mesh(
-    half_angle_rad: float, length_m: float, *, n: int = 40
-) -> tuple[np.ndarray, np.ndarray]:
-    """An open cone with its apex at the origin around +z.
-
-    Args:
-        half_angle_rad: angle between the axis and the surface (capped at 85 degrees).
-        length_m: slant length.
-        n: segments around the axis.
-
-    Returns:
-        vertices (n + 1, 3) and faces (n, 3).
-    """
-    a = min(max(half_angle_rad, 1e-3), CONE_MAX_ANGLE_RAD)
-    r = length_m * math.sin(a)
-    h = length_m * math.cos(a)
-    phi = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
-    ring = np.stack([r * np.cos(phi), r * np.sin(phi), np.full(n, h)], axis=1)
-    vertices = np.vstack([np.zeros((1, 3)), ring])
-    k = np.arange(n)
-    faces = np.stack([np.zeros(n, np.int64), 1 + k, 1 + (k + 1) % n], axis=1)
-    return vertices, faces
-
-
-def cone_lines(
-    half_angle_rad: float, length_m: float, *, n_ring: int = 48, n_generators: int = 8
-) -> np.ndarray:
-    """Outline of the cone of `cone_mesh`: its end ring and some generator lines.
-
-    Returns:
-        (n_ring + n_generators, 2, 3) line segments.
-    """
-    a = min(max(half_angle_rad, 1e-3), CONE_MAX_ANGLE_RAD)
-    r = length_m * math.sin(a)
-    h = length_m * math.cos(a)
-    phi = np.linspace(0.0, 2.0 * math.pi, n_ring + 1)
-    ring = np.stack([r * np.cos(phi), r * np.sin(phi), np.full(phi.shape, h)], axis=1)
-    segs = [np.stack([ring[:-1], ring[1:]], axis=1)]
-    k = np.arange(n_generators) * (n_ring // n_generators)
-    gen = np.zeros((n_generators, 2, 3))
-    gen[:, 1] = ring[k]
-    segs.append(gen)
-    return np.concatenate(segs)
-
-
-def rid_angles(rid: RID) -> tuple[float, float]:
-    """(half-intensity angle, 1 % cut-off angle) of a RID, radians."""
-    return rid.angle_at_level_rad(0.5), rid.angle_at_level_rad(0.01)
-
-
-def _rid_key(rid: RID) -> bytes:
+def _rid_key(rid: RID, port: FlatPort | None = None) -> bytes:
     d = rid.data()
     parts = [type(rid).__name__.encode(), np.int64(d.kind).tobytes()]
     parts += [
         np.asarray(a, dtype=np.float64).tobytes() for a in (d.params, d.theta_knots, d.values)
     ]
+    if port is not None:  # the beam drawn refracted, and the port
+        parts.append(repr(sorted(port.describe().items())).encode())
+        parts.append(np.asarray(port.normal_camera).tobytes())
     return b"|".join(parts)
 
 
@@ -155,6 +114,7 @@ class Scene3D:
         self.gizmos: list[Any] = []
         self.light_frames: dict[tuple[int, int], Any] = {}
         self._cone_keys: list[bytes | None] = []
+        self._light_port_nodes: dict[int, list[Any]] = {}
         self._gizmo_pose: list[tuple[np.ndarray, np.ndarray] | None] = []
         self.rays: Any = None
         self.ref_image = 0
@@ -252,6 +212,11 @@ class Scene3D:
                     height_px=cam.height,
                 )
             )
+        port = project.camera_port
+        if port is not None:  # the camera's flat port, in front of every frustum
+            inner, outer = camera_port_faces(port, fov_y_rad=fov, aspect=cam.aspect)
+            for i in range(len(project.views)):
+                draw_port_slab(scene, f"/cameras/{i}", inner, outer)
         self.ref_image = ref_image
         self._build_lights(guess)
         if truth:
@@ -299,6 +264,7 @@ class Scene3D:
         self.gizmos = []
         self.light_frames = {}
         self._cone_keys = [None] * len(guess)
+        self._light_port_nodes = {}
         self._gizmo_pose = [None] * len(guess)
         for j, g in enumerate(guess):
             t, R = _pose(g)
@@ -424,40 +390,29 @@ class Scene3D:
                     frame.position = t
                     frame.wxyz = q
             if isinstance(light, Light):
-                self._set_cones(j, light.rid)
+                self._set_cones(j, light.rid, light.port)
         if lights and isinstance(lights[0], LightGuess):
             for j, u in enumerate(self.project.lights):
-                self._set_cones(j, u.initial.rid)
+                self._set_cones(j, u.initial.rid, u.initial.port)
 
-    def _set_cones(self, j: int, rid: RID) -> None:
+    def _set_cones(self, j: int, rid: RID, port: FlatPort | None = None) -> None:
         """Cone outlines (half-intensity: bold, 1 % cut-off: thin) on every camera, and a
-        translucent half-intensity cone on the gizmo."""
-        key = _rid_key(rid)
+        translucent half-intensity cone on the gizmo; behind a port the cones refracted
+        into the water (narrower), the port drawn and the water's angles labelled."""
+        key = _rid_key(rid, port)
         if j < len(self._cone_keys) and self._cone_keys[j] == key:
             return
         self._cone_keys[j] = key
-        half, cut = rid_angles(rid)
+        angles = rid_angles(rid)
+        for node in self._light_port_nodes.pop(j, []):
+            node.remove()
+        nodes = []
         for i in range(len(self.project.views)):
             base = f"/cameras/{i}/light{j}"
-            for name, angle, width in (("cone_half", half, 2.0), ("cone_cut", cut, 1.0)):
-                self.scene.add_line_segments(
-                    f"{base}/{name}",
-                    cone_lines(angle, self.cone_length_m).astype(np.float32),
-                    LIGHT_RGB,
-                    thickness=width,
-                    thickness_units="screen",
-                )
-        v, f = cone_mesh(half, self.cone_length_m)
-        self.scene.add_mesh_simple(
-            f"/cameras/{self.ref_image}/light{j}/cone_fill",
-            v.astype(np.float32),
-            f.astype(np.uint32),
-            color=LIGHT_RGB,
-            opacity=0.25,
-            side="double",
-            cast_shadow=False,
-            receive_shadow=False,
-        )
+            nodes += draw_beam(self.scene, base, angles, self.cone_length_m, port, rgb=LIGHT_RGB)
+        base = f"/cameras/{self.ref_image}/light{j}"
+        nodes += draw_beam_fill(self.scene, base, angles, self.cone_length_m, port, rgb=LIGHT_RGB)
+        self._light_port_nodes[j] = nodes
 
     def set_rays(self, rig: Rig | None, wall_points: tuple[np.ndarray, ...], which: str) -> None:
         """Rays from each light to the selected pixels' footprint centres.

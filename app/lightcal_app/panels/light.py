@@ -1,4 +1,5 @@
 """The Light tab: the gizmo's image, per light its position and axis as numbers, the
+flat ports the camera and the lights look and shine through (`ports_markdown`), the
 water between the rig and the wall (`lightcal_app.panels.water`) and the surfaces near
 the wall (`lightcal_app.panels.surroundings`)."""
 
@@ -20,6 +21,7 @@ from lightcal.core.pose import describe_pose
 from lightcal.core.rotations import matrix_from_rotvec
 from lightcal.core.scene import Light
 from lightcal.io.project import Project
+from lightcal.pipeline.port_text import light_port_sentence, port_sentence
 from lightcal_app.controller import Controller
 from lightcal_app.limits import (
     AXIS_PITCH_LIMIT_DEG,
@@ -31,7 +33,7 @@ from lightcal_app.panels.base import Programmatic, TabPanel, rounded
 from lightcal_app.panels.surroundings import SurroundingsPanel
 from lightcal_app.panels.water import WaterPanel
 from lightcal_app.state import Frame, LightGuess
-from lightcal_app.text import md
+from lightcal_app.text import md, md_prose
 
 POSITION_LIMIT_MM = POSITION_LIMIT_M * 1e3
 
@@ -52,6 +54,22 @@ def rotation_from_angles_deg(roll_deg: float, pitch_deg: float, spin_deg: float)
     axis = axis_from_paper_angles(math.radians(roll_deg), math.radians(pitch_deg))
     spin = matrix_from_rotvec(np.array([0.0, 0.0, math.radians(spin_deg)]))
     return rotation_from_axis(axis) @ spin
+
+
+def ports_markdown(project: Project) -> str:
+    """The project's flat ports in words (`port_sentence`, `light_port_sentence`), one
+    line each, the owner in bold: the camera's, then each ported light's with its beam's
+    angles in the water; empty without a port."""
+    lines = []
+    if project.camera_port is not None:
+        text = md_prose(port_sentence(project.camera_port, ""))
+        lines.append(f"**camera**{text}")
+    for u in project.lights:
+        light = u.initial
+        if light.port is not None:
+            text = md_prose(light_port_sentence("", light.port, light.rid))
+            lines.append(f"**{md(light.name)}**{text}")
+    return "  \n".join(lines)
 
 
 class LightPanel(TabPanel):
@@ -175,6 +193,7 @@ class LightPanel(TabPanel):
             self.flag.assign(self.ref_image, st.project.names[st.ref_image])
             names = [u.initial.name for u in st.project.lights]
             channels = st.project.channels
+            ports = ports_markdown(st.project)
             # The state's lights, not the frame's: a frame is taken before the redraw, and
             # an edit that reached the state since must not be written back over.
             display = st.display if st.display is not None and st.display.current(st) else None
@@ -212,4 +231,4 @@ class LightPanel(TabPanel):
         self.light_md.content = (
             f"Showing the **{source}**. Drag the gizmo (orange camera) or type numbers; "
             "either starts the solve over from there.\n\n" + "  \n".join(lines)
-        )
+        ) + (f"\n\n{ports}" if ports else "")

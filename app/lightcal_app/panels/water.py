@@ -79,10 +79,12 @@ def water_text(
     *,
     estimate_shown: bool,
     channels: Sequence[str] = (),
+    behind_port: bool = False,
 ) -> str:
     """What the folder says of the values shown: `shown`, the solve's estimate when
     `estimate_shown`, else `start` (`estimated`: `medium.estimate`); with `channels`, one
-    medium of each per channel."""
+    medium of each per channel. `behind_port`: the project declares a flat port (its
+    water's index), so a clear medium is clear water, not air."""
     shown_all = [shown] if isinstance(shown, Medium) else list(shown)
     start_all = [start] if isinstance(start, Medium) else list(start)
     fitted = " and ".join(SYMBOLS.get(name, name) for name in estimated)
@@ -98,6 +100,11 @@ def water_text(
     if estimated:
         return f"The solve **estimates** {fitted}, starting from the value typed here."
     if all(m.is_clear for m in shown_all):
+        if behind_port:
+            return (
+                "**Clear water** behind the flat port: nothing attenuates or scatters "
+                "between the rig and the wall."
+            )
         return "**Air**: nothing attenuates or scatters between the rig and the wall."
     return "**Given**: the solve keeps these values."
 
@@ -167,11 +174,20 @@ class WaterPanel(TabPanel):
             estimated = st.solve_settings.medium_estimate
             estimate_shown = st.shown_estimate() is not None
             channels = st.project.channels
+            project = st.project
+            behind_port = project.camera_port is not None or any(
+                u.initial.port is not None for u in project.lights
+            )
         if channels != self.channels or len(shown) != max(1, len(channels)):
             return  # another project's fields: `set_project` rebuilds them
         for name, k in field_keys(channels):
             value = rounded(getattr(shown[k or 0], name), DIGITS)
             self.flag.assign(self.fields[field_key(name, k, channels)], value)
         self.text.content = water_text(
-            shown, start, estimated, estimate_shown=estimate_shown, channels=channels
+            shown,
+            start,
+            estimated,
+            estimate_shown=estimate_shown,
+            channels=channels,
+            behind_port=behind_port,
         )
