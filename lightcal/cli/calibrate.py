@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.pipeline import build_model, calibrate, load_images
     from lightcal.pipeline.auto_start import auto_initial_lines, with_auto_initial
     from lightcal.pipeline.load import prepare_solve
+    from lightcal.pipeline.port_text import port_lines
     from lightcal.pipeline.result_text import light_lines, medium_text
     from lightcal.pipeline.results import stop_reason
     from lightcal.pipeline.solve import start_words
@@ -104,6 +105,9 @@ def run(args: argparse.Namespace) -> int:
             f"{len(model.images)} images, {model.m} pixels, {model.layout.n} parameters",
             highlight=False,
         )
+        lights = [u.initial for u in project.lights]
+        for line in port_lines(project.camera_port, lights):  # what bends the rays
+            console.print(line, highlight=False, soft_wrap=True)
 
     def on_start(k: int, n: int) -> None:
         if not args.quiet and n > 1:

@@ -13,14 +13,17 @@ flat port"), and the RID's half-intensity and cut-off angles, given in air, narr
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.rid import RID
+from lightcal.core.scene import Light
 
 __all__ = [
     "CUT_OFF_LEVEL",
     "beam_angles_rad",
     "light_port_sentence",
+    "port_lines",
     "port_sentence",
     "water_angle_rad",
 ]
@@ -91,3 +94,15 @@ def light_port_sentence(name: str, port: FlatPort, rid: RID) -> str:
         f"{math.degrees(half):.1f}°, cut-off at {math.degrees(cut):.1f}° (in air "
         f"{math.degrees(half_air):.1f}° and {math.degrees(cut_air):.1f}°)"
     )
+
+
+def port_lines(camera_port: FlatPort | None, lights: Sequence[Light]) -> list[str]:
+    """The ports of a project in words, one line each: the camera's (`port_sentence`),
+    then each ported light's (`light_port_sentence`); empty without a port (what
+    `lightcal calibrate` prints before it solves)."""
+    lines = [] if camera_port is None else [port_sentence(camera_port, "camera")]
+    return lines + [
+        light_port_sentence(light.name, light.port, light.rid)
+        for light in lights
+        if light.port is not None
+    ]
