@@ -11,8 +11,10 @@ from __future__ import annotations
 import json
 import math
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -171,3 +173,17 @@ def run_requests(solve: SolveService, state: AppState, timeout: float = 60.0) ->
             return
         deadline.wait(0.01)
     raise AssertionError("the solve did not settle")
+
+
+def run_in_page(app: Any, timeout: float = 300.0) -> Any:
+    """Run pressed in a built app (`lightcal_app.server.LightcalApp`) at full pace, as
+    its worker runs it: wait for the solve's end and the page to settle; the result."""
+    app.controller.set_pace(0.0)
+    app.controller.run()
+    deadline = time.monotonic() + timeout
+    while app.state.solver_state not in ("converged", "not converged"):
+        assert time.monotonic() < deadline, "the solve did not end"
+        time.sleep(0.05)
+    assert app.wait_idle(120.0)
+    assert app.state.result is not None
+    return app.state.result

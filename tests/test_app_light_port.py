@@ -4,7 +4,6 @@ light's flat port")."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from lightcal.core.medium import Medium
 from lightcal.core.problem import with_view
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig
+from tests.app_fixtures import run_in_page
 from tests.test_one_engine import _cli, _same
 
 
@@ -64,13 +64,4 @@ def test_the_overlays_render_the_refracted_beam(app: LightcalApp) -> None:
 
 
 def test_the_pages_solve_is_the_clis(app: LightcalApp, ported: Path) -> None:
-    app.controller.set_pace(0.0)
-    app.controller.run()
-    deadline = time.monotonic() + 300.0
-    while app.state.solver_state not in ("converged", "not converged"):
-        assert time.monotonic() < deadline, "the solve did not end"
-        time.sleep(0.05)
-    assert app.wait_idle(120.0)
-    result = app.state.result
-    assert result is not None
-    _same(result, _cli(ported))
+    _same(run_in_page(app), _cli(ported))

@@ -6,7 +6,6 @@ port")."""
 from __future__ import annotations
 
 import dataclasses
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from lightcal.core.render import render_image
 from lightcal.errors import InputError
 from lightcal.pipeline import build_model
 from lightcal.pipeline.plan_candidates import PlanGrid, candidate_image, candidates
+from tests.app_fixtures import run_in_page
 from tests.test_one_engine import _cli, _same
 
 ATTENUATION_PER_M = 0.2
@@ -120,13 +120,4 @@ def test_plan_candidates_are_seen_through_the_port(app: LightcalApp) -> None:
 
 
 def test_the_pages_solve_is_the_clis(app: LightcalApp, ported: Path) -> None:
-    app.controller.set_pace(0.0)
-    app.controller.run()
-    deadline = time.monotonic() + 300.0
-    while app.state.solver_state not in ("converged", "not converged"):
-        assert time.monotonic() < deadline, "the solve did not end"
-        time.sleep(0.05)
-    assert app.wait_idle(120.0)
-    result = app.state.result
-    assert result is not None
-    _same(result, _cli(ported))
+    _same(run_in_page(app), _cli(ported))

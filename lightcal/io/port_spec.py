@@ -74,17 +74,7 @@ def build_port(spec: Any, source: Path) -> FlatPort | None:
         refusals.append("surroundings (their bounce light is traced from the camera centre)")
     if any(ls.initial == "auto" for ls in spec.lights):
         refusals.append("lights[].initial: auto (the beam is sighted along straight rays)")
-    if refusals:
-        raise InputError(source, f"camera.port: not modelled together with {'; '.join(refusals)}")
-    try:
-        return FlatPort(
-            port_spec.distance_mm / 1000.0,
-            port_spec.thickness_mm / 1000.0,
-            port_spec.glass_index,
-            port_spec.water_index,
-        )
-    except ValueError as exc:
-        raise InputError(source, f"camera.port: {exc}") from exc
+    return _flat_port(port_spec, "camera.port", refusals, source)
 
 
 def build_light_port(spec: Any, index: int, source: Path) -> FlatPort | None:
@@ -124,6 +114,12 @@ def build_light_port(spec: Any, index: int, source: Path) -> FlatPort | None:
         )
     if light.initial == "auto":
         refusals.append(f"{field}.initial: auto (the beam is sighted along straight rays)")
+    return _flat_port(port_spec, key, refusals, source)
+
+
+def _flat_port(port_spec: PortSpec, key: str, refusals: list[str], source: Path) -> FlatPort:
+    """The core's `FlatPort` of a port's section (mm to m), or InputError naming `key`:
+    what is not modelled beside it (`refusals`), or a value the core refuses."""
     if refusals:
         raise InputError(source, f"{key}: not modelled together with {'; '.join(refusals)}")
     try:
