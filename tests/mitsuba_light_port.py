@@ -24,10 +24,10 @@ ray, splatting it into the pixel it projects to. `ptracer` "does not support med
 (volumes)" (its documentation and source, src/integrators/ptracer.cpp; measured: a
 `homogeneous` medium of sigma_t = 2 /m as the outer face's interior changes nothing,
 the median relative difference from lightcal's render in clear water -1.7e-4 at 4096
-particles a pixel): the water here is only the outer face's index, and absorption
-behind the light's port is checked by lightcal's own references
-(`tests/test_light_port_reference.py`), not by Mitsuba (`volpath` checks the camera
-port's, `tests/test_flat_port_mitsuba.py`).
+particles a pixel): the water here is only the outer face's index. Absorption behind
+the light's port, exp(-c (|P - E| + |P - C|)), depends on the port only through the
+path length in the water |P - E|: `trace_light_paths` checks it against Mitsuba's own
+refraction (its `dielectric` sampled, its surfaces intersected).
 
 **No radiance constant.** A path tracer's `dielectric` scales the radiance it refracts
 by eta^2 (`TransportMode::Radiance`: the camera's port's (n_air / n_w)^2); in the
@@ -233,3 +233,74 @@ def render_light_port(
     shape = (height, width)
     images = LightPortImages(ours, theirs, fresnel.reshape(shape), omega.reshape(shape), lit, spp)
     return images, (camera, view, rig, port)
+
+
+@dataclass(frozen=True)
+class TracedPaths:
+    """lightcal's refracted paths to wall points and Mitsuba's tracing of them.
+
+    Attributes:
+        points_world: (M, 3) the wall points P (footprint centres), m.
+        arrivals_world: (M, 3) where Mitsuba's ray, leaving the emitter along lightcal's
+            air direction and refracted by its `dielectric` faces, meets the wall, m.
+        water_m: (M,) lightcal's path length in the water, |P - E| (`PortPaths.water_m`).
+        their_water_m: (M,) Mitsuba's: from its exit point on the outer face to its
+            arrival on the wall.
+    """
+
+    points_world: np.ndarray
+    arrivals_world: np.ndarray
+    water_m: np.ndarray
+    their_water_m: np.ndarray
+
+
+def trace_light_paths(points_world: np.ndarray, scene: tuple[Any, Any, Any, Any]) -> TracedPaths:
+    """Trace lightcal's air directions to `points_world` (M, 3) through the port with
+    Mitsuba's ray intersection (which surface, its plane) and `dielectric` refraction
+    (scalar_rgb: float32), the check of the water path on which the light's absorption
+    depends (`ptracer` has no media). The points are carried in float64 between
+    surfaces; Mitsuba's float32 directions leave about 1e-7 m at the wall."""
+    import mitsuba as mi
+
+    from lightcal.core.light_port import port_paths
+
+    _, view, rig, port = scene
+    light = rig.lights[0]
+    L, R = light.position_world(view), light.rotation_world(view)
+    paths = port_paths((points_world - L) @ R, port)
+    mi.set_variant("scalar_rgb")
+    T_world_light = np.array(_transform(R, L))
+    faces = port_faces(
+        mi,
+        T_world_light,
+        None,
+        PORT_HALF_SIDE_M,
+        distance_m=port.distance_m,
+        thickness_m=port.thickness_m,
+    )
+    wall = {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale([3.0, 3.0, 1.0])}
+    scene_mi = mi.load_dict({"type": "scene", "wall": wall, **faces})
+    ctx = mi.BSDFContext(mi.TransportMode.Importance)
+    arrivals = np.full((len(points_world), 3), np.nan)
+    water = np.full(len(points_world), np.nan)
+    for i, u in enumerate(paths.directions_light @ R.T):
+        origin, direction = np.array(L, dtype=np.float64), u
+        si = scene_mi.ray_intersect(mi.Ray3f(mi.Point3f(*origin), mi.Vector3f(*direction)))
+        for face in range(3):  # the inner face, the outer face, the wall
+            # `spawn_ray` moves a ray's origin off its surface by about 2e-4 (1 + |p|) m
+            # (float32 self-intersection), which shifts a refracted ray sideways by
+            # 1e-4 m: the next surface is found from there, and the exact point is
+            # where the ray from the exact origin meets that surface's plane.
+            if face > 0:
+                si = scene_mi.ray_intersect(si.spawn_ray(mi.Vector3f(*direction)))
+            n = np.array(si.n, dtype=np.float64)
+            along = float((np.array(si.p) - origin) @ n) / float(direction @ n)
+            exact = origin + along * direction
+            if face == 2:
+                arrivals[i], water[i] = exact, along
+                break
+            si.p = mi.Point3f(*exact)
+            bs, _ = si.bsdf().sample(ctx, si, 1.0 - 1e-7, mi.Point2f(0.5, 0.5))
+            assert mi.has_flag(bs.sampled_type, mi.BSDFFlags.DeltaTransmission)
+            origin, direction = exact, np.array(si.to_world(bs.wo), dtype=np.float64)
+    return TracedPaths(points_world, arrivals, paths.water_m, water)
