@@ -234,3 +234,17 @@ def test_opencv_ros_and_ies_say_the_pose_and_rid_are_the_emitters(tmp_path, caps
 
 def _name(folder: Path) -> str:
     return load_project(_project(folder)).lights[0].initial.name
+
+
+def test_the_api_exports_the_light_port_as_the_cli_does(tmp_path):
+    """`lightcal.api.export` with the project: the same files as `lightcal export`."""
+    from lightcal import api
+
+    code, cli_yaml = _export(tmp_path, "opencv", "lights.yaml")
+    assert code == 0
+    out = tmp_path / "api.yaml"
+    project = _project(tmp_path)
+    api.export(tmp_path / "result.json", "opencv", out, project=project, notify=None)
+    assert out.read_bytes() == cli_yaml.read_bytes()
+    with pytest.raises(InputError, match=r"lights\[0\]\.port: the Blender export"):
+        api.export(tmp_path / "result.json", "blender", tmp_path / "l.py", project=project)
