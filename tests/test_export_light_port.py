@@ -219,7 +219,13 @@ def test_opencv_ros_and_ies_say_the_pose_and_rid_are_the_emitters(tmp_path, caps
     assert "note: lights[0].port: the RID written is the emitter's in air" in (
         capsys.readouterr().err
     )
-    assert "the emitter's RID in air, behind its flat port (lights[0].port)" in ies.read_text()
+    assert "the given RID (CosPowerRID); in air, behind lights[0].port" in ies.read_text()
+    code, ldt = _export(tmp_path, "ldt", "light.ldt")
+    assert code == 0
+    assert "note: lights[0].port: the RID written is the emitter's in air" in (
+        capsys.readouterr().err
+    )
+    assert "the given RID (CosPowerRID); in air, behind lights[0].port\n" in ldt.read_text()
     # Without --project the port is unknown: the files are those of a light without one.
     plain = tmp_path / "plain.yaml"
     assert (

@@ -195,8 +195,9 @@ def ptracer_lines() -> list[str]:
 
 
 def origin_suffix(lp: LightPort) -> str:
-    """What a photometric file's origin text adds for a light behind a port."""
-    return f"; the emitter's RID in air, behind its flat port ({lp.key})"
+    """What a photometric file's origin text adds for a light behind a port: short, an
+    EULUMDAT report line holds 78 characters."""
+    return f"; in air, behind {lp.key}"
 
 
 def write_opencv_light_port(fs: Any, lp: LightPort) -> None:
