@@ -15,7 +15,7 @@ constant (`tests/mitsuba_light_port.py`). Measured (llvm_ad_rgb, a 160 x 120 syn
 of a Poisson count lies (1/3) / lambda below its mean, -2.4e-4 here); without the port's
 faces in the scene (the emitter straight in the water) -14 %. The faces are disks of
 radius 66 mm here (`light_face_radius_m`: cut to keep them out of the sensor's field;
-the RID at the rim's 72 degrees is 4e-3 of the axis'). Skipped without Mitsuba.
+the RID at the outer rim's 75.8 degrees in air is 1.1e-3 of the axis'). Skipped without Mitsuba.
 """
 
 from __future__ import annotations
@@ -114,6 +114,9 @@ def test_mitsuba_renders_the_exported_light_port_as_lightcal_does(tmp_path, vari
     assert code == 0
     text = xml.read_text()
     assert '<integrator type="ptracer">' in text and "lights[0].port" in text
+    assert "disks of radius 65.97 mm" in text and "rim is 75.8 degrees off" in " ".join(
+        text.split()
+    )
     project = load_project(_project(tmp_path))
     port = project.lights[0].initial.port
     assert port is not None

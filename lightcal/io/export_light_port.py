@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from lightcal.core.camera import Camera
 from lightcal.core.camera_frames import mitsuba_from_opencv
 from lightcal.core.flat_port import FlatPort
+from lightcal.core.light_port import air_sines
 from lightcal.io.export_port import face_transform, port_text
 
 __all__ = [
@@ -150,11 +151,15 @@ def mitsuba_light_port_lines(
 
     port = lp.port
     radius = light_face_radius_m(port, cutoff_rad, T_camera_light, camera)
+    offset_out = port.distance_m + port.thickness_m
+    rim = float(air_sines(np.array([radius]), np.array([offset_out + 1e-9]), port)[0][0])
     lines = [
         f"    <!-- The light's flat port ({xml_comment(lp.key)}: {port_text(port)}), in front",
         "         of the emitter in its frame: two dielectric disks of radius "
         f"{radius * 1e3:.4g} mm, their",
-        "         normals facing the emitter, the water outside. -->",
+        "         normals facing the emitter, the water outside; the outer face's rim is",
+        f"         {math.degrees(math.asin(rim)):.3g} degrees off the axis in the air (light "
+        "beyond it is not refracted). -->",
     ]
     faces = (
         ("port_inner", port.distance_m, port.air_index, port.glass_index),
