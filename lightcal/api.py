@@ -239,7 +239,8 @@ def export(
         result: A `Calibration`, a `ResultFile` or a result file's path.
         fmt: "opencv", "blender", "mitsuba", "ros", "ies" or "ldt" (docs/conventions.md).
         out: The main file (Mitsuba's textures, ROS's URDF go beside it).
-        project: The project: its camera (Mitsuba's sensor, Blender's camera) and the RIDs the
+        project: The project: its camera (Mitsuba's sensor, Blender's camera), its camera's
+            and lights' flat ports (`camera.port`, `lights[i].port`) and the RIDs the
             calibration did not estimate (a Calibration brings its own).
         light: The light to write as ies/ldt when several have a RID.
         wall_albedo: The wall's albedo rho, for Mitsuba's and Blender's scattering
@@ -252,10 +253,13 @@ def export(
     file, source = _result_file(result)
     if project is None and isinstance(result, Calibration):
         project = result.project
-    camera = None
+    from lightcal.io.export_light_port import light_ports_of
+
+    camera, port, light_ports = None, None, {}
     if project is not None:
         project = _as_project(project)
-        camera = project.camera
+        camera, port = project.camera, project.camera_port
+        light_ports = light_ports_of([(u.initial.name, u.initial.port) for u in project.lights])
         ensure_compiled(notify)  # analytic RIDs are sampled with the compiled evaluator
         file = with_given_rids(file, {u.initial.name: u.initial.rid for u in project.lights})
         if wall_albedo is None and project.surroundings is not None:
@@ -270,6 +274,8 @@ def export(
         light_name=light,
         camera=camera,
         wall_albedo=wall_albedo,
+        port=port,
+        light_ports=light_ports,
         force=force,
     )
 

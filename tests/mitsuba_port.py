@@ -96,14 +96,21 @@ class PortImages:
 
 
 def port_faces(
-    mi: Any, T_world_camera: np.ndarray, medium: dict | None, half_side_m: float
+    mi: Any,
+    T_world_camera: np.ndarray,
+    medium: dict | None,
+    half_side_m: float,
+    *,
+    distance_m: float = D_M,
+    thickness_m: float = T_M,
 ) -> dict[str, dict[str, Any]]:
     """The port's two dielectric faces (module docstring), world frame; `medium` (a
-    Mitsuba `ref`) the outer face's interior, or None."""
+    Mitsuba `ref`) the outer face's interior, or None. `T_world_camera` is the frame of
+    the port's owner (its +z the port's normal): the camera's, or a light's."""
     faces = {}
     for name, z_c, ext_ior, int_ior in (
-        ("port_inner", D_M, 1.0, N_GLASS),
-        ("port_outer", D_M + T_M, N_GLASS, N_WATER),
+        ("port_inner", distance_m, 1.0, N_GLASS),
+        ("port_outer", distance_m + thickness_m, N_GLASS, N_WATER),
     ):
         # The rectangle's normal +z turned to -z_c: facing the camera.
         local = np.diag([half_side_m, -half_side_m, -1.0, 1.0])

@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from lightcal.cli.arguments import path_arg
+
+if TYPE_CHECKING:
+    from lightcal.io.export_light_port import LightPort
+    from lightcal.io.result_file import ResultFile
 
 FORMATS = ("opencv", "blender", "mitsuba", "ros", "ies", "ldt")
 
@@ -96,6 +101,11 @@ def run(args: argparse.Namespace) -> int:
     medium = export_medium(result, args.result)  # a broken medium: refused before writing
     camera = None if project is None else project.camera
     port = None if project is None else project.camera_port
+    from lightcal.io.export_light_port import light_ports_of
+
+    light_ports = light_ports_of(
+        [] if project is None else [(u.initial.name, u.initial.port) for u in project.lights]
+    )
     wall_albedo = args.wall_albedo
     if wall_albedo is None and project is not None and project.surroundings is not None:
         wall_albedo = project.surroundings.wall_albedo
@@ -123,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         camera=camera,
         wall_albedo=wall_albedo,
         port=port,
+        light_ports=light_ports,
     )
     for path in list(files)[1:]:
         check_output_file(path, option="--out", inputs=inputs, inputs_of="the export")
@@ -135,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
         camera=camera,
         wall_albedo=wall_albedo,
         port=port,
+        light_ports=light_ports,
         force=args.force,
     )
     print(f"{args.format} export written to {', '.join(str(p) for p in written)}")
@@ -164,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
             "whose intrinsics are those in air, behind the port (the file says so)",
             file=sys.stderr,
         )
+    _light_port_notes(args, result, light_ports)
     if result.channels:  # colour channels solved jointly: the files hold one channel
         names = [str(ch.get("name")) for ch in result.channels]
         print(
@@ -172,3 +185,30 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _light_port_notes(
+    args: argparse.Namespace, result: ResultFile, light_ports: dict[str, LightPort]
+) -> None:
+    """The notes of lights behind flat ports (`lights[i].port`) on stderr: their poses
+    are the emitters' and their RIDs the emitters' in air."""
+    if args.format in ("opencv", "ros"):
+        for light in result.lights:
+            if light.name in light_ports:
+                print(
+                    f"note: {light_ports[light.name].key}: the pose of {light.name!r} is its "
+                    "emitter's, behind its port, and its RID the emitter's in air (the file "
+                    "says so)",
+                    file=sys.stderr,
+                )
+    elif args.format in ("ies", "ldt"):
+        from lightcal.io.export import select_light
+
+        light = select_light(result, args.result, args.light)
+        if light.name in light_ports:
+            print(
+                f"note: {light_ports[light.name].key}: the RID written is the emitter's in "
+                "air, behind its port (as a goniophotometer measures it out of the housing); "
+                "in the water the port narrows the beam, which the file cannot hold",
+                file=sys.stderr,
+            )

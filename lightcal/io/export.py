@@ -31,13 +31,18 @@ In air the files are what they were before media, byte for byte.
 A project whose camera looked through a flat port (`port`, its `camera.port`) gives
 Mitsuba the port's two dielectric faces, the opencv file a `camera_port` map and the ROS
 launch file a note (the camera frame and intrinsics are the housing's, in air, behind
-the port); Blender is refused (`lightcal.io.export_port`).
+the port); Blender is refused (`lightcal.io.export_port`). A project whose lights shine
+through flat ports (`light_ports`, their `lights[i].port`) gives Mitsuba each port's two
+faces in front of its emitter and the particle tracer (refused in water and with a camera
+port), the opencv file a `port` map in the light's entry, the ROS launch file a note and
+an ies/ldt file's origin text a word (the pose is the emitter's behind its port, the RID
+the emitter's in air); Blender is refused (`lightcal.io.export_light_port`).
 """
 
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Literal
 
@@ -48,6 +53,7 @@ from lightcal.core.flat_port import FlatPort
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_create_bytes, atomic_write_bytes
 from lightcal.io.export_blender import blender_snippet
+from lightcal.io.export_light_port import BLENDER_LIGHT_REFUSAL, LightPort, origin_suffix
 from lightcal.io.export_lights import (
     LightRID,
     clean_degrees,
@@ -76,6 +82,7 @@ __all__ = [
     "light_transform",
     "rid_photometric_table",
     "rid_values",
+    "select_light",
     "spot_texture",
     "with_given_rids",
 ]
@@ -234,7 +241,9 @@ def rid_photometric_table(light: LightResultModel, source: str | Path) -> Photom
     )
 
 
-def _select_light(result: ResultFile, source: str | Path, name: str | None) -> LightResultModel:
+def select_light(result: ResultFile, source: str | Path, name: str | None) -> LightResultModel:
+    """The light an ies/ldt export writes: the one named, the only one, or the only one
+    with a RID (`InputError` naming `source` otherwise)."""
     if name is not None:
         for light in result.lights:
             if light.name == name:
@@ -251,13 +260,21 @@ def _select_light(result: ResultFile, source: str | Path, name: str | None) -> L
 
 def _photometric_bytes(
     writer: Callable[[Path, PhotometricTable, str], None], suffix: str
-) -> Callable[[ResultFile, str | Path, str | None], bytes]:
-    def render(result: ResultFile, source: str | Path, light_name: str | None) -> bytes:
-        light = _select_light(result, source, light_name)
+) -> Callable[[ResultFile, str | Path, str | None, Mapping[str, LightPort]], bytes]:
+    def render(
+        result: ResultFile,
+        source: str | Path,
+        light_name: str | None,
+        light_ports: Mapping[str, LightPort],
+    ) -> bytes:
+        light = select_light(result, source, light_name)
         table = rid_photometric_table(light, source)
+        origin = rid_origin(light)
+        if light.name in light_ports:
+            origin += origin_suffix(light_ports[light.name])
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / f"light{suffix}"
-            writer(path, table, rid_origin(light))
+            writer(path, table, origin)
             return path.read_bytes()
 
     return render
@@ -288,6 +305,7 @@ def export_files(
     camera: Camera | None = None,
     wall_albedo: float | None = None,
     port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
 ) -> dict[Path, bytes]:
     """The exported files' contents: `out` first, then any it refers to (Mitsuba textures).
 
@@ -303,11 +321,15 @@ def export_files(
             Blender's scattering coefficient sigma_s = beta rho / pi of a result whose
             medium scatters (`lightcal.io.export_medium`).
         port: The project's camera port (`camera.port`), or None.
+        light_ports: The project's lights' ports by the lights' names
+            (`lightcal.io.export_light_port.light_ports_of`), or None.
 
     Raises:
         InputError: an unknown format, the result lacks what the format needs, or its
             medium scatters and the format needs `wall_albedo`; naming `camera.port`:
-            the Blender export of a camera behind a port.
+            the Blender export of a camera behind a port; naming `lights[i].port`: the
+            Blender export of a light behind one, the Mitsuba export of one in water or
+            with a camera port.
     """
     out = Path(out)
     check_wall_albedo(wall_albedo)
@@ -317,20 +339,27 @@ def export_files(
             f"the result is undetermined ({result.undetermined[0]}): there is no pose to "
             "export; fix the project and calibrate again",
         )
+    names = {light.name for light in result.lights}
+    ported = {k: v for k, v in (light_ports or {}).items() if k in names}
     if fmt == "opencv":
-        return {out: opencv_yaml(result, source, port)}
+        return {out: opencv_yaml(result, source, port, ported)}
     if fmt == "blender":
         if port is not None:
             raise InputError("camera.port", BLENDER_REFUSAL)
+        if ported:
+            raise InputError(next(iter(ported.values())).key, BLENDER_LIGHT_REFUSAL)
         return {out: _blender_snippet(result, source, camera, wall_albedo)}
     if fmt == "mitsuba":
-        return mitsuba_files(result, source, out, camera=camera, wall_albedo=wall_albedo, port=port)
+        return mitsuba_files(
+            result, source, out, camera=camera, wall_albedo=wall_albedo, port=port,
+            light_ports=ported,
+        )  # fmt: skip
     if fmt == "ros":
-        return ros_files(result, out, source, port)
+        return ros_files(result, out, source, port, ported)
     if fmt == "ies":
-        return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name)}
+        return {out: _photometric_bytes(_write_ies, ".ies")(result, source, light_name, ported)}
     if fmt == "ldt":
-        return {out: _photometric_bytes(_write_ldt, ".ldt")(result, source, light_name)}
+        return {out: _photometric_bytes(_write_ldt, ".ldt")(result, source, light_name, ported)}
     raise InputError("--format", f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
 
 
@@ -344,6 +373,7 @@ def export_result(
     camera: Camera | None = None,
     wall_albedo: float | None = None,
     port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
     force: bool = False,
 ) -> list[Path]:
     """Write `export_files` atomically, each; existing files only with `force`.
@@ -364,6 +394,7 @@ def export_result(
         camera=camera,
         wall_albedo=wall_albedo,
         port=port,
+        light_ports=light_ports,
     )
     out = Path(out)
     if not out.parent.is_dir():

@@ -32,12 +32,18 @@ renders it with a wall and compares with lightcal's `render_image` of the same v
   sensor, which then sits in the housing's air (the medium, if any, is the outer face's
   interior and the emitters'); a `path` integrator (`volpath` in water) with `max_depth`
   a parameter of the file, since `direct` does not follow a ray through a dielectric.
+- **The lights' flat ports** (`light_ports`, the project's `lights[i].port`,
+  `lightcal.io.export_light_port`): each ported light's two faces as dielectric
+  disks in front of its emitter, and Mitsuba's particle tracer (`ptracer`); refused
+  in water and with a camera port (`ptracer` has no media; its connection to the sensor
+  is a shadow ray the camera's port would block).
 """
 
 from __future__ import annotations
 
 import math
 import textwrap
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +56,15 @@ from lightcal.core.camera_frames import (
 )
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.rid import RID, SymmetricTableRID, Table2DRID
+from lightcal.errors import InputError
 from lightcal.io.escaping import xml_attribute, xml_comment
+from lightcal.io.export_light_port import (
+    MITSUBA_CAMERA_PORT_REFUSAL,
+    MITSUBA_WATER_REFUSAL,
+    LightPort,
+    mitsuba_light_port_lines,
+    ptracer_lines,
+)
 from lightcal.io.export_lights import LightRID, light_rid, light_transform
 from lightcal.io.export_medium import ExportMedium, export_medium
 from lightcal.io.export_port import mitsuba_port_lines
@@ -310,6 +324,7 @@ def mitsuba_files(
     camera: Camera | None = None,
     wall_albedo: float | None = None,
     port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
 ) -> dict[Path, bytes]:
     """The scene XML (`out`) and the RID textures beside it.
 
@@ -321,9 +336,11 @@ def mitsuba_files(
         wall_albedo: rho, for the scattering coefficient of a medium that scatters
             (`lightcal.io.export_medium`).
         port: The project's camera port, or None (`lightcal.io.export_port`).
+        light_ports: The project's lights' ports by name (`lightcal.io.export_light_port`).
 
     Raises:
-        InputError: the medium scatters and `wall_albedo` is None, or its sigma_s > c.
+        InputError: the medium scatters and `wall_albedo` is None, or its sigma_s > c;
+            naming `lights[i].port`: a light port in water or with a camera port.
     """
     files: dict[Path, bytes] = {}
     medium = export_medium(result, source)
@@ -344,6 +361,15 @@ def mitsuba_files(
                 '        <integer name="max_depth" value="$max_depth"/>',
                 "    </integrator>",
             ]
+    names = {light.name for light in result.lights}
+    ported = {k: v for k, v in (light_ports or {}).items() if k in names}
+    if ported:  # a point light behind a port: only the particle tracer reaches it
+        first = next(iter(ported.values())).key
+        if medium is not None:
+            raise InputError(first, MITSUBA_WATER_REFUSAL)
+        if port is not None:
+            raise InputError(first, MITSUBA_CAMERA_PORT_REFUSAL)
+        water = ptracer_lines()
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: calibrated lights, camera frame.",
@@ -366,6 +392,7 @@ def mitsuba_files(
         kind = "point" if light.pose_kind == "isotropic" else "spot"
         lines.append(f'    <emitter type="{kind}" id={xml_attribute(light.name)}>')
         intensity = float(light.scale)
+        cutoff_rad = math.pi / 2
         if kind == "spot" and rid is not None:
             cutoff_rad, texture = spot_texture(rid)
             peak = max(float(texture.max()), 1.0)  # a batwing's peak is off the axis
@@ -394,5 +421,9 @@ def mitsuba_files(
         )
         lines += inside
         lines.append("    </emitter>")
+        if light.name in ported:
+            lines += mitsuba_light_port_lines(
+                light.name, ported[light.name], light_transform(light), cutoff_rad, camera
+            )
     lines.append("</scene>")
     return {out: ("\n".join(lines) + "\n").encode("utf-8"), **files}

@@ -19,12 +19,15 @@ A result calibrated in water adds, after `lights`, a `medium` map: `attenuation_
 The file holds no intrinsics. Exported with a project whose camera looked through a flat
 port (`camera.port`), it adds a `camera_port` map (`lightcal.io.export_port`): the
 port's numbers and a note that the camera frame is the housing's, its intrinsics those
-in air behind the port.
+in air behind the port. Each light behind a flat port of its own (`lights[i].port`)
+gets a `port` map in its entry (`lightcal.io.export_light_port`): the port's numbers and
+a note that the pose is the emitter's, behind the port, and the RID the emitter's in air.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +38,7 @@ from lightcal.core.flat_port import FlatPort
 from lightcal.core.light_axis import axis_from_angles, rotation_from_axis
 from lightcal.core.rotations import matrix_from_rotvec, rotvec_from_matrix
 from lightcal.io.escaping import plain_line
+from lightcal.io.export_light_port import LightPort, write_opencv_light_port
 from lightcal.io.export_lights import FRAME_NOTE, light_rid, light_transform
 from lightcal.io.export_medium import NAMES as MEDIUM_NAMES
 from lightcal.io.export_medium import ExportMedium, export_medium
@@ -104,9 +108,15 @@ def pose_covariance(result: ResultFile, light: LightResultModel) -> NDArray[np.f
     return out
 
 
-def opencv_yaml(result: ResultFile, source: str | Path, port: FlatPort | None = None) -> bytes:
+def opencv_yaml(
+    result: ResultFile,
+    source: str | Path,
+    port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
+) -> bytes:
     """The FileStorage YAML of every light (`lightcal.io.export`'s `opencv` format);
-    `port`, the project's camera port, adds its `camera_port` map."""
+    `port`, the project's camera port, adds its `camera_port` map, `light_ports` (by the
+    lights' names) a `port` map to each ported light's entry."""
     import cv2
 
     fs = cv2.FileStorage(
@@ -149,6 +159,8 @@ def opencv_yaml(result: ResultFile, source: str | Path, port: FlatPort | None = 
                 fs.write("rid_theta_rad", rid.theta_rad.reshape(-1, 1))
                 fs.write("rid_phi_rad", rid.phi_rad.reshape(-1, 1))
                 fs.write("rid_grid", rid.values)  # (n_phi, n_theta)
+        if light_ports and light.name in light_ports:
+            write_opencv_light_port(fs, light_ports[light.name])
         fs.endWriteStruct()
     fs.endWriteStruct()
     medium = export_medium(result, source)

@@ -37,6 +37,7 @@ __all__ = [
     "BLENDER_REFUSAL",
     "PORT_NOTE",
     "face_half_side_m",
+    "face_transform",
     "mitsuba_port_lines",
     "port_text",
     "write_opencv_port",
@@ -84,7 +85,7 @@ def face_half_side_m(port: FlatPort, camera: Camera | None) -> float:
     return 1.5 * reach * depth + 2.0 * port.thickness_m
 
 
-def _face_transform(port: FlatPort, offset_m: float, half_side_m: float) -> NDArray[np.float64]:
+def face_transform(port: FlatPort, offset_m: float, half_side_m: float) -> NDArray[np.float64]:
     """(4, 4) a `rectangle`'s to_world in the OpenCV camera frame: the plane
     n . X = offset_m, its normal -n (facing the camera), the square's half side."""
     n = port.normal_camera
@@ -125,7 +126,7 @@ def mitsuba_port_lines(
         ),
     )
     for ident, offset, ext_ior, int_ior in faces:
-        M = mitsuba_from_opencv(_face_transform(port, offset, half))
+        M = mitsuba_from_opencv(face_transform(port, offset, half))
         lines += [
             f'    <shape type="rectangle" id={xml_attribute(ident)}>',
             '        <transform name="to_world"><matrix value="'

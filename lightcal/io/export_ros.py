@@ -22,6 +22,8 @@ sigmas, `lightcal.io.export_medium`): tf has no place for a medium. Exported wit
 project whose camera looked through a flat port (`camera.port`), the comment says so too
 (`lightcal.io.export_port.PORT_NOTE`): the optical frame is the camera's in its housing,
 its intrinsics (in the camera's own calibration) the housing's in air behind the port.
+A light behind a flat port of its own (`lights[i].port`) gets a note too
+(`lightcal.io.export_light_port.LIGHT_PORT_NOTE`): its transform is the emitter's.
 In air, without a port, the files are what they were.
 """
 
@@ -30,6 +32,7 @@ from __future__ import annotations
 import math
 import re
 import textwrap
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +41,7 @@ from numpy.typing import NDArray
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
 from lightcal.io.escaping import xml_comment
+from lightcal.io.export_light_port import LIGHT_PORT_NOTE, LightPort
 from lightcal.io.export_lights import light_transform
 from lightcal.io.export_medium import export_medium
 from lightcal.io.export_port import PORT_NOTE, port_text
@@ -108,7 +112,18 @@ def _port_lines(port: FlatPort | None) -> list[str]:
     return [f"     {line}" for line in textwrap.wrap(xml_comment(text, max_chars=4000), 84)]
 
 
-def _launch(result: ResultFile, source: str | Path, port: FlatPort | None = None) -> str:
+def _light_port_lines(child: str, lp: LightPort) -> list[str]:
+    """The comment's note of a light behind a flat port."""
+    text = f"Light {child} port ({lp.key}: {port_text(lp.port)}): {LIGHT_PORT_NOTE}."
+    return [f"     {line}" for line in textwrap.wrap(xml_comment(text, max_chars=4000), 84)]
+
+
+def _launch(
+    result: ResultFile,
+    source: str | Path,
+    port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
+) -> str:
     lines = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f"<!-- lightcal {xml_comment(result.lightcal_version)}: the calibrated lights as static",
@@ -140,6 +155,9 @@ def _launch(result: ResultFile, source: str | Path, port: FlatPort | None = None
         )
     lines += _medium_lines(result, source)
     lines += _port_lines(port)
+    for light, child in zip(result.lights, _frames(result), strict=True):
+        if light_ports and light.name in light_ports:
+            lines += _light_port_lines(child, light_ports[light.name])
     lines[-1] += " -->"
     lines += [
         "<launch>",
@@ -182,12 +200,17 @@ def urdf_path(out: Path) -> Path:
 
 
 def ros_files(
-    result: ResultFile, out: Path, source: str | Path = "", port: FlatPort | None = None
+    result: ResultFile,
+    out: Path,
+    source: str | Path = "",
+    port: FlatPort | None = None,
+    light_ports: Mapping[str, LightPort] | None = None,
 ) -> dict[Path, bytes]:
     """The launch file (`out`) and the URDF fragment beside it (`urdf_path`); a result in
-    water, or a camera behind a flat `port` (the project's), says so in the launch file's
-    comment (`source`: the result's path, for errors)."""
+    water, a camera behind a flat `port` (the project's) or lights behind theirs
+    (`light_ports`, by name) say so in the launch file's comment (`source`: the result's
+    path, for errors)."""
     return {
-        out: _launch(result, source, port).encode("utf-8"),
+        out: _launch(result, source, port, light_ports).encode("utf-8"),
         urdf_path(out): _urdf(result).encode("utf-8"),
     }
