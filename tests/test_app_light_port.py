@@ -65,3 +65,18 @@ def test_the_overlays_render_the_refracted_beam(app: LightcalApp) -> None:
 
 def test_the_pages_solve_is_the_clis(app: LightcalApp, ported: Path) -> None:
     _same(run_in_page(app), _cli(ported))
+
+
+def test_the_pages_downloads_carry_the_lights_port(app: LightcalApp) -> None:
+    """The Files tab's export: the opencv file notes the port, Blender is refused naming
+    it, as `lightcal export --project` does."""
+    from lightcal_app.results import export_download
+
+    from lightcal.errors import InputError
+
+    result = app.state.result
+    assert result is not None  # the solve above
+    name, data = export_download(result, app.state.project, "opencv")
+    assert name.endswith(".yaml") and b"port:" in data and b"lights[0].port" in data
+    with pytest.raises(InputError, match=r"lights\[0\]\.port"):
+        export_download(result, app.state.project, "blender")

@@ -193,6 +193,7 @@ def export_download(result: CalibrationResult, project: Project, fmt: str) -> tu
     Mitsuba scene with its textures comes as a zip.
     """
     from lightcal.io.export import FORMATS, export_files
+    from lightcal.io.export_light_port import light_ports_of
     from lightcal.io.export_lights import with_given_rids
     from lightcal.io.result_file import ResultFile
 
@@ -205,7 +206,12 @@ def export_download(result: CalibrationResult, project: Project, fmt: str) -> tu
     main = Path(f"{stem}.{fmt}{EXPORT_SUFFIX[fmt]}")
     # a medium that scatters: its scattering coefficient needs the wall's albedo
     rho = None if project.surroundings is None else project.surroundings.wall_albedo
-    files = export_files(result_file, fmt, main, source=f"{stem}.result.json", wall_albedo=rho)
+    # the project's camera and its ports, as `--project` gives them (the CLI's `export`)
+    ports = light_ports_of([(u.initial.name, u.initial.port) for u in project.lights])
+    files = export_files(
+        result_file, fmt, main, source=f"{stem}.result.json", wall_albedo=rho,
+        camera=project.camera, port=project.camera_port, light_ports=ports,
+    )  # fmt: skip
     if len(files) == 1:
         return main.name, files[main]
     buf = io.BytesIO()
