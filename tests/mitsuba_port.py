@@ -135,9 +135,13 @@ def render_through_port(
     *,
     half_side_m: float = PORT_HALF_SIDE_M,
     max_depth: int = 12,
+    sigma_s_per_m: float = 0.0,
+    phase_g: float = 0.5,
 ) -> tuple[PortImages, tuple[Any, Any, Any, Any]]:
     """Render the scene behind the port with both renderers; also returns lightcal's
-    scene (camera, view, rig, port) for further renders."""
+    scene (camera, view, rig, port) for further renders. With `sigma_s_per_m` > 0 the
+    water scatters (Henyey-Greenstein `phase_g`; lightcal's beta = sigma_s pi / albedo):
+    give `max_depth` 4 for single scattering (the two faces count as interactions)."""
     import mitsuba as mi
 
     from lightcal.core.camera import Camera
@@ -167,7 +171,9 @@ def render_through_port(
     light = Light(rid, R_cw @ (light_world - view.center_world), R_cw @ R_world_light, scale=1.0)
     rig = Rig.single(light)
     port = FlatPort(D_M, T_M, N_GLASS, N_WATER)
-    medium = Medium(attenuation_per_m) if attenuation_per_m > 0.0 else AIR
+    medium = AIR
+    if attenuation_per_m > 0.0:
+        medium = Medium(attenuation_per_m, sigma_s_per_m * math.pi / ALBEDO, phase_g)
     ours = render_image_through_port(camera, view, rig, port, medium=medium, rid_subsamples=4)
     pixels = np.stack(np.meshgrid(np.arange(width), np.arange(height)), -1).reshape(-1, 2)
     fp = port_footprints(camera, view, pixels, port)
@@ -221,7 +227,8 @@ def render_through_port(
         scene_dict["water"] = {
             "type": "homogeneous",
             "sigma_t": attenuation_per_m,
-            "albedo": 0.0,
+            "albedo": sigma_s_per_m / attenuation_per_m,
+            "phase": {"type": "hg", "g": phase_g},
         }
         scene_dict["light"]["medium"] = water_ref
     scene = mi.load_dict(scene_dict)

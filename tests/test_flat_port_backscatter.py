@@ -65,7 +65,10 @@ def test_the_veil_through_the_port_is_the_integral_along_the_refracted_ray() -> 
     )
     ok = fp.valid
     assert ok.sum() > 20
-    np.testing.assert_allclose(ours[ok], ref[ok], rtol=1e-6)
+    # The veil enters the camera through the port: times its Fresnel transmittance.
+    assert fp.port_transmittance is not None
+    assert np.all((fp.port_transmittance[ok] > 0.9) & (fp.port_transmittance[ok] < 0.96))
+    np.testing.assert_allclose(ours[ok], ref[ok] * fp.port_transmittance[ok], rtol=1e-6)
     assert np.all(np.linalg.norm(fp.port_exits_world[ok] - view.center_world, axis=1) > 0.02)
 
 
@@ -111,18 +114,18 @@ def test_the_light_and_the_water_are_recovered_through_the_port_with_backscatter
     tmp_path: Path,
 ) -> None:
     """`lightcal synth --port 20 10 1.49 1.333 --declare-port --attenuation 0.3
-    --backscatter 0.6 --phase-g 0.8`, c and beta estimated (240 x 180, 10 views, synth's
+    --backscatter 0.6 --phase-g 0.8`, c and beta estimated (320 x 240, 10 views, synth's
     noise, poses to 0.5 mm / 0.05 deg): the light within 3 mm and 0.2 degrees, c within
     5 % (the issue's bounds in water with backscatter)."""
     out = tmp_path / "data"
     water = ["--attenuation", "0.3", "--backscatter", "0.6", "--phase-g", "0.8"]
     water += ["--declare-medium", "estimated"]
-    argv = ["synth", str(out), "--width", "240", "--height", "180", "--views", "10"]
+    argv = ["synth", str(out), "--width", "320", "--height", "240", "--views", "10"]
     argv += ["--port", "20", "10", "1.49", "1.333", "--declare-port", *water]
     assert main([*argv, "--seed", "3", "--quiet"]) == 0
     doc = json.loads((out / "project.json").read_text())
     assert doc["medium"]["estimate"] == ["attenuation_per_m", "backscatter_per_m"]
-    doc["selection"]["n_per_image"] = 2500
+    doc["selection"]["n_per_image"] = 4000
     (out / "project.json").write_text(json.dumps(doc))
     truth = json.loads((out / "truth.json").read_text())
     _, model, res = calibrate_project(load_project(out / "project.json"))

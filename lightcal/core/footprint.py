@@ -154,6 +154,10 @@ class Footprints:
             into the water (the mean of its corners' exit points, as the centre is of
             its corners), world frame, m: the camera side's path in the medium starts
             there (`camera_side`). None without a port (the camera centre).
+        port_transmittance: (N,) behind the camera's flat port, the port's Fresnel
+            transmittance of each pixel's rays (the mean over its member pixels; 0 where
+            invalid): what the water's veil and the room light seen through the port
+            carry (the wall's light carries it in `weights`). None without a port.
     """
 
     pixels: np.ndarray
@@ -165,6 +169,7 @@ class Footprints:
     normals_world: np.ndarray | None = None
     sensor: SensorModel = "radiance"
     port_exits_world: np.ndarray | None = None
+    port_transmittance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if (self.stored_corners is None) == (self.grid is None):
@@ -202,6 +207,7 @@ class Footprints:
             None if self.normals_world is None else self.normals_world[rows],
             self.sensor,
             None if self.port_exits_world is None else self.port_exits_world[rows],
+            None if self.port_transmittance is None else self.port_transmittance[rows],
         )
 
     def camera_side(self, center_world: np.ndarray) -> np.ndarray:
@@ -215,7 +221,10 @@ class Footprints:
         """(N,) what the sensor model makes of a uniform unit radiance on the wall (room
         light): its fall-off at each pixel, cos^4 or the map's mean V (a quad's weight
         times the footprint's area: V / A x A); None for `radiance` (1) and `paper`,
-        whose values are not radiances (the room light is then taken as uniform)."""
+        whose values are not radiances (the room light is then taken as uniform); behind
+        a flat port `radiance`'s is the port's transmittance (`port_transmittance`)."""
+        if self.sensor == "radiance" and self.port_transmittance is not None:
+            return np.where(self.valid, self.port_transmittance, 0.0)
         if self.sensor not in ("cos4", "map"):
             return None
         return np.where(self.valid, self.weights[:, 0] * self.area_m2, 0.0)

@@ -177,6 +177,7 @@ def apply_medium(
     exposure: float,
     extra_grads: np.ndarray | None = None,
     d_medium_out: np.ndarray | None = None,
+    veil_factor: np.ndarray | None = None,
 ) -> None:
     """One light's flux (N,) through the medium, in place: times T at the footprint
     centres, plus exposure beta S (the backscatter along each pixel's ray, a radiance:
@@ -197,6 +198,9 @@ def apply_medium(
         d_medium_out: with grad, (N, 1) receiving d/dc, (N, 2) d/dc and d/dbeta, or
             (N, 3) d/dc, d/dbeta and d/dg (the backscatter is then computed even at
             beta = 0).
+        veil_factor: (N,) what each pixel's veil is multiplied by on its way into the
+            camera (behind a flat port its Fresnel transmittance,
+            `Footprints.port_transmittance`), or None (1).
     """
     n = flux.shape[0]
     want = grad is not None and d_medium_out is not None
@@ -242,6 +246,10 @@ def apply_medium(
         s,
         ds,
     )
+    if veil_factor is not None:  # through the camera's flat port
+        s *= veil_factor
+        if ds is not None:
+            ds *= veil_factor[:, None]
     k = exposure * medium.backscatter_per_m
     flux += k * s
     if grad is not None and ds is not None:

@@ -170,6 +170,7 @@ def _assembled(
     if fresnel is None:
         fresnel = fresnel_factors(lattice_xy, port)
     terms = _sensor_terms(sensor, p, b, lattice_xy, vmap) * fresnel
+    transmittance = np.where(valid, fresnel.reshape(n, -1).mean(axis=1), 0.0)
     k = s * s
     with np.errstate(invalid="ignore", divide="ignore"):
         weight = terms.reshape(n, -1).mean(axis=1) / area
@@ -198,6 +199,7 @@ def _assembled(
         normals_world=normals,
         sensor=sensor,
         port_exits_world=exits_mean,
+        port_transmittance=transmittance,
     )
 
 

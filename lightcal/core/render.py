@@ -195,6 +195,7 @@ def light_flux(
             exposure=view.exposure,
             extra_grads=None if wall.is_lambertian else wall_grad_out,
             d_medium_out=medium_grad_out if grad is not None else None,
+            veil_factor=footprints.port_transmittance,
         )
     return flux, grad
 

@@ -50,7 +50,7 @@ from lightcal.synthetic.height_field import (
     surface_points,
 )
 from lightcal.synthetic.light_port_imaging import light_port_shading
-from lightcal.synthetic.port_imaging import port_shading
+from lightcal.synthetic.port_imaging import port_fresnel_image, port_shading
 from lightcal.synthetic.texture import AlbedoTexture, sample_albedo_texture
 
 __all__ = ["AmbientLevels", "Imaging", "ambient_levels", "make_imaging", "view_target_center"]
@@ -157,7 +157,10 @@ class Imaging:
         if self.texture is not None:
             total = total * self.texture.factor(points[..., :2])
         if self.backscatter_per_m > 0.0:
-            total = total + self._backscatter(view, points, camera_side)
+            veil = self._backscatter(view, points, camera_side)
+            if self.port is not None:  # into the camera through the port
+                veil = veil * port_fresnel_image(self.camera, self.port)
+            total = total + veil
         return np.ma.masked_array(np.where(valid, total, np.nan), mask=~valid)
 
     def declared(self, declare: bool) -> SurroundingsSpec | None:
@@ -215,6 +218,8 @@ class Imaging:
                 wall = self.wall_shape if self.wall_shape is not None else BowedWall(0.0)
                 points, seen = surface_points(self.camera, view, wall)
                 falloff = falloff * np.where(seen, self.texture.factor(points[..., :2]), 1.0)
+            if self.port is not None:  # the room light seen through the camera's port
+                falloff = falloff * port_fresnel_image(self.camera, self.port)
             total = total + ambient_dn * falloff
         if self.undeclared_vignetting is not None:
             total = total * self.undeclared_vignetting

@@ -87,6 +87,18 @@ def _scalar_snell(
     return exits, water, _fresnel_plate(port, theta_air, theta_glass, theta_water)
 
 
+def port_fresnel_image(camera: Camera, port: FlatPort) -> NDArray[np.float64]:
+    """(H, W) the port's Fresnel transmittance of each pixel centre's ray (its own
+    formula, `_fresnel_plate`): what the light of the water (the veil) and the room
+    light seen through the port carry into the camera, as the wall's does."""
+    h, w = camera.height, camera.width
+    v, u = np.mgrid[0:h, 0:w]
+    xy, ok = camera.pixels_to_normalized(np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
+    rays = np.concatenate([np.where(ok[:, None], xy, 0.0), np.ones((h * w, 1))], axis=1)
+    _, _, fresnel = _scalar_snell(rays, port)
+    return np.asarray(fresnel, dtype=np.float64).reshape(h, w)
+
+
 def port_shading(
     camera: Camera,
     view: View,
