@@ -21,9 +21,8 @@ import numpy as np
 
 from lightcal.core.albedo_map import AlbedoMap, with_albedo
 from lightcal.core.bounce_image import BounceImages
-from lightcal.core.footprint import room_light_image
 from lightcal.core.medium import AIR, Medium
-from lightcal.core.port_render import render_view_image
+from lightcal.core.port_render import render_view_image, room_light_view
 from lightcal.core.problem import with_view
 from lightcal.core.scene import Rig, View
 from lightcal.core.solver import CalibrationModel
@@ -80,7 +79,9 @@ def render_views(
     out = []
     n = len(project.views)
     vignetting = vignetting_for(project, loaded.camera)
-    room_factor = room_light_image(loaded.camera, project.spec.sensor.model, vignetting)
+    room_factor = room_light_view(
+        loaded.camera, project.spec.sensor.model, vignetting, project.camera_port
+    )
     bounces = None
     surroundings = surroundings or project.surroundings
     if surroundings is not None:  # one bounce map for every view

@@ -271,3 +271,23 @@ def test_the_whole_image_through_the_port_is_every_pixels() -> None:
     # Without the port: the same view differs (the ratio is reported in model.md).
     air = render_pixels(camera, view, rig, px)
     assert np.max(np.abs(values / air - 1.0)) > 0.1
+
+
+def test_the_room_light_through_the_port_carries_its_transmittance() -> None:
+    """The whole image's room-light factor (report, page) is each pixel's footprint's
+    (solver), radiance and cos4: the port's Fresnel transmittance of the pixel's rays."""
+    from lightcal.core.port_render import room_light_view
+
+    camera, view = _camera(), _view()
+    assert room_light_view(camera, "radiance") is None
+    px = _all_pixels(camera)
+    for sensor in ("radiance", "cos4"):
+        image = room_light_view(camera, sensor, None, PORT)
+        assert image is not None and image.shape == (camera.height, camera.width)
+        fp = port_footprints(camera, view, px, PORT, sensor=sensor)
+        factor = fp.room_light_factor
+        assert factor is not None
+        ok = fp.valid
+        np.testing.assert_allclose(image.ravel()[ok], factor[ok], rtol=1e-12)
+    radiance = room_light_view(camera, "radiance", None, PORT)
+    assert radiance is not None and 0.9 < np.nanmin(radiance) < np.nanmax(radiance) < 0.96

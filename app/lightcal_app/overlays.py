@@ -22,9 +22,9 @@ from lightcal.colormap import diverging_rgb, grey_rgb, robust_vmax
 from lightcal.core.albedo_map import with_albedo
 from lightcal.core.bounce_image import BounceImages
 from lightcal.core.camera import Camera
-from lightcal.core.footprint import SensorModel, room_light_image
+from lightcal.core.footprint import SensorModel
 from lightcal.core.medium import Medium
-from lightcal.core.port_render import render_view_image
+from lightcal.core.port_render import render_view_image, room_light_view
 from lightcal.core.problem import with_view
 from lightcal.core.quantiles import percentile
 from lightcal.core.selection import bin_values
@@ -209,7 +209,9 @@ class OverlayImages:
                 # A binned pixel of `paper` is the mean of its b^2 pixels, not their sum.
                 out = out / float(self.geo.render_binning**2)
             if display.ambient:  # the estimated room light, as the model adds it: through
-                room = room_light_image(self.geo.render_camera, sensor, self._vignetting)
+                room = room_light_view(
+                    self.geo.render_camera, sensor, self._vignetting, self.project.camera_port
+                )
                 level = view.exposure * display.ambient  # the sensor's fall-off (cos4, map)
                 out = out + (level if room is None else level * room)
             if display.fall_off_coeffs:  # and the estimated fall-off at each super-pixel

@@ -282,6 +282,12 @@ def _camera_rays(
     return value
 
 
+def port_transmittance_image(camera: Camera, port: FlatPort) -> np.ndarray:
+    """(H, W) the port's Fresnel transmittance of every pixel's rays (`fresnel_factors`
+    of the camera's corner lattice, cached with it; NaN where a corner fails)."""
+    return _camera_rays(camera, port)[4]
+
+
 def fresnel_factors(lattice_xy: np.ndarray, port: FlatPort) -> np.ndarray:
     """(N, b, b) the port's Fresnel transmittance of each member pixel's ray.
 

@@ -15,9 +15,13 @@ import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
-from lightcal.core.footprint import SensorModel
+from lightcal.core.footprint import SensorModel, room_light_image
 from lightcal.core.medium import AIR, Medium
-from lightcal.core.port_footprints import image_footprints_through_port, port_footprints
+from lightcal.core.port_footprints import (
+    image_footprints_through_port,
+    port_footprints,
+    port_transmittance_image,
+)
 from lightcal.core.render import render_image, shade
 from lightcal.core.scene import Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
@@ -93,3 +97,20 @@ def render_view_image(
     if port is not None:
         return render_image_through_port(camera, view, rig, port, **options)
     return render_image(camera, view, rig, mesh=mesh, **options)
+
+
+def room_light_view(
+    camera: Camera,
+    sensor: SensorModel,
+    vignetting: np.ndarray | None = None,
+    port: FlatPort | None = None,
+) -> np.ndarray | None:
+    """(H, W) what each pixel makes of a uniform unit radiance on the wall (the room
+    light): `lightcal.core.footprint.room_light_image`, times the camera's flat port's
+    Fresnel transmittance of each pixel's rays behind one (as
+    `Footprints.room_light_factor`); None where uniform (`radiance` without a port)."""
+    room = room_light_image(camera, sensor, vignetting)
+    if port is None:
+        return room
+    transmittance = port_transmittance_image(camera, port)
+    return transmittance if room is None else room * transmittance
