@@ -1,0 +1,382 @@
+"""The light's flat port compiled: the path solve per point and the flux of pixels.
+
+The model is docs/model.md's "The light's flat port", written out in NumPy in
+`lightcal.core.light_port` (the path equation, its solve and du_a/dY) and
+`lightcal.core.light_port_flux` (the sub-quads' spherical-quad solid angles, the RID,
+the port's Fresnel transmittance and the pull-back of the gradients to the pose). Here
+the same formulas, in the same order, run point by point:
+
+- `air_sine`: the safeguarded Newton solve of g(s) = 0 for one point (a loop per point
+  instead of masked passes over all of them; every point stops at the same iterate);
+- `air_sines_into`: `air_sine` over arrays (`light_port.air_sines`);
+- `port_flux_pixels`: the flux of pixels lit through the port and d flux / d (L, delta),
+  quad by quad, sub-quad by sub-quad: the lattice's and centroids' paths, then the
+  solid angles and their derivatives, the RID and T_F at the centroids, the pull-back
+  through du_a/dY, summed per pixel (`light_port_flux.quads_flux`). On all threads in
+  chunks of pixels (`numba.prange`) past `PORT_SERIAL_POINTS`.
+
+The numbers are NumPy's to round-off (tests/test_light_port_kernels.py compares them
+with the NumPy code kept in tests/light_port_numpy.py).
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+import numba
+import numpy as np
+
+from lightcal.core.rid_eval import RIDData, RIDTuple, rid_value_grad_direction
+
+#: Newton iterations at most (measured: 11 for d = 2 cm, 13 for d = 2 mm, up to 70 deg).
+MAX_NEWTON = 100
+
+#: Below this many path solves (pixels x quads x lattice points and centroids) the pixels
+#: run on the calling thread: waking the thread pool costs more.
+PORT_SERIAL_POINTS = 2_000
+
+#: The complex step of the Fresnel transmittance's derivative (`fresnel._STEP`).
+_STEP = 1e-30
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def path_equation(
+    s: float, rho: float, big_h: float, d: float, t: float, n_g: float, n_w: float
+) -> tuple[float, float]:
+    """g(s) = d tan(theta_a) + t tan(theta_g) + H tan(theta_w) - rho and dg/ds."""
+    c_a2 = 1.0 - s * s
+    c_g2 = n_g * n_g - s * s
+    c_w2 = n_w * n_w - s * s
+    g = d * s / math.sqrt(c_a2) + t * s / math.sqrt(c_g2) + big_h * s / math.sqrt(c_w2) - rho
+    g_s = d / c_a2**1.5 + t * n_g * n_g / c_g2**1.5 + big_h * n_w * n_w / c_w2**1.5
+    return g, g_s
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _nan_min(a: float, b: float) -> float:
+    """np.minimum of two floats (NaN if either is)."""
+    if a != a or b != b:
+        return math.nan
+    return a if a <= b else b
+
+
+@numba.njit(cache=True, error_model="numpy")
+def air_sine(
+    rho: float, h: float, d: float, t: float, n_g: float, n_w: float
+) -> tuple[float, bool]:
+    """sin(theta_a) of the path to a point at radial distance rho and axial distance h
+    (NaN, False where the point is not finite or not in front of the outer face)."""
+    big_h = h - d - t
+    if not (math.isfinite(rho) and math.isfinite(big_h) and big_h > 0.0):
+        return math.nan, False
+    # Right of the root: the smallest s at which one term alone reaches rho.
+    s = rho / math.hypot(rho, d)
+    s = _nan_min(s, n_w * rho / math.hypot(rho, big_h))
+    if t > 0.0:
+        s = _nan_min(s, n_g * rho / math.hypot(rho, t))
+    if rho > 0.0:
+        for _ in range(MAX_NEWTON):
+            g, g_s = path_equation(s, rho, big_h, d, t, n_g, n_w)
+            step = g / g_s
+            s = s - step
+            # Quadratic convergence: a step this small leaves an error far below it; a
+            # step <= 0 is round-off at the root (from the right every step is > 0).
+            if abs(step) <= 1e-15 * s or step <= 0.0:
+                break
+    return s, True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def air_sines_into(
+    rho: np.ndarray,
+    h: np.ndarray,
+    d: float,
+    t: float,
+    n_g: float,
+    n_w: float,
+    out_s: np.ndarray,
+    out_ok: np.ndarray,
+) -> None:
+    """`air_sine` of every point (M,) into out_s, out_ok (M,)."""
+    for i in range(rho.shape[0]):
+        out_s[i], out_ok[i] = air_sine(rho[i], h[i], d, t, n_g, n_w)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _path(
+    y: np.ndarray, n: np.ndarray, d: float, t: float, n_g: float, n_w: float, out: np.ndarray
+) -> bool:
+    """The path to the point y (3,) of the light frame (`light_port.port_paths`), into
+    out (11,): u_a (3), rho_hat (3), a (3), k, s / cos(theta_a). False where not ok."""
+    h = y[0] * n[0] + y[1] * n[1] + y[2] * n[2]
+    r0 = y[0] - h * n[0]
+    r1 = y[1] - h * n[1]
+    r2 = y[2] - h * n[2]
+    rho = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    s, ok = air_sine(rho, h, d, t, n_g, n_w)
+    if not ok:
+        return False
+    big_h = h - d - t
+    c_a = math.sqrt(1.0 - s * s)
+    c_w = math.sqrt(1.0 - (s / n_w) ** 2)
+    tan_w = s / (n_w * c_w)
+    _, g_s = path_equation(s, 0.0, big_h, d, t, n_g, n_w)
+    if rho == 0.0:
+        k = 1.0 / g_s
+        h0 = h1 = h2 = 0.0
+    else:
+        k = s / rho
+        h0, h1, h2 = r0 / rho, r1 / rho, r2 / rho
+    out[0] = k * r0 + c_a * n[0]
+    out[1] = k * r1 + c_a * n[1]
+    out[2] = k * r2 + c_a * n[2]
+    out[3], out[4], out[5] = h0, h1, h2
+    out[6] = (h0 - tan_w * n[0]) / g_s
+    out[7] = (h1 - tan_w * n[1]) / g_s
+    out[8] = (h2 - tan_w * n[2]) / g_s
+    out[9] = k
+    out[10] = s / c_a
+    return True
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _pull_back(
+    p: np.ndarray, n: np.ndarray, g0: float, g1: float, g2: float, y: np.ndarray, acc: np.ndarray
+) -> None:
+    """(du_a/dY)^T g of one path p (`_path`'s out) added to acc[:3], and its cross
+    product with the point y added to acc[3:] (`PortPaths.pull_back`)."""
+    gu_n = g0 * n[0] + g1 * n[1] + g2 * n[2]
+    gu_r = g0 * p[3] + g1 * p[4] + g2 * p[5]
+    k = p[9]
+    sc = p[10] * gu_n
+    o0 = k * (g0 - gu_n * n[0]) + (p[6] - k * p[3]) * gu_r - sc * p[6]
+    o1 = k * (g1 - gu_n * n[1]) + (p[7] - k * p[4]) * gu_r - sc * p[7]
+    o2 = k * (g2 - gu_n * n[2]) + (p[8] - k * p[5]) * gu_r - sc * p[8]
+    acc[0] += o0
+    acc[1] += o1
+    acc[2] += o2
+    acc[3] += o1 * y[2] - o2 * y[1]
+    acc[4] += o2 * y[0] - o0 * y[2]
+    acc[5] += o0 * y[1] - o1 * y[0]
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _reflectance(n1: float, n2: float, cos_i: complex, cos_t: complex, s_pol: bool) -> complex:
+    """R = r^2 of one interface (`fresnel._reflectance`)."""
+    if s_pol:
+        r = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
+    else:
+        r = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
+    return r * r
+
+
+@numba.njit(cache=True, error_model="numpy")
+def transmittance(c: float, n_a: float, n_g: float, n_w: float) -> tuple[float, float]:
+    """`fresnel.port_transmittance` of one cos_air: T and dT/dcos (complex step)."""
+    z = complex(c, _STEP)
+    sin2 = 1.0 - z * z
+    cos_g = cmath.sqrt(1.0 - (n_a / n_g) ** 2 * sin2)
+    cos_w = cmath.sqrt(1.0 - (n_a / n_w) ** 2 * sin2)
+    total = 0j
+    for s_pol in (True, False):
+        r1 = _reflectance(n_a, n_g, z, cos_g, s_pol)
+        r2 = _reflectance(n_g, n_w, cos_g, cos_w, s_pol)
+        total = total + (1.0 - r1) * (1.0 - r2) / (1.0 - r1 * r2)
+    out = 0.5 * total
+    return out.real, out.imag / _STEP
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _triangle(
+    a: np.ndarray, b: np.ndarray, c: np.ndarray, grad: np.ndarray, want_grad: bool
+) -> float:
+    """Signed solid angle of the spherical triangle of unit vectors a, b, c (3,)
+    (`light_port_flux.spherical_triangle`); when want_grad dOmega/da, db, dc into grad
+    (3, 3)."""
+    e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    f0, f1, f2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    num = a[0] * (e1 * f2 - e2 * f1) + a[1] * (e2 * f0 - e0 * f2) + a[2] * (e0 * f1 - e1 * f0)
+    ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    ac = a[0] * c[0] + a[1] * c[1] + a[2] * c[2]
+    bc = b[0] * c[0] + b[1] * c[1] + b[2] * c[2]
+    den = 1.0 + ab + ac + bc
+    if want_grad:
+        sc = 2.0 / (num * num + den * den)
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            grad[0, j] = sc * (den * (b[j1] * c[j2] - b[j2] * c[j1]) - num * (b[j] + c[j]))
+            grad[1, j] = sc * (den * (c[j1] * a[j2] - c[j2] * a[j1]) - num * (a[j] + c[j]))
+            grad[2, j] = sc * (den * (a[j1] * b[j2] - a[j2] * b[j1]) - num * (a[j] + b[j]))
+    return 2.0 * math.atan2(num, den)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _to_light(x: np.ndarray, light: np.ndarray, R: np.ndarray, out: np.ndarray) -> None:
+    """out = R^T (x - L) (3,)."""
+    x0, x1, x2 = x[0] - light[0], x[1] - light[1], x[2] - light[2]
+    for j in range(3):
+        out[j] = x0 * R[0, j] + x1 * R[1, j] + x2 * R[2, j]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _pixels_range(
+    lo: int, hi: int, corners: np.ndarray, weights: np.ndarray, light: np.ndarray,
+    R: np.ndarray, rid: RIDData, normal: np.ndarray, geometry: np.ndarray, n_sub: int,
+    want_grad: bool, out_flux: np.ndarray, out_lit: np.ndarray, out_grad: np.ndarray,
+) -> None:  # fmt: skip
+    """`port_flux_pixels` of the pixels lo..hi-1 (scratch buffers for the range)."""
+    d, t, n_g, n_w = geometry[0], geometry[1], geometry[2], geometry[3]
+    n_a, i_g, i_w = geometry[4], geometry[5], geometry[6]
+    m1 = n_sub + 1
+    lat_w = np.empty((m1, m1, 3))
+    lat_y = np.empty((m1, m1, 3))
+    lat_p = np.empty((m1, m1, 11))
+    g_lat = np.empty((m1, m1, 3))
+    xw = np.empty(3)
+    cy = np.empty(3)
+    cp = np.empty(11)
+    d1 = np.empty((3, 3))
+    d2 = np.empty((3, 3))
+    acc = np.empty(6)
+    for i in range(lo, hi):
+        flux = 0.0
+        acc[:] = 0.0
+        lit = True
+        for kq in range(corners.shape[1]):
+            w = weights[i, kq]
+            q = corners[i, kq]
+            for ti in range(m1):
+                tt = ti / n_sub
+                for si in range(m1):
+                    ss = si / n_sub
+                    w1, w2, w3, w4 = (1 - ss) * (1 - tt), ss * (1 - tt), ss * tt, (1 - ss) * tt
+                    for j in range(3):
+                        lat_w[ti, si, j] = w1 * q[0, j] + w2 * q[1, j] + w3 * q[2, j] + w4 * q[3, j]
+                        g_lat[ti, si, j] = 0.0
+                    _to_light(lat_w[ti, si], light, R, lat_y[ti, si])
+                    lit &= _path(lat_y[ti, si], normal, d, t, n_g, n_w, lat_p[ti, si])
+            if not lit:
+                break
+            for ti in range(n_sub):
+                for si in range(n_sub):
+                    for j in range(3):
+                        xw[j] = 0.25 * (
+                            lat_w[ti, si, j] + lat_w[ti, si + 1, j]
+                            + lat_w[ti + 1, si + 1, j] + lat_w[ti + 1, si, j]
+                        )  # fmt: skip
+                    _to_light(xw, light, R, cy)
+                    lit &= _path(cy, normal, d, t, n_g, n_w, cp)
+                    if not lit:
+                        break
+                    p1, p3 = lat_p[ti, si], lat_p[ti + 1, si + 1]
+                    signed = _triangle(p1, lat_p[ti, si + 1], p3, d1, want_grad)
+                    signed += _triangle(p1, p3, lat_p[ti + 1, si], d2, want_grad)
+                    omega = abs(signed)
+                    f, f0, f1, f2 = rid_value_grad_direction(cp[0], cp[1], cp[2], rid)
+                    cos_c = cp[0] * normal[0] + cp[1] * normal[1] + cp[2] * normal[2]
+                    tf, dtf = transmittance(min(max(cos_c, 1e-300), 1.0), n_a, i_g, i_w)
+                    ft = f * tf
+                    flux += w * omega * ft
+                    if not want_grad:
+                        continue
+                    sign = 1.0 if signed > 0.0 else (-1.0 if signed < 0.0 else 0.0)
+                    c = w * ft * sign
+                    for j in range(3):
+                        g_lat[ti, si, j] += c * (d1[0, j] + d2[0, j])
+                        g_lat[ti, si + 1, j] += c * d1[1, j]
+                        g_lat[ti + 1, si + 1, j] += c * (d1[2, j] + d2[1, j])
+                        g_lat[ti + 1, si, j] += c * d2[2, j]
+                    wo = w * omega
+                    fd = f * dtf
+                    _pull_back(
+                        cp, normal, wo * (tf * f0 + fd * normal[0]),
+                        wo * (tf * f1 + fd * normal[1]), wo * (tf * f2 + fd * normal[2]), cy, acc,
+                    )  # fmt: skip
+                if not lit:
+                    break
+            if not lit:
+                break
+            if want_grad:
+                for ti in range(m1):
+                    for si in range(m1):
+                        g = g_lat[ti, si]
+                        _pull_back(lat_p[ti, si], normal, g[0], g[1], g[2], lat_y[ti, si], acc)
+        out_lit[i] = lit
+        out_flux[i] = flux if lit else 0.0
+        if want_grad:
+            for j in range(3):
+                out_grad[i, j] = 0.0
+                out_grad[i, 3 + j] = 0.0
+                if lit:
+                    out_grad[i, j] = -(acc[0] * R[j, 0] + acc[1] * R[j, 1] + acc[2] * R[j, 2])
+                    out_grad[i, 3 + j] = acc[3] * R[j, 0] + acc[4] * R[j, 1] + acc[5] * R[j, 2]
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _pixels_parallel(
+    corners: np.ndarray, weights: np.ndarray, light: np.ndarray, R: np.ndarray,
+    rid: RIDTuple, normal: np.ndarray, geometry: np.ndarray, n_sub: int, want_grad: bool,
+    out_flux: np.ndarray, out_lit: np.ndarray, out_grad: np.ndarray,
+) -> None:  # fmt: skip
+    """`_pixels_range` on all threads, in chunks of pixels."""
+    n = corners.shape[0]
+    n_chunks = min(n, 256)
+    for ch in numba.prange(n_chunks):
+        _pixels_range(
+            ch * n // n_chunks, (ch + 1) * n // n_chunks, corners, weights, light, R,
+            RIDData(*rid), normal, geometry, n_sub, want_grad, out_flux, out_lit, out_grad,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _pixels_serial(
+    corners: np.ndarray, weights: np.ndarray, light: np.ndarray, R: np.ndarray,
+    rid: RIDTuple, normal: np.ndarray, geometry: np.ndarray, n_sub: int, want_grad: bool,
+    out_flux: np.ndarray, out_lit: np.ndarray, out_grad: np.ndarray,
+) -> None:  # fmt: skip
+    """`_pixels_range` on the calling thread."""
+    _pixels_range(
+        int(0),  # noqa: UP018, RUF046 (not a literal type)
+        corners.shape[0], corners, weights, light, R, RIDData(*rid), normal, geometry,
+        n_sub, want_grad, out_flux, out_lit, out_grad,
+    )  # fmt: skip
+
+
+def port_flux_pixels(
+    corners_world: np.ndarray,
+    weights: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    rid: RIDTuple,
+    normal: np.ndarray,
+    geometry: np.ndarray,
+    n_sub: int,
+    want_grad: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """sum_k weight_k Phi_k / I0 of M pixels lit through the light's port and its
+    gradients (`light_port_flux.quads_flux`, which documents the arguments).
+
+    Args:
+        rid: `rid_eval.rid_tuple` of the RID; normal: (3,) the port's unit normal (light
+            frame); geometry: (7,) d, t, n_g / n_a, n_w / n_a, n_a, n_g, n_w.
+
+    Returns:
+        flux (M,), lit (M,) and grad (M, 6) ((0, 6) when not want_grad).
+    """
+    m, k = corners_world.shape[:2]
+    flux = np.empty(m)
+    lit = np.empty(m, dtype=np.bool_)
+    grad = np.zeros((m, 6) if want_grad else (0, 6))
+    points = m * k * ((n_sub + 1) ** 2 + n_sub * n_sub)
+    kernel = _pixels_serial if points < PORT_SERIAL_POINTS else _pixels_parallel
+    kernel(
+        np.ascontiguousarray(corners_world, dtype=np.float64),
+        np.ascontiguousarray(weights, dtype=np.float64),
+        np.ascontiguousarray(light_world, dtype=np.float64),
+        np.ascontiguousarray(R_world_light, dtype=np.float64),
+        rid, np.ascontiguousarray(normal, dtype=np.float64),
+        np.ascontiguousarray(geometry, dtype=np.float64), int(n_sub), bool(want_grad),
+        flux, lit, grad,
+    )  # fmt: skip
+    return flux, lit, grad
