@@ -36,6 +36,9 @@ MAX_NEWTON = 100
 #: run on the calling thread: waking the thread pool costs more.
 PORT_SERIAL_POINTS = 2_000
 
+#: The numbers `_path` writes per point.
+PATH_SIZE = 13
+
 #: The complex step of the Fresnel transmittance's derivative (`fresnel._STEP`).
 _STEP = 1e-30
 
@@ -48,8 +51,10 @@ def path_equation(
     c_a2 = 1.0 - s * s
     c_g2 = n_g * n_g - s * s
     c_w2 = n_w * n_w - s * s
-    g = d * s / math.sqrt(c_a2) + t * s / math.sqrt(c_g2) + big_h * s / math.sqrt(c_w2) - rho
-    g_s = d / c_a2**1.5 + t * n_g * n_g / c_g2**1.5 + big_h * n_w * n_w / c_w2**1.5
+    r_a, r_g, r_w = math.sqrt(c_a2), math.sqrt(c_g2), math.sqrt(c_w2)
+    g = d * s / r_a + t * s / r_g + big_h * s / r_w - rho
+    # x^1.5 as x sqrt(x): the same to round-off, without three calls of pow.
+    g_s = d / (c_a2 * r_a) + t * n_g * n_g / (c_g2 * r_g) + big_h * n_w * n_w / (c_w2 * r_w)
     return g, g_s
 
 
@@ -108,7 +113,8 @@ def _path(
     y: np.ndarray, n: np.ndarray, d: float, t: float, n_g: float, n_w: float, out: np.ndarray
 ) -> bool:
     """The path to the point y (3,) of the light frame (`light_port.port_paths`), into
-    out (11,): u_a (3), rho_hat (3), a (3), k, s / cos(theta_a). False where not ok."""
+    out (13,): u_a (3), rho_hat (3), a (3), k, s / cos(theta_a), s, cos(theta_a). False
+    where not ok."""
     h = y[0] * n[0] + y[1] * n[1] + y[2] * n[2]
     r0 = y[0] - h * n[0]
     r1 = y[1] - h * n[1]
@@ -137,6 +143,8 @@ def _path(
     out[8] = (h2 - tan_w * n[2]) / g_s
     out[9] = k
     out[10] = s / c_a
+    out[11] = s
+    out[12] = c_a
     return True
 
 
@@ -159,6 +167,38 @@ def _pull_back(
     acc[3] += o1 * y[2] - o2 * y[1]
     acc[4] += o2 * y[0] - o0 * y[2]
     acc[5] += o0 * y[1] - o1 * y[0]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def paths_into(
+    points: np.ndarray, normal: np.ndarray, d: float, t: float, n_g: float, n_w: float,
+    out_path: np.ndarray, out_ok: np.ndarray, out_water: np.ndarray,
+    out_water_grad: np.ndarray, out_exits: np.ndarray,
+) -> None:  # fmt: skip
+    """`light_port.port_paths` of points (M, 3): `_path` into out_path (M, PATH_SIZE),
+    out_ok (M,), the water's length (M,) and its gradient in Y (M, 3) (NaN, 0 where not
+    ok), the exit points (M, 3) (NaN where not ok)."""
+    for i in range(points.shape[0]):
+        y = points[i]
+        p = out_path[i]
+        ok = _path(y, normal, d, t, n_g, n_w, p)
+        out_ok[i] = ok
+        if not ok:
+            p[:] = np.nan
+            out_water[i] = np.nan
+            out_water_grad[i, :] = 0.0
+            out_exits[i, :] = np.nan
+            continue
+        s, c_a = p[11], p[12]
+        big_h = y[0] * normal[0] + y[1] * normal[1] + y[2] * normal[2] - d - t
+        c_w = math.sqrt(1.0 - (s / n_w) ** 2)
+        out_water[i] = big_h / c_w
+        # d(H / c_w) = dH / c_w + H (s / n_w^2) / c_w^3 ds, dH = n . dY, ds = a . dY.
+        w_s = big_h * s / (n_w * n_w * c_w**3)
+        radial = d * (s / c_a) + t * (s / math.sqrt(n_g * n_g - s * s))
+        for j in range(3):
+            out_water_grad[i, j] = normal[j] / c_w + w_s * p[6 + j]
+            out_exits[i, j] = radial * p[3 + j] + (d + t) * normal[j]
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -231,11 +271,11 @@ def _pixels_range(
     m1 = n_sub + 1
     lat_w = np.empty((m1, m1, 3))
     lat_y = np.empty((m1, m1, 3))
-    lat_p = np.empty((m1, m1, 11))
+    lat_p = np.empty((m1, m1, PATH_SIZE))
     g_lat = np.empty((m1, m1, 3))
     xw = np.empty(3)
     cy = np.empty(3)
-    cp = np.empty(11)
+    cp = np.empty(PATH_SIZE)
     d1 = np.empty((3, 3))
     d2 = np.empty((3, 3))
     acc = np.empty(6)
