@@ -285,14 +285,16 @@ def _pixels_range(
         lit = True
         for kq in range(corners.shape[1]):
             w = weights[i, kq]
-            q = corners[i, kq]
             for ti in range(m1):
                 tt = ti / n_sub
                 for si in range(m1):
                     ss = si / n_sub
                     w1, w2, w3, w4 = (1 - ss) * (1 - tt), ss * (1 - tt), ss * tt, (1 - ss) * tt
                     for j in range(3):
-                        lat_w[ti, si, j] = w1 * q[0, j] + w2 * q[1, j] + w3 * q[2, j] + w4 * q[3, j]
+                        lat_w[ti, si, j] = (
+                            w1 * corners[i, kq, 0, j] + w2 * corners[i, kq, 1, j]
+                            + w3 * corners[i, kq, 2, j] + w4 * corners[i, kq, 3, j]
+                        )  # fmt: skip
                         g_lat[ti, si, j] = 0.0
                     _to_light(lat_w[ti, si], light, R, lat_y[ti, si])
                     lit &= _path(lat_y[ti, si], normal, d, t, n_g, n_w, lat_p[ti, si])
