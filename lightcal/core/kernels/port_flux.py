@@ -32,9 +32,10 @@ from lightcal.core.rid_eval import RIDData, RIDTuple, rid_value_grad_direction
 #: Newton iterations at most (measured: 11 for d = 2 cm, 13 for d = 2 mm, up to 70 deg).
 MAX_NEWTON = 100
 
-#: Below this many path solves (pixels x quads x lattice points and centroids) the pixels
-#: run on the calling thread: waking the thread pool costs more.
-PORT_SERIAL_POINTS = 2_000
+#: Below this many path solves (pixels x quads x lattice points and centroids; about
+#: 1 ms on one thread, as `kernels.flux.SERIAL_WORK`) the pixels run on the calling
+#: thread: waking the thread pool costs more.
+PORT_SERIAL_POINTS = 8_000
 
 #: The numbers `_path` writes per point.
 PATH_SIZE = 13
