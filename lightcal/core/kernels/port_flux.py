@@ -6,9 +6,11 @@ The model is docs/model.md's "The light's flat port", written out in NumPy in
 the port's Fresnel transmittance and the pull-back of the gradients to the pose). Here
 the same formulas, in the same order, run point by point:
 
-- `air_sine`: the safeguarded Newton solve of g(s) = 0 for one point (a loop per point
-  instead of masked passes over all of them; every point stops at the same iterate);
-- `air_sines_into`: `air_sine` over arrays (`light_port.air_sines`);
+- `solve_paths`, `air_sines_into`, `paths_into`: the safeguarded Newton solve of
+  g(s) = 0 point by point (each point stops at its own test, at the iterate the masked
+  NumPy passes stopped it at; a few points step in turn, which overlaps their latency)
+  and the paths' directions, du_a/dY's factors, water lengths and exits
+  (`light_port.air_sines`, `port_paths`);
 - `port_flux_pixels`: the flux of pixels lit through the port and d flux / d (L, delta),
   quad by quad, sub-quad by sub-quad: the lattice's and centroids' paths, then the
   solid angles and their derivatives, the RID and T_F at the centroids, the pull-back
@@ -67,30 +69,54 @@ def _nan_min(a: float, b: float) -> float:
     return a if a <= b else b
 
 
-@numba.njit(cache=True, error_model="numpy")
-def air_sine(
-    rho: float, h: float, d: float, t: float, n_g: float, n_w: float
-) -> tuple[float, bool]:
-    """sin(theta_a) of the path to a point at radial distance rho and axial distance h
-    (NaN, False where the point is not finite or not in front of the outer face)."""
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _start(rho: float, h: float, d: float, t: float, n_g: float, n_w: float) -> tuple[float, bool]:
+    """Newton's start for the point at (rho, h): right of the root (NaN, False where the
+    point is not finite or not in front of the outer face)."""
     big_h = h - d - t
     if not (math.isfinite(rho) and math.isfinite(big_h) and big_h > 0.0):
         return math.nan, False
-    # Right of the root: the smallest s at which one term alone reaches rho.
-    s = rho / math.hypot(rho, d)
-    s = _nan_min(s, n_w * rho / math.hypot(rho, big_h))
+    # The smallest s at which one term alone reaches rho (sqrt, not hypot: rho, d, H, t
+    # are lengths of a scene, far from overflow; the start only needs to be right of
+    # the root, which it is by far as the other terms are > 0).
+    r2 = rho * rho
+    s = rho / math.sqrt(r2 + d * d)
+    s = _nan_min(s, n_w * rho / math.sqrt(r2 + big_h * big_h))
     if t > 0.0:
-        s = _nan_min(s, n_g * rho / math.hypot(rho, t))
-    if rho > 0.0:
-        for _ in range(MAX_NEWTON):
-            g, g_s = path_equation(s, rho, big_h, d, t, n_g, n_w)
+        s = _nan_min(s, n_g * rho / math.sqrt(r2 + t * t))
+    return s, True
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _newton(
+    rho: np.ndarray, big_h: np.ndarray, s: np.ndarray, active: np.ndarray, m: int,
+    d: float, t: float, n_g: float, n_w: float,
+) -> None:  # fmt: skip
+    """Newton's steps on the first m points (arrays) from s, in place, while active: each
+    point stops at its own test, so its iterates are those it takes alone; the points
+    step in turn, so the CPU overlaps their chains of square roots and divisions (one
+    point alone waits on each)."""
+    remaining = 0
+    for j in range(m):
+        remaining += active[j]
+    for _ in range(MAX_NEWTON):
+        if remaining == 0:
+            break
+        for j in range(m):
+            if not active[j]:
+                continue
+            g, g_s = path_equation(s[j], rho[j], big_h[j], d, t, n_g, n_w)
             step = g / g_s
-            s = s - step
+            s[j] = s[j] - step
             # Quadratic convergence: a step this small leaves an error far below it; a
             # step <= 0 is round-off at the root (from the right every step is > 0).
-            if abs(step) <= 1e-15 * s or step <= 0.0:
-                break
-    return s, True
+            if abs(step) <= 1e-15 * s[j] or step <= 0.0:
+                active[j] = False
+                remaining -= 1
+
+
+#: Points solved together by `air_sines_into` and `paths_into` (see `_newton`).
+BLOCK = 16
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -104,49 +130,71 @@ def air_sines_into(
     out_s: np.ndarray,
     out_ok: np.ndarray,
 ) -> None:
-    """`air_sine` of every point (M,) into out_s, out_ok (M,)."""
-    for i in range(rho.shape[0]):
-        out_s[i], out_ok[i] = air_sine(rho[i], h[i], d, t, n_g, n_w)
+    """sin(theta_a) of the paths to points at radial distances rho (M,) and axial
+    distances h (M,) into out_s (NaN where not ok) and out_ok (M,) (`light_port.
+    air_sines`), BLOCK points at a time."""
+    big_h = np.empty(BLOCK)
+    active = np.empty(BLOCK, dtype=np.bool_)
+    for lo in range(0, rho.shape[0], BLOCK):
+        m = min(BLOCK, rho.shape[0] - lo)
+        for j in range(m):
+            i = lo + j
+            out_s[i], out_ok[i] = _start(rho[i], h[i], d, t, n_g, n_w)
+            big_h[j] = h[i] - d - t
+            active[j] = out_ok[i] and rho[i] > 0.0
+        _newton(rho[lo:], big_h, out_s[lo:], active, m, d, t, n_g, n_w)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def _path(
-    y: np.ndarray, n: np.ndarray, d: float, t: float, n_g: float, n_w: float, out: np.ndarray
-) -> bool:
-    """The path to the point y (3,) of the light frame (`light_port.port_paths`), into
-    out (13,): u_a (3), rho_hat (3), a (3), k, s / cos(theta_a), s, cos(theta_a). False
-    where not ok."""
-    h = y[0] * n[0] + y[1] * n[1] + y[2] * n[2]
-    r0 = y[0] - h * n[0]
-    r1 = y[1] - h * n[1]
-    r2 = y[2] - h * n[2]
-    rho = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-    s, ok = air_sine(rho, h, d, t, n_g, n_w)
-    if not ok:
-        return False
-    big_h = h - d - t
-    c_a = math.sqrt(1.0 - s * s)
-    c_w = math.sqrt(1.0 - (s / n_w) ** 2)
-    tan_w = s / (n_w * c_w)
-    _, g_s = path_equation(s, 0.0, big_h, d, t, n_g, n_w)
-    if rho == 0.0:
-        k = 1.0 / g_s
-        h0 = h1 = h2 = 0.0
-    else:
-        k = s / rho
-        h0, h1, h2 = r0 / rho, r1 / rho, r2 / rho
-    out[0] = k * r0 + c_a * n[0]
-    out[1] = k * r1 + c_a * n[1]
-    out[2] = k * r2 + c_a * n[2]
-    out[3], out[4], out[5] = h0, h1, h2
-    out[6] = (h0 - tan_w * n[0]) / g_s
-    out[7] = (h1 - tan_w * n[1]) / g_s
-    out[8] = (h2 - tan_w * n[2]) / g_s
-    out[9] = k
-    out[10] = s / c_a
-    out[11] = s
-    out[12] = c_a
-    return True
+@numba.njit(cache=True, error_model="numpy")
+def solve_paths(
+    ys: np.ndarray, m: int, n: np.ndarray, d: float, t: float, n_g: float, n_w: float,
+    work: np.ndarray, s: np.ndarray, active: np.ndarray, ok: np.ndarray, out: np.ndarray,
+) -> bool:  # fmt: skip
+    """The paths to the first m points ys (m, 3) of the light frame (`light_port.
+    port_paths`) into out (m, PATH_SIZE): u_a (3), rho_hat (3), a (3), k,
+    s / cos(theta_a), s, cos(theta_a); ok (m,) each point's, and whether all are.
+    work (m, 5), s (m,), active (m,): scratch."""
+    for j in range(m):
+        y = ys[j]
+        h = y[0] * n[0] + y[1] * n[1] + y[2] * n[2]
+        r0 = y[0] - h * n[0]
+        r1 = y[1] - h * n[1]
+        r2 = y[2] - h * n[2]
+        rho = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        work[j, 0], work[j, 1], work[j, 2], work[j, 3] = r0, r1, r2, rho
+        work[j, 4] = h - d - t
+        s[j], ok[j] = _start(rho, h, d, t, n_g, n_w)
+        active[j] = ok[j] and rho > 0.0
+    _newton(work[:, 3], work[:, 4], s, active, m, d, t, n_g, n_w)
+    all_ok = True
+    for j in range(m):
+        if not ok[j]:
+            all_ok = False
+            continue
+        r0, r1, r2, rho, big_h = work[j, 0], work[j, 1], work[j, 2], work[j, 3], work[j, 4]
+        sj = s[j]
+        c_a = math.sqrt(1.0 - sj * sj)
+        c_w = math.sqrt(1.0 - (sj / n_w) ** 2)
+        tan_w = sj / (n_w * c_w)
+        _, g_s = path_equation(sj, 0.0, big_h, d, t, n_g, n_w)
+        if rho == 0.0:
+            k = 1.0 / g_s
+            h0 = h1 = h2 = 0.0
+        else:
+            k = sj / rho
+            h0, h1, h2 = r0 / rho, r1 / rho, r2 / rho
+        out[j, 0] = k * r0 + c_a * n[0]
+        out[j, 1] = k * r1 + c_a * n[1]
+        out[j, 2] = k * r2 + c_a * n[2]
+        out[j, 3], out[j, 4], out[j, 5] = h0, h1, h2
+        out[j, 6] = (h0 - tan_w * n[0]) / g_s
+        out[j, 7] = (h1 - tan_w * n[1]) / g_s
+        out[j, 8] = (h2 - tan_w * n[2]) / g_s
+        out[j, 9] = k
+        out[j, 10] = sj / c_a
+        out[j, 11] = sj
+        out[j, 12] = c_a
+    return all_ok
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -176,30 +224,35 @@ def paths_into(
     out_path: np.ndarray, out_ok: np.ndarray, out_water: np.ndarray,
     out_water_grad: np.ndarray, out_exits: np.ndarray,
 ) -> None:  # fmt: skip
-    """`light_port.port_paths` of points (M, 3): `_path` into out_path (M, PATH_SIZE),
-    out_ok (M,), the water's length (M,) and its gradient in Y (M, 3) (NaN, 0 where not
-    ok), the exit points (M, 3) (NaN where not ok)."""
-    for i in range(points.shape[0]):
-        y = points[i]
-        p = out_path[i]
-        ok = _path(y, normal, d, t, n_g, n_w, p)
-        out_ok[i] = ok
-        if not ok:
-            p[:] = np.nan
-            out_water[i] = np.nan
-            out_water_grad[i, :] = 0.0
-            out_exits[i, :] = np.nan
-            continue
-        s, c_a = p[11], p[12]
-        big_h = y[0] * normal[0] + y[1] * normal[1] + y[2] * normal[2] - d - t
-        c_w = math.sqrt(1.0 - (s / n_w) ** 2)
-        out_water[i] = big_h / c_w
-        # d(H / c_w) = dH / c_w + H (s / n_w^2) / c_w^3 ds, dH = n . dY, ds = a . dY.
-        w_s = big_h * s / (n_w * n_w * c_w**3)
-        radial = d * (s / c_a) + t * (s / math.sqrt(n_g * n_g - s * s))
-        for j in range(3):
-            out_water_grad[i, j] = normal[j] / c_w + w_s * p[6 + j]
-            out_exits[i, j] = radial * p[3 + j] + (d + t) * normal[j]
+    """`light_port.port_paths` of points (M, 3): `solve_paths` into out_path
+    (M, PATH_SIZE) (NaN where not ok), out_ok (M,), the water's length (M,) and its
+    gradient in Y (M, 3) (NaN, 0 where not ok), the exit points (M, 3) (NaN where not
+    ok); BLOCK points at a time."""
+    work = np.empty((BLOCK, 5))
+    s = np.empty(BLOCK)
+    active = np.empty(BLOCK, dtype=np.bool_)
+    for lo in range(0, points.shape[0], BLOCK):
+        m = min(BLOCK, points.shape[0] - lo)
+        solve_paths(
+            points[lo:], m, normal, d, t, n_g, n_w, work, s, active, out_ok[lo:], out_path[lo:]
+        )
+        for i in range(lo, lo + m):
+            p = out_path[i]
+            if not out_ok[i]:
+                p[:] = np.nan
+                out_water[i] = np.nan
+                out_water_grad[i, :] = 0.0
+                out_exits[i, :] = np.nan
+                continue
+            sj, c_a, big_h = p[11], p[12], work[i - lo, 4]
+            c_w = math.sqrt(1.0 - (sj / n_w) ** 2)
+            out_water[i] = big_h / c_w
+            # d(H / c_w) = dH / c_w + H (s / n_w^2) / c_w^3 ds, dH = n . dY, ds = a . dY.
+            w_s = big_h * sj / (n_w * n_w * c_w**3)
+            radial = d * (sj / c_a) + t * (sj / math.sqrt(n_g * n_g - sj * sj))
+            for j in range(3):
+                out_water_grad[i, j] = normal[j] / c_w + w_s * p[6 + j]
+                out_exits[i, j] = radial * p[3 + j] + (d + t) * normal[j]
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -270,13 +323,17 @@ def _pixels_range(
     d, t, n_g, n_w = geometry[0], geometry[1], geometry[2], geometry[3]
     n_a, i_g, i_w = geometry[4], geometry[5], geometry[6]
     m1 = n_sub + 1
+    n_lat = m1 * m1
+    n_pts = n_lat + n_sub * n_sub  # the lattice's points, then the centroids
     lat_w = np.empty((m1, m1, 3))
-    lat_y = np.empty((m1, m1, 3))
-    lat_p = np.empty((m1, m1, PATH_SIZE))
-    g_lat = np.empty((m1, m1, 3))
+    ys = np.empty((n_pts, 3))
+    paths = np.empty((n_pts, PATH_SIZE))
+    g_lat = np.empty((n_lat, 3))
     xw = np.empty(3)
-    cy = np.empty(3)
-    cp = np.empty(PATH_SIZE)
+    work = np.empty((n_pts, 5))
+    s = np.empty(n_pts)
+    active = np.empty(n_pts, dtype=np.bool_)
+    ok = np.empty(n_pts, dtype=np.bool_)
     d1 = np.empty((3, 3))
     d2 = np.empty((3, 3))
     acc = np.empty(6)
@@ -296,11 +353,8 @@ def _pixels_range(
                             w1 * corners[i, kq, 0, j] + w2 * corners[i, kq, 1, j]
                             + w3 * corners[i, kq, 2, j] + w4 * corners[i, kq, 3, j]
                         )  # fmt: skip
-                        g_lat[ti, si, j] = 0.0
-                    _to_light(lat_w[ti, si], light, R, lat_y[ti, si])
-                    lit &= _path(lat_y[ti, si], normal, d, t, n_g, n_w, lat_p[ti, si])
-            if not lit:
-                break
+                        g_lat[ti * m1 + si, j] = 0.0
+                    _to_light(lat_w[ti, si], light, R, ys[ti * m1 + si])
             for ti in range(n_sub):
                 for si in range(n_sub):
                     for j in range(3):
@@ -308,13 +362,19 @@ def _pixels_range(
                             lat_w[ti, si, j] + lat_w[ti, si + 1, j]
                             + lat_w[ti + 1, si + 1, j] + lat_w[ti + 1, si, j]
                         )  # fmt: skip
-                    _to_light(xw, light, R, cy)
-                    lit &= _path(cy, normal, d, t, n_g, n_w, cp)
-                    if not lit:
-                        break
-                    p1, p3 = lat_p[ti, si], lat_p[ti + 1, si + 1]
-                    signed = _triangle(p1, lat_p[ti, si + 1], p3, d1, want_grad)
-                    signed += _triangle(p1, p3, lat_p[ti + 1, si], d2, want_grad)
+                    _to_light(xw, light, R, ys[n_lat + ti * n_sub + si])
+            if not solve_paths(ys, n_pts, normal, d, t, n_g, n_w, work, s, active, ok, paths):
+                lit = False
+                break
+            for ti in range(n_sub):
+                for si in range(n_sub):
+                    c00, c01 = ti * m1 + si, ti * m1 + si + 1
+                    c11, c10 = c01 + m1, c00 + m1
+                    cj = n_lat + ti * n_sub + si
+                    cp = paths[cj]
+                    p1, p3 = paths[c00], paths[c11]
+                    signed = _triangle(p1, paths[c01], p3, d1, want_grad)
+                    signed += _triangle(p1, p3, paths[c10], d2, want_grad)
                     omega = abs(signed)
                     f, f0, f1, f2 = rid_value_grad_direction(cp[0], cp[1], cp[2], rid)
                     cos_c = cp[0] * normal[0] + cp[1] * normal[1] + cp[2] * normal[2]
@@ -326,25 +386,21 @@ def _pixels_range(
                     sign = 1.0 if signed > 0.0 else (-1.0 if signed < 0.0 else 0.0)
                     c = w * ft * sign
                     for j in range(3):
-                        g_lat[ti, si, j] += c * (d1[0, j] + d2[0, j])
-                        g_lat[ti, si + 1, j] += c * d1[1, j]
-                        g_lat[ti + 1, si + 1, j] += c * (d1[2, j] + d2[1, j])
-                        g_lat[ti + 1, si, j] += c * d2[2, j]
+                        g_lat[c00, j] += c * (d1[0, j] + d2[0, j])
+                        g_lat[c01, j] += c * d1[1, j]
+                        g_lat[c11, j] += c * (d1[2, j] + d2[1, j])
+                        g_lat[c10, j] += c * d2[2, j]
                     wo = w * omega
                     fd = f * dtf
                     _pull_back(
                         cp, normal, wo * (tf * f0 + fd * normal[0]),
-                        wo * (tf * f1 + fd * normal[1]), wo * (tf * f2 + fd * normal[2]), cy, acc,
+                        wo * (tf * f1 + fd * normal[1]), wo * (tf * f2 + fd * normal[2]),
+                        ys[cj], acc,
                     )  # fmt: skip
-                if not lit:
-                    break
-            if not lit:
-                break
             if want_grad:
-                for ti in range(m1):
-                    for si in range(m1):
-                        g = g_lat[ti, si]
-                        _pull_back(lat_p[ti, si], normal, g[0], g[1], g[2], lat_y[ti, si], acc)
+                for c0 in range(n_lat):
+                    g = g_lat[c0]
+                    _pull_back(paths[c0], normal, g[0], g[1], g[2], ys[c0], acc)
         out_lit[i] = lit
         out_flux[i] = flux if lit else 0.0
         if want_grad:
