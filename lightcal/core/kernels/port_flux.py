@@ -54,10 +54,15 @@ def path_equation(
     c_a2 = 1.0 - s * s
     c_g2 = n_g * n_g - s * s
     c_w2 = n_w * n_w - s * s
-    r_a, r_g, r_w = math.sqrt(c_a2), math.sqrt(c_g2), math.sqrt(c_w2)
-    g = d * s / r_a + t * s / r_g + big_h * s / r_w - rho
-    # x^1.5 as x sqrt(x): the same to round-off, without three calls of pow.
-    g_s = d / (c_a2 * r_a) + t * n_g * n_g / (c_g2 * r_g) + big_h * n_w * n_w / (c_w2 * r_w)
+    # 1 / sqrt(x) and its cube for x^-0.5 and x^-1.5: the same to round-off, with three
+    # divisions and no pow.
+    i_a, i_g, i_w = 1.0 / math.sqrt(c_a2), 1.0 / math.sqrt(c_g2), 1.0 / math.sqrt(c_w2)
+    g = (d * i_a + t * i_g + big_h * i_w) * s - rho
+    g_s = (
+        d * (i_a * i_a * i_a)
+        + t * n_g * n_g * (i_g * i_g * i_g)
+        + big_h * n_w * n_w * (i_w * i_w * i_w)
+    )
     return g, g_s
 
 
