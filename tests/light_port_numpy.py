@@ -1,7 +1,8 @@
 """The light's flat port in NumPy, as it was before its kernels
-(`lightcal.core.kernels.port_flux`): the reference tests/test_light_port_kernels.py holds
-the compiled path to (the code of `lightcal.core.light_port` and
-`lightcal.core.light_port_flux.quads_flux` at the time, unchanged)."""
+(`lightcal.core.kernels.port_flux`, `port_water`): the reference
+tests/test_light_port_kernels.py holds the compiled path to (the code of
+`lightcal.core.light_port` and `lightcal.core.light_port_flux.quads_flux`,
+`attenuate_through_port` at the time, unchanged)."""
 
 from __future__ import annotations
 
@@ -279,3 +280,39 @@ def quads_flux(
     grad[:, 3:] = np.sum(np.cross(g_y, points), axis=1) @ R.T
     grad[~lit] = 0.0
     return flux, lit, grad
+
+
+def attenuate_through_port(
+    centers_world: np.ndarray,
+    camera_world: np.ndarray,
+    light_world: np.ndarray,
+    R_world_light: np.ndarray,
+    port: FlatPort,
+    c_per_m: float,
+    flux: np.ndarray,
+    lit: np.ndarray,
+    grad: np.ndarray | None,
+) -> np.ndarray:
+    """Multiply flux[lit] (M,) by T = exp(-c (|P - E| + |P - camera|)) in place, with the
+    chain rule on grad[lit] (M, 6) (E the exit point of the centre's refracted ray from
+    the port); returns d (flux T) / dc (L,) of the lit rows (L of them).
+
+    Args:
+        centers_world: (L, 3) the lit footprints' centres P; camera_world: (3,) or (L, 3)
+            where the camera's side of the path starts, m.
+    """
+    R = np.asarray(R_world_light, dtype=np.float64)
+    Y = (centers_world - light_world) @ R
+    paths = port_paths(Y, port)
+    camera_m = np.linalg.norm(centers_world - camera_world, axis=-1)
+    length = paths.water_m + camera_m
+    t = np.exp(-c_per_m * length)
+    f = flux[lit]
+    if grad is not None:
+        g = grad[lit] * t[:, None]
+        g_y = (-c_per_m * t * f)[:, None] * paths.water_grad
+        g[:, :3] -= g_y @ R.T
+        g[:, 3:] += np.cross(g_y, Y) @ R.T
+        grad[lit] = g
+    flux[lit] = f * t
+    return -length * flux[lit]

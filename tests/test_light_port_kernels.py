@@ -12,7 +12,7 @@ from lightcal.core import light_port, light_port_flux
 from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import pixel_footprints
-from lightcal.core.kernels import port_flux
+from lightcal.core.kernels import port_flux, port_water
 from lightcal.core.rid import CosPowerRID, GaussianRID, Table2DRID
 from lightcal.core.scene import Light, View
 from tests import light_port_numpy as reference
@@ -104,3 +104,31 @@ def test_the_flux_and_its_gradients_match_numpy(
         corners, weights, L, R, data, port, n_sub, False
     )
     assert none is None and np.array_equal(plain, flux) and np.array_equal(lit_plain, lit)
+
+
+@pytest.mark.parametrize("threads", [False, True], ids=["serial", "parallel"])
+@pytest.mark.parametrize("per_pixel_camera", [False, True], ids=["camera", "per-pixel"])
+@pytest.mark.parametrize("port", PORTS.values(), ids=PORTS.keys())
+def test_the_attenuation_through_the_port_matches_numpy(
+    port: FlatPort, per_pixel_camera: bool, threads: bool, monkeypatch
+) -> None:
+    corners, weights, L, R = _quads()
+    monkeypatch.setattr(port_water, "ATTENUATE_SERIAL_ROWS", 0 if threads else 10**12)
+    flux, lit, grad = reference.quads_flux(
+        corners, weights, L, R, CosPowerRID(3.0).data(), port, 2, True
+    )
+    assert grad is not None
+    centers = corners.mean(axis=(1, 2))[lit]
+    camera = np.array([0.3, -0.1, 1.3])
+    if per_pixel_camera:
+        camera = camera + 0.01 * np.random.default_rng(2).normal(size=centers.shape)
+    got_f, got_g, plain = flux.copy(), grad.copy(), flux.copy()
+    got_dc = light_port_flux.attenuate_through_port(
+        centers, camera, L, R, port, 0.3, got_f, lit, got_g
+    )
+    dc = reference.attenuate_through_port(centers, camera, L, R, port, 0.3, flux, lit, grad)
+    _close(got_f, flux, np.abs(flux))
+    _close(got_g, grad, np.abs(grad).max(axis=1, keepdims=True))
+    _close(got_dc, dc, np.abs(dc))
+    light_port_flux.attenuate_through_port(centers, camera, L, R, port, 0.3, plain, lit, None)
+    assert np.array_equal(plain, got_f)

@@ -45,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.flat_port import FlatPort
-from lightcal.core.kernels.port_flux import PATH_SIZE, air_sines_into, paths_into
+from lightcal.core.kernels.port_flux import PATH_SIZE, air_sines_into
+from lightcal.core.kernels.port_water import paths_into
 
 
 def _indices(port: FlatPort) -> tuple[float, float]:
@@ -118,7 +119,7 @@ class PortPaths:
 
 def port_paths(points_light: np.ndarray, port: FlatPort) -> PortPaths:
     """The refracted paths from the emitter to points (M, 3) of the light frame, m
-    (compiled, point by point: `lightcal.core.kernels.port_flux.paths_into`)."""
+    (compiled, point by point: `lightcal.core.kernels.port_water.paths_into`)."""
     Y = np.ascontiguousarray(points_light, dtype=np.float64).reshape(-1, 3)
     n = np.ascontiguousarray(port.normal_camera, dtype=np.float64)
     n_g, n_w = _indices(port)

@@ -42,11 +42,23 @@ import numpy as np
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import Footprints
 from lightcal.core.kernels.port_flux import port_flux_pixels
-from lightcal.core.light_port import port_paths
+from lightcal.core.kernels.port_water import attenuate_rows
 from lightcal.core.medium import Medium
 from lightcal.core.rid_eval import RIDData, rid_tuple
 from lightcal.core.scene import Light, View
 from lightcal.core.wall import WallReflectance
+
+
+def _geometry(port: FlatPort) -> np.ndarray:
+    """The port's numbers as the kernels take them: d, t, n_g / n_a, n_w / n_a, n_a, n_g,
+    n_w."""
+    return np.array(
+        [
+            port.distance_m, port.thickness_m, port.glass_index / port.air_index,
+            port.water_index / port.air_index, port.air_index, port.glass_index,
+            port.water_index,
+        ]
+    )  # fmt: skip
 
 
 def quads_flux(
@@ -73,13 +85,7 @@ def quads_flux(
         lit: (M,) every point of the pixel is in front of the port.
         grad: (M, 6) d flux / d (L_world, delta_world), or None.
     """
-    geometry = np.array(
-        [
-            port.distance_m, port.thickness_m, port.glass_index / port.air_index,
-            port.water_index / port.air_index, port.air_index, port.glass_index,
-            port.water_index,
-        ]
-    )  # fmt: skip
+    geometry = _geometry(port)
     flux, lit, grad = port_flux_pixels(
         corners_world, weights, light_world, R_world_light, rid_tuple(rid),
         port.normal_camera, geometry, n_sub, want_grad,
@@ -167,24 +173,14 @@ def attenuate_through_port(
 ) -> np.ndarray:
     """Multiply flux[lit] (M,) by T = exp(-c (|P - E| + |P - camera|)) in place, with the
     chain rule on grad[lit] (M, 6) (E the exit point of the centre's refracted ray from
-    the port); returns d (flux T) / dc (L,) of the lit rows (L of them).
+    the port); returns d (flux T) / dc (L,) of the lit rows (L of them). Compiled:
+    `lightcal.core.kernels.port_water.attenuate_rows`.
 
     Args:
         centers_world: (L, 3) the lit footprints' centres P; camera_world: (3,) or (L, 3)
             where the camera's side of the path starts, m.
     """
-    R = np.asarray(R_world_light, dtype=np.float64)
-    Y = (centers_world - light_world) @ R
-    paths = port_paths(Y, port)
-    camera_m = np.linalg.norm(centers_world - camera_world, axis=-1)
-    length = paths.water_m + camera_m
-    t = np.exp(-c_per_m * length)
-    f = flux[lit]
-    if grad is not None:
-        g = grad[lit] * t[:, None]
-        g_y = (-c_per_m * t * f)[:, None] * paths.water_grad
-        g[:, :3] -= g_y @ R.T
-        g[:, 3:] += np.cross(g_y, Y) @ R.T
-        grad[lit] = g
-    flux[lit] = f * t
-    return -length * flux[lit]
+    return attenuate_rows(
+        np.flatnonzero(lit), centers_world, camera_world, light_world, R_world_light,
+        port.normal_camera, _geometry(port), c_per_m, flux, grad,
+    )  # fmt: skip

@@ -6,11 +6,11 @@ The model is docs/model.md's "The light's flat port", written out in NumPy in
 the port's Fresnel transmittance and the pull-back of the gradients to the pose). Here
 the same formulas, in the same order, run point by point:
 
-- `solve_paths`, `air_sines_into`, `paths_into`: the safeguarded Newton solve of
-  g(s) = 0 point by point (each point stops at its own test, at the iterate the masked
-  NumPy passes stopped it at; a few points step in turn, which overlaps their latency)
-  and the paths' directions, du_a/dY's factors, water lengths and exits
-  (`light_port.air_sines`, `port_paths`);
+- `solve_paths`, `air_sines_into`: the safeguarded Newton solve of g(s) = 0 point by
+  point (each point stops at its own test, at the iterate the masked NumPy passes
+  stopped it at; a few points step in turn, which overlaps their latency) and the
+  paths' directions and du_a/dY's factors (`light_port.air_sines`; `kernels.port_water`
+  adds the water's lengths and the exits: `light_port.port_paths`);
 - `port_flux_pixels`: the flux of pixels lit through the port and d flux / d (L, delta),
   quad by quad, sub-quad by sub-quad: the lattice's and centroids' paths, then the
   solid angles and their derivatives, the RID and T_F at the centroids, the pull-back
@@ -120,7 +120,7 @@ def _newton(
                 remaining -= 1
 
 
-#: Points solved together by `air_sines_into` and `paths_into` (see `_newton`).
+#: Points solved together by `air_sines_into` and `kernels.port_water` (see `_newton`).
 BLOCK = 16
 
 
@@ -223,43 +223,6 @@ def _pull_back(
     acc[5] += o0 * y[1] - o1 * y[0]
 
 
-@numba.njit(cache=True, error_model="numpy")
-def paths_into(
-    points: np.ndarray, normal: np.ndarray, d: float, t: float, n_g: float, n_w: float,
-    out_path: np.ndarray, out_ok: np.ndarray, out_water: np.ndarray,
-    out_water_grad: np.ndarray, out_exits: np.ndarray,
-) -> None:  # fmt: skip
-    """`light_port.port_paths` of points (M, 3): `solve_paths` into out_path
-    (M, PATH_SIZE) (NaN where not ok), out_ok (M,), the water's length (M,) and its
-    gradient in Y (M, 3) (NaN, 0 where not ok), the exit points (M, 3) (NaN where not
-    ok); BLOCK points at a time."""
-    work = np.empty((BLOCK, 5))
-    s = np.empty(BLOCK)
-    active = np.empty(BLOCK, dtype=np.bool_)
-    for lo in range(0, points.shape[0], BLOCK):
-        m = min(BLOCK, points.shape[0] - lo)
-        solve_paths(
-            points[lo:], m, normal, d, t, n_g, n_w, work, s, active, out_ok[lo:], out_path[lo:]
-        )
-        for i in range(lo, lo + m):
-            p = out_path[i]
-            if not out_ok[i]:
-                p[:] = np.nan
-                out_water[i] = np.nan
-                out_water_grad[i, :] = 0.0
-                out_exits[i, :] = np.nan
-                continue
-            sj, c_a, big_h = p[11], p[12], work[i - lo, 4]
-            c_w = math.sqrt(1.0 - (sj / n_w) ** 2)
-            out_water[i] = big_h / c_w
-            # d(H / c_w) = dH / c_w + H (s / n_w^2) / c_w^3 ds, dH = n . dY, ds = a . dY.
-            w_s = big_h * sj / (n_w * n_w * c_w**3)
-            radial = d * (sj / c_a) + t * (sj / math.sqrt(n_g * n_g - sj * sj))
-            for j in range(3):
-                out_water_grad[i, j] = normal[j] / c_w + w_s * p[6 + j]
-                out_exits[i, j] = radial * p[3 + j] + (d + t) * normal[j]
-
-
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _reflectance(n1: float, n2: float, cos_i: complex, cos_t: complex, s_pol: bool) -> complex:
     """R = r^2 of one interface (`fresnel._reflectance`)."""
@@ -311,7 +274,7 @@ def _triangle(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _to_light(x: np.ndarray, light: np.ndarray, R: np.ndarray, out: np.ndarray) -> None:
+def to_light(x: np.ndarray, light: np.ndarray, R: np.ndarray, out: np.ndarray) -> None:
     """out = R^T (x - L) (3,)."""
     x0, x1, x2 = x[0] - light[0], x[1] - light[1], x[2] - light[2]
     for j in range(3):
@@ -359,7 +322,7 @@ def _pixels_range(
                             + w3 * corners[i, kq, 2, j] + w4 * corners[i, kq, 3, j]
                         )  # fmt: skip
                         g_lat[ti * m1 + si, j] = 0.0
-                    _to_light(lat_w[ti, si], light, R, ys[ti * m1 + si])
+                    to_light(lat_w[ti, si], light, R, ys[ti * m1 + si])
             for ti in range(n_sub):
                 for si in range(n_sub):
                     for j in range(3):
@@ -367,7 +330,7 @@ def _pixels_range(
                             lat_w[ti, si, j] + lat_w[ti, si + 1, j]
                             + lat_w[ti + 1, si + 1, j] + lat_w[ti + 1, si, j]
                         )  # fmt: skip
-                    _to_light(xw, light, R, ys[n_lat + ti * n_sub + si])
+                    to_light(xw, light, R, ys[n_lat + ti * n_sub + si])
             if not solve_paths(ys, n_pts, normal, d, t, n_g, n_w, work, s, active, ok, paths):
                 lit = False
                 break
