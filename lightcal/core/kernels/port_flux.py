@@ -35,9 +35,10 @@ from lightcal.core.rid_eval import RIDData, RIDTuple, rid_value_grad_direction
 MAX_NEWTON = 100
 
 #: Below this many path solves (pixels x quads x lattice points and centroids; about
-#: 1 ms on one thread, as `kernels.flux.SERIAL_WORK`) the pixels run on the calling
-#: thread: waking the thread pool costs more.
-PORT_SERIAL_POINTS = 8_000
+#: 3 ms on one thread: 5,000 pixels at n = 1) the pixels run on the calling thread. On
+#: 2 cores shared with other work the pool took 8-16 ms to come back (measured: 1,000
+#: pixels 0.9 ms on one thread, 16 ms on the pool; 4,000 pixels 3.9 and 15 ms).
+PORT_SERIAL_POINTS = 25_000
 
 #: The numbers `_path` writes per point.
 PATH_SIZE = 13

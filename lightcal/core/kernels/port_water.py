@@ -20,8 +20,9 @@ import numpy as np
 
 from lightcal.core.kernels.port_flux import BLOCK, PATH_SIZE, solve_paths, to_light
 
-#: Below this many pixels `attenuate_rows` runs on the calling thread.
-ATTENUATE_SERIAL_ROWS = 8_000
+#: Below this many pixels `attenuate_rows` runs on the calling thread (as
+#: `kernels.port_flux.PORT_SERIAL_POINTS`: a few ms of work).
+ATTENUATE_SERIAL_ROWS = 25_000
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
