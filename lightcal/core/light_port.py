@@ -18,7 +18,7 @@ h = n . Y and rho = |Y - h n| this is solved for s = sin(theta_a) (`air_sines`):
 left side minus rho, g(s), is increasing and convex in s on [0, 1) with g(0) = -rho <= 0,
 so Newton's method started right of the root (where one term alone reaches rho)
 decreases monotonically to it, quadratically, to round-off (compiled, point by point:
-`lightcal.core.kernels.port_flux.air_sine`). A point with h <= d + t is not in front of
+`lightcal.core.kernels.port_flux.solve_paths`). A point with h <= d + t is not in front of
 the port: no ray reaches it (`ok` False).
 
 The air direction u_a = s rho_hat + cos(theta_a) n is where the emitter's RID (given in

@@ -40,7 +40,7 @@ MAX_NEWTON = 100
 #: pixels 0.9 ms on one thread, 16 ms on the pool; 4,000 pixels 3.9 and 15 ms).
 PORT_SERIAL_POINTS = 25_000
 
-#: The numbers `_path` writes per point.
+#: The numbers `solve_paths` writes per point.
 PATH_SIZE = 13
 
 #: The complex step of the Fresnel transmittance's derivative (`fresnel._STEP`).
@@ -207,7 +207,7 @@ def solve_paths(
 def _pull_back(
     p: np.ndarray, n: np.ndarray, g0: float, g1: float, g2: float, y: np.ndarray, acc: np.ndarray
 ) -> None:
-    """(du_a/dY)^T g of one path p (`_path`'s out) added to acc[:3], and its cross
+    """(du_a/dY)^T g of one path p (`solve_paths`' row) added to acc[:3], and its cross
     product with the point y added to acc[3:] (`PortPaths.pull_back`)."""
     gu_n = g0 * n[0] + g1 * n[1] + g2 * n[2]
     gu_r = g0 * p[3] + g1 * p[4] + g2 * p[5]
@@ -254,9 +254,9 @@ def transmittance(c: float, n_a: float, n_g: float, n_w: float) -> tuple[float, 
 def _triangle(
     a: np.ndarray, b: np.ndarray, c: np.ndarray, grad: np.ndarray, want_grad: bool
 ) -> float:
-    """Signed solid angle of the spherical triangle of unit vectors a, b, c (3,)
-    (`light_port_flux.spherical_triangle`); when want_grad dOmega/da, db, dc into grad
-    (3, 3)."""
+    """Signed solid angle of the spherical triangle of unit vectors a, b, c (3,) (Van
+    Oosterom-Strackee, as tests/light_port_numpy.py's `spherical_triangle`); when
+    want_grad, dOmega/da, db, dc into grad (3, 3)."""
     e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     f0, f1, f2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
     num = a[0] * (e1 * f2 - e2 * f1) + a[1] * (e2 * f0 - e0 * f2) + a[2] * (e0 * f1 - e1 * f0)
