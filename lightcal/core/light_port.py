@@ -17,8 +17,9 @@ at the axial distance h (n_a the air's index, 1). For a point Y (light frame) wi
 h = n . Y and rho = |Y - h n| this is solved for s = sin(theta_a) (`air_sines`): the
 left side minus rho, g(s), is increasing and convex in s on [0, 1) with g(0) = -rho <= 0,
 so Newton's method started right of the root (where one term alone reaches rho)
-decreases monotonically to it, quadratically, to round-off. A point with h <= d + t is
-not in front of the port: no ray reaches it (`ok` False).
+decreases monotonically to it, quadratically, to round-off (compiled, point by point:
+`lightcal.core.kernels.port_flux.solve_paths`). A point with h <= d + t is not in front of
+the port: no ray reaches it (`ok` False).
 
 The air direction u_a = s rho_hat + cos(theta_a) n is where the emitter's RID (given in
 air) is evaluated. Its derivative in Y (`PortPaths.pull_back`) comes from implicit
@@ -44,9 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.flat_port import FlatPort
-
-#: Newton iterations at most (measured: 11 for d = 2 cm, 13 for d = 2 mm, up to 70 deg).
-MAX_NEWTON = 100
+from lightcal.core.kernels.port_flux import PATH_SIZE, air_sines_into
+from lightcal.core.kernels.port_water import paths_into
 
 
 def _indices(port: FlatPort) -> tuple[float, float]:
@@ -62,47 +62,14 @@ def air_sines(rho_m: np.ndarray, h_m: np.ndarray, port: FlatPort) -> tuple[np.nd
         s: (M,) the sine of the air ray's angle to the port's normal (NaN where not ok).
         ok: (M,) the point is finite and in front of the port's outer face (h > d + t).
     """
-    rho = np.asarray(rho_m, dtype=np.float64)
-    h = np.asarray(h_m, dtype=np.float64)
-    d, t = port.distance_m, port.thickness_m
+    rho = np.ascontiguousarray(rho_m, dtype=np.float64).reshape(-1)
+    h = np.ascontiguousarray(h_m, dtype=np.float64).reshape(-1)
     n_g, n_w = _indices(port)
-    big_h = h - d - t
-    ok = np.isfinite(rho) & np.isfinite(big_h) & (big_h > 0.0)
-    r = np.where(ok, rho, 0.0)
-    hh = np.where(ok, big_h, 1.0)
-    # Right of the root: the smallest s at which one term alone reaches rho.
-    s = r / np.hypot(r, d)
-    s = np.minimum(s, n_w * r / np.hypot(r, hh))
-    if t > 0.0:
-        s = np.minimum(s, n_g * r / np.hypot(r, t))
-    active = r > 0.0
-    for _ in range(MAX_NEWTON):
-        if not np.any(active):
-            break
-        sa = s[active]
-        g, g_s = _path_equation(sa, r[active], hh[active], d, t, n_g, n_w)
-        step = g / g_s
-        new = sa - step
-        s[active] = new
-        # Quadratic convergence: a step this small leaves an error far below it; a step
-        # <= 0 is round-off at the root (from the right every step is > 0).
-        done = (np.abs(step) <= 1e-15 * new) | (step <= 0.0)
-        idx = np.flatnonzero(active)
-        active[idx[done]] = False
-    s = np.where(ok, s, np.nan)
-    return s, ok
-
-
-def _path_equation(
-    s: np.ndarray, rho: np.ndarray, big_h: np.ndarray, d: float, t: float, n_g: float, n_w: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """g(s) = d tan(theta_a) + t tan(theta_g) + H tan(theta_w) - rho and dg/ds, (M,) each."""
-    c_a2 = 1.0 - s * s
-    c_g2 = n_g * n_g - s * s
-    c_w2 = n_w * n_w - s * s
-    g = d * s / np.sqrt(c_a2) + t * s / np.sqrt(c_g2) + big_h * s / np.sqrt(c_w2) - rho
-    g_s = d / c_a2**1.5 + t * n_g * n_g / c_g2**1.5 + big_h * n_w * n_w / c_w2**1.5
-    return g, g_s
+    s = np.empty(rho.shape)
+    ok = np.empty(rho.shape, dtype=np.bool_)
+    air_sines_into(rho, h, port.distance_m, port.thickness_m, n_g, n_w, s, ok)
+    shape = np.shape(rho_m)
+    return s.reshape(shape), ok.reshape(shape)
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,37 +118,21 @@ class PortPaths:
 
 
 def port_paths(points_light: np.ndarray, port: FlatPort) -> PortPaths:
-    """The refracted paths from the emitter to points (M, 3) of the light frame, m."""
-    Y = np.asarray(points_light, dtype=np.float64).reshape(-1, 3)
-    n = np.asarray(port.normal_camera, dtype=np.float64)
-    d, t = port.distance_m, port.thickness_m
+    """The refracted paths from the emitter to points (M, 3) of the light frame, m
+    (compiled, point by point: `lightcal.core.kernels.port_water.paths_into`)."""
+    Y = np.ascontiguousarray(points_light, dtype=np.float64).reshape(-1, 3)
+    n = np.ascontiguousarray(port.normal_camera, dtype=np.float64)
     n_g, n_w = _indices(port)
-    h = Y @ n
-    radial = Y - h[:, None] * n
-    rho = np.linalg.norm(radial, axis=1)
-    s, ok = air_sines(rho, h, port)
-    s0 = np.where(ok, s, 0.0)
-    big_h = np.where(ok, h - d - t, 1.0)
-    c_a = np.sqrt(1.0 - s0 * s0)
-    c_w = np.sqrt(1.0 - (s0 / n_w) ** 2)
-    tan_w = s0 / (n_w * c_w)
-    _, g_s = _path_equation(s0, np.zeros_like(s0), big_h, d, t, n_g, n_w)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        on_axis = rho == 0.0
-        k = np.where(on_axis, 1.0 / g_s, s0 / np.where(on_axis, 1.0, rho))
-        rho_hat = np.where(on_axis[:, None], 0.0, radial / np.where(on_axis, 1.0, rho)[:, None])
-    u = k[:, None] * radial + c_a[:, None] * n
-    a = (rho_hat - tan_w[:, None] * n) / g_s[:, None]
-    water = big_h / c_w
-    # d(H / c_w) = dH / c_w + H (s / n_w^2) / c_w^3 ds, dH = n . dY, ds = a . dY.
-    water_grad = n[None, :] / c_w[:, None] + (big_h * s0 / (n_w * n_w * c_w**3))[:, None] * a
-    tan_a = s0 / c_a
-    tan_g = s0 / np.sqrt(n_g * n_g - s0 * s0)
-    exits = (d * tan_a + t * tan_g)[:, None] * rho_hat + (d + t) * n
-    for arr in (u, exits, water_grad):
-        arr[~ok] = np.nan
-    water = np.where(ok, water, np.nan)
-    water_grad[~ok] = 0.0
-    return PortPaths(
-        u, np.where(ok, c_a, np.nan), ok, water, exits, n, k, rho_hat, a, s0, water_grad
+    m = Y.shape[0]
+    path = np.empty((m, PATH_SIZE))
+    ok = np.empty(m, dtype=np.bool_)
+    water = np.empty(m)
+    water_grad = np.empty((m, 3))
+    exits = np.empty((m, 3))
+    paths_into(
+        Y, n, port.distance_m, port.thickness_m, n_g, n_w, path, ok, water, water_grad, exits
     )
+    return PortPaths(
+        path[:, 0:3], path[:, 12], ok, water, exits, n, path[:, 9], path[:, 3:6],
+        path[:, 6:9], path[:, 11], water_grad,
+    )  # fmt: skip

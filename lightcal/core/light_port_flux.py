@@ -27,78 +27,38 @@ In water the light's path starts at the exit point E of the footprint centre's r
 the port's outer face: T = exp(-c (|P - E| + the camera's side)), |P - E| = H / cos
 theta_w (`PortPaths.water_m`), with its derivatives in the pose and in c.
 
+`quads_flux` runs it compiled, pixel by pixel (`lightcal.core.kernels.port_flux`, the
+same formulas in the same order; tests/light_port_numpy.py keeps the NumPy code it
+replaced, which the tests hold it to).
+
 Not here (refused by `port_light_flux` and, naming the key, by the project file): a wall
 mesh, a non-Lambertian wall, the medium's backscatter.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import Footprints
-from lightcal.core.fresnel import port_transmittance
-from lightcal.core.light_port import port_paths
+from lightcal.core.kernels.port_flux import port_flux_pixels
+from lightcal.core.kernels.port_water import attenuate_rows
 from lightcal.core.medium import Medium
-from lightcal.core.rid_eval import RIDData, rid_value_grad_direction
+from lightcal.core.rid_eval import RIDData, rid_tuple
 from lightcal.core.scene import Light, View
 from lightcal.core.wall import WallReflectance
 
 
-@numba.njit(cache=True)
-def rid_many(directions: np.ndarray, rid: RIDData) -> tuple[np.ndarray, np.ndarray]:
-    """RID values (M,) and tangential gradients (M, 3) at unit directions (M, 3) of the
-    light frame (`rid_value_grad_direction`, row by row)."""
-    m = directions.shape[0]
-    f = np.empty(m)
-    g = np.empty((m, 3))
-    for i in range(m):
-        f[i], g[i, 0], g[i, 1], g[i, 2] = rid_value_grad_direction(
-            directions[i, 0], directions[i, 1], directions[i, 2], rid
-        )
-    return f, g
-
-
-def spherical_triangle(
-    a: np.ndarray, b: np.ndarray, c: np.ndarray, want_grad: bool
-) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
-    """Signed solid angles (...,) of spherical triangles of unit vectors a, b, c (..., 3):
-    tan(Omega / 2) = a . (b x c) / (1 + a . b + a . c + b . c), the triple product as
-    a . ((b - a) x (c - a)) (no cancellation for small triangles); and, when want_grad,
-    dOmega / da, db, dc (..., 3) (tangential parts are what matter: unit vectors)."""
-    num = np.einsum("...i,...i->...", a, np.cross(b - a, c - a))
-    ab = np.einsum("...i,...i->...", a, b)
-    ac = np.einsum("...i,...i->...", a, c)
-    bc = np.einsum("...i,...i->...", b, c)
-    den = 1.0 + ab + ac + bc
-    omega = 2.0 * np.arctan2(num, den)
-    if not want_grad:
-        return omega, None
-    scale = (2.0 / (num * num + den * den))[..., None]
-    nn = num[..., None]
-    dd = den[..., None]
-    da = scale * (dd * np.cross(b, c) - nn * (b + c))
-    db = scale * (dd * np.cross(c, a) - nn * (a + c))
-    dc = scale * (dd * np.cross(a, b) - nn * (a + b))
-    return omega, (da, db, dc)
-
-
-def _lattice(corners: np.ndarray, n_sub: int) -> tuple[np.ndarray, np.ndarray]:
-    """The sub-quads' corners (M, K, n+1, n+1, 3) (index [t, s], bilinear in the quad's
-    corners P1..P4 as `kernels.quad_flux` cuts it) and centroids (M, K, n, n, 3)."""
-    st = np.arange(n_sub + 1) / n_sub
-    s = st[None, :, None]
-    t = st[:, None, None]
-    q = corners[:, :, None, None]  # (M, K, 1, 1, 4, 3)
-    lat = (
-        ((1 - s) * (1 - t)) * q[..., 0, :]
-        + (s * (1 - t)) * q[..., 1, :]
-        + (s * t) * q[..., 2, :]
-        + ((1 - s) * t) * q[..., 3, :]
-    )
-    cen = 0.25 * (lat[:, :, :-1, :-1] + lat[:, :, :-1, 1:] + lat[:, :, 1:, 1:] + lat[:, :, 1:, :-1])
-    return lat, cen
+def _geometry(port: FlatPort) -> np.ndarray:
+    """The port's numbers as the kernels take them: d, t, n_g / n_a, n_w / n_a, n_a, n_g,
+    n_w."""
+    return np.array(
+        [
+            port.distance_m, port.thickness_m, port.glass_index / port.air_index,
+            port.water_index / port.air_index, port.air_index, port.glass_index,
+            port.water_index,
+        ]
+    )  # fmt: skip
 
 
 def quads_flux(
@@ -125,50 +85,12 @@ def quads_flux(
         lit: (M,) every point of the pixel is in front of the port.
         grad: (M, 6) d flux / d (L_world, delta_world), or None.
     """
-    m, k = corners_world.shape[:2]
-    lat_w, cen_w = _lattice(corners_world, n_sub)
-    R = np.asarray(R_world_light, dtype=np.float64)
-    lat = (lat_w - light_world) @ R  # R^T (X - L), row by row
-    cen = (cen_w - light_world) @ R
-    n_lat = (n_sub + 1) ** 2
-    points = np.concatenate([lat.reshape(m, k * n_lat, 3), cen.reshape(m, -1, 3)], axis=1)
-    paths = port_paths(points.reshape(-1, 3), port)
-    lit = np.asarray(paths.ok.reshape(m, -1).all(axis=1), dtype=np.bool_)
-    u_all = np.where(paths.ok[:, None], paths.directions_light, 0.0)
-    u_all[~paths.ok, 2] = 1.0  # placeholders where unlit (their pixels are zeroed)
-    u_all = u_all.reshape(m, -1, 3)
-    u_lat = u_all[:, : k * n_lat].reshape(lat.shape)
-    u_cen = u_all[:, k * n_lat :].reshape(cen.shape)
-    p1, p2 = u_lat[:, :, :-1, :-1], u_lat[:, :, :-1, 1:]
-    p3, p4 = u_lat[:, :, 1:, 1:], u_lat[:, :, 1:, :-1]
-    o1, d1 = spherical_triangle(p1, p2, p3, want_grad)
-    o2, d2 = spherical_triangle(p1, p3, p4, want_grad)
-    signed = o1 + o2
-    omega = np.abs(signed)
-    f, df = rid_many(np.ascontiguousarray(u_cen.reshape(-1, 3)), rid)
-    cos_c = np.clip(u_cen.reshape(-1, 3) @ port.normal_camera, 1e-300, 1.0)
-    tf, dtf = port_transmittance(cos_c, port.air_index, port.glass_index, port.water_index)
-    ft = (f * tf).reshape(omega.shape)
-    w = weights[:, :, None, None]
-    flux = np.where(lit, np.sum(w * omega * ft, axis=(1, 2, 3)), 0.0)
-    if not want_grad:
-        return flux, lit, None
-    assert d1 is not None and d2 is not None
-    c = (w * ft * np.sign(signed))[..., None]
-    g_lat = np.zeros_like(u_lat)
-    g_lat[:, :, :-1, :-1] += c * (d1[0] + d2[0])
-    g_lat[:, :, :-1, 1:] += c * d1[1]
-    g_lat[:, :, 1:, 1:] += c * (d1[2] + d2[1])
-    g_lat[:, :, 1:, :-1] += c * d2[2]
-    g_cen_u = (tf[:, None] * df + (f * dtf)[:, None] * port.normal_camera).reshape(cen.shape)
-    g_cen = (w * omega)[..., None] * g_cen_u
-    g_u = np.concatenate([g_lat.reshape(m, -1, 3), g_cen.reshape(m, -1, 3)], axis=1)
-    g_y = paths.pull_back(g_u.reshape(-1, 3)).reshape(m, -1, 3)
-    grad = np.empty((m, 6))
-    grad[:, :3] = -np.sum(g_y, axis=1) @ R.T
-    grad[:, 3:] = np.sum(np.cross(g_y, points), axis=1) @ R.T
-    grad[~lit] = 0.0
-    return flux, lit, grad
+    geometry = _geometry(port)
+    flux, lit, grad = port_flux_pixels(
+        corners_world, weights, light_world, R_world_light, rid_tuple(rid),
+        port.normal_camera, geometry, n_sub, want_grad,
+    )  # fmt: skip
+    return flux, lit, grad if want_grad else None
 
 
 def port_light_flux(
@@ -251,24 +173,14 @@ def attenuate_through_port(
 ) -> np.ndarray:
     """Multiply flux[lit] (M,) by T = exp(-c (|P - E| + |P - camera|)) in place, with the
     chain rule on grad[lit] (M, 6) (E the exit point of the centre's refracted ray from
-    the port); returns d (flux T) / dc (L,) of the lit rows (L of them).
+    the port); returns d (flux T) / dc (L,) of the lit rows (L of them). Compiled:
+    `lightcal.core.kernels.port_water.attenuate_rows`.
 
     Args:
         centers_world: (L, 3) the lit footprints' centres P; camera_world: (3,) or (L, 3)
             where the camera's side of the path starts, m.
     """
-    R = np.asarray(R_world_light, dtype=np.float64)
-    Y = (centers_world - light_world) @ R
-    paths = port_paths(Y, port)
-    camera_m = np.linalg.norm(centers_world - camera_world, axis=-1)
-    length = paths.water_m + camera_m
-    t = np.exp(-c_per_m * length)
-    f = flux[lit]
-    if grad is not None:
-        g = grad[lit] * t[:, None]
-        g_y = (-c_per_m * t * f)[:, None] * paths.water_grad
-        g[:, :3] -= g_y @ R.T
-        g[:, 3:] += np.cross(g_y, Y) @ R.T
-        grad[lit] = g
-    flux[lit] = f * t
-    return -length * flux[lit]
+    return attenuate_rows(
+        np.flatnonzero(lit), centers_world, camera_world, light_world, R_world_light,
+        port.normal_camera, _geometry(port), c_per_m, flux, grad,
+    )  # fmt: skip

@@ -14,6 +14,10 @@
   chain rule on a light's flux and gradients, and on whole images.
 - `medium`: the medium's transmittance T (`lightcal.core.medium`): per pixel with the
   chain rule on a light's flux and gradients, and on whole images.
+- `port_flux`: the light's flat port (`lightcal.core.light_port`, `light_port_flux`): the
+  path solve per point and the flux of pixels lit through the port, with gradients.
+- `port_water`: the light's port in water: the paths' water lengths and exits
+  (`light_port.port_paths`) and the medium's attenuation of the flux lit through it.
 
 The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
 one `rid_stack.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
