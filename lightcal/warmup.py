@@ -142,6 +142,7 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     """A tiny synthetic dataset for `family`; returns its project file."""
     from lightcal.core.camera import Camera
     from lightcal.synthetic.dataset import SynthConfig, write_dataset
+    from lightcal.synthetic.departures import Departures
     from lightcal.synthetic.scenes import RigConfig, SceneConfig
 
     w, h = family.size
@@ -149,12 +150,15 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     camera = Camera.from_params(
         fx=f, fy=f, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h, dist=(-0.1, 0.02, 0, 0, 0)
     )
+    synth = dict(family.synth or {})
+    light_port = synth.pop("light_port", None)  # a departure: the lights behind ports
     config = SynthConfig(
         camera=camera,
         scene=SceneConfig(n_views=4),
         rig=RigConfig(n_lights=family.n_lights, model=family.light_model),  # type: ignore[arg-type]
         seed=1,
-        **(family.synth or {}),
+        **({"departures": Departures(light_port=light_port)} if light_port else {}),
+        **synth,
     )
     dataset = write_dataset(folder, config)
     project = json.loads(dataset.project_path.read_text(encoding="utf-8"))
