@@ -150,14 +150,15 @@ def _write_dataset(folder: Path, family: Family) -> Path:
     camera = Camera.from_params(
         fx=f, fy=f, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h, dist=(-0.1, 0.02, 0, 0, 0)
     )
-    synth = dict(family.synth or {})
+    synth: dict[str, Any] = dict(family.synth or {})
     light_port = synth.pop("light_port", None)  # a departure: the lights behind ports
+    if light_port is not None:
+        synth["departures"] = Departures(light_port=light_port)
     config = SynthConfig(
         camera=camera,
         scene=SceneConfig(n_views=4),
         rig=RigConfig(n_lights=family.n_lights, model=family.light_model),  # type: ignore[arg-type]
         seed=1,
-        **({"departures": Departures(light_port=light_port)} if light_port else {}),
         **synth,
     )
     dataset = write_dataset(folder, config)
