@@ -126,6 +126,10 @@ def test_the_light_and_the_water_are_recovered_through_the_port_with_backscatter
     doc = json.loads((out / "project.json").read_text())
     assert doc["medium"]["estimate"] == ["attenuation_per_m", "backscatter_per_m"]
     doc["selection"]["n_per_image"] = 4000
+    # From a rough guess of the water a scattering solve can stop in a wrong minimum
+    # (docs/model.md, "Medium": one in six from air; this data at an earlier commit, 20 cm
+    # off with c 0.15): the documented remedy, random starts.
+    doc.setdefault("solver", {})["multistart"] = 4
     (out / "project.json").write_text(json.dumps(doc))
     truth = json.loads((out / "truth.json").read_text())
     _, model, res = calibrate_project(load_project(out / "project.json"))
