@@ -291,3 +291,17 @@ def test_the_room_light_through_the_port_carries_its_transmittance() -> None:
         np.testing.assert_allclose(image.ravel()[ok], factor[ok], rtol=1e-12)
     radiance = room_light_view(camera, "radiance", None, PORT)
     assert radiance is not None and 0.9 < np.nanmin(radiance) < np.nanmax(radiance) < 0.96
+
+
+def test_a_lattice_too_large_to_keep_gives_the_same_image(monkeypatch) -> None:
+    """Above `_RAYS_MAX_CORNERS` the lattice is traced each time, not kept: the same
+    numbers."""
+    from lightcal.core import port_footprints as pf
+
+    camera, view, rig = _camera(), _view(), _rig()
+    kept = render_image_through_port(camera, view, rig, PORT, medium=Medium(0.2))
+    monkeypatch.setattr(pf, "_RAYS_MAX_CORNERS", 0)
+    pf._RAYS.clear()
+    traced = render_image_through_port(camera, view, rig, PORT, medium=Medium(0.2))
+    np.testing.assert_array_equal(traced, kept)
+    assert not pf._RAYS

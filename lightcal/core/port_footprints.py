@@ -249,6 +249,9 @@ _RAYS: OrderedDict[tuple[bytes, tuple[float, ...]], tuple[np.ndarray, ...]] = Or
 """`_camera_rays`' cache."""
 _RAYS_LOCK = Lock()
 _RAYS_KEPT = 2
+_RAYS_MAX_CORNERS = 4_000_000
+"""Lattices kept only up to this many corners (~300 MB: a 4 MP camera, or a larger one
+binned as the page renders it); a larger one is traced again each time."""
 
 
 def _camera_rays(
@@ -257,7 +260,7 @@ def _camera_rays(
     """Every pixel corner's ray through the port, camera frame: exit points and water
     directions (H+1, W+1, 3) (NaN where not ok), undistorted coordinates (H+1, W+1, 2)
     and ok (H+1, W+1), and every pixel's `fresnel_factors` (H, W); the last
-    `_RAYS_KEPT` (camera, port) pairs cached."""
+    `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners."""
     key = (
         GRID_CACHE.key(camera),
         (port.distance_m, port.thickness_m, port.glass_index, port.water_index,
@@ -275,6 +278,8 @@ def _camera_rays(
     xy = np.where(grid_ok[..., None], grid_xy, np.nan)
     fresnel = fresnel_factors(xy[None], port)[0]
     value = (exits.reshape(rays.shape), dirs.reshape(rays.shape), grid_xy, ok, fresnel)
+    if ok.size > _RAYS_MAX_CORNERS:
+        return value
     with _RAYS_LOCK:
         _RAYS[key] = value
         while len(_RAYS) > _RAYS_KEPT:
