@@ -80,3 +80,36 @@ def test_the_pages_downloads_carry_the_lights_port(app: LightcalApp) -> None:
     assert name.endswith(".yaml") and b"port:" in data and b"lights[0].port" in data
     with pytest.raises(InputError, match=r"lights\[0\]\.port"):
         export_download(result, app.state.project, "blender")
+
+
+def test_the_3d_views_rays_bend_where_they_leave_the_lights_port(app: LightcalApp) -> None:
+    """Each ray to a wall point is two segments: emitter -> where it leaves the port's
+    outer face, then straight through the water to the point, along the direction the
+    port's forward trace (`FlatPort.trace`: Snell's law at both faces) gives the same ray."""
+    from lightcal_app.scene3d import light_rays
+
+    from lightcal.core.light_port import port_paths
+
+    st = app.state
+    assert st.display is not None
+    light = st.display.rig.lights[0]
+    port = light.port
+    assert port is not None
+    view = st.project.views[0]
+    src, R = light.position_world(view), light.rotation_world(view)
+    wall = np.array([[0.1, -0.05, 0.0], [-0.2, 0.1, 0.0], [0.0, 0.0, 0.0]])
+    seg = light_rays(light, view, wall)
+    assert seg.shape == (6, 2, 3)
+    first, second = seg[:3], seg[3:]
+    np.testing.assert_allclose(first[:, 0], np.broadcast_to(src, (3, 3)))
+    np.testing.assert_allclose(second[:, 1], wall, atol=1e-12)
+    np.testing.assert_allclose(first[:, 1], second[:, 0])
+    air = port_paths((wall - src) @ R, port).directions_light
+    exits, water, ok = port.trace(air)
+    assert ok.all()
+    np.testing.assert_allclose(first[:, 1], src + exits @ R.T, atol=1e-12)
+    u_water = second[:, 1] - second[:, 0]
+    u_water /= np.linalg.norm(u_water, axis=1)[:, None]
+    np.testing.assert_allclose(u_water, water @ R.T, atol=1e-9)
+    bare = light_rays(light.replace(port=None), view, wall)
+    assert bare.shape == (3, 2, 3)

@@ -29,9 +29,10 @@ import numpy as np
 import viser
 
 from lightcal.core.flat_port import FlatPort
+from lightcal.core.light_port import port_paths
 from lightcal.core.rid import RID
 from lightcal.core.rotations import quaternion_wxyz_from_matrix
-from lightcal.core.scene import Light, Rig
+from lightcal.core.scene import Light, Rig, View
 from lightcal.core.surroundings import Surroundings
 from lightcal.core.wall_mesh import wall_footprints
 from lightcal.io.project import Project
@@ -68,6 +69,26 @@ def _rid_key(rid: RID, port: FlatPort | None = None) -> bytes:
         parts.append(repr(sorted(port.describe().items())).encode())
         parts.append(np.asarray(port.normal_camera).tobytes())
     return b"|".join(parts)
+
+
+def light_rays(light: Light, view: View, points_world: np.ndarray) -> np.ndarray:
+    """(K, 2, 3) line segments of the light's rays to wall points (M, 3), world frame:
+    straight from the emitter, or behind its flat port (`Light.port`) bent where they
+    leave the port (emitter -> exit point -> wall point, `lightcal.core.light_port`);
+    a point the port does not reach gets no ray."""
+    src = light.position_world(view)
+    if light.port is None:
+        seg = np.empty((len(points_world), 2, 3))
+        seg[:, 0] = src
+        seg[:, 1] = points_world
+        return seg
+    R = light.rotation_world(view)
+    paths = port_paths((points_world - src) @ R, light.port)
+    ok = paths.ok
+    exits = src + paths.exits_light[ok] @ R.T
+    first = np.stack([np.broadcast_to(src, exits.shape), exits], axis=1)
+    second = np.stack([exits, points_world[ok]], axis=1)
+    return np.concatenate([first, second])
 
 
 def wall_extent(project: Project, *, margin: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
@@ -438,11 +459,7 @@ class Scene3D:
             view = self.project.views[i]
             assert rig is not None
             for light in rig.lights:
-                src = light.position_world(view)
-                seg = np.empty((len(pts), 2, 3))
-                seg[:, 0] = src
-                seg[:, 1] = pts
-                segs.append(seg)
+                segs.append(light_rays(light, view, pts))
         if not segs:
             if self.rays is not None:
                 self.rays.visible = False
