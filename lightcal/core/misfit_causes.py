@@ -17,6 +17,10 @@ additive. The patterns (`PixelFeatures` gives their inputs, per pixel):
   largest: a lens fall-off the project does not declare;
 - `response` (2): ln(m / median m) and its square: a non-linear (gamma, JPEG) response;
 - `medium` (1): d_light + d_camera (m): absorption in water or haze;
+- `port` (1): d ln E / d eps, the irradiance's change where the footprint moves when an
+  interface of index 1 + eps bends the camera's rays toward its axis
+  (`lightcal.core.port_bend`): a flat port (a camera housing's window) the project does
+  not declare;
 - `wall` (up to 64): indicators of up to 8 x 8 cells (about 50 tested pixels a cell) over
   the tested pixels' extent on the wall: uneven albedo, a bowed wall, light from the
   surroundings.
@@ -109,6 +113,13 @@ CAUSES: dict[str, Cause] = {
             "photograph in air, or declare the water (medium: its attenuation estimated)",
         ),
         Cause(
+            "port",
+            "the wall is seen as if through a flat window in water: each footprint lies "
+            "nearer the camera's axis than straight rays put it (a camera housing's port)",
+            "declare the camera's port (`camera.port: {distance_mm, thickness_mm, "
+            "glass_index, water_index}`), or check the one declared",
+        ),
+        Cause(
             "wall",
             "the residuals follow the position on the wall, the same in every view: uneven "
             "albedo, a wall that is not flat, or light from the surroundings",
@@ -139,6 +150,9 @@ class PixelFeatures:
         light_angle: angle between the brightest light's axis and the direction to the
             pixel, radians.
         field_tan2: tan^2 of the angle between the camera's optical axis and the ray.
+        port_bend: d ln E / d eps where a flat port of index 1 + eps moves the footprint
+            (`lightcal.core.port_bend.port_bend_pattern`, from the camera's centre also
+            behind a declared port; 0 on a wall mesh).
     """
 
     signal: np.ndarray
@@ -150,6 +164,7 @@ class PixelFeatures:
     d_camera: np.ndarray
     light_angle: np.ndarray
     field_tan2: np.ndarray
+    port_bend: np.ndarray
 
     @staticmethod
     def concatenate(parts: list[PixelFeatures]) -> PixelFeatures:
@@ -223,6 +238,12 @@ def _medium(f: PixelFeatures) -> np.ndarray:
     return (f.d_light + f.d_camera)[:, None]
 
 
+def _port(f: PixelFeatures) -> np.ndarray:
+    if not np.any(f.port_bend):
+        return np.zeros((f.signal.size, 0))
+    return f.port_bend[:, None]
+
+
 def _wall(f: PixelFeatures) -> np.ndarray:
     xy = f.wall_xy
     if xy.shape[0] == 0:
@@ -251,18 +272,21 @@ _MULTIPLICATIVE = {
     "vignetting": _vignetting,
     "response": _response,
     "medium": _medium,
+    "port": _port,
     "wall": _wall,
 }
 
 
 #: The sign each cause's coefficients must have (physics; 0: either). Gloss adds light
 #: toward the mirror direction and its coat darkens grazing angles, a rough matte wall
-#: brightens toward the light (sigma^2 >= 0), room light adds, absorption takes away.
+#: brightens toward the light (sigma^2 >= 0), room light adds, absorption takes away,
+#: water behind a port is denser than air (eps >= 0).
 SIGNS: dict[str, tuple[int, ...]] = {
     "gloss": (1,) * (len(GLOSS_ALPHAS) + 1),
     "rough_matte": (1,),
     "ambient": (1, 0),
     "medium": (-1,),
+    "port": (1,),
 }
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from lightcal.core.misfit_causes import PixelFeatures
 from lightcal.core.misfit_kernels import add_weighted_gram, mirror_incidence, noise_residuals
+from lightcal.core.port_bend import port_bend_pattern
 from lightcal.core.rotations import in_normal_frames
 from lightcal.core.scene import Light
 from lightcal.core.solver import CalibrationModel
@@ -234,7 +235,7 @@ def _value_gram(J: np.ndarray, sigma: np.ndarray) -> np.ndarray:
 
 def _no_features() -> PixelFeatures:
     z = np.zeros(0)
-    return PixelFeatures(z, z, np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3)), z, z, z, z)
+    return PixelFeatures(z, z, np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3)), z, z, z, z, z)
 
 
 def _features(
@@ -266,6 +267,11 @@ def _features(
     if normals is not None:  # a wall mesh: the directions in each footprint's own frame
         to_light = in_normal_frames(to_light, normals[rows])
         to_camera = in_normal_frames(to_camera, normals[rows])
+    # The plane z = 0 (footprints through a camera's port carry their normal +z).
+    on_plane = normals is None or bool(np.all(normals[rows] == np.array([0.0, 0.0, 1.0])))
+    port_bend = (
+        port_bend_pattern(centers, view, lights, brightest) if on_plane else np.zeros(rows.size)
+    )
     return PixelFeatures(
         signal=lit.sum(axis=0),
         gain=np.full(rows.size, gain),
@@ -276,6 +282,7 @@ def _features(
         d_camera=d_camera,
         light_angle=np.arccos(np.clip(cos_light, -1.0, 1.0)),
         field_tan2=field_tan2,
+        port_bend=port_bend,
     )
 
 
