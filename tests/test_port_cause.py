@@ -64,3 +64,21 @@ def test_an_undeclared_port_is_named_as_the_cause(tmp_path: Path) -> None:
     true_position = np.array(truth["lights"][0]["position_m"])
     error = np.linalg.norm(declared.lights[0].pose.t_camera_light - true_position)
     assert math.isfinite(error) and error < 3e-3
+
+
+def test_an_undeclared_light_port_is_named_by_the_profile_cause(tmp_path: Path) -> None:
+    """`lightcal synth --light-port 15 8 1.49 1.333` calibrated without `lights[0].port`:
+    a window at the emitter changes the beam's profile in the water (the first order of
+    an interface of index 1 + eps at the emitter is a function of the angle from the
+    axis alone), so the `profile` cause is first and its advice names the light's port
+    (measured: 9.7 % of the signal, 200 mm)."""
+    out = tmp_path / "data"
+    argv = ["synth", str(out), "--width", "320", "--height", "240", "--views", "10"]
+    assert main([*argv, "--light-port", "15", "8", "1.49", "1.333", "--seed", "3", "--quiet"]) == 0
+    doc = json.loads((out / "project.json").read_text())
+    doc["selection"]["n_per_image"] = 2000
+    (out / "project.json").write_text(json.dumps(doc))
+    _, _, result = calibrate_project(load_project(out / "project.json"))
+    assert not result.fit_adequate
+    assert result.fit["causes"][0]["cause"] == "profile"
+    assert "declare the light's port in water (`lights[i].port`)" in result.fit["findings"][0]

@@ -82,8 +82,10 @@ CAUSES: dict[str, Cause] = {
         Cause(
             "profile",
             "the residuals follow the angle from the light's axis: the light's angular "
-            "profile (RID) differs from the one given (a bright rim, another width)",
-            "check the RID file, or estimate it (`estimate_rid: curve`)",
+            "profile (RID) differs from the one given (a bright rim, another width; in "
+            "water, a flat window in front of the light narrows its beam)",
+            "check the RID file, declare the light's port in water (`lights[i].port`), or "
+            "estimate the RID (`estimate_rid: curve`)",
         ),
         Cause(
             "ambient",
