@@ -62,6 +62,17 @@ def _rename_light(data: dict[str, Any]) -> None:
     data["lights"][0]["name"] = "torch"
 
 
+PORT = {"distance_mm": 20.0, "thickness_mm": 10.0, "glass_index": 1.49, "water_index": 1.333}
+
+
+def _camera_port(data: dict[str, Any]) -> None:
+    data["camera"]["port"] = PORT
+
+
+def _light_port(data: dict[str, Any]) -> None:
+    data["lights"][0]["port"] = PORT
+
+
 def _change_focal_length(data: dict[str, Any]) -> None:
     """The camera inline, as in the camera file but fx 1 % longer."""
     data["camera"] = {"fx": 1.01, "fy": 1.0, "cx": 0.0, "cy": 0.0}  # scaled in the test
@@ -75,8 +86,18 @@ def _change_focal_length(data: dict[str, Any]) -> None:
         (_move_image, False),
         (_rename_light, False),
         (_change_focal_length, False),
+        (_camera_port, False),
+        (_light_port, False),
     ],
-    ids=["initial guess", "solver and wall", "an image's pose", "a light's name", "fx"],
+    ids=[
+        "initial guess",
+        "solver and wall",
+        "an image's pose",
+        "a light's name",
+        "fx",
+        "camera.port",
+        "lights[0].port",
+    ],
 )
 def test_the_identity_covers_geometry_and_lights_not_the_start(
     tiny_dataset: Path, tmp_path: Path, edit: Callable[[dict[str, Any]], None], same: bool

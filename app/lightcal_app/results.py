@@ -17,7 +17,7 @@ from lightcal.core.solver import CalibrationModel
 from lightcal.errors import InputError
 from lightcal.io.project import Project
 from lightcal.io.project_identity import project_identity
-from lightcal.io.result_file import result_to_file
+from lightcal.io.result_file import project_ports, result_to_file
 from lightcal.pipeline import CalibrationResult, LoadedImages
 from lightcal.pipeline.albedo_result import albedo_text
 from lightcal.pipeline.result_text import axis_text, channel_lines, medium_text, position_text
@@ -172,7 +172,12 @@ def _wall_and_fit(result: CalibrationResult) -> list[str]:
 
 def result_json_bytes(result: CalibrationResult, project: Project) -> bytes:
     """The result file (`lightcal calibrate --out` format) as bytes."""
-    file = result_to_file(result, project=project.path, project_id=project_identity(project))
+    file = result_to_file(
+        result,
+        project=project.path,
+        project_id=project_identity(project),
+        ports=project_ports(project),
+    )
     return (file.model_dump_json(indent=2) + "\n").encode()
 
 

@@ -61,7 +61,12 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.io.outputs import check_output_file, check_output_folder, project_inputs
     from lightcal.io.project import load_project
     from lightcal.io.project_identity import project_identity
-    from lightcal.io.result_file import is_result_file, result_to_file, write_result
+    from lightcal.io.result_file import (
+        is_result_file,
+        project_ports,
+        result_to_file,
+        write_result,
+    )
     from lightcal.pipeline import build_model, calibrate, load_images
     from lightcal.pipeline.auto_start import auto_initial_lines, with_auto_initial
     from lightcal.pipeline.load import prepare_solve
@@ -122,7 +127,12 @@ def run(args: argparse.Namespace) -> int:
     )
     model, result = cal.model, cal.result
     write_result(
-        result_to_file(result, project=project.path, project_id=project_identity(project)),
+        result_to_file(
+            result,
+            project=project.path,
+            project_id=project_identity(project),
+            ports=project_ports(project),
+        ),
         args.out,
     )
     for lr in result.lights:

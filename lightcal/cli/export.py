@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcal.errors import InputError
     from lightcal.io.export import export_files, export_result
     from lightcal.io.outputs import check_output_file, project_inputs
-    from lightcal.io.result_file import read_result
+    from lightcal.io.result_file import ports_left_out, read_result
 
     # Before any work: the options fit the format, and --out is never a file this export
     # reads (the result, the project and the files it names, such as a light's IES),
@@ -100,9 +100,9 @@ def run(args: argparse.Namespace) -> int:
     result = read_result(args.result)
     medium = export_medium(result, args.result)  # a broken medium: refused before writing
     camera = None if project is None else project.camera
-    port = None if project is None else project.camera_port
     from lightcal.io.export_light_port import light_ports_of
 
+    port = None if project is None else project.camera_port
     light_ports = light_ports_of(
         [] if project is None else [(u.initial.name, u.initial.port) for u in project.lights]
     )
@@ -170,6 +170,8 @@ def run(args: argparse.Namespace) -> int:
             f"albedo rho = {wall_albedo:g} ({where}): give the scene's wall that albedo",
             file=sys.stderr,
         )
+    if project is None and result.ports is not None:
+        print(f"note: {ports_left_out(result.ports)}", file=sys.stderr)
     if port is not None and args.format in ("opencv", "ros"):
         print(
             "note: camera.port: the poses are in the frame of the camera in its housing, "

@@ -30,7 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from lightcal.core.flat_port import FlatPort
 from lightcal.errors import InputError
 
-__all__ = ["PortSpec", "build_light_port", "build_port"]
+__all__ = ["PortSpec", "build_light_port", "build_port", "port_section"]
 
 
 class PortSpec(BaseModel):
@@ -131,3 +131,13 @@ def _flat_port(port_spec: PortSpec, key: str, refusals: list[str], source: Path)
         )
     except ValueError as exc:
         raise InputError(source, f"{key}: {exc}") from exc
+
+
+def port_section(port: FlatPort) -> PortSpec:
+    """The project file's section of a `FlatPort` (m to mm): what a result records."""
+    return PortSpec(
+        distance_mm=port.distance_m * 1000.0,
+        thickness_mm=port.thickness_m * 1000.0,
+        glass_index=port.glass_index,
+        water_index=port.water_index,
+    )

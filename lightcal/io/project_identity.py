@@ -7,10 +7,12 @@ So `lightcal calibrate` writes `project_id` into the result: a hash of what the 
 depends on, and each command that reads a result with a project checks it first.
 
 What the identity covers: the camera (intrinsics, distortion, image size), every image's
-name and pose, and every light's name and RID (its kind and parameters; a photometric
-file by its content, not its path). What it leaves out, because a result stays valid
-across them: paths (a project folder that moved), the initial guesses (the app writes a
-solution back as the next start), the selection, the solver and the wall model.
+name and pose, every light's name and RID (its kind and parameters; a photometric
+file by its content, not its path), and the camera's and lights' flat ports where there
+are any (a project without ports hashes as before ports existed). What it leaves out,
+because a result stays valid across them: paths (a project folder that moved), the
+initial guesses (the app writes a solution back as the next start), the selection, the
+solver and the wall model.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from lightcal.core.flat_port import FlatPort
 from lightcal.errors import InputError
 from lightcal.io.project import Project
 
@@ -46,26 +49,35 @@ def _rid_identity(rid_spec: dict[str, Any], folder: Path) -> dict[str, Any]:
     return out
 
 
+def _port_identity(port: FlatPort) -> list[str]:
+    return _numbers(
+        [port.distance_m, port.thickness_m, port.glass_index, port.water_index, *port.normal_camera]
+    )
+
+
 def project_identity(project: Project) -> str:
     """`sha256:` and 16 hex digits identifying the project's camera, views and lights."""
     camera = project.camera
+    camera_content: dict[str, Any] = {
+        "K": _numbers(camera.K),
+        "dist": _numbers(camera.dist),
+        "size": [int(camera.width), int(camera.height)],
+    }
+    if project.camera_port is not None:
+        camera_content["port"] = _port_identity(project.camera_port)
+    lights: list[dict[str, Any]] = []
+    for spec, unknown in zip(project.spec.lights, project.lights, strict=True):
+        light = {"name": spec.name, "rid": _rid_identity(spec.rid.model_dump(), project.folder)}
+        if unknown.initial.port is not None:
+            light["port"] = _port_identity(unknown.initial.port)
+        lights.append(light)
     content = {
-        "camera": {
-            "K": _numbers(camera.K),
-            "dist": _numbers(camera.dist),
-            "size": [int(camera.width), int(camera.height)],
-        },
+        "camera": camera_content,
         "views": [
             {"name": name, "R": _numbers(view.R_camera_world), "t": _numbers(view.t_camera_world)}
             for name, view in zip(project.names, project.views, strict=True)
         ],
-        "lights": [
-            {
-                "name": spec.name,
-                "rid": _rid_identity(spec.rid.model_dump(), project.folder),
-            }
-            for spec in project.spec.lights
-        ],
+        "lights": lights,
     }
     text = json.dumps(content, sort_keys=True, separators=(",", ":"))
     return PREFIX + hashlib.sha256(text.encode()).hexdigest()[:DIGITS]

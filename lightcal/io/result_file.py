@@ -65,6 +65,7 @@ from lightcal.core.rotations import ORTHONORMAL_TOL
 from lightcal.errors import InputError
 from lightcal.io.atomic import atomic_write_text
 from lightcal.io.document import read_document
+from lightcal.io.port_spec import PortSpec, port_section
 from lightcal.io.result_fields import describe_result_schema
 
 RESULT_VERSION = 1
@@ -72,6 +73,47 @@ RESULT_VERSION = 1
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid")
+
+
+class ResultPorts(_Model):
+    """The flat ports a calibration looked and shone through (the project's `camera.port`
+    and `lights[i].port`, mm), so that an export without the project still has them."""
+
+    camera: PortSpec | None = Field(
+        default=None, description="the camera's flat port (camera.port); null: none"
+    )
+    lights: dict[str, PortSpec] = Field(
+        default_factory=dict, description="each ported light's port (lights[i].port) by name"
+    )
+
+
+def result_ports(camera_port: Any, light_ports: list[tuple[str, Any]]) -> ResultPorts | None:
+    """The record of a project's ports (`FlatPort`s or None: the camera's, and each light's
+    by name), or None without any."""
+    lights = {name: port_section(port) for name, port in light_ports if port is not None}
+    if camera_port is None and not lights:
+        return None
+    camera = None if camera_port is None else port_section(camera_port)
+    return ResultPorts(camera=camera, lights=lights)
+
+
+def project_ports(project: Any) -> ResultPorts | None:
+    """`result_ports` of a `lightcal.io.project.Project`."""
+    return result_ports(
+        project.camera_port, [(u.initial.name, u.initial.port) for u in project.lights]
+    )
+
+
+def ports_left_out(ports: ResultPorts) -> str:
+    """What an export without the project leaves out of a result calibrated through flat
+    ports (`ResultFile.ports`), in words."""
+    keys = (["camera.port"] if ports.camera is not None else []) + [
+        f"the port of {name!r}" for name in ports.lights
+    ]
+    return (
+        f"the result was calibrated through flat ports ({', '.join(keys)}); without "
+        "--project the export carries the lights alone, without their ports"
+    )
 
 
 class PoseSigma(_Model):
@@ -275,6 +317,11 @@ class ResultFile(_Model):
         "any (surfaces[i].estimate_albedo): albedos (per surface), estimated (indices), "
         "sigma (by index); null otherwise",
     )
+    ports: ResultPorts | None = Field(
+        default=None,
+        description="the flat ports the images were calibrated through (the project's "
+        "camera.port and lights[i].port, mm); null: none",
+    )
     fall_off: dict[str, Any] | None = Field(
         default=None,
         description="the camera's fall-off estimated with the lights (sensor.estimate_fall_off):"
@@ -306,10 +353,15 @@ class ResultFile(_Model):
 
 
 def result_to_file(
-    result, *, project: str | Path | None = None, project_id: str | None = None
+    result,
+    *,
+    project: str | Path | None = None,
+    project_id: str | None = None,
+    ports: ResultPorts | None = None,
 ) -> ResultFile:
     """Convert a `lightcal.pipeline.CalibrationResult` to the file model; `project` is the
-    project file's path, `project_id` its `project_identity`."""
+    project file's path, `project_id` its `project_identity`, `ports` its flat ports
+    (`project_ports`)."""
     lights = [
         LightResultModel(
             name=lr.name,
@@ -360,6 +412,7 @@ def result_to_file(
         ambient_sigma=_nan_to_none(result.ambient_sigma),
         channels=_nan_to_none(getattr(result, "channels", None)),
         surroundings=_nan_to_none(getattr(result, "surroundings", None)),
+        ports=ports,
     )
 
 
