@@ -109,7 +109,7 @@ def light_flux(
     reflectance B (`lightcal.core.wall`) at the footprint centre, a medium other than
     air by its transmittance T (`lightcal.core.medium`) there. A light behind a flat
     port (`light.port`) is lit through it (`lightcal.core.light_port_flux`; a
-    Lambertian wall on the plane, no backscatter).
+    Lambertian wall on the plane; its veil `lightcal.core.light_port_veil`).
 
     Args:
         footprints: from `pixel_footprints` for this view.
