@@ -94,4 +94,4 @@ def test_lightcal_synth_and_calibrate_run_a_ported_light_in_scattering_water(
     medium = json.loads(result.read_text())["medium"]
     print(f"\n{medium}")
     assert medium["backscatter_per_m"] == pytest.approx(0.6, rel=0.3)
-    assert (report / "index.html").is_file()
+    assert (report / "summary.md").is_file() and len(list(report.glob("*.png"))) > 6
