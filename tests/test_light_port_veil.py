@@ -320,7 +320,7 @@ def test_the_whole_image_through_the_cameras_port_keeps_its_exit_points() -> Non
     camera = Camera.from_params(fx=300.0, fy=300.0, cx=199.5, cy=149.5, width=400, height=300)
     view, rig, port = _view(), Rig.single(_light()), FlatPort(0.02, 0.01, 1.49, 1.333)
     image = render_image_through_port(camera, view, rig, port, medium=WATER).filled(np.nan)
-    # The pixels in another order are not a whole image: every ray integrated.
+    # A selection of pixels (here all, in another order): every ray integrated.
     fp = port_footprints(camera, view, _pixels(camera)[::-1], port)
     exact = shade(fp, view, rig, medium=WATER).values.filled(np.nan)[::-1]
     rel = np.abs(image.ravel() / exact - 1.0)

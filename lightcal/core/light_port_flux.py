@@ -48,7 +48,7 @@ from lightcal.core.footprint import Footprints
 from lightcal.core.kernels.port_flux import port_flux_pixels
 from lightcal.core.kernels.port_water import attenuate_rows
 from lightcal.core.light_port import port_geometry
-from lightcal.core.light_port_veil import add_port_veil, whole_image_shape
+from lightcal.core.light_port_veil import add_port_veil
 from lightcal.core.medium import Medium
 from lightcal.core.rid_eval import RIDData, rid_tuple
 from lightcal.core.scene import Light, View
@@ -152,7 +152,7 @@ def port_light_flux(
             R_world_light, light, medium, exposure=view.exposure, flux=flux, grad=grad,
             medium_grad_out=medium_grad_out if want_c else None,
             veil_factor=footprints.port_transmittance,
-            image_shape=None if want_grad else whole_image_shape(footprints.pixels),
+            image_shape=None if want_grad else footprints.image_shape,
         )  # fmt: skip
     return flux, grad
 

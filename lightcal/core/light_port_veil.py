@@ -31,7 +31,7 @@ from lightcal.core.medium import Medium, scatter_grid, scatter_nodes
 from lightcal.core.rid_eval import RIDData, rid_tuple
 from lightcal.core.scene import Light, View
 
-__all__ = ["add_port_veil", "port_backscatter", "port_scatter", "whole_image_shape"]
+__all__ = ["add_port_veil", "port_backscatter", "port_scatter"]
 
 
 def port_scatter(
@@ -78,22 +78,6 @@ def port_backscatter(
         light.rid.data(), light.port, medium, want_grad=False,
     )  # fmt: skip
     return s
-
-
-def whole_image_shape(pixels: np.ndarray) -> tuple[int, int] | None:
-    """(hb, wb) when pixels (N, 2) (u, v) are every pixel of an hb x wb image in
-    row-major order (as `render_image` and `render_image_through_port` ask for them),
-    else None."""
-    n = len(pixels)
-    if n < 4 or pixels[0, 0] != 0 or pixels[0, 1] != 0:
-        return None
-    wb, hb = int(pixels[-1, 0]) + 1, int(pixels[-1, 1]) + 1
-    if wb * hb != n:
-        return None
-    v, u = np.divmod(np.arange(n), wb)
-    if not (np.array_equal(pixels[:, 0], u) and np.array_equal(pixels[:, 1], v)):
-        return None
-    return hb, wb
 
 
 def _on_grid(
@@ -172,7 +156,7 @@ def add_port_veil(
         veil_factor: (N,) the camera's port's Fresnel transmittance of each pixel's
             rays (`Footprints.port_transmittance`), or None (1).
         image_shape: (hb, wb) when the N pixels are a whole image in row-major order
-            (`whole_image_shape`): without grad, S on `scatter_grid`'s nodes only.
+            (`Footprints.image_shape`): without grad, S on `scatter_grid`'s nodes only.
     """
     assert light.port is not None
     ok = np.isfinite(centers_world).all(axis=1)

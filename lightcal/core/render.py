@@ -16,7 +16,7 @@ that is decided per pixel: a light behind the footprint's plane lights nothing t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -381,6 +381,7 @@ def render_image(
             camera, view, every, sensor=sensor, vignetting=vignetting, binning=int(binning),
             max_quads_per_side=None,
         )  # fmt: skip
+        fp = replace(fp, image_shape=(hb, wb))  # a ported light's veil on a node grid
         _check_scatter_sensor(medium, sensor)
         on_mesh = shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples,
                         wall=wall, medium=medium).values  # fmt: skip
