@@ -64,11 +64,11 @@ FAMILIES: tuple[Family, ...] = (
     # The ray-mesh intersection: footprints on a wall given as a mesh (here its plane).
     Family("a wall given as a mesh", synth={"declare_wall_mesh": True}),
     # The light's flat port: its path solve and flux, serial (the few pixels of a
-    # perturbed solve) and parallel (all pixels, whole images), and its water.
+    # perturbed solve) and parallel (all pixels, whole images), its water and its veil.
     Family(
-        "a light behind a flat port (its path solve and water)",
+        "a light behind a flat port (its path solve, water and veil)",
         size=DENSE,
-        medium={"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]},
+        medium={"attenuation_per_m": 0.2, "backscatter_per_m": 0.3, "estimate": _WATER},
         selection={"strategy": "all", "binning": 1},
         report=True,
         synth={"light_port": (15.0, 8.0, 1.49, 1.333), "declare_light_port": True},

@@ -256,6 +256,21 @@ def pose_errors(estimate: Light, truth: Light) -> tuple[float, float]:
     return position, math.degrees(math.acos(cos))
 
 
+def calibrate_synth_folder(folder: Path) -> tuple[float, float, Medium]:
+    """Calibrate the project of a `lightcal synth` folder: (position error m, axis error
+    deg) of its first light against the folder's truth.json, and the estimated medium."""
+    from lightcal.io.project import load_project
+    from lightcal.pipeline import calibrate_project
+
+    truth = json.loads((folder / "truth.json").read_text())["lights"][0]
+    _, model, res = calibrate_project(load_project(folder / "project.json"))
+    x = np.array(res.x)
+    est = model.layout.rig(x).lights[0]
+    position = float(np.linalg.norm(est.t_camera_light - np.array(truth["position_m"])))
+    cos = float(np.clip(est.axis_camera @ np.array(truth["axis_camera"]), -1.0, 1.0))
+    return position, math.degrees(math.acos(cos)), model.layout.medium_of(x)
+
+
 def rotation_error_deg(estimate: Light, truth: Light) -> float:
     """Angle of R_est R_true^T, degrees (the full orientation, for general lights)."""
     D = estimate.R_camera_light @ truth.R_camera_light.T

@@ -181,15 +181,6 @@ PROJECT_CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
         "lights[0].port.index: Extra inputs are not permitted",
     ),
     (
-        "light port with backscatter",
-        lambda p: (
-            _set("lights.0.port", _LIGHT_PORT)(p),
-            _set("medium", {"attenuation_per_m": 0.2, "backscatter_per_m": 0.5})(p),
-        ),
-        "lights[0].port: not modelled together with medium.backscatter_per_m (the veil's "
-        "beam is traced straight)",
-    ),
-    (
         "light port with a glossy wall",
         lambda p: (_set("lights.0.port", _LIGHT_PORT)(p), _set("wall", {"model": "plastic"})(p)),
         "lights[0].port: not modelled together with wall.model: plastic (a non-Lambertian "

@@ -453,12 +453,9 @@ CASES: list[tuple[str, str, tuple[str, bool]]] = [
         ),
     ),
     (
-        "synth: --light-port with --backscatter",
-        "synth {n} --light-port 15 8 1.49 1.333 --backscatter 1",
-        _error(
-            "synth",
-            "--light-port: not rendered with backscatter, a non-Lambertian wall or 'paper'",
-        ),
+        "synth: --light-port with --wall plastic",
+        "synth {n} --light-port 15 8 1.49 1.333 --wall plastic",
+        _error("synth", "--light-port: not rendered with a non-Lambertian wall or 'paper'"),
     ),
     (
         "synth: --init-offset-m -1",

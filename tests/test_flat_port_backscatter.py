@@ -17,8 +17,7 @@ from lightcal.core.medium import Medium
 from lightcal.core.port_footprints import port_footprints
 from lightcal.core.render import shade
 from lightcal.core.scene import Light, Rig
-from lightcal.io.project import load_project
-from lightcal.pipeline import calibrate_project
+from tests.calib_scenes import calibrate_synth_folder
 from tests.test_flat_port import PORT, _all_pixels, _camera, _rig, _view
 
 WATER = Medium(0.3, 0.8, 0.6)
@@ -131,16 +130,7 @@ def test_the_light_and_the_water_are_recovered_through_the_port_with_backscatter
     # off with c 0.15): the documented remedy, random starts.
     doc.setdefault("solver", {})["multistart"] = 4
     (out / "project.json").write_text(json.dumps(doc))
-    truth = json.loads((out / "truth.json").read_text())
-    _, model, res = calibrate_project(load_project(out / "project.json"))
-    x = np.array(res.x)
-    est = model.layout.rig(x).lights[0]
-    position = float(
-        np.linalg.norm(est.t_camera_light - np.array(truth["lights"][0]["position_m"]))
-    )
-    axis_true = np.array(truth["lights"][0]["axis_camera"])
-    axis = float(np.degrees(np.arccos(np.clip(est.axis_camera @ axis_true, -1.0, 1.0))))
-    medium = model.layout.medium_of(x)
+    position, axis, medium = calibrate_synth_folder(out)
     print(
         f"\n{position * 1e3:.2f} mm, {axis:.3f} deg, c {medium.attenuation_per_m:.4f}, "
         f"beta {medium.backscatter_per_m:.4f}"

@@ -228,5 +228,7 @@ def test_what_is_not_modelled_is_refused() -> None:
     fp = pixel_footprints(camera, view, _pixels(camera))
     with pytest.raises(ValueError, match="light port: only a Lambertian wall"):
         light_flux(fp, view, _light(), wall=PlasticWall())
-    with pytest.raises(ValueError, match="light port: the medium's backscatter"):
-        light_flux(fp, view, _light(), medium=Medium(0.2, 1.0))
+    # The veil is modelled behind the port (tests/test_light_port_veil.py).
+    flux, _ = light_flux(fp, view, _light(), medium=Medium(0.2, 1.0))
+    clear, _ = light_flux(fp, view, _light(), medium=Medium(0.2))
+    assert np.all(flux[fp.valid] > clear[fp.valid])

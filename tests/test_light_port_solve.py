@@ -22,18 +22,26 @@ from tests import calib_scenes as cs
 PORT_DOC = {"distance_mm": 15.0, "thickness_mm": 8.0, "glass_index": 1.49, "water_index": 1.333}
 PORT = FlatPort(0.015, 0.008, 1.49, 1.333)
 WATER_C = 0.2
+CLEAR_WATER = Medium(WATER_C)
 
 
-def _write(folder: Path, *, port_in_file: bool) -> tuple[Path, object]:
-    """8 noise-free views (160 x 120) of a light behind its port in water of c = 0.2 /m;
-    the project starts the light 40 mm and 4 degrees off and c at 0.1 /m."""
+def _write(
+    folder: Path,
+    *,
+    port_in_file: bool,
+    water: Medium = CLEAR_WATER,
+    medium_doc: dict | None = None,
+) -> tuple[Path, object]:
+    """8 noise-free views (160 x 120) of a light behind its port in `water` (c = 0.2 /m);
+    the project starts the light 40 mm and 4 degrees off and its `medium` (`medium_doc`)
+    estimates c from 0.1 /m."""
     camera = cs.small_camera(width=160, height=120)
     light = cs.symmetric_light().replace(port=PORT)
     views = cs.views(8, seed=4)
     (folder / "images").mkdir(parents=True, exist_ok=True)
     images = []
     for i, view in enumerate(views):
-        img = render_image(camera, view, Rig.single(light), medium=Medium(WATER_C)).filled(0.0)
+        img = render_image(camera, view, Rig.single(light), medium=water).filled(0.0)
         np.save(folder / "images" / f"view_{i:02d}.npy", img)
         R, t = view.R_camera_world, view.t_camera_world
         images.append(
@@ -63,7 +71,7 @@ def _write(folder: Path, *, port_in_file: bool) -> tuple[Path, object]:
         "camera": cam,
         "images": images,
         "lights": [light_doc],
-        "medium": {"attenuation_per_m": 0.1, "estimate": ["attenuation_per_m"]},
+        "medium": medium_doc or {"attenuation_per_m": 0.1, "estimate": ["attenuation_per_m"]},
         "selection": {"n_per_image": 1500, "min_signal": 5.0},
     }
     path = folder / "project.json"
@@ -90,7 +98,6 @@ def test_the_port_key_builds_the_lights_port(tmp_path: Path) -> None:
         (lambda d: d["lights"][0]["port"].update(distance_mm=0), r"lights\[0\]\.port\.distance_mm"),
         (lambda d: d["lights"][0]["port"].update(n=1.3), r"lights\[0\]\.port\.n"),
         (lambda d: d["lights"][0]["port"].update(glass_index=0.5), r"lights\[0\]\.port\.glass"),
-        (lambda d: d["medium"].update(backscatter_per_m=1.0), r"lights\[0\]\.port: .*backscat"),
         (lambda d: d["wall"].update(model="plastic"), r"lights\[0\]\.port: .*wall\.model"),
         (lambda d: d["lights"][0].update(initial="auto"), r"lights\[0\]\.port: .*initial: auto"),
         (

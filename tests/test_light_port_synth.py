@@ -53,7 +53,7 @@ def test_synths_imaging_through_the_lights_port_agrees_with_the_renderer() -> No
         (["--declare-light-port"], "--declare-light-port: expected --light-port D_MM T_MM NG NW"),
         (["--light-port", "0", "8", "1.49", "1.333"], "--light-port: port: distance_m"),
         ([*LIGHT_PORT_ARGS, "--bow-mm", "3"], "--light-port: not rendered with a camera port"),
-        ([*LIGHT_PORT_ARGS, "--backscatter", "1"], "--light-port: not rendered with backscatter"),
+        ([*LIGHT_PORT_ARGS, "--wall", "plastic"], "--light-port: not rendered with a non-Lamb"),
     ],
 )
 def test_synth_light_port_errors(tmp_path: Path, capsys, args: list[str], message: str) -> None:

@@ -350,11 +350,13 @@ def test_a_family_calibrates_on_a_wall_given_as_a_mesh(tmp_path: Path) -> None:
 
 def test_a_family_calibrates_a_light_behind_a_flat_port(tmp_path: Path) -> None:
     """`lightcal warmup` compiles the light's port kernels: one family's light shines
-    through a declared port, in water, every pixel (the parallel twins) and a report."""
-    from lightcal.core.kernels import port_flux, port_water
+    through a declared port, in water that scatters (its veil), every pixel (the
+    parallel twins) and a report."""
+    from lightcal.core.kernels import port_flux, port_veil, port_water
 
     (family,) = [f for f in warmup.FAMILIES if (f.synth or {}).get("declare_light_port")]
     project = warmup._write_dataset(tmp_path / "data", family)
     assert json.loads(project.read_text())["lights"][0]["port"]["distance_mm"] == 15.0
     warmup._calibrate(project, None)
     assert port_flux._pixels_parallel.signatures and port_water._attenuate_parallel.signatures
+    assert port_veil._rays_parallel.signatures and port_veil._rays_serial.signatures

@@ -264,7 +264,8 @@ def register_departures(p: argparse.ArgumentParser) -> None:
         help="every light shines through a flat port along its axis: its inner face D_MM mm "
         "in front of the emitter, T_MM mm of glass of index NG, water of index NW outside "
         "(the air direction solved per pixel, the irradiance point-sampled with the "
-        "Fresnel transmittance; flat wall, Lambertian, no backscatter, no --port) (none)",
+        "Fresnel transmittance; with --backscatter the refracted beam's veil; flat wall, "
+        "Lambertian, no --port) (none)",
     )
     g.add_argument(
         "--declare-light-port",

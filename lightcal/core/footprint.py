@@ -158,6 +158,11 @@ class Footprints:
             transmittance of each pixel's rays (the mean over its member pixels; 0 where
             invalid): what the water's veil and the room light seen through the port
             carry (the wall's light carries it in `weights`). None without a port.
+        image_shape: (hb, wb) when these are every pixel of a whole (binned) image in
+            row-major order, as the whole-image renderers build them: a ported light's
+            veil is then computed on `medium.scatter_grid`'s nodes and interpolated
+            (`light_port_veil.add_port_veil`); None (any selection, the solver's) for
+            every pixel's own.
     """
 
     pixels: np.ndarray
@@ -170,6 +175,7 @@ class Footprints:
     sensor: SensorModel = "radiance"
     port_exits_world: np.ndarray | None = None
     port_transmittance: np.ndarray | None = None
+    image_shape: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if (self.stored_corners is None) == (self.grid is None):

@@ -54,6 +54,18 @@ def _indices(port: FlatPort) -> tuple[float, float]:
     return port.glass_index / port.air_index, port.water_index / port.air_index
 
 
+def port_geometry(port: FlatPort) -> np.ndarray:
+    """(7,) the port's numbers as the kernels take them: d, t, n_g / n_a, n_w / n_a, n_a,
+    n_g, n_w."""
+    n_g, n_w = _indices(port)
+    return np.array(
+        [
+            port.distance_m, port.thickness_m, n_g, n_w, port.air_index, port.glass_index,
+            port.water_index,
+        ]
+    )  # fmt: skip
+
+
 def air_sines(rho_m: np.ndarray, h_m: np.ndarray, port: FlatPort) -> tuple[np.ndarray, np.ndarray]:
     """sin(theta_a) of the refracted paths from the emitter to points at radial distance
     rho_m (M,) and axial distance h_m (M,) from it (port frame, m).

@@ -31,8 +31,12 @@ theta_w (`PortPaths.water_m`), with its derivatives in the pose and in c.
 same formulas in the same order; tests/light_port_numpy.py keeps the NumPy code it
 replaced, which the tests hold it to).
 
+The medium's backscatter, the beam scattered towards the camera along each pixel's ray
+in the water, is added by `lightcal.core.light_port_veil.add_port_veil` (per pixel with
+its gradients; a whole image on `medium.scatter_grid`'s nodes).
+
 Not here (refused by `port_light_flux` and, naming the key, by the project file): a wall
-mesh, a non-Lambertian wall, the medium's backscatter.
+mesh, a non-Lambertian wall.
 """
 
 from __future__ import annotations
@@ -43,22 +47,12 @@ from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import Footprints
 from lightcal.core.kernels.port_flux import port_flux_pixels
 from lightcal.core.kernels.port_water import attenuate_rows
+from lightcal.core.light_port import port_geometry
+from lightcal.core.light_port_veil import add_port_veil
 from lightcal.core.medium import Medium
 from lightcal.core.rid_eval import RIDData, rid_tuple
 from lightcal.core.scene import Light, View
 from lightcal.core.wall import WallReflectance
-
-
-def _geometry(port: FlatPort) -> np.ndarray:
-    """The port's numbers as the kernels take them: d, t, n_g / n_a, n_w / n_a, n_a, n_g,
-    n_w."""
-    return np.array(
-        [
-            port.distance_m, port.thickness_m, port.glass_index / port.air_index,
-            port.water_index / port.air_index, port.air_index, port.glass_index,
-            port.water_index,
-        ]
-    )  # fmt: skip
 
 
 def quads_flux(
@@ -85,7 +79,7 @@ def quads_flux(
         lit: (M,) every point of the pixel is in front of the port.
         grad: (M, 6) d flux / d (L_world, delta_world), or None.
     """
-    geometry = _geometry(port)
+    geometry = port_geometry(port)
     flux, lit, grad = port_flux_pixels(
         corners_world, weights, light_world, R_world_light, rid_tuple(rid),
         port.normal_camera, geometry, n_sub, want_grad,
@@ -115,11 +109,6 @@ def port_light_flux(
         raise ValueError(
             "light port: only a Lambertian wall is modelled behind a light's port (the "
             "wall's B would need the water direction at the wall)"
-        )
-    if medium.scatters or (medium_grad_out is not None and medium_grad_out.shape[1] > 1):
-        raise ValueError(
-            "light port: the medium's backscatter is not modelled behind a light's port "
-            "(the veil's beam is traced straight from the emitter)"
         )
     n = len(footprints)
     flux = np.zeros(n)
@@ -157,6 +146,14 @@ def port_light_flux(
     flux[rows] = f_rows
     if grad is not None and g_rows is not None:
         grad[rows] = g_rows
+    if medium.scatters or (want_c and medium_grad_out is not None and medium_grad_out.shape[1] > 1):
+        add_port_veil(
+            footprints.centers_now(), footprints.camera_side(view.center_world), L_world,
+            R_world_light, light, medium, exposure=view.exposure, flux=flux, grad=grad,
+            medium_grad_out=medium_grad_out if want_c else None,
+            veil_factor=footprints.port_transmittance,
+            image_shape=None if want_grad else footprints.image_shape,
+        )  # fmt: skip
     return flux, grad
 
 
@@ -182,5 +179,5 @@ def attenuate_through_port(
     """
     return attenuate_rows(
         np.flatnonzero(lit), centers_world, camera_world, light_world, R_world_light,
-        port.normal_camera, _geometry(port), c_per_m, flux, grad,
+        port.normal_camera, port_geometry(port), c_per_m, flux, grad,
     )  # fmt: skip

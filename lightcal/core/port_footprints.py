@@ -38,6 +38,7 @@ dense selections (the quads are always kept: 96 bytes a quad), and the light's p
 from __future__ import annotations
 
 from collections import OrderedDict
+from dataclasses import replace
 from threading import Lock
 
 import numpy as np
@@ -239,10 +240,11 @@ def image_footprints_through_port(
     members = np.arange(b)
     member_rows = p[:, 1, None, None] * b + members[None, :, None]
     member_cols = p[:, 0, None, None] * b + members[None, None, :]
-    return _assembled(
+    whole = _assembled(
         p, b, s, lattice, exits_w[rows, cols], grid_xy[rows, cols], valid, sensor, vmap, port,
         fresnel[member_rows, member_cols],
     )  # fmt: skip
+    return replace(whole, image_shape=(hb, wb))  # a ported light's veil on a node grid
 
 
 _RAYS: OrderedDict[tuple[bytes, tuple[float, ...]], tuple[np.ndarray, ...]] = OrderedDict()

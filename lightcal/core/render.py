@@ -16,7 +16,7 @@ that is decided per pixel: a light behind the footprint's plane lights nothing t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -109,7 +109,7 @@ def light_flux(
     reflectance B (`lightcal.core.wall`) at the footprint centre, a medium other than
     air by its transmittance T (`lightcal.core.medium`) there. A light behind a flat
     port (`light.port`) is lit through it (`lightcal.core.light_port_flux`; a
-    Lambertian wall on the plane, no backscatter).
+    Lambertian wall on the plane; its veil `lightcal.core.light_port_veil`).
 
     Args:
         footprints: from `pixel_footprints` for this view.
@@ -381,6 +381,7 @@ def render_image(
             camera, view, every, sensor=sensor, vignetting=vignetting, binning=int(binning),
             max_quads_per_side=None,
         )  # fmt: skip
+        fp = replace(fp, image_shape=(hb, wb))  # a ported light's veil on a node grid
         _check_scatter_sensor(medium, sensor)
         on_mesh = shade(fp, view, rig, offset=offset, rid_subsamples=rid_subsamples,
                         wall=wall, medium=medium).values  # fmt: skip

@@ -81,10 +81,10 @@ def build_light_port(spec: Any, index: int, source: Path) -> FlatPort | None:
     """Light `index`'s port (`spec`: the `ProjectFile`), or None; InputError naming
     `lights[index].port` when it is combined with what is not modelled behind a light's
     port: a wall mesh, a wall model other than Lambertian (its B would need the water
-    direction at the wall), backscatter (the veil's beam is traced straight from the
-    emitter), the surroundings' bounce light, an estimated RID (its columns take the
-    straight direction) and the automatic initial guess (the beam is sighted along
-    straight rays)."""
+    direction at the wall), the surroundings' bounce light, an estimated RID (its
+    columns take the straight direction) and the automatic initial guess (the beam is
+    sighted along straight rays). The medium's backscatter is modelled behind the port
+    (`lightcal.core.light_port_veil`)."""
     light = spec.lights[index]
     port_spec: PortSpec | None = light.port
     field = f"lights[{index}]"
@@ -99,12 +99,6 @@ def build_light_port(spec: Any, index: int, source: Path) -> FlatPort | None:
             f"wall.model: {spec.wall.model} (a non-Lambertian wall's reflectance needs the "
             "water direction at the wall)"
         )
-    medium = spec.medium
-    scatter = medium.backscatter_per_m
-    if (scatter if isinstance(scatter, int | float) else max(scatter)) > 0.0 or (
-        "backscatter_per_m" in medium.estimate
-    ):
-        refusals.append("medium.backscatter_per_m (the veil's beam is traced straight)")
     if spec.surroundings is not None:
         refusals.append("surroundings (their bounce light is traced straight from the light)")
     if light.estimate_rid != "none":

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import SensorModel
+from lightcal.core.light_port_veil import port_backscatter
 from lightcal.core.medium import Medium, backscatter
 from lightcal.core.render import render_image
 from lightcal.core.scene import Rig, View
@@ -174,13 +175,20 @@ class Imaging:
     ) -> NDArray[np.float64]:
         """(H, W) every light's backscatter along the rays to `points` (H, W, 3) from
         `camera_side`: the camera centre (3,), or behind the port each ray's exit point
-        (H, W, 3) (the water starts there)."""
+        (H, W, 3) (the water starts there); behind the lights' port, their refracted
+        beams' (the renderer's kernel, every pixel exact: the test suite holds it to a
+        brute-force reference)."""
         medium = Medium(self.attenuation_per_m, self.backscatter_per_m, self.phase_g)
         flat = points.reshape(-1, 3)
         start = camera_side.reshape(-1, 3)
         out = np.zeros(flat.shape[0])
         for light in self.rig.lights:
-            s = backscatter(flat, start if len(start) > 1 else start[0], light, view, medium)
+            start_ = start if len(start) > 1 else start[0]
+            if self.light_port is None:
+                s = backscatter(flat, start_, light, view, medium)
+            else:  # the refracted beam's veil (`lightcal.core.light_port_veil`)
+                ported = light.replace(port=self.light_port)
+                s = port_backscatter(flat, start_, ported, view, medium)
             out += light.scale * view.exposure * medium.backscatter_per_m * s
         return out.reshape(points.shape[:2])
 
@@ -377,10 +385,8 @@ def _light_port(
         raise InputError(
             "light_port", "not rendered with a camera port, a bowed wall, a texture or a corner"
         )
-    if departures.backscatter_per_m > 0.0 or not wall.is_lambertian or sensor == "paper":
-        raise InputError(
-            "light_port", "not rendered with backscatter, a non-Lambertian wall or 'paper'"
-        )
+    if not wall.is_lambertian or sensor == "paper":
+        raise InputError("light_port", "not rendered with a non-Lambertian wall or 'paper'")
     d_mm, t_mm, n_g, n_w = departures.light_port
     return FlatPort(d_mm / 1000.0, t_mm / 1000.0, n_g, n_w)
 

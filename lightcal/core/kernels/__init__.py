@@ -18,6 +18,8 @@
   path solve per point and the flux of pixels lit through the port, with gradients.
 - `port_water`: the light's port in water: the paths' water lengths and exits
   (`light_port.port_paths`) and the medium's attenuation of the flux lit through it.
+- `port_veil`: the veil of a light behind its port (`lightcal.core.light_port_veil`): the
+  refracted beam's single scattering along each pixel's ray, with gradients.
 
 The RID enters every kernel as one record, `rid_eval.RIDData` (several lights' RIDs as
 one `rid_stack.RIDStack`). `lightcal.core.render_reference` is the plain NumPy
