@@ -1,7 +1,7 @@
 """Speed of the flat ports (docs/model.md, "The camera's flat port", "The light's flat
 port") against the same work in air, measured in the same run.
 
-Run `python benchmarks/ports.py` (about a minute on 2 cores; `--quick` for a smoke run).
+Run `python benchmarks/ports.py` (about two minutes on 2 cores; `--quick` for a smoke run).
 The scene: a 1200 x 800 camera (f 1100 px, distortion) 1.5 m from the wall, one cos^3
 light 12 cm beside it, water of c = 0.3 /m; the camera's port d 20 mm, t 10 mm, the
 light's d 15 mm, t 8 mm (acrylic into sea water). Rows:

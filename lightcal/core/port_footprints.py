@@ -260,7 +260,8 @@ def camera_port_rays(
     """Every pixel corner's ray through the port, camera frame: exit points and water
     directions (H+1, W+1, 3) (NaN where not ok), undistorted coordinates (H+1, W+1, 2)
     and ok (H+1, W+1), and every pixel's `fresnel_factors` (H, W); the last
-    `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners."""
+    `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners. The
+    whole image's footprints here and its fused kernel (`kernels.port_image`) share them."""
     key = (
         GRID_CACHE.key(camera),
         (port.distance_m, port.thickness_m, port.glass_index, port.water_index,
