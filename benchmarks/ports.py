@@ -1,7 +1,7 @@
 """Speed of the flat ports (docs/model.md, "The camera's flat port", "The light's flat
 port") against the same work in air, measured in the same run.
 
-Run `python benchmarks/ports.py` (about a minute on 2 cores; `--quick` for a smoke run).
+Run `python benchmarks/ports.py` (about two minutes on 2 cores; `--quick` for a smoke run).
 The scene: a 1200 x 800 camera (f 1100 px, distortion) 1.5 m from the wall, one cos^3
 light 12 cm beside it, water of c = 0.3 /m; the camera's port d 20 mm, t 10 mm, the
 light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
@@ -11,8 +11,14 @@ light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
 - shade + gradients: `shade(want_grad=True)` of those N pixels as the solver calls it
   (footprints precomputed), in air, through the camera's port, with the light's port,
   and both;
-- full frame: `render_view_image` of the whole frame (the fused kernel in air; every
-  pixel's footprint through a port).
+- full frame: `render_view_image` of the whole frame: the fused kernel in air
+  (`kernels.image`) and through the camera's port (`kernels.port_image`, on the port's
+  cached corner lattice); every pixel's footprint, shaded, with the light's port; and,
+  to compare, the camera's port by every pixel's footprint
+  (`render_image_per_pixel_through_port`, the path before the fused kernel);
+- full frame with the veil: the same in water that scatters (beta 0.6 /m, g 0.8): in
+  air interpolated between exact nodes (`add_scatter_image`), through the port exact
+  at every pixel.
 
 Each figure is the best of several calls after a warm-up (numba kernels compiled and
 caches filled). Nothing is asserted: the machine may be shared (the load average is
@@ -26,6 +32,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +44,10 @@ if str(REPO) not in sys.path:
 from lightcal.core.camera import Camera  # noqa: E402
 from lightcal.core.flat_port import FlatPort  # noqa: E402
 from lightcal.core.medium import Medium  # noqa: E402
-from lightcal.core.port_render import render_view_image  # noqa: E402
+from lightcal.core.port_render import (  # noqa: E402
+    render_image_per_pixel_through_port,
+    render_view_image,
+)
 from lightcal.core.render import shade  # noqa: E402
 from lightcal.core.rid import CosPowerRID  # noqa: E402
 from lightcal.core.scene import Light, Rig, View  # noqa: E402
@@ -46,6 +56,7 @@ from lightcal.core.wall_mesh import wall_footprints  # noqa: E402
 CAMERA_PORT = FlatPort(0.020, 0.010, 1.49, 1.333)
 LIGHT_PORT = FlatPort(0.015, 0.008, 1.49, 1.333)
 WATER = Medium(0.3)
+VEIL = Medium(0.3, 0.6, 0.8)
 
 
 def _best(fn: Callable[[], object], repeats: int) -> float:
@@ -71,6 +82,15 @@ def _scene(width: int, height: int) -> tuple[Camera, View, Light]:
     x /= np.linalg.norm(x)
     R = np.stack([x, np.cross(z, x), z], axis=1)
     return camera, view, Light(CosPowerRID(3.0), np.array([0.12, 0.0, 0.02]), R)
+
+
+def _frame_rows(title: str, frames: list[tuple[str, Callable[[], object]]], repeats: int) -> None:
+    """Print each frame's best time and its ratio to the first's."""
+    base = None
+    for label, fn in frames:
+        seconds = _best(fn, repeats)
+        base = seconds if base is None else base
+        print(f"{f'{title}: {label}':44s} {seconds:9.4f} {seconds / base:7.2f}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -113,21 +133,18 @@ def main(argv: list[str] | None = None) -> int:
                 )  # fmt: skip
                 row = f"shade + gradients, {n} px: {label}"
                 print(f"{row:44s} {seconds:9.4f} {seconds / base:7.2f}")
-    base = None
-    for label, port, rig in (
-        ("air", None, rigs["air"]),
-        ("camera port", CAMERA_PORT, rigs["air"]),
-        ("light port", None, rigs["light port"]),
-        ("camera port + light port", CAMERA_PORT, rigs["light port"]),
-    ):
-        seconds = _best(
-            lambda port=port, rig=rig: render_view_image(
-                camera, view, rig, port=port, medium=WATER
-            ),
-            max(1, repeats // 2),
+    air, lit = rigs["air"], rigs["light port"]
+    full = (("air", None, air), ("camera port", CAMERA_PORT, air),
+            ("light port", None, lit), ("camera port + light port", CAMERA_PORT, lit))  # fmt: skip
+    for title, medium, cases in (("full frame", WATER, full), ("full frame, veil", VEIL, full[:2])):
+        frames: list[tuple[str, Callable[[], object]]] = [
+            (label, partial(render_view_image, camera, view, rig, port=port, medium=medium))
+            for label, port, rig in cases
+        ]
+        per_pixel = partial(
+            render_image_per_pixel_through_port, camera, view, air, CAMERA_PORT, medium=medium
         )
-        base = seconds if base is None else base
-        print(f"{f'full frame: {label}':44s} {seconds:9.4f} {seconds / base:7.2f}")
+        _frame_rows(title, [*frames, ("camera port, per pixel", per_pixel)], max(1, repeats // 2))
     return 0
 
 

@@ -151,9 +151,10 @@ def _write_dataset(folder: Path, family: Family) -> Path:
         fx=f, fy=f, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h, dist=(-0.1, 0.02, 0, 0, 0)
     )
     synth: dict[str, Any] = dict(family.synth or {})
-    light_port = synth.pop("light_port", None)  # a departure: the lights behind ports
-    if light_port is not None:
-        synth["departures"] = Departures(light_port=light_port)
+    # Departures: the camera behind a port, the lights behind theirs.
+    ports = {name: synth.pop(name) for name in ("port", "light_port") if name in synth}
+    if ports:
+        synth["departures"] = Departures(**ports)
     config = SynthConfig(
         camera=camera,
         scene=SceneConfig(n_views=4),

@@ -73,4 +73,12 @@ FAMILIES: tuple[Family, ...] = (
         report=True,
         synth={"light_port": (15.0, 8.0, 1.49, 1.333), "declare_light_port": True},
     ),
+    # The camera's flat port: its footprints for the solver, and whole images through it
+    # (the report's: the fused kernel on the port's corner lattice), in water.
+    Family(
+        "a camera behind a flat port (whole images through it)",
+        medium={"attenuation_per_m": 0.2, "estimate": ["attenuation_per_m"]},
+        report=True,
+        synth={"port": (20.0, 10.0, 1.49, 1.333), "declare_port": True},
+    ),
 )

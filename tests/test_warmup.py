@@ -360,3 +360,16 @@ def test_a_family_calibrates_a_light_behind_a_flat_port(tmp_path: Path) -> None:
     warmup._calibrate(project, None)
     assert port_flux._pixels_parallel.signatures and port_water._attenuate_parallel.signatures
     assert port_veil._rays_parallel.signatures and port_veil._rays_serial.signatures
+
+
+def test_a_family_calibrates_behind_a_camera_port_and_renders_through_it(tmp_path: Path) -> None:
+    """`lightcal warmup` compiles the whole image through the camera's port (the fused
+    kernel the report and the page's overlays run): one family's camera looks through a
+    declared port and writes its report."""
+    from lightcal.core.kernels import port_image
+
+    (family,) = [f for f in warmup.FAMILIES if (f.synth or {}).get("declare_port")]
+    project = warmup._write_dataset(tmp_path / "data", family)
+    assert json.loads(project.read_text())["camera"]["port"]["distance_mm"] == 20.0
+    warmup._calibrate(project, tmp_path / "report")
+    assert port_image.render_image_port_fused.signatures

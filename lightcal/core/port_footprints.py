@@ -215,7 +215,7 @@ def image_footprints_through_port(
 ) -> Footprints:
     """`port_footprints` of every super-pixel of the image, row by row (exact quads:
     b per side), from the camera's corner lattice traced through the port once per
-    (camera, port) (`_camera_rays`, cached) and moved to the view: the same numbers to
+    (camera, port) (`camera_port_rays`, cached) and moved to the view: the same numbers to
     round-off (the corner grid's undistortion, `lightcal.core.corner_grid`), without
     tracing each corner once per view and per pixel sharing it."""
     if sensor == "paper":
@@ -224,7 +224,7 @@ def image_footprints_through_port(
     v, u = np.mgrid[0:hb, 0:wb]
     pixels = np.stack([u.ravel(), v.ravel()], axis=1)
     b, p, vmap, s = checked_selection(camera, pixels, sensor, vignetting, binning, None)
-    exits_c, dirs_c, grid_xy, grid_ok, fresnel = _camera_rays(camera, port)
+    exits_c, dirs_c, grid_xy, grid_ok, fresnel = camera_port_rays(camera, port)
     R, C = view.R_camera_world, view.center_world
     # einsum: numpy's (M, 3) @ (3, 3) goes through BLAS and is ~10x slower here.
     exits_w = np.einsum("...j,jk->...k", exits_c, R) + C
@@ -248,7 +248,7 @@ def image_footprints_through_port(
 
 
 _RAYS: OrderedDict[tuple[bytes, tuple[float, ...]], tuple[np.ndarray, ...]] = OrderedDict()
-"""`_camera_rays`' cache."""
+"""`camera_port_rays`' cache."""
 _RAYS_LOCK = Lock()
 _RAYS_KEPT = 2
 _RAYS_MAX_CORNERS = 4_000_000
@@ -256,13 +256,14 @@ _RAYS_MAX_CORNERS = 4_000_000
 binned as the page renders it); a larger one is traced again each time."""
 
 
-def _camera_rays(
+def camera_port_rays(
     camera: Camera, port: FlatPort
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every pixel corner's ray through the port, camera frame: exit points and water
     directions (H+1, W+1, 3) (NaN where not ok), undistorted coordinates (H+1, W+1, 2)
     and ok (H+1, W+1), and every pixel's `fresnel_factors` (H, W); the last
-    `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners."""
+    `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners. The
+    whole image's footprints here and its fused kernel (`kernels.port_image`) share them."""
     key = (
         GRID_CACHE.key(camera),
         (port.distance_m, port.thickness_m, port.glass_index, port.water_index,
@@ -292,7 +293,7 @@ def _camera_rays(
 def port_transmittance_image(camera: Camera, port: FlatPort) -> np.ndarray:
     """(H, W) the port's Fresnel transmittance of every pixel's rays (`fresnel_factors`
     of the camera's corner lattice, cached with it; NaN where a corner fails)."""
-    return _camera_rays(camera, port)[4]
+    return camera_port_rays(camera, port)[4]
 
 
 def fresnel_factors(lattice_xy: np.ndarray, port: FlatPort) -> np.ndarray:

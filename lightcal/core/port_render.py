@@ -1,28 +1,41 @@
 """Rendering through the camera's flat port (docs/model.md, "The camera's flat port").
 
-`render_pixels` and `render_image` with a `FlatPort`: the footprints through the port
-(`lightcal.core.port_footprints`) shaded as `lightcal.core.render.shade` shades any
-footprints (each pixel's camera-side path in the medium from its exit point from the
-port). The whole image is every pixel's footprint, exact, as on a wall mesh: the fused
-whole-image kernel knows rays from the camera centre only.
+`render_pixels` and `render_image` with a `FlatPort`. Any pixels: their footprints
+through the port (`lightcal.core.port_footprints`) shaded as `lightcal.core.render.shade`
+shades any footprints (each pixel's camera-side path in the medium from its exit point
+from the port). The whole image: the fused kernel (`kernels.port_image`) on the
+camera's port lattice (traced once per camera and port, cached, moved to each view),
+whose corners four pixels share; a rig with a light behind its own port
+(`lights[i].port`) takes every pixel's footprint, shaded
+(`render_image_per_pixel_through_port`, also the fused kernel's reference in the tests).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
 
 from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
-from lightcal.core.footprint import SensorModel, room_light_image
-from lightcal.core.medium import AIR, Medium
+from lightcal.core.footprint import (
+    SENSOR_CODES,
+    SENSOR_MODELS,
+    SensorModel,
+    check_vignetting,
+    room_light_image,
+)
+from lightcal.core.kernels.port_image import render_image_port_fused
+from lightcal.core.medium import AIR, Medium, scatter_nodes
 from lightcal.core.port_footprints import (
+    camera_port_rays,
     image_footprints_through_port,
     port_footprints,
     port_transmittance_image,
 )
 from lightcal.core.render import render_image, shade
+from lightcal.core.rid_stack import stack_rid_data
 from lightcal.core.scene import Rig, View
 from lightcal.core.wall import LAMBERTIAN, WallReflectance
 from lightcal.core.wall_mesh import WallMesh
@@ -68,17 +81,76 @@ def render_image_through_port(
     medium: Medium = AIR,
 ) -> np.ma.MaskedArray:
     """`lightcal.core.render.render_image` through the camera's flat `port`: every
-    (super-)pixel's exact footprint. Returns (H // b, W // b), masked where invalid."""
+    (super-)pixel's exact footprint, by the fused kernel (`kernels.port_image`) or, for a
+    rig with a light behind its own port, shaded footprints
+    (`render_image_per_pixel_through_port`): the same numbers to round-off. Returns
+    (H // b, W // b), masked where invalid."""
+    if sensor == "paper" or any(light.port is not None for light in rig.lights):
+        return render_image_per_pixel_through_port(
+            camera, view, rig, port, sensor=sensor, vignetting=vignetting, binning=binning,
+            offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium,
+        )  # fmt: skip
+    b = _checked_binning(binning)
+    if not (isinstance(rid_subsamples, int | np.integer) and rid_subsamples >= 1):
+        raise ValueError(f"rid_subsamples: expected an integer >= 1, got {rid_subsamples!r}")
+    if sensor not in SENSOR_MODELS:
+        raise ValueError(f"sensor: expected one of {', '.join(SENSOR_MODELS)}, got {sensor!r}")
+    vmap = check_vignetting(vignetting, camera) if sensor == "map" else np.ones((1, 1))
+    lights = rig.lights
+    wd = wall.data()
+    out = np.empty((camera.height // b, camera.width // b))
+    invalid = np.empty(out.shape, dtype=np.bool_)
+    # Dynamic scheduling of the row chunks: the machine's cores may be shared.
+    with numba.parallel_chunksize(1):
+        render_image_port_fused(
+            *camera_port_rays(camera, port),  # exits, directions, ok, coordinates, Fresnel
+            np.ascontiguousarray(view.R_camera_world),
+            np.ascontiguousarray(view.center_world),
+            SENSOR_CODES[sensor], vmap, b,
+            np.array([light.position_world(view) for light in lights]),
+            np.array([light.rotation_world(view) for light in lights]),
+            np.array([light.scale for light in lights], dtype=np.float64),
+            stack_rid_data([light.rid.data() for light in lights]),
+            int(rid_subsamples), float(view.exposure), float(offset),
+            wd.kind, wd.params, wd.tables,
+            np.array([medium.attenuation_per_m, medium.backscatter_per_m, medium.phase_g]),
+            *scatter_nodes(), out, invalid,
+        )  # fmt: skip
+    return np.ma.masked_array(out, mask=invalid, copy=False)
+
+
+def _checked_binning(binning: int) -> int:
     if not (isinstance(binning, int | np.integer) and binning >= 1):
         raise ValueError(f"binning: expected an integer >= 1, got {binning!r}")
-    hb, wb = camera.height // int(binning), camera.width // int(binning)
+    return int(binning)
+
+
+def render_image_per_pixel_through_port(
+    camera: Camera,
+    view: View,
+    rig: Rig,
+    port: FlatPort,
+    *,
+    sensor: SensorModel = "radiance",
+    vignetting: np.ndarray | None = None,
+    binning: int = 1,
+    offset: float = 0.0,
+    rid_subsamples: int = 1,
+    wall: WallReflectance = LAMBERTIAN,
+    medium: Medium = AIR,
+) -> np.ma.MaskedArray:
+    """`render_image_through_port` by every (super-)pixel's footprint
+    (`image_footprints_through_port`) shaded by `lightcal.core.render.shade`: what a rig
+    with a light behind its own port takes. Returns (H // b, W // b), masked where
+    invalid."""
+    b = _checked_binning(binning)
     fp = image_footprints_through_port(
-        camera, view, port, sensor=sensor, vignetting=vignetting, binning=int(binning)
+        camera, view, port, sensor=sensor, vignetting=vignetting, binning=b
     )
     values = shade(
         fp, view, rig, offset=offset, rid_subsamples=rid_subsamples, wall=wall, medium=medium
     ).values
-    return values.reshape(hb, wb)
+    return values.reshape(camera.height // b, camera.width // b)
 
 
 def render_view_image(

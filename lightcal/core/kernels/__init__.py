@@ -10,6 +10,8 @@
 - `wall_gradients`: the vectorised gradient path of quads on the wall;
 - `flux`: `flux_pixels`, any pixels for one light, with gradients (`render.shade`);
 - `image`: `render_image_fused`, a whole image of a rig in one pass (`render.render_image`);
+- `port_image`: `render_image_port_fused`, the same through the camera's flat port, on
+  the port's corner lattice (`port_render.render_image_through_port`);
 - `wall`: the wall's relative reflectance B (`lightcal.core.wall`): per pixel with the
   chain rule on a light's flux and gradients, and on whole images.
 - `medium`: the medium's transmittance T (`lightcal.core.medium`): per pixel with the

@@ -22,6 +22,9 @@ Chunks of pixel rows run in parallel; per pixel row:
 5. the final value (offset + gain x flux, NaN where invalid) and the mask are written
    directly: no NumPy passes over the image afterwards.
 
+The row helpers (`light_vectors_row`, `flux_row`, `sensor_row`) serve the image through
+the camera's flat port too (`kernels.port_image`), whose corners come from the port.
+
 Other RIDs (Gaussian, tables) take a scalar loop that needs theta = atan2(rho, u_z) per
 pixel: correct, several times slower than cos^m. The numbers are those of the plain
 kernels (`tests/kernel_reference.py`) and of the NumPy reference to ~1e-15 relative.
@@ -92,7 +95,7 @@ def _corner_row(
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _total_row(
+def light_vectors_row(
     px: np.ndarray,
     py: np.ndarray,
     lx: float,
@@ -174,7 +177,7 @@ def _centroid_dir_light(
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _flux_row(
+def flux_row(
     tpx: np.ndarray,
     tpy: np.ndarray,
     bpx: np.ndarray,
@@ -329,7 +332,7 @@ def _flux_row(
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _sensor_row(
+def sensor_row(
     sensor: int,
     grid_xy: np.ndarray,
     vignetting: np.ndarray,
@@ -449,7 +452,7 @@ def render_image_fused(
         top = 0
         _corner_row(grid_xy, grid_ok, r_begin * b, w + 1, view, px[0], py[0], cok[0])
         for li in range(n_l):
-            _total_row(
+            light_vectors_row(
                 px[0],
                 py[0],
                 lights_world[li, 0],
@@ -490,12 +493,12 @@ def render_image_fused(
                         bpx[u],
                         bpy[u],
                     )
-                _sensor_row(sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, view, bb, v_row)
+                sensor_row(sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, view, bb, v_row)
                 if per_pixel:
                     acc_row[:] = 0.0
                     total_row[:] = 0.0
                 for li in range(n_l):
-                    _total_row(
+                    light_vectors_row(
                         bpx,
                         bpy,
                         lights_world[li, 0],
@@ -507,7 +510,7 @@ def render_image_fused(
                     )
                     if not per_pixel or glossy:
                         acc_row[:] = 0.0  # this light alone
-                    _flux_row(
+                    flux_row(
                         tpx,
                         tpy,
                         bpx,
