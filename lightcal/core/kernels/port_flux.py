@@ -27,7 +27,13 @@ import numba
 import numpy as np
 
 from lightcal.core.kernels.port_paths import PATH_SIZE, WORK_SIZE, solve_paths
-from lightcal.core.rid_eval import RIDData, RIDTuple, rid_value_grad_direction
+from lightcal.core.rid_eval import (
+    AXIS_RHO,
+    KIND_COS_POWER,
+    RIDData,
+    RIDTuple,
+    rid_value_grad_direction,
+)
 
 #: Below this many path solves (pixels x quads x lattice points and centroids; about
 #: 3 ms on one thread: 5,000 pixels at n = 1) the pixels run on the calling thread. On
@@ -58,6 +64,22 @@ def _pull_back(
     acc[3] += o1 * y[2] - o2 * y[1]
     acc[4] += o2 * y[0] - o0 * y[2]
     acc[5] += o0 * y[1] - o1 * y[0]
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _rid_at(ux: float, uy: float, uz: float, rid: RIDData) -> tuple[float, float, float, float]:
+    """`rid_value_grad_direction` of the unit direction u, cos^m written in u: f = uz^m,
+    grad = -m f (ux, uy, -rho^2 / uz) (tan(theta) = rho / uz), where the general code takes
+    atan2, cos and tan of theta (the same to round-off); the other kinds and the axis as
+    there."""
+    if rid.kind == KIND_COS_POWER:
+        rho2 = ux * ux + uy * uy
+        if uz > 0.0 and rho2 >= AXIS_RHO * AXIS_RHO:
+            m = rid.params[0]
+            f = uz**m
+            c = -m * f
+            return f, c * ux, c * uy, -c * rho2 / uz
+    return rid_value_grad_direction(ux, uy, uz, rid)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -180,7 +202,7 @@ def _pixels_range(
                     signed = _triangle(p1, paths[c01], p3, d1, want_grad)
                     signed += _triangle(p1, p3, paths[c10], d2, want_grad)
                     omega = abs(signed)
-                    f, f0, f1, f2 = rid_value_grad_direction(cp[0], cp[1], cp[2], rid)
+                    f, f0, f1, f2 = _rid_at(cp[0], cp[1], cp[2], rid)
                     cos_c = cp[0] * normal[0] + cp[1] * normal[1] + cp[2] * normal[2]
                     tf, dtf = transmittance(min(max(cos_c, 1e-300), 1.0), n_a, i_g, i_w)
                     ft = f * tf
