@@ -20,7 +20,6 @@ with the NumPy code kept in tests/light_port_numpy.py).
 
 from __future__ import annotations
 
-import cmath
 import math
 
 import numba
@@ -40,9 +39,6 @@ from lightcal.core.rid_eval import (
 #: 2 cores shared with other work the pool took 8-16 ms to come back (measured: 1,000
 #: pixels 0.9 ms on one thread, 16 ms on the pool; 4,000 pixels 3.9 and 15 ms).
 PORT_SERIAL_POINTS = 25_000
-
-#: The complex step of the Fresnel transmittance's derivative (`fresnel._STEP`).
-_STEP = 1e-30
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -83,29 +79,44 @@ def _rid_at(ux: float, uy: float, uz: float, rid: RIDData) -> tuple[float, float
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _reflectance(n1: float, n2: float, cos_i: complex, cos_t: complex, s_pol: bool) -> complex:
-    """R = r^2 of one interface (`fresnel._reflectance`)."""
+def _reflectance(
+    n1: float, n2: float, c_i: float, dc_i: float, c_t: float, dc_t: float, s_pol: bool
+) -> tuple[float, float]:
+    """R = r^2 of one interface (`fresnel._reflectance`) and its derivative, given the
+    cosines' derivatives dc_i, dc_t."""
     if s_pol:
-        r = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
+        a, b = n1 * c_i - n2 * c_t, n1 * c_i + n2 * c_t
+        da, db = n1 * dc_i - n2 * dc_t, n1 * dc_i + n2 * dc_t
     else:
-        r = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
-    return r * r
+        a, b = n2 * c_i - n1 * c_t, n2 * c_i + n1 * c_t
+        da, db = n2 * dc_i - n1 * dc_t, n2 * dc_i + n1 * dc_t
+    i_b = 1.0 / b
+    r = a * i_b
+    return r * r, 2.0 * r * (da - r * db) * i_b
 
 
 @numba.njit(cache=True, error_model="numpy")
 def transmittance(c: float, n_a: float, n_g: float, n_w: float) -> tuple[float, float]:
-    """`fresnel.port_transmittance` of one cos_air: T and dT/dcos (complex step)."""
-    z = complex(c, _STEP)
-    sin2 = 1.0 - z * z
-    cos_g = cmath.sqrt(1.0 - (n_a / n_g) ** 2 * sin2)
-    cos_w = cmath.sqrt(1.0 - (n_a / n_w) ** 2 * sin2)
-    total = 0j
+    """`fresnel.port_transmittance` of one cos_air: T and dT/dcos, differentiated by hand
+    (the complex step it replaced took 0.3-0.4 us, this 0.03; the same to round-off:
+    4e-15 in T and 7e-14 in dT/dcos for cos_air >= 0.01)."""
+    sin2 = 1.0 - c * c
+    k_g, k_w = (n_a / n_g) ** 2, (n_a / n_w) ** 2
+    cos_g = math.sqrt(1.0 - k_g * sin2)
+    cos_w = math.sqrt(1.0 - k_w * sin2)
+    dcos_g, dcos_w = k_g * c / cos_g, k_w * c / cos_w
+    total = 0.0
+    d_total = 0.0
     for s_pol in (True, False):
-        r1 = _reflectance(n_a, n_g, z, cos_g, s_pol)
-        r2 = _reflectance(n_g, n_w, cos_g, cos_w, s_pol)
-        total = total + (1.0 - r1) * (1.0 - r2) / (1.0 - r1 * r2)
-    out = 0.5 * total
-    return out.real, out.imag / _STEP
+        r1, dr1 = _reflectance(n_a, n_g, c, 1.0, cos_g, dcos_g, s_pol)
+        r2, dr2 = _reflectance(n_g, n_w, cos_g, dcos_g, cos_w, dcos_w, s_pol)
+        num = (1.0 - r1) * (1.0 - r2)
+        d_num = -dr1 * (1.0 - r2) - (1.0 - r1) * dr2
+        i_den = 1.0 / (1.0 - r1 * r2)
+        term = num * i_den
+        total += term
+        d_total += (d_num + term * (dr1 * r2 + r1 * dr2)) * i_den
+    return 0.5 * total, 0.5 * d_total
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
