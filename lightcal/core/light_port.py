@@ -15,10 +15,15 @@ reaches, in the plane of n and the point, the radial distance
 
 at the axial distance h (n_a the air's index, 1). For a point Y (light frame) with
 h = n . Y and rho = |Y - h n| this is solved for s = sin(theta_a) (`air_sines`): the
-left side minus rho, g(s), is increasing and convex in s on [0, 1) with g(0) = -rho <= 0,
-so Newton's method started right of the root (where one term alone reaches rho)
-decreases monotonically to it, quadratically, to round-off (compiled, point by point:
-`lightcal.core.kernels.port_flux.solve_paths`). A point with h <= d + t is not in front of
+left side minus rho, g(s), is increasing and convex in s on [0, 1) with g(0) = -rho <= 0.
+The compiled solve (`lightcal.core.kernels.port_paths.solve_paths`, point by point)
+works in the water's slope u = tan(theta_w) (s = n_w u / sqrt(1 + u^2)), where the
+dominant term H u is linear: from the paraxial start u_0 = rho / (H + n_w (d + t / n_g)),
+Halley's steps safeguarded by the bracket [0, rho / H] reach round-off in 2-3
+evaluations up to 60 degrees in the air (at most 12 up to 80). Past 80 degrees, where
+the outputs amplify the last bits of s, it solves g(s) = 0 by Newton's method started
+right of the root (where one term alone reaches rho), which decreases monotonically to
+it, quadratically, to round-off. A point with h <= d + t is not in front of
 the port: no ray reaches it (`ok` False).
 
 The air direction u_a = s rho_hat + cos(theta_a) n is where the emitter's RID (given in
@@ -45,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcal.core.flat_port import FlatPort
-from lightcal.core.kernels.port_flux import PATH_SIZE, air_sines_into
+from lightcal.core.kernels.port_paths import PATH_SIZE, air_sines_into
 from lightcal.core.kernels.port_water import paths_into
 
 

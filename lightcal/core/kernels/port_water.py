@@ -1,7 +1,7 @@
 """The light's flat port in the water, compiled: the paths' water lengths and exits, and
 the medium's attenuation of the flux lit through the port.
 
-- `paths_into`: `light_port.port_paths` (`kernels.port_flux.solve_paths`, then the
+- `paths_into`: `light_port.port_paths` (`kernels.port_paths.solve_paths`, then the
   water's length H / cos(theta_w) from the exit point, its gradient in Y and the exit);
 - `attenuate_rows`: `light_port_flux.attenuate_through_port`, T = exp(-c (|P - E| +
   the camera's side)) on the lit pixels' flux with the chain rule on their gradients
@@ -18,7 +18,8 @@ import math
 import numba
 import numpy as np
 
-from lightcal.core.kernels.port_flux import BLOCK, PATH_SIZE, solve_paths, to_light
+from lightcal.core.kernels.port_flux import to_light
+from lightcal.core.kernels.port_paths import BLOCK, PATH_SIZE, WORK_SIZE, solve_paths
 
 #: Below this many pixels `attenuate_rows` runs on the calling thread (as
 #: `kernels.port_flux.PORT_SERIAL_POINTS`: a few ms of work).
@@ -48,13 +49,12 @@ def paths_into(
     (M, PATH_SIZE) (NaN where not ok), out_ok (M,), the water's length (M,) and its
     gradient in Y (M, 3) (NaN, 0 where not ok), the exit points (M, 3) (NaN where not
     ok); BLOCK points at a time."""
-    work = np.empty((BLOCK, 5))
-    s = np.empty(BLOCK)
+    work = np.empty((BLOCK, WORK_SIZE))
     active = np.empty(BLOCK, dtype=np.bool_)
     for lo in range(0, points.shape[0], BLOCK):
         m = min(BLOCK, points.shape[0] - lo)
         solve_paths(
-            points[lo:], m, normal, d, t, n_g, n_w, work, s, active, out_ok[lo:], out_path[lo:]
+            points[lo:], m, normal, d, t, n_g, n_w, work, active, out_ok[lo:], out_path[lo:]
         )
         for i in range(lo, lo + m):
             p = out_path[i]
@@ -81,8 +81,7 @@ def _attenuate_range(
     d, t, n_g, n_w = geometry[0], geometry[1], geometry[2], geometry[3]
     ys = np.empty((BLOCK, 3))
     paths = np.empty((BLOCK, PATH_SIZE))
-    work = np.empty((BLOCK, 5))
-    s = np.empty(BLOCK)
+    work = np.empty((BLOCK, WORK_SIZE))
     active = np.empty(BLOCK, dtype=np.bool_)
     ok = np.empty(BLOCK, dtype=np.bool_)
     w_grad = np.empty(3)
@@ -92,7 +91,7 @@ def _attenuate_range(
         m = min(BLOCK, hi - b)
         for j in range(m):
             to_light(centers[b + j], light, R, ys[j])
-        solve_paths(ys, m, normal, d, t, n_g, n_w, work, s, active, ok, paths)
+        solve_paths(ys, m, normal, d, t, n_g, n_w, work, active, ok, paths)
         for j in range(m):
             i = b + j
             row = rows[i]
