@@ -8,7 +8,7 @@ irradiance (per I0, normal to the beam)
 
     E(X) = f(u_a) T_F(theta_a) J exp(-c s_w),   J = dOmega_air / dA_perp,
 
-u_a the solved air direction from the emitter to X (`kernels.port_flux.solve_paths`),
+u_a the solved air direction from the emitter to X (`kernels.port_paths.solve_paths`),
 f the RID in air, T_F the port's Fresnel transmittance, s_w = H / cos(theta_w) the
 beam's path in the water from the port's outer face (H = h - d - t) and J the refracted
 bundle's Jacobian: the paths are axisymmetric about the port's normal, rho(theta_a) =
@@ -47,13 +47,8 @@ import math
 import numba
 import numpy as np
 
-from lightcal.core.kernels.port_flux import (
-    PATH_SIZE,
-    _pull_back,
-    solve_paths,
-    to_light,
-    transmittance,
-)
+from lightcal.core.kernels.port_flux import _pull_back, to_light, transmittance
+from lightcal.core.kernels.port_paths import PATH_SIZE, WORK_SIZE, solve_paths
 from lightcal.core.rid_eval import RIDData, RIDTuple, rid_value_direction, rid_value_grad_direction
 
 #: Below this many rays the kernels run on the calling thread (each ray solves a path per
@@ -95,8 +90,8 @@ def port_ray_integral(
     px: float, py: float, pz: float, camera: np.ndarray, light: np.ndarray, R: np.ndarray,
     rid: RIDData, normal: np.ndarray, geometry: np.ndarray, c: float, g: float,
     s_nodes: np.ndarray, s_weights: np.ndarray, want_grad: bool, grad: np.ndarray,
-    ys: np.ndarray, work: np.ndarray, sv: np.ndarray, active: np.ndarray, ok: np.ndarray,
-    paths: np.ndarray, ts: np.ndarray,
+    ys: np.ndarray, work: np.ndarray, active: np.ndarray, ok: np.ndarray, paths: np.ndarray,
+    ts: np.ndarray,
 ) -> float:  # fmt: skip
     """S of the ray from `camera` (3,) to the wall point (px, py, pz) (module docstring).
 
@@ -161,7 +156,7 @@ def port_ray_integral(
             x[k] = camera[k] + ts[m] * o[k]
         to_light(x, light, R, ys[m])
         n_pts = m + 1
-    solve_paths(ys, n_pts, normal, d, th, n_g, n_w, work, sv, active, ok, paths)
+    solve_paths(ys, n_pts, normal, d, th, n_g, n_w, work, active, ok, paths)
     kp = (1.0 - g * g) / _FOUR_PI
     acc = np.zeros(6)
     acc_w = np.zeros(3)
@@ -256,8 +251,7 @@ def _rays_range(
     """`port_scatter_points` of the rays lo..hi-1 (scratch buffers for the range)."""
     m1 = s_nodes.shape[0] + 1
     ys = np.empty((m1, 3))
-    work = np.empty((m1, 5))
-    sv = np.empty(m1)
+    work = np.empty((m1, WORK_SIZE))
     active = np.empty(m1, dtype=np.bool_)
     ok = np.empty(m1, dtype=np.bool_)
     paths = np.empty((m1, PATH_SIZE))
@@ -268,7 +262,7 @@ def _rays_range(
         out[i] = port_ray_integral(
             points[i, 0], points[i, 1], points[i, 2], camera[i] if per_ray else camera[0],
             light, R, rid, normal, geometry, c, g, s_nodes, s_weights, want_grad, g8, ys,
-            work, sv, active, ok, paths, ts,
+            work, active, ok, paths, ts,
         )  # fmt: skip
         if want_grad:
             out_grad[i, :] = g8
