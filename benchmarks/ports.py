@@ -17,7 +17,8 @@ light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
   to compare, the camera's port by every pixel's footprint
   (`render_image_per_pixel_through_port`, the path before the fused kernel);
 - full frame with the veil: the same in water that scatters (beta 0.6 /m, g 0.8): in
-  air interpolated between exact nodes (`add_scatter_image`), through the port exact
+  air and through the port exact on `scatter_grid`'s nodes and interpolated between
+  them (`add_scatter_image`; `port_veil_nodes` and the fused kernel), per pixel exact
   at every pixel.
 
 Each figure is the best of several calls after a warm-up (numba kernels compiled and

@@ -5,7 +5,8 @@ through the port (`lightcal.core.port_footprints`) shaded as `lightcal.core.rend
 shades any footprints (each pixel's camera-side path in the medium from its exit point
 from the port). The whole image: the fused kernel (`kernels.port_image`) on the
 camera's port lattice (traced once per camera and port, cached, moved to each view),
-whose corners four pixels share; a rig with a light behind its own port
+whose corners four pixels share, the veil exact on `medium.scatter_grid`'s nodes and
+interpolated between them as in air; a rig with a light behind its own port
 (`lights[i].port`) takes every pixel's footprint, shaded
 (`render_image_per_pixel_through_port`, also the fused kernel's reference in the tests).
 """
@@ -26,8 +27,8 @@ from lightcal.core.footprint import (
     check_vignetting,
     room_light_image,
 )
-from lightcal.core.kernels.port_image import render_image_port_fused
-from lightcal.core.medium import AIR, Medium, scatter_nodes
+from lightcal.core.kernels.port_image import port_veil_nodes, render_image_port_fused
+from lightcal.core.medium import AIR, Medium, scatter_grid, scatter_nodes
 from lightcal.core.port_footprints import (
     camera_port_rays,
     image_footprints_through_port,
@@ -100,21 +101,29 @@ def render_image_through_port(
     wd = wall.data()
     out = np.empty((camera.height // b, camera.width // b))
     invalid = np.empty(out.shape, dtype=np.bool_)
+    rays = camera_port_rays(camera, port)  # exits, directions, coordinates, ok, Fresnel
+    pose = (np.ascontiguousarray(view.R_camera_world), np.ascontiguousarray(view.center_world))
+    lit = (
+        np.array([light.position_world(view) for light in lights]),
+        np.array([light.rotation_world(view) for light in lights]),
+    )
+    rids = stack_rid_data([light.rid.data() for light in lights])
+    node_rows, node_cols = scatter_grid(out.shape)
+    veil = np.empty((len(lights), len(node_rows), len(node_cols)) if medium.scatters else (0, 1, 1))
     # Dynamic scheduling of the row chunks: the machine's cores may be shared.
     with numba.parallel_chunksize(1):
+        if medium.scatters:  # the veil on the nodes, interpolated between them below
+            port_veil_nodes(
+                rays[0], rays[1], rays[3], *pose, b, node_rows, node_cols, *lit, rids,
+                medium.attenuation_per_m, medium.phase_g, *scatter_nodes(), veil,
+            )  # fmt: skip
         render_image_port_fused(
-            *camera_port_rays(camera, port),  # exits, directions, ok, coordinates, Fresnel
-            np.ascontiguousarray(view.R_camera_world),
-            np.ascontiguousarray(view.center_world),
-            SENSOR_CODES[sensor], vmap, b,
-            np.array([light.position_world(view) for light in lights]),
-            np.array([light.rotation_world(view) for light in lights]),
+            *rays, *pose, SENSOR_CODES[sensor], vmap, b, *lit,
             np.array([light.scale for light in lights], dtype=np.float64),
-            stack_rid_data([light.rid.data() for light in lights]),
-            int(rid_subsamples), float(view.exposure), float(offset),
+            rids, int(rid_subsamples), float(view.exposure), float(offset),
             wd.kind, wd.params, wd.tables,
             np.array([medium.attenuation_per_m, medium.backscatter_per_m, medium.phase_g]),
-            *scatter_nodes(), out, invalid,
+            *scatter_nodes(), node_rows, node_cols, veil, out, invalid,
         )  # fmt: skip
     return np.ma.masked_array(out, mask=invalid, copy=False)
 

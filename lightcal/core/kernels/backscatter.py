@@ -236,6 +236,29 @@ def scatter_points(
         _points_parallel(*args)
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def grid_bracket(nodes: np.ndarray, k: int, x: int) -> tuple[int, int, float]:
+    """The nodes around row (or column) x of an image interpolated between `nodes`
+    (increasing, the first and last row among them): (k, k1, f), x at nodes[k] +
+    f (nodes[k1] - nodes[k]); k is the previous call's (0 at first; x nondecreasing)."""
+    m = nodes.shape[0]
+    while k < m - 2 and nodes[k + 1] <= x:
+        k += 1
+    k1 = k + 1 if m > 1 else k
+    f = (x - nodes[k]) / max(nodes[k1] - nodes[k], 1) if m > 1 else 0.0
+    return k, k1, f
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def bilinear(at_nodes: np.ndarray, i: int, i1: int, fy: float, j: int, j1: int, fx: float) -> float:
+    """at_nodes (m, n) interpolated bilinearly between the brackets (i, i1, fy) and
+    (j, j1, fx) of `grid_bracket`: the node's own value at a node (f = 0 or 1); NaN
+    beside an invalid (NaN) node."""
+    return (1.0 - fy) * ((1.0 - fx) * at_nodes[i, j] + fx * at_nodes[i, j1]) + fy * (
+        (1.0 - fx) * at_nodes[i1, j] + fx * at_nodes[i1, j1]
+    )
+
+
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def add_scatter_image(
     grid_xy: np.ndarray,
@@ -320,22 +343,14 @@ def add_scatter_image(
         i = 0
         for r in range(r_begin, (ch + 1) * hb // n_chunks):
             top = centre_sums_row(grid_xy, grid_ok, view, r, b, rows_x, rows_y, top, sx, sy)
-            while i < m - 2 and node_rows[i + 1] <= r:
-                i += 1
-            fy = (r - node_rows[i]) / max(node_rows[i + 1] - node_rows[i], 1) if m > 1 else 0.0
-            i1 = i + 1 if m > 1 else i
+            i, i1, fy = grid_bracket(node_rows, i, r)
             out = total[r]
             j = 0
             for col in range(wb):
                 if not math.isfinite(out[col]):
                     continue
-                while j < n - 2 and node_cols[j + 1] <= col:
-                    j += 1
-                j1 = j + 1 if n > 1 else j
-                fx = (col - node_cols[j]) / max(node_cols[j1] - node_cols[j], 1) if n > 1 else 0.0
-                v = (1.0 - fy) * ((1.0 - fx) * at_nodes[i, j] + fx * at_nodes[i, j1]) + fy * (
-                    (1.0 - fx) * at_nodes[i1, j] + fx * at_nodes[i1, j1]
-                )
+                j, j1, fx = grid_bracket(node_cols, j, col)
+                v = bilinear(at_nodes, i, i1, fy, j, j1, fx)
                 if not math.isfinite(v):
                     v = ray_integral(
                         sx[col] * norm,

@@ -16,13 +16,15 @@ port) in place of the straight back-projected rays. Per pixel row:
 4. per light, the wall's B and the medium's T at the footprint centre P (the mean of its
    quads' corners), the camera side of both taken from the mean exit point X_p of the
    pixel's corners (the viewing direction P -> X_p, the path |P - X_p|); and the veil,
-   the single-scattering integral along the refracted ray from X_p to P
-   (`kernels.backscatter.ray_integral`, exact at every pixel) times the pixel's mean
-   Fresnel transmittance.
+   the single-scattering integral S along the refracted ray from X_p to P
+   (`kernels.backscatter.ray_integral`) times the pixel's mean Fresnel transmittance.
+   S is exact on the nodes of `medium.scatter_grid` (`port_veil_nodes`, a pass before
+   the image's) and interpolated bilinearly between them by the in-air image's code
+   (`kernels.backscatter.grid_bracket`, `bilinear`), exact beside an invalid node.
 
 The numbers are those of every pixel's footprint through the port shaded by
 `lightcal.core.render.shade` (`port_render.render_image_per_pixel_through_port`), to
-round-off (`tests/test_port_fused.py`).
+round-off, but for the veil between the nodes (`tests/test_port_fused.py`).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from lightcal.core.kernels.backscatter import ray_integral
+from lightcal.core.kernels.backscatter import bilinear, grid_bracket, ray_integral
 from lightcal.core.kernels.fastmath import exp_real
 from lightcal.core.kernels.image import flux_row, light_vectors_row, sensor_row
 from lightcal.core.kernels.sensor import quad_area, view_scalars
@@ -84,6 +86,102 @@ def port_corner_row(
         ex[u] = xw if hit else 0.0
         ey[u] = yw if hit else 0.0
         ez[u] = zw if hit else 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def add_centre_sums(
+    b: int,
+    wb: int,
+    tpx: np.ndarray,
+    tpy: np.ndarray,
+    tex: np.ndarray,
+    bpx: np.ndarray,
+    bpy: np.ndarray,
+    bex: np.ndarray,
+    centres: np.ndarray,
+) -> None:
+    """centres (5, wb) += the sums of the wall points (x, y) and exit points (x, y, z) of
+    the corners of a row of pixels' quads, per super-pixel (top corners t, bottom b)."""
+    for c in range(wb):
+        for ii in range(b):
+            u = c * b + ii
+            centres[0, c] += tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]
+            centres[1, c] += tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]
+            for k in range(3):
+                centres[2 + k, c] += tex[k, u] + tex[k, u + 1] + (bex[k, u + 1] + bex[k, u])
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def port_veil_nodes(
+    exits_camera: np.ndarray,
+    dirs_camera: np.ndarray,
+    corner_ok: np.ndarray,
+    R_camera_world: np.ndarray,
+    center_world: np.ndarray,
+    binning: int,
+    node_rows: np.ndarray,
+    node_cols: np.ndarray,
+    lights_world: np.ndarray,
+    R_world_lights: np.ndarray,
+    rids: RIDStack,
+    c_per_m: float,
+    phase_g: float,
+    s_nodes: np.ndarray,
+    s_weights: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """out (L, m, n): each light's veil integral S at the (super-)pixels node_rows (m,)
+    x node_cols (n,) (`medium.scatter_grid`'s), the footprint centre and mean exit point
+    summed as `render_image_port_fused` sums them (the same numbers); NaN at a node
+    whose footprint is invalid. Arguments as `render_image_port_fused`'s."""
+    b = binning
+    wb = (exits_camera.shape[1] - 1) // b
+    w = wb * b
+    m = node_rows.shape[0]
+    n = node_cols.shape[0]
+    view = view_scalars(R_camera_world, center_world)
+    norm = 1.0 / (4.0 * b * b)
+    for i in numba.prange(m):
+        r = node_rows[i]
+        px = np.empty((2, w + 1))
+        py = np.empty((2, w + 1))
+        cok = np.empty((2, w + 1), dtype=np.bool_)
+        exits = np.empty((2, 3, w + 1))
+        sp_ok = np.ones(wb, dtype=np.bool_)
+        centres = np.zeros((5, wb))
+        camera = np.empty(3)
+        g8 = np.zeros(8)
+        top = 0
+        port_corner_row(
+            exits_camera, dirs_camera, corner_ok, r * b, view,
+            px[0], py[0], cok[0], exits[0, 0], exits[0, 1], exits[0, 2],
+        )  # fmt: skip
+        for jj in range(b):
+            bot = 1 - top
+            port_corner_row(
+                exits_camera, dirs_camera, corner_ok, r * b + jj + 1, view,
+                px[bot], py[bot], cok[bot], exits[bot, 0], exits[bot, 1], exits[bot, 2],
+            )  # fmt: skip
+            for u in range(w):
+                sp_ok[u // b] &= cok[top, u] & cok[top, u + 1] & cok[bot, u + 1] & cok[bot, u]
+            add_centre_sums(
+                b, wb, px[top], py[top], exits[top], px[bot], py[bot], exits[bot], centres
+            )
+            top = bot
+        for li in range(lights_world.shape[0]):
+            rid = light_rid(rids, li)
+            for j in range(n):
+                col = node_cols[j]
+                if not sp_ok[col]:
+                    out[li, i, j] = np.nan
+                    continue
+                for k in range(3):
+                    camera[k] = centres[2 + k, col] * norm
+                out[li, i, j] = ray_integral(
+                    centres[0, col] * norm, centres[1, col] * norm, 0.0, camera,
+                    lights_world[li], R_world_lights[li], rid, c_per_m, phase_g,
+                    s_nodes, s_weights, False, g8,
+                )  # fmt: skip
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -151,6 +249,9 @@ def render_image_port_fused(
     medium: np.ndarray,
     s_nodes: np.ndarray,
     s_weights: np.ndarray,
+    node_rows: np.ndarray,
+    node_cols: np.ndarray,
+    veil_nodes: np.ndarray,
     out: np.ndarray,
     out_invalid: np.ndarray,
 ) -> None:
@@ -176,9 +277,12 @@ def render_image_port_fused(
         medium: (3,) c (1/m), the backscatter coefficient beta (1/m) and the phase
             function's g.
         s_nodes, s_weights: the veil's Gauss-Legendre nodes and weights on [0, 1].
+        node_rows (m,), node_cols (n,): `medium.scatter_grid`'s nodes; veil_nodes:
+            (L, m, n) S there (`port_veil_nodes`), interpolated between them (exact
+            beside a NaN); unused (any shape) without backscatter.
         out: (H // b, W // b) written: offset + exposure sum_l scale_l (B_l T_l sum_k
             w_k Phi_k / I0 + beta S_l t), t the mean Fresnel transmittance, NaN where
-            invalid.
+            invalid; S_l interpolated from veil_nodes.
         out_invalid: (H // b, W // b) written: True where some corner misses the wall.
     """
     hb = out.shape[0]
@@ -223,6 +327,7 @@ def render_image_port_fused(
         gdummy = np.zeros(6)
         g8 = np.zeros(8)
         top = 0
+        i, i1, fy = 0, 0, 0.0  # the veil's nodes about row r (`grid_bracket`)
         ex0 = exits[0]
         port_corner_row(
             exits_camera, dirs_camera, corner_ok, r_begin * b, view,
@@ -263,15 +368,7 @@ def render_image_port_fused(
                         sp_v[c] += v_row[u] * fresnel[v, u]
                         sp_t[c] += fresnel[v, u]
                 if need_points:  # the footprint centres and the mean exit points
-                    for c in range(wb):
-                        for ii in range(b):
-                            u = c * b + ii
-                            centres[0, c] += tpx[u] + tpx[u + 1] + bpx[u + 1] + bpx[u]
-                            centres[1, c] += tpy[u] + tpy[u + 1] + bpy[u + 1] + bpy[u]
-                            for k in range(3):
-                                centres[2 + k, c] += (
-                                    tex[k, u] + tex[k, u + 1] + (bex[k, u + 1] + bex[k, u])
-                                )
+                    add_centre_sums(b, wb, tpx, tpy, tex, bpx, bpy, bex, centres)
                 for li in range(n_l):
                     lw = lights_world[li]
                     if lw[2] <= 0.0:
@@ -292,6 +389,8 @@ def render_image_port_fused(
                             sp_phi[li, c] += acc_row[c * b + ii]
                 top = bot
             # The super-pixels of row r: weight, B and T per light, the veil, the value.
+            if beta > 0.0:
+                i, i1, fy = grid_bracket(node_rows, i, r)
             for c in range(wb):
                 total[c] = 0.0
                 for k in range(5):
@@ -311,18 +410,21 @@ def render_image_port_fused(
                     for c in range(wb):
                         total[c] += scale * factor[c]
                 if beta > 0.0:
-                    rid = light_rid(rids, li)
                     k_veil = scale * beta / bb
+                    j = 0
                     for c in range(wb):
                         if sp_ok[c]:
-                            camera[0] = centres[2, c]
-                            camera[1] = centres[3, c]
-                            camera[2] = centres[4, c]
-                            s = ray_integral(
-                                centres[0, c], centres[1, c], 0.0, camera, lw,
-                                R_world_lights[li], rid, c_per_m, phase_g,
-                                s_nodes, s_weights, False, g8,
-                            )  # fmt: skip
+                            j, j1, fx = grid_bracket(node_cols, j, c)
+                            s = bilinear(veil_nodes[li], i, i1, fy, j, j1, fx)
+                            if not math.isfinite(s):  # beside an invalid node: exact
+                                camera[0] = centres[2, c]
+                                camera[1] = centres[3, c]
+                                camera[2] = centres[4, c]
+                                s = ray_integral(
+                                    centres[0, c], centres[1, c], 0.0, camera, lw,
+                                    R_world_lights[li], light_rid(rids, li), c_per_m,
+                                    phase_g, s_nodes, s_weights, False, g8,
+                                )  # fmt: skip
                             total[c] += k_veil * (s * sp_t[c])
             for c in range(wb):
                 okc = sp_ok[c]
