@@ -357,7 +357,7 @@ def test_a_family_calibrates_a_light_behind_a_flat_port(tmp_path: Path) -> None:
     (family,) = [f for f in warmup.FAMILIES if (f.synth or {}).get("declare_light_port")]
     project = warmup._write_dataset(tmp_path / "data", family)
     assert json.loads(project.read_text())["lights"][0]["port"]["distance_mm"] == 15.0
-    warmup._calibrate(project, None)
+    warmup._calibrate(project, tmp_path / "report")  # the family's report: whole images
     assert port_flux._pixels_parallel.signatures and port_water._attenuate_parallel.signatures
     assert port_veil._rays_parallel.signatures and port_veil._rays_serial.signatures
 
