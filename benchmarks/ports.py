@@ -13,13 +13,14 @@ light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
   and both;
 - full frame: `render_view_image` of the whole frame: the fused kernel in air
   (`kernels.image`) and through the camera's port (`kernels.port_image`, on the port's
-  cached corner lattice); every pixel's footprint, shaded, with the light's port; and,
-  to compare, the camera's port by every pixel's footprint
-  (`render_image_per_pixel_through_port`, the path before the fused kernel);
+  cached corner lattice); with the light's port, its straight twin's fused image times
+  the port's ratio, exact on a node grid (`lightcal.core.light_port_frame`); and, to
+  compare, every pixel's footprint shaded ("per pixel": the camera's port by
+  `render_image_per_pixel_through_port`, the light's by `render_image`);
 - full frame with the veil: the same in water that scatters (beta 0.6 /m, g 0.8): in
-  air and through the port exact on `scatter_grid`'s nodes and interpolated between
-  them (`add_scatter_image`; `port_veil_nodes` and the fused kernel), per pixel exact
-  at every pixel.
+  air and through the camera's port exact on `scatter_grid`'s nodes and interpolated
+  between them (`add_scatter_image`; `port_veil_nodes` and the fused kernel); the
+  light's port's veil exact on the frames' node grid.
 
 Each figure is the best of several calls after a warm-up (numba kernels compiled and
 caches filled). Nothing is asserted: the machine may be shared (the load average is
@@ -49,7 +50,7 @@ from lightcal.core.port_render import (  # noqa: E402
     render_image_per_pixel_through_port,
     render_view_image,
 )
-from lightcal.core.render import shade  # noqa: E402
+from lightcal.core.render import render_image, shade  # noqa: E402
 from lightcal.core.rid import CosPowerRID  # noqa: E402
 from lightcal.core.scene import Light, Rig, View  # noqa: E402
 from lightcal.core.wall_mesh import wall_footprints  # noqa: E402
@@ -137,15 +138,18 @@ def main(argv: list[str] | None = None) -> int:
     air, lit = rigs["air"], rigs["light port"]
     full = (("air", None, air), ("camera port", CAMERA_PORT, air),
             ("light port", None, lit), ("camera port + light port", CAMERA_PORT, lit))  # fmt: skip
-    for title, medium, cases in (("full frame", WATER, full), ("full frame, veil", VEIL, full[:2])):
+    for title, medium in (("full frame", WATER), ("full frame, veil", VEIL)):
         frames: list[tuple[str, Callable[[], object]]] = [
             (label, partial(render_view_image, camera, view, rig, port=port, medium=medium))
-            for label, port, rig in cases
+            for label, port, rig in full
         ]
-        per_pixel = partial(
-            render_image_per_pixel_through_port, camera, view, air, CAMERA_PORT, medium=medium
-        )
-        _frame_rows(title, [*frames, ("camera port, per pixel", per_pixel)], max(1, repeats // 2))
+        per_pixel = [
+            ("camera port, per pixel", partial(
+                render_image_per_pixel_through_port, camera, view, air, CAMERA_PORT, medium=medium
+            )),
+            ("light port, per pixel", partial(render_image, camera, view, lit, medium=medium)),
+        ]  # fmt: skip
+        _frame_rows(title, [*frames, *per_pixel], max(1, repeats // 2))
     return 0
 
 

@@ -56,7 +56,9 @@ def test_the_overlays_render_the_refracted_beam(app: LightcalApp) -> None:
     }
     ours = overlays.render(0, display).filled(np.nan)
     through = render_image(camera, view, display.rig, **options).filled(np.nan)
-    np.testing.assert_allclose(ours, through + display.offset, rtol=1e-12, equal_nan=True)
+    # The page's frames: the straight twin's fused image times the port's ratio, exact on
+    # a node grid and cubic between (`lightcal.core.light_port_frame`; 1.4e-6 measured).
+    np.testing.assert_allclose(ours, through + display.offset, rtol=5e-6, equal_nan=True)
     bare = Rig.single(light.replace(port=None))
     straight = render_image(camera, view, bare, **options).filled(np.nan)
     lit = np.isfinite(straight) & np.isfinite(through) & (through > 0.1 * np.nanmax(through))

@@ -157,8 +157,9 @@ def test_a_light_behind_its_own_port_takes_the_per_pixel_path() -> None:
     rig = Rig((lights[0].replace(port=FlatPort(0.015, 0.008, 1.49, 1.333)), lights[1]))
     fused, oracle = _both(camera, VIEW, rig, PORT, medium=Medium(0.2))
     np.testing.assert_array_equal(fused.filled(-1.0), oracle.filled(-1.0))
+    # The frames' path (`light_port_frame`): on an image this small every pixel is a node.
     via_view = render_view_image(camera, VIEW, rig, port=PORT, medium=Medium(0.2))
-    np.testing.assert_array_equal(via_view.filled(-1.0), oracle.filled(-1.0))
+    _compare(via_view, oracle)
     with pytest.raises(ValueError, match="paper"):
         render_image_through_port(camera, VIEW, _rig(1), PORT, sensor="paper")
     with pytest.raises(ValueError, match="binning"):

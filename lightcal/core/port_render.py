@@ -28,6 +28,7 @@ from lightcal.core.footprint import (
     room_light_image,
 )
 from lightcal.core.kernels.port_image import port_veil_nodes, render_image_port_fused
+from lightcal.core.light_port_frame import render_frame_with_ported_lights
 from lightcal.core.medium import AIR, Medium, scatter_grid, scatter_nodes
 from lightcal.core.port_footprints import (
     camera_port_rays,
@@ -174,7 +175,26 @@ def render_view_image(
     """The whole image of a view as the model renders it: through the camera's flat
     `port` (`render_image_through_port`), else on the wall `mesh` or the plane z = 0
     (`lightcal.core.render.render_image`); `options` are theirs (sensor, vignetting,
-    offset, rid_subsamples, wall, medium). Returns (H, W), masked where invalid."""
+    offset, rid_subsamples, wall, medium). A rig with a light behind its own port, on the
+    plane: the fused kernels' image of its straight twin times the port's ratio, exact on
+    a node grid (`lightcal.core.light_port_frame`; the exact image is
+    `render_image`'s, or `render_image_through_port`'s). Returns (H, W), masked where
+    invalid."""
+    if (
+        mesh is None
+        and options.get("sensor", "radiance") != "paper"
+        and any(light.port is not None for light in rig.lights)
+    ):
+        fixed = {k: v for k, v in options.items() if k not in ("medium", "offset")}
+
+        def frame(part: Rig, medium: Medium, offset: float) -> np.ma.MaskedArray:
+            if port is not None:
+                return render_image_through_port(
+                    camera, view, part, port, medium=medium, offset=offset, **fixed
+                )
+            return render_image(camera, view, part, medium=medium, offset=offset, **fixed)
+
+        return render_frame_with_ported_lights(camera, view, rig, frame, port=port, **options)
     if port is not None:
         return render_image_through_port(camera, view, rig, port, **options)
     return render_image(camera, view, rig, mesh=mesh, **options)
