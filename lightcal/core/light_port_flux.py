@@ -122,11 +122,15 @@ def port_light_flux(
     R_world_light = light.rotation_world(view)
     if L_world[2] <= 0.0:
         return flux, grad
-    corners = footprints.corners_world
-    rows = np.flatnonzero(footprints.valid & np.isfinite(corners).reshape(n, -1).all(axis=1))
+    corners, weights = footprints.corners_world, footprints.weights
+    # A pixel with a non-finite corner comes out unlit (`solve_paths` refuses the point):
+    # only the invalid ones are left out, and no copy is made when every pixel is valid.
+    rows = np.flatnonzero(footprints.valid)
+    if len(rows) < n:
+        corners, weights = corners[rows], weights[rows]
     f_rows, lit, g_rows = quads_flux(
-        corners[rows], footprints.weights[rows], L_world, R_world_light,
-        light.rid.data(), port, int(rid_subsamples), want_grad,
+        corners, weights, L_world, R_world_light, light.rid.data(), port,
+        int(rid_subsamples), want_grad,
     )  # fmt: skip
     f_rows *= view.exposure
     if g_rows is not None:
