@@ -11,6 +11,9 @@ light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
 - shade + gradients: `shade(want_grad=True)` of those N pixels as the solver calls it
   (footprints precomputed), in air, through the camera's port, with the light's port,
   and both;
+- shade + gradients, dense: every pixel of the view (footprints on the camera's corner
+  grid, as a dense calibration has them), in air, with the light's port by the ratio
+  path (`lightcal.core.light_port_dense`) and by every pixel's exact path;
 - full frame: `render_view_image` of the whole frame: the fused kernel in air
   (`kernels.image`) and through the camera's port (`kernels.port_image`, on the port's
   cached corner lattice); with the light's port, its straight twin's fused image times
@@ -45,6 +48,7 @@ if str(REPO) not in sys.path:
 
 from lightcal.core.camera import Camera  # noqa: E402
 from lightcal.core.flat_port import FlatPort  # noqa: E402
+from lightcal.core.footprint import pixel_footprints  # noqa: E402
 from lightcal.core.medium import Medium  # noqa: E402
 from lightcal.core.port_render import (  # noqa: E402
     render_image_per_pixel_through_port,
@@ -95,6 +99,33 @@ def _frame_rows(title: str, frames: list[tuple[str, Callable[[], object]]], repe
         print(f"{f'{title}: {label}':44s} {seconds:9.4f} {seconds / base:7.2f}")
 
 
+def _dense_rows(camera: Camera, view: View, rigs: dict[str, Rig], repeats: int) -> None:
+    """shade + gradients of every pixel of the view (footprints on the camera's corner
+    grid, the dense calibrations' case): air, the light's port by the ratio path
+    (`light_port_dense`) and by every pixel's exact path."""
+    import lightcal.core.light_port_dense as dense
+
+    v, u = np.mgrid[0 : camera.height, 0 : camera.width]
+    fp = pixel_footprints(camera, view, np.stack([u.ravel(), v.ravel()], axis=1))
+    n = len(fp)
+    cases = [
+        ("air", rigs["air"], dense.DENSE_PIXELS),
+        ("light port", rigs["light port"], dense.DENSE_PIXELS),
+        ("light port, every pixel exact", rigs["light port"], n + 1),
+    ]
+    base = None
+    for label, rig, threshold in cases:
+        dense.DENSE_PIXELS, saved = threshold, dense.DENSE_PIXELS
+        seconds = _best(
+            lambda rig=rig: shade(fp, view, rig, want_grad=True, medium=WATER),
+            max(1, repeats // 2) if "exact" in label else repeats,
+        )
+        dense.DENSE_PIXELS = saved
+        base = seconds if base is None else base
+        row = f"shade + gradients, dense ({n} px): {label}"
+        print(f"{row:44s} {seconds:9.4f} {seconds / base:7.2f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a small smoke run")
@@ -135,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
                 )  # fmt: skip
                 row = f"shade + gradients, {n} px: {label}"
                 print(f"{row:44s} {seconds:9.4f} {seconds / base:7.2f}")
+    _dense_rows(camera, view, rigs, repeats)
     air, lit = rigs["air"], rigs["light port"]
     full = (("air", None, air), ("camera port", CAMERA_PORT, air),
             ("light port", None, lit), ("camera port + light port", CAMERA_PORT, lit))  # fmt: skip

@@ -15,9 +15,9 @@ from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import pixel_footprints
 from lightcal.core.kernels.node_image import add_on_nodes, cubic_weights
-from lightcal.core.light_port_frame import node_grid
 from lightcal.core.medium import Medium
 from lightcal.core.port_footprints import port_footprints
+from lightcal.core.port_nodes import node_grid
 from lightcal.core.port_render import render_view_image
 from lightcal.core.render import render_image, shade
 from lightcal.core.rid import CosPowerRID, GaussianRID, Table2DRID

@@ -32,6 +32,7 @@ from lightcal.core.footprint import (
 from lightcal.core.footprint import pixel_footprints as pixel_footprints  # re-exported
 from lightcal.core.kernels.flux import flux_pixels, flux_pixels_grid
 from lightcal.core.kernels.wall import apply_wall
+from lightcal.core.light_port_dense import dense_applies, dense_port_flux
 from lightcal.core.light_port_flux import port_light_flux
 from lightcal.core.medium import AIR, Medium, apply_medium
 from lightcal.core.render_fused import render_fused, render_in_medium
@@ -142,6 +143,22 @@ def light_flux(
         if grad.shape != (n, 6) or grad.dtype != np.float64 or not grad.flags.c_contiguous:
             raise ValueError(f"grad_out: expected a C-contiguous float64 ({n}, 6) array")
     if light.port is not None:
+        in_front = light.position_world(view)[2] > 0.0  # else it lights nothing
+        if in_front and wall.is_lambertian and dense_applies(footprints, medium, medium_grad_out):
+            # A dense selection: the straight twin's flux times the port's ratio, exact
+            # on a node grid (`lightcal.core.light_port_dense`).
+            def exact(
+                fp: Footprints, lit: Light, g: np.ndarray | None, g_c: np.ndarray | None
+            ) -> tuple[np.ndarray, np.ndarray | None]:
+                return light_flux(
+                    fp, view, lit, rid_subsamples=n_sub, want_grad=g is not None,
+                    grad_out=g, medium=medium, medium_grad_out=g_c,
+                )  # fmt: skip
+
+            return dense_port_flux(
+                footprints, view, light, exact, rid_subsamples=n_sub, want_grad=want_grad,
+                grad_out=grad, medium=medium, medium_grad_out=medium_grad_out,
+            )  # fmt: skip
         return port_light_flux(
             footprints, view, light, rid_subsamples=n_sub, want_grad=want_grad,
             grad_out=grad, wall=wall, medium=medium, medium_grad_out=medium_grad_out,
