@@ -104,7 +104,9 @@ def test_a_ported_light_behind_the_wall_lights_nothing(small_dense: None) -> Non
     assert not flux.any() and not grad.any() and not d_c.any()
 
 
-def test_a_noise_free_dense_solve_through_the_port(tmp_path: Path, small_dense: None) -> None:
+def test_a_noise_free_dense_solve_through_the_port(
+    tmp_path: Path, small_dense: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Every pixel of 8 noise-free views (160 x 120) rendered exactly through the port,
     the light started 40 mm and 4 degrees off and c at 0.1 /m: the ratio path brings the
     light back to a micrometre (the cubics' 1e-8) and c to 1e-6."""
@@ -121,12 +123,8 @@ def test_a_noise_free_dense_solve_through_the_port(tmp_path: Path, small_dense: 
 
     import lightcal.core.render as render
 
-    monkey = pytest.MonkeyPatch()
-    monkey.setattr(render, "dense_port_flux", counted)
-    try:
-        _, model, res = calibrate_project(load_project(path))
-    finally:
-        monkey.undo()
+    monkeypatch.setattr(render, "dense_port_flux", counted)
+    _, model, res = calibrate_project(load_project(path))
     assert calls and min(calls) >= 1_000
     x = np.array(res.x)
     est = model.layout.rig(x).lights[0]

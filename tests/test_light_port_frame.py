@@ -14,7 +14,7 @@ import pytest
 from lightcal.core.camera import Camera
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import pixel_footprints
-from lightcal.core.kernels.node_image import add_on_nodes, cubic_weights
+from lightcal.core.kernels.node_image import add_on_nodes, cubic_lines, cubic_weights
 from lightcal.core.medium import Medium
 from lightcal.core.port_footprints import port_footprints
 from lightcal.core.port_nodes import node_grid
@@ -188,7 +188,8 @@ def test_a_node_that_cannot_say_flags_its_stencils_pixels() -> None:
     redo = np.zeros((20, 20), dtype=np.bool_)
     rk, rw = cubic_weights(rows, 20)
     ck, cw = cubic_weights(cols, 20)
-    add_on_nodes(frame, ratio, np.zeros((0, 0)), rk, rw, ck, cw, total, redo)
+    lines = cubic_lines(np.stack([ratio, np.zeros((8, 8))], axis=2), rk, rw)
+    add_on_nodes(frame, lines, ck, cw, total, redo)
     uses = ((rk[:, None] <= 3) & (rk[:, None] + 3 >= 3)) & ((ck[None, :] <= 5) & (ck + 3 >= 5))
     np.testing.assert_array_equal(redo, uses)
     np.testing.assert_allclose(total[~redo], 2.0, rtol=1e-14)

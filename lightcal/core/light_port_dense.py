@@ -8,14 +8,15 @@ is instead, as for whole frames (`lightcal.core.light_port_frame`), the straight
 
     r = Phi_port / Phi_twin,
 
-exact on a node grid over the image (every s-th row and column, `light_port_frame.
-node_grid`) and the cubic through the four nearest nodes a side between them. The
+exact on a node grid over the image (every s-th row and column, `port_nodes.node_grid`)
+and the cubic through the four nearest nodes a side between them. The
 gradients are those of this model, exactly: d(Phi_twin R) = R dPhi_twin + Phi_twin dR,
 dR the same cubics of the nodes' dr = (dPhi_port - r dPhi_twin) / Phi_twin, for the
 light's position and rotation and the medium's c (the cubics' weights depend on the
-pixel, not on the pose). A node that cannot say (`light_port_frame`: invalid, the twin
+pixel, not on the pose). A node that cannot say (invalid, the twin
 too dark, unlit through the port, or the cubic's error bound above 1e-6 of the value)
-sends the pixels whose stencil holds it to the exact path.
+sends the pixels whose stencil holds it to the exact path (`port_nodes.node_ratio`,
+`rough_nodes`).
 
 Not here (the exact path): a whole image (`render.render_image`, what `lightcal synth`
 renders with, keeps every pixel exact; frames take `light_port_frame`), a medium that
@@ -32,7 +33,7 @@ import numba
 import numpy as np
 
 from lightcal.core.footprint import Footprints
-from lightcal.core.kernels.node_image import cubic_weights
+from lightcal.core.kernels.node_image import along_row, cubic_lines, cubic_weights
 from lightcal.core.medium import Medium
 from lightcal.core.port_nodes import node_grid, node_ratio, rough_nodes
 from lightcal.core.scene import Light, View
@@ -70,7 +71,6 @@ def dense_port_flux(
     light: Light,
     exact: ExactFlux,
     *,
-    rid_subsamples: int,
     want_grad: bool,
     grad_out: np.ndarray | None,
     medium: Medium,
@@ -115,10 +115,10 @@ def dense_port_flux(
     redo = np.zeros(len(footprints), dtype=np.bool_)
     no_c = np.zeros((0, 1))
     at_nodes = np.concatenate([ratio.reshape(-1, 1), d_ratio], axis=1)
+    lines = cubic_lines(at_nodes.reshape(len(rows), len(cols), -1), *cubic_weights(rows, shape[0]))
     apply_ratio(
-        np.ascontiguousarray(footprints.pixels, dtype=np.int64), footprints.valid,
-        *cubic_weights(rows, shape[0]), *cubic_weights(cols, shape[1]),
-        at_nodes.reshape(len(rows), len(cols), -1), flux,
+        np.ascontiguousarray(footprints.pixels, dtype=np.int64), footprints.valid, lines,
+        *cubic_weights(cols, shape[1]), flux,
         grad if grad is not None else np.zeros((0, 6)),
         medium_grad_out if (want_grad and medium_grad_out is not None) else no_c, redo,
     )  # fmt: skip
@@ -146,34 +146,20 @@ def dense_port_flux(
 def apply_ratio(
     pixels: np.ndarray,
     valid: np.ndarray,
-    row_first: np.ndarray,
-    row_weights: np.ndarray,
+    lines: np.ndarray,
     col_first: np.ndarray,
     col_weights: np.ndarray,
-    at_nodes: np.ndarray,
     flux: np.ndarray,
     grad: np.ndarray,
     d_c: np.ndarray,
     redo: np.ndarray,
 ) -> None:
-    """Per valid pixel (u, v): R and dR the cubics through `at_nodes` (m, n, 1 + k): the
-    nodes' ratio, then its derivatives (k = 0 without gradients, 6, or 7 with d/dc);
-    grad <- R grad + flux dR[:6], d_c <- R d_c + flux dR[6], flux <- R flux, in place;
-    redo set where a node of the pixel's stencil is not finite (outputs left). The cubic
-    along the columns first, once per image row (H, n, 1 + k), then along the row."""
-    h = row_first.shape[0]
-    n_cols, q = at_nodes.shape[1], at_nodes.shape[2]
-    lines = np.empty((h, n_cols, q))
-    for v in numba.prange(h):
-        r0 = row_first[v]
-        for c in range(n_cols):
-            for j in range(q):
-                lines[v, c, j] = (
-                    row_weights[v, 0] * at_nodes[r0, c, j]
-                    + row_weights[v, 1] * at_nodes[r0 + 1, c, j]
-                    + row_weights[v, 2] * at_nodes[r0 + 2, c, j]
-                    + row_weights[v, 3] * at_nodes[r0 + 3, c, j]
-                )  # fmt: skip
+    """Per valid pixel (u, v): R and dR the cubics through the nodes' ratio, then its
+    derivatives (`lines` (H, n, 1 + k): their `cubic_lines`; k = 0 without gradients, 6,
+    or 7 with d/dc); grad <- R grad + flux dR[:6], d_c <- R d_c + flux dR[6], flux <- R
+    flux, in place; redo set where a node of the pixel's stencil is not finite (outputs
+    left)."""
+    q = lines.shape[2]
     n = pixels.shape[0]
     n_chunks = min(n, 64)
     for ch in numba.prange(n_chunks):
@@ -182,15 +168,10 @@ def apply_ratio(
             if not valid[i]:
                 continue
             u, v = pixels[i, 0], pixels[i, 1]
-            c0 = col_first[u]
-            w0, w1 = col_weights[u, 0], col_weights[u, 1]
-            w2, w3 = col_weights[u, 2], col_weights[u, 3]
+            c0, wx = col_first[u], col_weights[u]
             finite = True
             for j in range(q):
-                acc[j] = (
-                    w0 * lines[v, c0, j] + w1 * lines[v, c0 + 1, j]
-                    + w2 * lines[v, c0 + 2, j] + w3 * lines[v, c0 + 3, j]
-                )  # fmt: skip
+                acc[j] = along_row(lines, v, c0, wx, j)
                 finite = finite and math.isfinite(acc[j])
             if not finite:
                 redo[i] = True

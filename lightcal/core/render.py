@@ -156,8 +156,8 @@ def light_flux(
                 )  # fmt: skip
 
             return dense_port_flux(
-                footprints, view, light, exact, rid_subsamples=n_sub, want_grad=want_grad,
-                grad_out=grad, medium=medium, medium_grad_out=medium_grad_out,
+                footprints, view, light, exact, want_grad=want_grad, grad_out=grad,
+                medium=medium, medium_grad_out=medium_grad_out,
             )  # fmt: skip
         return port_light_flux(
             footprints, view, light, rid_subsamples=n_sub, want_grad=want_grad,

@@ -1,5 +1,7 @@
-"""`add_on_nodes`: a whole image's smooth factors, known on a grid of nodes, applied to
-a frame in one parallel pass (`lightcal.core.light_port_frame`).
+"""Smooth factors known on a grid of nodes, between the nodes: `cubic_lines` and
+`along_row` (the tensor-product cubic in two passes), `add_on_nodes` (a whole frame
+scaled and added to: `lightcal.core.light_port_frame`; the dense selections' use is
+`light_port_dense.apply_ratio`).
 
 Between the nodes each factor is the cubic through the four nearest nodes in each
 direction (Lagrange, tensor product: `cubic_weights` per row and per column, shifted
@@ -34,76 +36,62 @@ def cubic_weights(nodes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]
     return k.astype(np.int64), weights
 
 
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def cubic_lines(at_nodes: np.ndarray, row_first: np.ndarray, row_weights: np.ndarray) -> np.ndarray:
+    """(H, n, q) the cubics through the nodes' values at_nodes (m, n, q) along the node
+    columns, at every image row: the first half of the tensor-product cubic
+    (`cubic_weights` of the node rows: row_first (H,), row_weights (H, 4))."""
+    h = row_first.shape[0]
+    n, q = at_nodes.shape[1], at_nodes.shape[2]
+    lines = np.empty((h, n, q))
+    for v in numba.prange(h):
+        r0 = row_first[v]
+        for c in range(n):
+            for j in range(q):
+                lines[v, c, j] = (
+                    row_weights[v, 0] * at_nodes[r0, c, j]
+                    + row_weights[v, 1] * at_nodes[r0 + 1, c, j]
+                    + row_weights[v, 2] * at_nodes[r0 + 2, c, j]
+                    + row_weights[v, 3] * at_nodes[r0 + 3, c, j]
+                )  # fmt: skip
+    return lines
+
+
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _dot4(weights: np.ndarray, values: np.ndarray, first: int) -> float:
-    """sum_a weights[a] values[first + a], a = 0..3."""
+def along_row(lines: np.ndarray, v: int, first: int, weights: np.ndarray, j: int) -> float:
+    """The second half: the cubic through lines[v, first..first + 3, j] with the
+    column's `cubic_weights` (4,)."""
     return (
-        weights[0] * values[first] + weights[1] * values[first + 1]
-        + weights[2] * values[first + 2] + weights[3] * values[first + 3]
+        weights[0] * lines[v, first, j] + weights[1] * lines[v, first + 1, j]
+        + weights[2] * lines[v, first + 2, j] + weights[3] * lines[v, first + 3, j]
     )  # fmt: skip
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def add_on_nodes(
     frame: np.ndarray,
-    ratio: np.ndarray,
-    extra: np.ndarray,
-    row_first: np.ndarray,
-    row_weights: np.ndarray,
+    lines: np.ndarray,
     col_first: np.ndarray,
     col_weights: np.ndarray,
     total: np.ndarray,
     redo: np.ndarray,
 ) -> None:
-    """total += frame x r + e per pixel, r and e the cubics through the nodes' `ratio`
-    and `extra` (the module's docstring); redo set (and total left) where one of a pixel's
-    nodes is not finite.
+    """total += frame x r + e per pixel, r and e the cubics through the nodes' ratio and
+    extra term (the module's docstring; `lines` (H, n, 2): their `cubic_lines`); redo set
+    (and total left) where one of a pixel's nodes is not finite.
 
     Args:
         frame: (H, W) the image the ratio scales (NaN where invalid: total becomes NaN).
-        ratio: (m, n) r at the nodes; extra: (m, n) e at the nodes, or (0, 0) for none.
-        row_first, row_weights: `cubic_weights` of the node rows (H,), (H, 4);
-        col_first, col_weights: of the node columns (W,), (W, 4).
+        lines: (H, n, 2) `cubic_lines` of the nodes' r and e (m, n, 2).
+        col_first, col_weights: `cubic_weights` of the node columns (W,), (W, 4).
         total: (H, W) added to in place; redo: (H, W) set where the nodes cannot say.
     """
     h, w = frame.shape
-    n = ratio.shape[1]
-    has_extra = extra.shape[0] > 0
     for y in numba.prange(h):
-        k = row_first[y]
-        wy0, wy1, wy2, wy3 = (
-            row_weights[y, 0],
-            row_weights[y, 1],
-            row_weights[y, 2],
-            row_weights[y, 3],
-        )
-        r_row = np.empty(n)
-        e_row = np.zeros(n)
-        for j in range(n):
-            r_row[j] = (
-                wy0 * ratio[k, j] + wy1 * ratio[k + 1, j]
-                + wy2 * ratio[k + 2, j] + wy3 * ratio[k + 3, j]
-            )  # fmt: skip
-            if has_extra:
-                e_row[j] = (
-                    wy0 * extra[k, j] + wy1 * extra[k + 1, j]
-                    + wy2 * extra[k + 2, j] + wy3 * extra[k + 3, j]
-                )  # fmt: skip
         for x in range(w):
-            c = col_first[x]
-            wx = col_weights[x]
-            r = (
-                wx[0] * r_row[c]
-                + wx[1] * r_row[c + 1]
-                + wx[2] * r_row[c + 2]
-                + wx[3] * r_row[c + 3]
-            )
-            e = (
-                wx[0] * e_row[c]
-                + wx[1] * e_row[c + 1]
-                + wx[2] * e_row[c + 2]
-                + wx[3] * e_row[c + 3]
-            )
+            c, wx = col_first[x], col_weights[x]
+            r = along_row(lines, y, c, wx, 0)
+            e = along_row(lines, y, c, wx, 1)
             if math.isfinite(r) and math.isfinite(e):
                 total[y, x] += frame[y, x] * r + e
             else:
