@@ -11,9 +11,13 @@ light's d 15 mm, t 8 mm (acrylic into sea water). Rows:
 - shade + gradients: `shade(want_grad=True)` of those N pixels as the solver calls it
   (footprints precomputed), in air, through the camera's port, with the light's port,
   and both;
+- footprints, dense: every pixel of the view's, straight (on the camera's corner grid)
+  and through the camera's port (read from its lattice, `camera_port_rays`; once per
+  solve);
 - shade + gradients, dense: every pixel of the view (footprints on the camera's corner
   grid, as a dense calibration has them), in air, with the light's port by the ratio
-  path (`lightcal.core.light_port_dense`) and by every pixel's exact path;
+  path (`lightcal.core.light_port_dense`) and by every pixel's exact path, and through
+  the camera's port;
 - full frame: `render_view_image` of the whole frame: the fused kernel in air
   (`kernels.image`) and through the camera's port (`kernels.port_image`, on the port's
   cached corner lattice); with the light's port, its straight twin's fused image times
@@ -48,7 +52,6 @@ if str(REPO) not in sys.path:
 
 from lightcal.core.camera import Camera  # noqa: E402
 from lightcal.core.flat_port import FlatPort  # noqa: E402
-from lightcal.core.footprint import pixel_footprints  # noqa: E402
 from lightcal.core.medium import Medium  # noqa: E402
 from lightcal.core.port_render import (  # noqa: E402
     render_image_per_pixel_through_port,
@@ -100,24 +103,37 @@ def _frame_rows(title: str, frames: list[tuple[str, Callable[[], object]]], repe
 
 
 def _dense_rows(camera: Camera, view: View, rigs: dict[str, Rig], repeats: int) -> None:
-    """shade + gradients of every pixel of the view (footprints on the camera's corner
-    grid, the dense calibrations' case): air, the light's port by the ratio path
-    (`light_port_dense`) and by every pixel's exact path."""
+    """Footprints of every pixel of the view (straight: on the camera's corner grid;
+    through the camera's port: read from its lattice), and shade + gradients of them (the
+    dense calibrations' case): air, the light's port by the ratio path
+    (`light_port_dense`) and by every pixel's exact path, the camera's port."""
     import lightcal.core.light_port_dense as dense
 
     v, u = np.mgrid[0 : camera.height, 0 : camera.width]
-    fp = pixel_footprints(camera, view, np.stack([u.ravel(), v.ravel()], axis=1))
-    n = len(fp)
+    pixels = np.stack([u.ravel(), v.ravel()], axis=1)
+    n = len(pixels)
+    made = {}
+    base = None
+    for label, port in (("straight", None), ("camera port", CAMERA_PORT)):
+        seconds = _best(
+            lambda port=port: wall_footprints(camera, view, pixels, mesh=None, port=port),
+            max(1, repeats // 2),
+        )
+        made[label] = wall_footprints(camera, view, pixels, mesh=None, port=port)
+        base = seconds if base is None else base
+        row = f"footprints, dense ({n} px): {label}"
+        print(f"{row:44s} {seconds:9.4f} {seconds / base:7.2f}")
     cases = [
-        ("air", rigs["air"], dense.DENSE_PIXELS),
-        ("light port", rigs["light port"], dense.DENSE_PIXELS),
-        ("light port, every pixel exact", rigs["light port"], n + 1),
+        ("air", made["straight"], rigs["air"], dense.DENSE_PIXELS),
+        ("light port", made["straight"], rigs["light port"], dense.DENSE_PIXELS),
+        ("light port, every pixel exact", made["straight"], rigs["light port"], n + 1),
+        ("camera port", made["camera port"], rigs["air"], dense.DENSE_PIXELS),
     ]
     base = None
-    for label, rig, threshold in cases:
+    for label, fp, rig, threshold in cases:
         dense.DENSE_PIXELS, saved = threshold, dense.DENSE_PIXELS
         seconds = _best(
-            lambda rig=rig: shade(fp, view, rig, want_grad=True, medium=WATER),
+            lambda fp=fp, rig=rig: shade(fp, view, rig, want_grad=True, medium=WATER),
             max(1, repeats // 2) if "exact" in label else repeats,
         )
         dense.DENSE_PIXELS = saved

@@ -15,7 +15,8 @@ scattering). r and v are smooth across the image: r holds the port's bending of 
 beam (the solid angles' ratio, the RID at the air direction against the straight one,
 the Fresnel transmittance, the water path from the port's exit against the one from the
 emitter), not the RID's own shape. Both are exact (`render.shade` of the node pixels'
-footprints) on the nodes of `port_nodes.node_grid` (every s-th row and column and the
+footprints through the light's port, over the twin frame's own value there, which is
+`shade`'s to round-off) on the nodes of `port_nodes.node_grid` (every s-th row and column and the
 last, s = min(H, W) // 48) and the tensor-product cubic between them
 (`kernels.node_image`). Where a node cannot say (outside the frame's footprints, the
 twin below 1e-9 of its brightest node, unlit through the port while its twin is lit, or
@@ -71,10 +72,10 @@ def render_frame_with_ported_lights(
     shape = (camera.height // b, camera.width // b)
     ported = [light for light in rig.lights if light.port is not None]
     plain = [light for light in rig.lights if light.port is None]
-    if plain:
-        total = np.ma.filled(frame(Rig(tuple(plain)), medium, offset), np.nan)
-    else:
-        total = np.full(shape, offset)
+    # The lights without a port, by the fused kernels; the first ported light's twin
+    # frame becomes the total when there are none.
+    total = _nan_filled(frame(Rig(tuple(plain)), medium, offset)) if plain else None
+    base = None if total is None else total.copy()  # what the redone pixels start from
     clear = Medium(medium.attenuation_per_m, 0.0, medium.phase_g)
     rows, cols = node_grid(shape)
     row_stencil, col_stencil = cubic_weights(rows, shape[0]), cubic_weights(cols, shape[1])
@@ -94,15 +95,15 @@ def render_frame_with_ported_lights(
         values = shade(fp, view, Rig.single(light), medium=at, **shading).values
         return np.ma.filled(values, np.nan)
 
-    base = total.copy()
     redo = np.zeros(shape, dtype=np.bool_)
     node_fp = footprints(nodes)
     for light in ported:
         twin = light.replace(port=None)
-        straight = np.ma.filled(frame(Rig.single(twin), clear, 0.0), np.nan)
-        v_port = exact(node_fp, light, clear)
-        ratio = node_ratio(v_port, exact(node_fp, twin, clear)).reshape(len(rows), len(cols))
-        v_port = v_port.reshape(ratio.shape)
+        straight = _nan_filled(frame(Rig.single(twin), clear, 0.0))
+        v_port = exact(node_fp, light, clear).reshape(len(rows), len(cols))
+        # The twin at the nodes is its frame's value there (the fused kernels' numbers
+        # are `shade`'s to round-off): the product is the port's exact value there.
+        ratio = node_ratio(v_port, straight[np.ix_(rows, cols)])
         ratio[rough_nodes(ratio, rows, cols, np.abs(ratio))] = np.nan
         veil = np.zeros(ratio.shape)  # none without scattering
         if medium.scatters:
@@ -110,16 +111,29 @@ def render_frame_with_ported_lights(
             veil = v_all - v_port
             veil[rough_nodes(veil, rows, cols, np.abs(v_all))] = np.nan
         at_nodes = np.stack([ratio, veil], axis=2)
+        first = total is None
+        total = straight if total is None else total  # the twin's frame, scaled in place
         with numba.parallel_chunksize(1):
             lines = cubic_lines(at_nodes, *row_stencil)
-            add_on_nodes(straight, lines, *col_stencil, total, redo)
+            add_on_nodes(straight, lines, *col_stencil, offset, not first, total, redo)
+    assert total is not None  # the rig has a ported light
     if redo.any():
         # The pixels the nodes cannot say: every ported light's exact shading.
         where = np.flatnonzero(redo.ravel())
         pixels = np.stack([where % shape[1], where // shape[1]], axis=1)
-        again = base.ravel()[where]
+        again = np.full(len(where), offset) if base is None else base.ravel()[where]
         fp = footprints(pixels)
         for light in ported:
             again += exact(fp, light, medium)
         total.ravel()[where] = again
-    return np.ma.masked_invalid(total, copy=False)
+    return np.ma.masked_array(total, mask=~np.isfinite(total), copy=False)
+
+
+def _nan_filled(image: np.ma.MaskedArray) -> np.ndarray:
+    """The image's values with NaN where masked: its own data when they hold NaN there
+    already (the fused kernels write NaN at invalid pixels), else a filled copy."""
+    data = np.ma.getdata(image)
+    mask = np.ma.getmask(image)
+    if mask is np.ma.nomask or not mask.any() or np.isnan(data[mask]).all():
+        return data
+    return np.ma.filled(image, np.nan)

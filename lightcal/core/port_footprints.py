@@ -31,8 +31,16 @@ planar model's (docs/model.md, "The camera's flat port"):
   (`lightcal.core.wall_mesh.apply_wall_on_mesh`, which on the plane gives the planar
   kernel's numbers).
 
-Not here: a wall mesh behind a port (refused by `wall_footprints`), the corner grid of
-dense selections (the quads are always kept: 96 bytes a quad), and the light's port.
+The corners' rays: a sparse selection undistorts and traces its own corners; a dense one
+(corners at least `GRID_MIN_CORNER_SHARE` of the camera's), or any selection once the
+camera's port lattice is cached, reads them from that lattice (`camera_port_rays`: every
+pixel corner traced once per camera and port, the whole image's fused kernel's too) and
+moves them to the view. The two agree to round-off (the corner grid's undistortion,
+`lightcal.core.corner_grid`).
+
+Not here: a wall mesh behind a port (refused by `wall_footprints`), footprints that do
+not keep their quads (a dense selection's are kept: 96 bytes a quad), and the light's
+port.
 """
 
 from __future__ import annotations
@@ -47,6 +55,7 @@ from lightcal.core.camera import Camera
 from lightcal.core.corner_grid import GRID_CACHE
 from lightcal.core.flat_port import FlatPort
 from lightcal.core.footprint import (
+    GRID_MIN_CORNER_SHARE,
     MAX_QUADS_PER_SIDE,
     Footprints,
     SensorModel,
@@ -54,6 +63,7 @@ from lightcal.core.footprint import (
     quad_corner_means,
 )
 from lightcal.core.fresnel import port_transmittance
+from lightcal.core.kernels.port_corners import lattice_on_wall
 from lightcal.core.scene import View
 
 
@@ -129,18 +139,50 @@ def port_footprints(
     offs = np.arange(b + 1)
     rows = p[:, 1, None, None] * b + offs[None, :, None]
     cols = p[:, 0, None, None] * b + offs[None, None, :]
-    keys = (rows * (camera.width + 1) + cols).ravel().astype(np.int64)
-    unique, inverse = np.unique(keys, return_inverse=True)
-    corner_px = np.stack(
-        [unique % (camera.width + 1) - 0.5, unique // (camera.width + 1) - 0.5], axis=1
-    ).astype(np.float64)
-    origins, directions, xy, ok = port_rays_world(camera, view, port, corner_px)
-    points, hit = wall_hits(origins, directions, ok)
-    lattice = points[inverse].reshape(n, b + 1, b + 1, 3)
-    exits = origins[inverse].reshape(n, b + 1, b + 1, 3)
-    lattice_xy = xy[inverse].reshape(n, b + 1, b + 1, 2)
-    valid = np.asarray(hit[inverse].reshape(n, -1).all(axis=1), dtype=np.bool_)
-    return _assembled(p, b, s, lattice, exits, lattice_xy, valid, sensor, vmap, port)
+    rays = _port_rays_for(camera, port, rows.size)
+    fresnel = None
+    if rays is None:  # a sparse selection: its own corners, undistorted and traced
+        keys = (rows * (camera.width + 1) + cols).ravel().astype(np.int64)
+        unique, inverse = np.unique(keys, return_inverse=True)
+        corner_px = np.stack(
+            [unique % (camera.width + 1) - 0.5, unique // (camera.width + 1) - 0.5], axis=1
+        ).astype(np.float64)
+        origins, directions, xy, ok = port_rays_world(camera, view, port, corner_px)
+        points, hit = wall_hits(origins, directions, ok)
+        shape = (n, b + 1, b + 1)
+        lattice = points[inverse].reshape(*shape, 3)
+        exits = origins[inverse].reshape(*shape, 3)
+        lattice_xy = xy[inverse].reshape(*shape, 2)
+        corner_hit = hit[inverse].reshape(shape)
+    else:  # the camera's lattice, traced once (`camera_port_rays`), moved to the view
+        exits_c, dirs_c, grid_xy, grid_ok, fresnel_image = rays
+        members = np.arange(b)
+        fresnel = fresnel_image[
+            p[:, 1, None, None] * b + members[None, :, None],
+            p[:, 0, None, None] * b + members[None, None, :],
+        ]
+        exits, lattice, lattice_xy, corner_hit = lattice_on_wall(
+            exits_c, dirs_c, grid_ok, grid_xy, view.R_camera_world, view.center_world,
+            rows, cols,
+        )  # fmt: skip
+    valid = np.asarray(corner_hit.reshape(n, -1).all(axis=1), dtype=np.bool_)
+    return _assembled(p, b, s, lattice, exits, lattice_xy, valid, sensor, vmap, port, fresnel)
+
+
+def _port_rays_for(
+    camera: Camera, port: FlatPort, n_corners: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """The camera's port lattice (`camera_port_rays`) when reading a selection's corners
+    from it pays: it is cached, or the selection's corners number at least
+    `GRID_MIN_CORNER_SHARE` of its (H+1)(W+1) (as `footprint`'s corner grid); else None
+    (the selection traces its own corners)."""
+    with _RAYS_LOCK:
+        cached = _RAYS.get(_rays_key(camera, port))
+    if cached is not None:
+        return cached  # type: ignore[return-value]
+    if n_corners >= GRID_MIN_CORNER_SHARE * (camera.height + 1) * (camera.width + 1):
+        return camera_port_rays(camera, port)
+    return None
 
 
 def _assembled(
@@ -214,35 +256,16 @@ def image_footprints_through_port(
     binning: int = 1,
 ) -> Footprints:
     """`port_footprints` of every super-pixel of the image, row by row (exact quads:
-    b per side), from the camera's corner lattice traced through the port once per
-    (camera, port) (`camera_port_rays`, cached) and moved to the view: the same numbers to
-    round-off (the corner grid's undistortion, `lightcal.core.corner_grid`), without
-    tracing each corner once per view and per pixel sharing it."""
+    b per side): read from the camera's lattice traced through the port once per
+    (camera, port) (`camera_port_rays`, cached), moved to the view."""
     if sensor == "paper":
         return port_footprints(camera, view, np.zeros((0, 2), np.int64), port, sensor=sensor)
     hb, wb = camera.height // int(binning), camera.width // int(binning)
     v, u = np.mgrid[0:hb, 0:wb]
     pixels = np.stack([u.ravel(), v.ravel()], axis=1)
-    b, p, vmap, s = checked_selection(camera, pixels, sensor, vignetting, binning, None)
-    exits_c, dirs_c, grid_xy, grid_ok, fresnel = camera_port_rays(camera, port)
-    R, C = view.R_camera_world, view.center_world
-    # einsum: numpy's (M, 3) @ (3, 3) goes through BLAS and is ~10x slower here.
-    exits_w = np.einsum("...j,jk->...k", exits_c, R) + C
-    dirs_w = np.einsum("...j,jk->...k", dirs_c, R)
-    points, hit = wall_hits(exits_w.reshape(-1, 3), dirs_w.reshape(-1, 3), grid_ok.ravel())
-    points = points.reshape(exits_c.shape)
-    hit = hit.reshape(grid_ok.shape)
-    offs = np.arange(b + 1)
-    rows = p[:, 1, None, None] * b + offs[None, :, None]
-    cols = p[:, 0, None, None] * b + offs[None, None, :]
-    lattice = points[rows, cols]
-    valid = np.asarray(hit[rows, cols].reshape(len(p), -1).all(axis=1), dtype=np.bool_)
-    members = np.arange(b)
-    member_rows = p[:, 1, None, None] * b + members[None, :, None]
-    member_cols = p[:, 0, None, None] * b + members[None, None, :]
-    whole = _assembled(
-        p, b, s, lattice, exits_w[rows, cols], grid_xy[rows, cols], valid, sensor, vmap, port,
-        fresnel[member_rows, member_cols],
+    whole = port_footprints(
+        camera, view, pixels, port, sensor=sensor, vignetting=vignetting, binning=binning,
+        max_quads_per_side=None,
     )  # fmt: skip
     return replace(whole, image_shape=(hb, wb))  # a ported light's veil on a node grid
 
@@ -264,11 +287,7 @@ def camera_port_rays(
     and ok (H+1, W+1), and every pixel's `fresnel_factors` (H, W); the last
     `_RAYS_KEPT` (camera, port) pairs cached, up to `_RAYS_MAX_CORNERS` corners. The
     whole image's footprints here and its fused kernel (`kernels.port_image`) share them."""
-    key = (
-        GRID_CACHE.key(camera),
-        (port.distance_m, port.thickness_m, port.glass_index, port.water_index,
-         port.air_index, *port.normal_camera),
-    )  # fmt: skip
+    key = _rays_key(camera, port)
     with _RAYS_LOCK:
         cached = _RAYS.get(key)
         if cached is not None:
@@ -288,6 +307,15 @@ def camera_port_rays(
         while len(_RAYS) > _RAYS_KEPT:
             _RAYS.popitem(last=False)
     return value
+
+
+def _rays_key(camera: Camera, port: FlatPort) -> tuple[bytes, tuple[float, ...]]:
+    """`camera_port_rays`' cache key: what the camera's grid depends on, and the port."""
+    return (
+        GRID_CACHE.key(camera),
+        (port.distance_m, port.thickness_m, port.glass_index, port.water_index,
+         port.air_index, *port.normal_camera),
+    )  # fmt: skip
 
 
 def port_transmittance_image(camera: Camera, port: FlatPort) -> np.ndarray:

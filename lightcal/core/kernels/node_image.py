@@ -73,26 +73,50 @@ def add_on_nodes(
     lines: np.ndarray,
     col_first: np.ndarray,
     col_weights: np.ndarray,
+    base: float,
+    accumulate: bool,
     total: np.ndarray,
     redo: np.ndarray,
 ) -> None:
-    """total += frame x r + e per pixel, r and e the cubics through the nodes' ratio and
-    extra term (the module's docstring; `lines` (H, n, 2): their `cubic_lines`); redo set
-    (and total left) where one of a pixel's nodes is not finite.
+    """total = (total if accumulate else base) + frame x r + e per pixel, r and e the
+    cubics through the nodes' ratio and extra term (the module's docstring; `lines`
+    (H, n, 2): their `cubic_lines`); redo set where one of a pixel's nodes is not finite
+    (and total there set to base, or left when accumulating).
 
     Args:
-        frame: (H, W) the image the ratio scales (NaN where invalid: total becomes NaN).
+        frame: (H, W) the image the ratio scales (NaN where invalid: total becomes NaN);
+            it may be `total` itself when not accumulating.
         lines: (H, n, 2) `cubic_lines` of the nodes' r and e (m, n, 2).
         col_first, col_weights: `cubic_weights` of the node columns (W,), (W, 4).
-        total: (H, W) added to in place; redo: (H, W) set where the nodes cannot say.
+        base: what total starts from when not accumulating.
+        total: (H, W) written or added to in place; redo: (H, W) set where the nodes
+            cannot say.
     """
     h, w = frame.shape
     for y in numba.prange(h):
         for x in range(w):
-            c, wx = col_first[x], col_weights[x]
-            r = along_row(lines, y, c, wx, 0)
-            e = along_row(lines, y, c, wx, 1)
+            c = col_first[x]
+            w0, w1, w2, w3 = (
+                col_weights[x, 0],
+                col_weights[x, 1],
+                col_weights[x, 2],
+                col_weights[x, 3],
+            )
+            r = (
+                w0 * lines[y, c, 0]
+                + w1 * lines[y, c + 1, 0]
+                + w2 * lines[y, c + 2, 0]
+                + w3 * lines[y, c + 3, 0]
+            )
+            e = (
+                w0 * lines[y, c, 1]
+                + w1 * lines[y, c + 1, 1]
+                + w2 * lines[y, c + 2, 1]
+                + w3 * lines[y, c + 3, 1]
+            )
+            start = total[y, x] if accumulate else base
             if math.isfinite(r) and math.isfinite(e):
-                total[y, x] += frame[y, x] * r + e
+                total[y, x] = start + (frame[y, x] * r + e)
             else:
+                total[y, x] = start
                 redo[y, x] = True

@@ -102,6 +102,14 @@ def add_centre_sums(
 ) -> None:
     """centres (5, wb) += the sums of the wall points (x, y) and exit points (x, y, z) of
     the corners of a row of pixels' quads, per super-pixel (top corners t, bottom b)."""
+    if b == 1:  # the same sums, in loops the compiler vectorises
+        for c in range(wb):
+            centres[0, c] += tpx[c] + tpx[c + 1] + bpx[c + 1] + bpx[c]
+            centres[1, c] += tpy[c] + tpy[c + 1] + bpy[c + 1] + bpy[c]
+        for k in range(3):
+            for c in range(wb):
+                centres[2 + k, c] += tex[k, c] + tex[k, c + 1] + (bex[k, c + 1] + bex[k, c])
+        return
     for c in range(wb):
         for ii in range(b):
             u = c * b + ii
@@ -357,7 +365,16 @@ def render_image_port_fused(
                 sensor_row(sensor, grid_xy, vignetting, v, tpx, tpy, bpx, bpy, view, bb, v_row)
                 for u in range(w):
                     ok_row[u] = tok[u] & tok[u + 1] & bok[u + 1] & bok[u]
-                for c in range(wb):
+                if b == 1:  # the same sums, in loops the compiler vectorises
+                    for u in range(w):
+                        sp_ok[u] = ok_row[u]
+                        sp_area[u] = quad_area(
+                            tpx[u], tpy[u], tpx[u + 1], tpy[u + 1],
+                            bpx[u + 1], bpy[u + 1], bpx[u], bpy[u],
+                        )  # fmt: skip
+                        sp_v[u] = v_row[u] * fresnel[v, u]
+                        sp_t[u] = fresnel[v, u]
+                for c in range(wb if b > 1 else 0):
                     for ii in range(b):
                         u = c * b + ii
                         sp_ok[c] &= ok_row[u]
@@ -384,9 +401,12 @@ def render_image_port_fused(
                         lw, R_world_lights[li], light_rid(rids, li), n_sub, 1.0,
                         ok_row, om_row, f_rows, bad_row, q, gdummy, acc_row,
                     )  # fmt: skip
-                    for c in range(wb):
-                        for ii in range(b):
-                            sp_phi[li, c] += acc_row[c * b + ii]
+                    if b == 1:
+                        sp_phi[li, :] = acc_row
+                    else:
+                        for c in range(wb):
+                            for ii in range(b):
+                                sp_phi[li, c] += acc_row[c * b + ii]
                 top = bot
             # The super-pixels of row r: weight, B and T per light, the veil, the value.
             if beta > 0.0:
