@@ -187,7 +187,7 @@ def apply_medium(
     Args:
         centers_world: (N, 3) footprint centres; light_world, camera_world: (3,), m.
             camera_world (N, 3): behind the camera's flat port, where each pixel's ray
-            leaves the port (`Footprints.camera_side`): T only (`_apply_through_port`).
+            leaves the port (`Footprints.camera_side`).
         R_world_light: (3, 3) and rid: the light's orientation and RID (the backscatter's).
         medium: the medium.
         flux: (N,) the light's flux (exposure included).
@@ -204,18 +204,14 @@ def apply_medium(
     """
     n = flux.shape[0]
     want = grad is not None and d_medium_out is not None
-    if np.ndim(camera_world) == 2:  # behind a flat port: each ray from its exit point
-        _apply_through_port(
-            centers_world, light_world, camera_world, medium, flux, grad, extra_grads,
-            d_medium_out if want else None,
-        )  # fmt: skip
-    elif medium.attenuation_per_m > 0.0 or want:
+    if medium.attenuation_per_m > 0.0 or want:
+        # camera_world (N, 3) behind a flat port: each ray from its exit point.
         t = np.empty(n)
         dc = np.empty(n) if want else _NO_DC
         mk.apply_attenuation(
             np.ascontiguousarray(centers_world, dtype=np.float64),
             np.ascontiguousarray(light_world, dtype=np.float64),
-            np.ascontiguousarray(camera_world, dtype=np.float64),
+            camera_world,
             medium.attenuation_per_m,
             flux,
             grad if grad is not None else _NO_GRAD,
@@ -260,40 +256,6 @@ def apply_medium(
                 d_medium_out[:, 1] = exposure * s
             if d_medium_out.shape[1] > 2:
                 d_medium_out[:, 2] = k * ds[:, 7]
-
-
-def _apply_through_port(
-    centers_world: np.ndarray,
-    light_world: np.ndarray,
-    exits_world: np.ndarray,
-    medium: Medium,
-    flux: np.ndarray,
-    grad: np.ndarray | None,
-    extra_grads: np.ndarray | None,
-    d_medium_out: np.ndarray | None,
-) -> None:
-    """`apply_medium`'s attenuation behind the camera's flat port: flux (N,) *= T =
-    exp(-c (|P - L| + |P - X_p|)), X_p (N, 3) `exits_world` where each pixel's ray leaves
-    the port, with the chain rule of the kernel (`kernels.medium.apply_attenuation`):
-    d(flux T)/dL = T dflux/dL - c flux T (L - P) / |L - P|, d/d delta scaled by T, d/dc =
-    -(|P - L| + |P - X_p|) flux T. Invalid footprints (NaN) keep their flux and
-    gradients. (The backscatter along the refracted rays, from X_p to P, is
-    `apply_medium`'s.)"""
-    to_light = light_world - centers_world
-    d_light = np.linalg.norm(to_light, axis=1)
-    path = d_light + np.linalg.norm(exits_world - centers_world, axis=1)
-    ok = np.isfinite(path)
-    t = np.where(ok, np.exp(-medium.attenuation_per_m * np.where(ok, path, 0.0)), 1.0)
-    flux *= t
-    if grad is not None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            k = np.where(ok & (d_light > 0.0), medium.attenuation_per_m * flux / d_light, 0.0)
-        grad[:, :3] = t[:, None] * grad[:, :3] - k[:, None] * np.where(ok[:, None], to_light, 0.0)
-        grad[:, 3:] *= t[:, None]
-    if extra_grads is not None and extra_grads.size:
-        extra_grads *= t[:, None]
-    if d_medium_out is not None:
-        d_medium_out[:, 0] = np.where(ok, -np.where(ok, path, 0.0) * flux, 0.0)
 
 
 def backscatter(

@@ -40,9 +40,10 @@ def _apply_range(
     d(flux T)/dL = T dflux/dL - c flux T (L - P) / |L - P|, d(flux T)/d delta =
     T dflux/d delta, and out_dc = d(flux T)/dc = -(|P - L| + |P - C|) flux T. out_t (N,)
     receives T (1 where the point is not finite: an invalid footprint, left as it is).
-    out_dc of length 0: not wanted."""
+    out_dc of length 0: not wanted. camera: (1, 3) the camera centre C, or (N, 3) each
+    point's own (behind the camera's flat port: where its ray leaves the port)."""
     lx, ly, lz = light[0], light[1], light[2]
-    cx, cy, cz = camera[0], camera[1], camera[2]
+    each = camera.shape[0] > 1
     want_dc = want_grad and out_dc.shape[0] > 0
     for i in range(i0, i1):
         px = points[i, 0]
@@ -52,9 +53,10 @@ def _apply_range(
         ay = ly - py
         az = lz - pz
         d_light = math.sqrt(ax * ax + ay * ay + az * az)
-        bx = cx - px
-        by = cy - py
-        bz = cz - pz
+        j = i if each else 0
+        bx = camera[j, 0] - px
+        by = camera[j, 1] - py
+        bz = camera[j, 2] - pz
         d_camera = math.sqrt(bx * bx + by * by + bz * bz)
         if not (math.isfinite(d_light) and math.isfinite(d_camera)):
             # An invalid footprint (NaN centre): its flux and gradients stay 0.
@@ -138,7 +140,9 @@ def apply_attenuation(
     """Multiply one light's flux by T at the footprint centres, gradients chained, in place.
 
     Args:
-        points_world: (N, 3) footprint centres; light_world, camera_world: (3,), m.
+        points_world: (N, 3) footprint centres; light_world: (3,), m.
+        camera_world: (3,) the camera centre, or (N, 3) where each pixel's ray leaves
+            the camera's flat port (T = exp(-c (|P - L| + |P - X_p|))), m.
         attenuation_per_m: c, 1/m.
         flux: (N,) the light's flux, multiplied in place.
         grad: (N, 6) d flux / d (L_world, delta_world), chained in place (want_grad).
@@ -149,7 +153,7 @@ def apply_attenuation(
     kernel(
         points_world,
         light_world,
-        camera_world,
+        np.ascontiguousarray(camera_world, dtype=np.float64).reshape(-1, 3),
         float(attenuation_per_m),
         flux,
         grad,
