@@ -305,3 +305,37 @@ def test_a_lattice_too_large_to_keep_gives_the_same_image(monkeypatch) -> None:
     traced = render_image_through_port(camera, view, rig, PORT, medium=Medium(0.2))
     np.testing.assert_array_equal(traced, kept)
     assert not pf._RAYS
+
+
+@pytest.mark.parametrize("binning", [1, 2])
+def test_a_selection_read_from_the_cached_lattice_is_the_traced_one(binning: int) -> None:
+    """Once the camera's port lattice is cached (or for a dense selection) the corners
+    are read from it, not traced: the same footprints to round-off (the corner grid's
+    undistortion), the same valid pixels, on a grazing view where the top rows miss the
+    wall."""
+    from lightcal.core import port_footprints as pf
+
+    camera = _camera()
+    view = View.looking_at(np.array([0.1, -1.2, 0.35]), np.array([0.0, 0.6, 0.0]))
+    pixels = _all_pixels(camera)
+    pixels = pixels[(pixels[:, 0] < 40 // binning) & (pixels[:, 1] < 30 // binning)][::9]
+    pf._RAYS.clear()
+    traced = port_footprints(camera, view, pixels, PORT, sensor="cos4", binning=binning)
+    assert not pf._RAYS  # a sparse selection traces its own corners
+    pf.camera_port_rays(camera, PORT)
+    read = port_footprints(camera, view, pixels, PORT, sensor="cos4", binning=binning)
+    assert 0 < read.valid.sum() < len(pixels)
+    np.testing.assert_array_equal(read.valid, traced.valid)
+    ok = read.valid
+    for a, b in (
+        (read.corners_world, traced.corners_world),
+        (read.port_exits_world, traced.port_exits_world),
+        (read.weights, traced.weights),
+        (read.port_transmittance, traced.port_transmittance),
+    ):
+        np.testing.assert_allclose(a[ok], b[ok], rtol=1e-12, atol=1e-15)
+        assert np.all(np.isnan(a[~ok]) | (a[~ok] == 0.0))
+    # A dense selection builds the lattice itself.
+    pf._RAYS.clear()
+    port_footprints(camera, view, _all_pixels(camera), PORT)
+    assert len(pf._RAYS) == 1

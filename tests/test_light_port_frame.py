@@ -200,3 +200,21 @@ def test_a_node_that_cannot_say_flags_its_stencils_pixels() -> None:
     np.testing.assert_array_equal(again, uses)
     np.testing.assert_allclose(frame[~again], 2.5, rtol=1e-14)
     assert (frame[again] == 0.5).all()
+
+
+@pytest.mark.parametrize("with_plain", [False, True], ids=["ported only", "and a plain light"])
+def test_two_ported_lights_add_up_beside_nodes_that_cannot_say(with_plain: bool) -> None:
+    """Two lights behind their ports (the first's twin frame scaled in place, the
+    second's added), with and without a light without a port, on the oblique view: the
+    redone pixels hold every light's exact value and the offset once."""
+    camera = _camera(384, 288, f=128.0)
+    ported, plain = _rig().lights
+    lights = (ported, plain.replace(port=LIGHT_PORT)) + ((plain,) if with_plain else ())
+    rig = Rig(lights)
+    options = {"medium": Medium(0.2), "offset": 0.05}
+    fast = render_view_image(camera, OBLIQUE, rig, **options)  # type: ignore[arg-type]
+    exact = _exact(camera, OBLIQUE, rig, None, **options)
+    mask = np.ma.getmaskarray(exact)
+    np.testing.assert_array_equal(np.ma.getmaskarray(fast), mask)
+    assert mask.any() and not mask.all()
+    np.testing.assert_allclose(fast.data[~mask], exact.data[~mask], rtol=3e-6, atol=0.0)
