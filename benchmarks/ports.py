@@ -197,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
             )),
             ("light port, per pixel", partial(render_image, camera, view, lit, medium=medium)),
         ]  # fmt: skip
-        _frame_rows(title, [*frames, *per_pixel], max(1, repeats // 2))
+        _frame_rows(title, [*frames, *per_pixel], repeats)
     return 0
 
 

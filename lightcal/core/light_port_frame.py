@@ -105,12 +105,12 @@ def render_frame_with_ported_lights(
         # are `shade`'s to round-off): the product is the port's exact value there.
         ratio = node_ratio(v_port, straight[np.ix_(rows, cols)])
         ratio[rough_nodes(ratio, rows, cols, np.abs(ratio))] = np.nan
-        veil = np.zeros(ratio.shape)  # none without scattering
+        at_nodes = ratio[:, :, None]  # no veil without scattering
         if medium.scatters:
             v_all = exact(node_fp, light, medium).reshape(ratio.shape)
             veil = v_all - v_port
             veil[rough_nodes(veil, rows, cols, np.abs(v_all))] = np.nan
-        at_nodes = np.stack([ratio, veil], axis=2)
+            at_nodes = np.stack([ratio, veil], axis=2)
         first = total is None
         total = straight if total is None else total  # the twin's frame, scaled in place
         with numba.parallel_chunksize(1):

@@ -79,20 +79,22 @@ def add_on_nodes(
     redo: np.ndarray,
 ) -> None:
     """total = (total if accumulate else base) + frame x r + e per pixel, r and e the
-    cubics through the nodes' ratio and extra term (the module's docstring; `lines`
-    (H, n, 2): their `cubic_lines`); redo set where one of a pixel's nodes is not finite
-    (and total there set to base, or left when accumulating).
+    cubics through the nodes' ratio and extra term (the module's docstring; `lines`:
+    their `cubic_lines`); redo set where one of a pixel's nodes is not finite (and
+    total there set to base, or left when accumulating).
 
     Args:
         frame: (H, W) the image the ratio scales (NaN where invalid: total becomes NaN);
             it may be `total` itself when not accumulating.
-        lines: (H, n, 2) `cubic_lines` of the nodes' r and e (m, n, 2).
+        lines: (H, n, 2) `cubic_lines` of the nodes' r and e (m, n, 2), or (H, n, 1) of
+            r alone.
         col_first, col_weights: `cubic_weights` of the node columns (W,), (W, 4).
         base: what total starts from when not accumulating.
         total: (H, W) written or added to in place; redo: (H, W) set where the nodes
             cannot say.
     """
     h, w = frame.shape
+    extra = lines.shape[2] > 1
     for y in numba.prange(h):
         for x in range(w):
             c = col_first[x]
@@ -108,12 +110,14 @@ def add_on_nodes(
                 + w2 * lines[y, c + 2, 0]
                 + w3 * lines[y, c + 3, 0]
             )
-            e = (
-                w0 * lines[y, c, 1]
-                + w1 * lines[y, c + 1, 1]
-                + w2 * lines[y, c + 2, 1]
-                + w3 * lines[y, c + 3, 1]
-            )
+            e = 0.0
+            if extra:
+                e = (
+                    w0 * lines[y, c, 1]
+                    + w1 * lines[y, c + 1, 1]
+                    + w2 * lines[y, c + 2, 1]
+                    + w3 * lines[y, c + 3, 1]
+                )
             start = total[y, x] if accumulate else base
             if math.isfinite(r) and math.isfinite(e):
                 total[y, x] = start + (frame[y, x] * r + e)
