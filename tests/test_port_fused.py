@@ -19,6 +19,7 @@ from lightcal.core.port_render import (
     render_image_through_port,
     render_view_image,
 )
+from lightcal.core.render import render_image
 from lightcal.core.rid import CosPowerRID, GaussianRID, IsotropicRID
 from lightcal.core.scene import Light, Rig, View
 from lightcal.core.wall import LAMBERTIAN, OrenNayarWall, PlasticWall, WallReflectance
@@ -125,7 +126,7 @@ def test_a_non_lambertian_wall_sees_from_the_exit_points(
 @pytest.mark.parametrize("port", [PORT, TILTED], ids=["port", "tilted, no glass"])
 def test_corners_that_miss_the_wall_mask_their_pixels(binning: int, port: FlatPort) -> None:
     """A wide camera looking obliquely: its lower rows see above the horizon. The light
-    behind the wall (in this view) lights nothing, but its veil is added as by `shade`."""
+    behind the wall (in this view) lights nothing, its veil included, as by `shade`."""
     camera = _camera(48, 36, f=16.0)
     for medium in (AIR, Medium(0.2, 0.4, 0.5)):
         fused, oracle = _both(
@@ -144,9 +145,14 @@ def test_rid_subsamples_and_a_lone_light_behind_the_wall() -> None:
     _compare(fused, oracle)
     behind = Rig((_rig(3).lights[2],))
     assert behind.lights[0].position_world(VIEW)[2] < 0.0
-    fused, oracle = _both(camera, VIEW, behind, PORT, offset=0.5)
-    _compare(fused, oracle)
-    np.testing.assert_array_equal(fused.compressed(), 0.5)  # it lights nothing
+    for medium in (AIR, Medium(0.2, 0.4, 0.5)):
+        fused, oracle = _both(camera, VIEW, behind, PORT, offset=0.5, medium=medium)
+        _compare(fused, oracle)
+        # It lights nothing, the water in front of the wall included (no veil), as in air.
+        np.testing.assert_array_equal(fused.compressed(), 0.5)
+        np.testing.assert_array_equal(oracle.compressed(), 0.5)
+        air = render_image(camera, VIEW, behind, offset=0.5, medium=medium)
+        np.testing.assert_array_equal(air.compressed(), 0.5)
 
 
 def test_a_light_behind_its_own_port_takes_the_per_pixel_path() -> None:

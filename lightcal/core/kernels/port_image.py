@@ -277,7 +277,7 @@ def render_image_port_fused(
             SENSOR_MAP, else (1, 1).
         binning: b, super-pixel side in pixels.
         lights_world: (L, 3) emitter positions, world frame, m; a light with z <= 0
-            lights nothing (its veil is added all the same, as `render.shade` does).
+            lights nothing, its veil included (as `render.shade` and air's image).
         R_world_lights: (L, 3, 3) light orientations; light_scales: (L,) scales.
         rids: the lights' RIDs (`stack_rid_data`); n_sub: RID sub-sampling per side.
         exposure: the view's gain; offset: added to every valid value.
@@ -429,7 +429,7 @@ def render_image_port_fused(
                         )  # fmt: skip
                     for c in range(wb):
                         total[c] += scale * factor[c]
-                if beta > 0.0:
+                if beta > 0.0 and lw[2] > 0.0:  # behind the wall: no veil either
                     k_veil = scale * beta / bb
                     j = 0
                     for c in range(wb):
