@@ -80,10 +80,16 @@ def test_wall_auto_chosen_in_the_page_gives_the_cli_answer(
     display = app.state.display
     assert display is not None and display.wall.name == "plastic"
     # The plots, for a person to look at: the axis as roll and pitch, labels unclipped.
+    # One page at a time: each new page is sent the converged scene and its overlays,
+    # and under a loaded CI a new page's tab did not settle while the first was open
+    # (a click timed out after 120 s once).
+    page.context.close()
     for size in ((1280, 800), (1920, 1080)):
         view, _ = open_page(browser, app, size=size)
+        assert app.wait_idle(SLOW_S)
         view.get_by_role("tab", name="Solve").click()
         view.get_by_text("light axis: roll and pitch (deg)").wait_for()
         view.mouse.move(size[0] - 150, size[1] // 2)  # over the panel
         view.mouse.wheel(0, 3000)
         shot(view, f"app_solve_plots_{size[0]}x{size[1]}.png")
+        view.context.close()
