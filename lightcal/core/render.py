@@ -164,11 +164,11 @@ def light_flux(
             grad_out=grad, wall=wall, medium=medium, medium_grad_out=medium_grad_out,
         )  # fmt: skip
     L_world, R_world_light = light_in_view(light, view)
-    on_mesh = footprints.normals_world is not None
-    # On the plane z = 0 (through the camera's port too) a light on or behind the wall
-    # lights nothing: not the wall, nor the water in front of it (no veil).
-    on_plane = not on_mesh or footprints.port_exits_world is not None
-    if on_plane and L_world[2] <= 0.0:
+    # Footprints through the camera's port carry normals (+z, for a glossy wall's B from
+    # their exit points) but lie on the plane z = 0 like the others. There a light on or
+    # behind the wall lights nothing: not the wall, nor the water in front of it.
+    on_mesh = footprints.normals_world is not None and footprints.port_exits_world is None
+    if not on_mesh and L_world[2] <= 0.0:
         if grad is not None:
             grad.fill(0.0)
         if wall_grad_out is not None:

@@ -284,15 +284,9 @@ def light_behind_mesh(
     footprint's plane on a wall mesh (the other side from the camera:
     `Footprints.normals_world`)."""
     assert footprints.normals_world is not None
-    if footprints.port_exits_world is not None:
-        # Through the camera's flat port: on the plane z = 0, normals +z (NaN where
-        # invalid), so n . (L - P) is L_z at every valid footprint.
-        dark = ~footprints.valid if L_world[2] > 0.0 else np.ones(flux.shape, dtype=np.bool_)
-    else:
-        with np.errstate(invalid="ignore"):
-            to_light = L_world - footprints.centers_world
-            facing = np.einsum("ij,ij->i", footprints.normals_world, to_light)
-        dark = ~(facing > 0.0)
+    with np.errstate(invalid="ignore"):
+        facing = np.einsum("ij,ij->i", footprints.normals_world, L_world - footprints.centers_world)
+    dark = ~(facing > 0.0)
     flux[dark] = 0.0
     if grad is not None:
         grad[dark] = 0.0
